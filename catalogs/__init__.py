@@ -1,0 +1,10 @@
+"""The catalog contract: a versioned DuckDB schema, a write API for pipelines and a read API for the simulator.
+
+`catalogs.reader` imports only duckdb and numpy, so `sim` can read a catalog without heavy dependencies.
+"""
+
+from catalogs.schema import SCHEMA_VERSION, CatalogError
+
+DEFAULT_CATALOG = "catalogs/default.duckdb"
+
+__all__ = ["SCHEMA_VERSION", "CatalogError", "DEFAULT_CATALOG"]

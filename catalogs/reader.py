@@ -1,0 +1,147 @@
+"""Read API of the catalog for the simulator and the scene generator; imports only duckdb and numpy.
+
+The asset table is loaded into memory once (arrays), so sampling thousands of objects per scene costs
+microseconds rather than one SQL round trip each.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import duckdb
+import numpy as np
+
+from catalogs.records import AssetRecord
+from catalogs.schema import ASSET_COLUMNS, SCHEMA_VERSION, CatalogError
+
+
+def open_catalog(path: str | Path) -> duckdb.DuckDBPyConnection:
+    """Open a catalog read-only after checking it exists and has this curbside's schema version."""
+    p = Path(path)
+    if not p.exists():
+        raise CatalogError(
+            f"no catalog at {p}; build it with `curbside catalog build --catalog {p}`"
+        )
+    try:
+        con = duckdb.connect(str(p), read_only=True)
+        meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
+    except duckdb.Error as e:
+        raise CatalogError(f"{p} is not a readable curbside catalog ({e}); rebuild it with `curbside catalog build`") from e
+    version = int(meta.get("schema_version", -1))
+    if version != SCHEMA_VERSION:
+        con.close()
+        raise CatalogError(
+            f"catalog {p} has schema version {version}, this curbside reads version {SCHEMA_VERSION}; "
+            f"rebuild it with `curbside catalog build --catalog {p}`"
+        )
+    return con
+
+
+@dataclass(frozen=True)
+class AssetTable:
+    """Column arrays of the assets table, sorted by asset_id for deterministic sampling."""
+
+    asset_id: np.ndarray
+    category: np.ndarray
+    object_class: np.ndarray
+    zones: list[frozenset[str]]
+    size: np.ndarray  # (n, 3): depth, width, height in metres
+
+    def __len__(self) -> int:
+        return len(self.asset_id)
+
+
+class CatalogReader:
+    """Read-only view of a catalog: categories, sampling by category/zone/size, and file resolution."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.root = self.path.parent
+        con = open_catalog(self.path)
+        try:
+            self.meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
+            cols = ", ".join(ASSET_COLUMNS)
+            rows = con.execute(f"SELECT {cols} FROM assets ORDER BY asset_id").fetchall()
+        finally:
+            con.close()
+        self._records: dict[str, AssetRecord] = {}
+        for row in rows:
+            d = dict(zip(ASSET_COLUMNS, row))
+            d["params"] = json.loads(d["params"]) if d["params"] else {}
+            d["zones"] = list(d["zones"])
+            d["synonyms"] = list(d["synonyms"])
+            self._records[d["asset_id"]] = AssetRecord(**d)
+        recs = list(self._records.values())
+        self.table = AssetTable(
+            asset_id=np.array([r.asset_id for r in recs], dtype=object),
+            category=np.array([r.category for r in recs], dtype=object),
+            object_class=np.array([r.object_class for r in recs], dtype=object),
+            zones=[frozenset(r.zones) for r in recs],
+            size=np.array([r.size for r in recs], dtype=np.float64).reshape(-1, 3),
+        )
+        self._by_category: dict[str, np.ndarray] = {}
+        for i, c in enumerate(self.table.category):
+            self._by_category.setdefault(c, [])  # type: ignore[arg-type]
+            self._by_category[c].append(i)  # type: ignore[union-attr]
+        self._by_category = {c: np.asarray(ix, dtype=np.int64) for c, ix in self._by_category.items()}
+
+    def __len__(self) -> int:
+        return len(self.table)
+
+    def categories(self) -> dict[str, int]:
+        """Number of assets per category, sorted by category name."""
+        return {c: len(ix) for c, ix in sorted(self._by_category.items())}
+
+    def get(self, asset_id: str) -> AssetRecord:
+        """Return one asset by id, or raise KeyError naming it."""
+        try:
+            return self._records[asset_id]
+        except KeyError:
+            raise KeyError(f"asset {asset_id!r} is not in catalog {self.path}") from None
+
+    def candidates(
+        self,
+        category: str,
+        *,
+        zone: str | None = None,
+        max_depth: float | None = None,
+        max_width: float | None = None,
+        max_height: float | None = None,
+    ) -> np.ndarray:
+        """Indices (into `table`) of the assets of `category` that fit the zone and the size limits."""
+        ix = self._by_category.get(category)
+        if ix is None or len(ix) == 0:
+            return np.empty(0, dtype=np.int64)
+        keep = np.ones(len(ix), dtype=bool)
+        size = self.table.size[ix]
+        for axis, limit in enumerate((max_depth, max_width, max_height)):
+            if limit is not None:
+                keep &= size[:, axis] <= limit
+        if zone is not None:
+            keep &= np.array([zone in self.table.zones[i] for i in ix], dtype=bool)
+        return ix[keep]
+
+    def sample(
+        self,
+        rng: np.random.Generator,
+        category: str,
+        *,
+        zone: str | None = None,
+        max_depth: float | None = None,
+        max_width: float | None = None,
+        max_height: float | None = None,
+    ) -> AssetRecord | None:
+        """Draw one asset of `category` that fits, uniformly with `rng`; None when nothing fits."""
+        ix = self.candidates(category, zone=zone, max_depth=max_depth, max_width=max_width, max_height=max_height)
+        if len(ix) == 0:
+            return None
+        return self._records[self.table.asset_id[ix[int(rng.integers(len(ix)))]]]
+
+    def resolve(self, relative: str | None) -> Path | None:
+        """Absolute path of a file recorded relative to the catalog's directory (None stays None)."""
+        if relative is None:
+            return None
+        p = Path(relative)
+        return p if p.is_absolute() else self.root / p

@@ -1,0 +1,213 @@
+"""Write API of the catalog: idempotent upserts in transactions, and atomic builds (temporary file, then rename)."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import asdict
+from pathlib import Path
+
+import duckdb
+import numpy as np
+import pyarrow as pa
+
+from catalogs.records import AssetRecord, DescriptionRecord, MatchRecord, RejectionRecord, ViewRecord
+from catalogs.schema import ASSET_COLUMNS, DEFAULT_EMBEDDING_DIM, SCHEMA_VERSION, CatalogError, ddl
+
+DEFAULT_EMBEDDING_MODEL = "all-MiniLM-L6-v2"
+
+
+def asset_root(catalog_path: str | Path) -> Path:
+    """Directory that holds the files (meshes, views) of the catalog at `catalog_path`."""
+    p = Path(catalog_path)
+    return p.parent / f"{p.stem}_assets"
+
+
+class CatalogWriter:
+    """Read-write handle on a catalog; every upsert runs in one transaction and replaces rows by primary key."""
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        embedding_dim: int = DEFAULT_EMBEDDING_DIM,
+        embedding_model: str = DEFAULT_EMBEDDING_MODEL,
+    ) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.con = duckdb.connect(str(self.path))
+        self._init_schema(embedding_dim, embedding_model)
+
+    def _init_schema(self, embedding_dim: int, embedding_model: str) -> None:
+        existing = {r[0] for r in self.con.execute("SELECT table_name FROM information_schema.tables").fetchall()}
+        if "meta" in existing:
+            meta = dict(self.con.execute("SELECT key, value FROM meta").fetchall())
+            if int(meta.get("schema_version", -1)) != SCHEMA_VERSION:
+                raise CatalogError(
+                    f"catalog {self.path} has schema version {meta.get('schema_version')}, this curbside writes "
+                    f"version {SCHEMA_VERSION}; rebuild it with `curbside catalog build --catalog {self.path}`"
+                )
+            self.embedding_dim = int(meta["embedding_dim"])
+            self.embedding_model = meta["embedding_model"]
+            return
+        with self.transaction():
+            for stmt in ddl(embedding_dim):
+                self.con.execute(stmt)
+            self._set_meta({
+                "schema_version": str(SCHEMA_VERSION),
+                "embedding_dim": str(embedding_dim),
+                "embedding_model": embedding_model,
+            })
+        self.embedding_dim = embedding_dim
+        self.embedding_model = embedding_model
+
+    def _set_meta(self, items: dict[str, str]) -> None:
+        for k, v in items.items():
+            self.con.execute("DELETE FROM meta WHERE key = ?", [k])
+            self.con.execute("INSERT INTO meta VALUES (?, ?)", [k, v])
+
+    def set_meta(self, items: dict[str, str]) -> None:
+        """Set free-form metadata entries (e.g. the build parameters)."""
+        with self.transaction():
+            self._set_meta(items)
+
+    @contextmanager
+    def transaction(self) -> Iterator[duckdb.DuckDBPyConnection]:
+        """Run a block in one transaction: all of it lands, or none of it."""
+        self.con.execute("BEGIN TRANSACTION")
+        try:
+            yield self.con
+        except BaseException:
+            self.con.execute("ROLLBACK")
+            raise
+        self.con.execute("COMMIT")
+
+    def _replace(self, table: str, keys: Sequence[str], rows: list[dict], columns: Sequence[str]) -> int:
+        """Delete rows whose key matches, then insert: an upsert that works for LIST and JSON columns."""
+        if not rows:
+            return 0
+        data = {c: [r[c] for r in rows] for c in columns}
+        batch = pa.table(data)
+        self.con.register("_batch", batch)
+        try:
+            with self.transaction():
+                cond = " AND ".join(f"{table}.{k} = _batch.{k}" for k in keys)
+                self.con.execute(f"DELETE FROM {table} WHERE EXISTS (SELECT 1 FROM _batch WHERE {cond})")
+                cols = ", ".join(columns)
+                self.con.execute(f"INSERT INTO {table} ({cols}) SELECT {cols} FROM _batch")
+        finally:
+            self.con.unregister("_batch")
+        return len(rows)
+
+    def upsert_assets(self, records: Iterable[AssetRecord]) -> int:
+        """Insert or replace assets by asset_id; returns the number written."""
+        rows = []
+        for r in records:
+            row = r.to_row()
+            row["params"] = json.dumps(row["params"], sort_keys=True)
+            rows.append(row)
+        return self._replace("assets", ["asset_id"], rows, ASSET_COLUMNS)
+
+    def upsert_views(self, records: Iterable[ViewRecord]) -> int:
+        """Insert or replace rendered views by (asset_id, view_index)."""
+        rows = [asdict(r) for r in records]
+        cols = list(ViewRecord.__dataclass_fields__)
+        return self._replace("views", ["asset_id", "view_index"], rows, cols)
+
+    def upsert_descriptions(self, records: Iterable[DescriptionRecord]) -> int:
+        """Insert or replace description-pool entries by description_id."""
+        rows = []
+        for r in records:
+            row = asdict(r)
+            row["country_counts"] = json.dumps(row["country_counts"], sort_keys=True)
+            rows.append(row)
+        cols = list(DescriptionRecord.__dataclass_fields__)
+        return self._replace("descriptions", ["description_id"], rows, cols)
+
+    def upsert_matches(self, records: Iterable[MatchRecord]) -> int:
+        """Insert or replace asset-description matches by (asset_id, description_id)."""
+        rows = [asdict(r) for r in records]
+        cols = list(MatchRecord.__dataclass_fields__)
+        return self._replace("matches", ["asset_id", "description_id"], rows, cols)
+
+    def record_rejections(self, records: Iterable[RejectionRecord]) -> int:
+        """Record (or update) why assets were refused, keyed by (source, source_id, stage)."""
+        rows = [asdict(r) for r in records]
+        cols = list(RejectionRecord.__dataclass_fields__)
+        return self._replace("rejections", ["source", "source_id", "stage"], rows, cols)
+
+    def upsert_embeddings(self, owner_kind: str, owner_ids: Sequence[str], vectors: np.ndarray, model: str | None = None) -> int:
+        """Insert or replace embedding vectors (rows of `vectors`, L2-normalised here) for the given owners."""
+        vectors = np.asarray(vectors, dtype=np.float32)
+        if vectors.ndim != 2 or vectors.shape[1] != self.embedding_dim:
+            raise CatalogError(f"embeddings must have shape (n, {self.embedding_dim}), got {vectors.shape}")
+        if len(owner_ids) != len(vectors):
+            raise CatalogError(f"{len(owner_ids)} owner ids for {len(vectors)} vectors")
+        if not np.isfinite(vectors).all():
+            raise CatalogError("embedding vectors contain NaN or inf")
+        norms = np.linalg.norm(vectors, axis=1, keepdims=True)
+        vectors = vectors / np.maximum(norms, 1e-12)
+        model = model or self.embedding_model
+        n = len(owner_ids)
+        if n == 0:
+            return 0
+        vec = pa.FixedSizeListArray.from_arrays(pa.array(vectors.reshape(-1)), self.embedding_dim)
+        batch = pa.table({
+            "owner_kind": [owner_kind] * n,
+            "owner_id": list(owner_ids),
+            "model": [model] * n,
+            "vector": vec,
+        })
+        self.con.register("_batch", batch)
+        try:
+            with self.transaction():
+                self.con.execute(
+                    "DELETE FROM embeddings WHERE EXISTS (SELECT 1 FROM _batch b WHERE embeddings.owner_kind = b.owner_kind"
+                    " AND embeddings.owner_id = b.owner_id AND embeddings.model = b.model)"
+                )
+                self.con.execute(
+                    f"INSERT INTO embeddings SELECT owner_kind, owner_id, model, vector::FLOAT[{self.embedding_dim}] FROM _batch"
+                )
+        finally:
+            self.con.unregister("_batch")
+        return n
+
+    def close(self) -> None:
+        """Checkpoint and close the connection."""
+        try:
+            self.con.execute("CHECKPOINT")
+        finally:
+            self.con.close()
+
+    def __enter__(self) -> CatalogWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@contextmanager
+def build_catalog(
+    path: str | Path,
+    *,
+    embedding_dim: int = DEFAULT_EMBEDDING_DIM,
+    embedding_model: str = DEFAULT_EMBEDDING_MODEL,
+) -> Iterator[CatalogWriter]:
+    """Build a new catalog at `path` atomically: write a temporary file and rename it only on success."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    for stale in (tmp, Path(str(tmp) + ".wal")):
+        stale.unlink(missing_ok=True)
+    writer = CatalogWriter(tmp, embedding_dim=embedding_dim, embedding_model=embedding_model)
+    try:
+        yield writer
+        writer.close()
+    except BaseException:
+        writer.con.close()
+        tmp.unlink(missing_ok=True)
+        Path(str(tmp) + ".wal").unlink(missing_ok=True)
+        raise
+    Path(str(path) + ".wal").unlink(missing_ok=True)
+    os.replace(tmp, path)

@@ -1,0 +1,1 @@
+"""The `curbside` command line: one typer app with a subcommand group per subsystem."""

@@ -1,0 +1,37 @@
+"""Entry point of the `curbside` command; each subsystem adds its own group module (heavy imports stay inside commands)."""
+
+from __future__ import annotations
+
+import typer
+
+from curbside import __version__
+from curbside.cli import catalog, pool, scenes, sim
+
+app = typer.Typer(
+    name="curbside",
+    help="curbside: urban micromobility research platform: data pipelines, asset catalog, scenes, simulator.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_show_locals=False,
+)
+app.add_typer(catalog.app, name="catalog")
+app.add_typer(scenes.app, name="scenes")
+app.add_typer(sim.app, name="sim")
+app.add_typer(pool.app, name="pool")
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"curbside {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version and exit."),
+) -> None:
+    """curbside: urban micromobility research platform."""
+
+
+if __name__ == "__main__":
+    app()

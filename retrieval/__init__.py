@@ -1,0 +1,1 @@
+"""Asset retrieval: sources, normalisation, multi-view rendering, encoders, scoring and curation into the catalog."""
