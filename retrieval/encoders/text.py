@@ -44,7 +44,8 @@ class TextEncoder:
         self.name = DEFAULT_TEXT_MODEL if self.path == default_model_path() else Path(self.path).name
         self.batch_size = batch_size
         self.model = _load(self.path)
-        self.dim = int(self.model.get_sentence_embedding_dimension())
+        get_dim = getattr(self.model, "get_embedding_dimension", None) or self.model.get_sentence_embedding_dimension
+        self.dim = int(get_dim())
 
     def encode(self, texts: list[str], show_progress: bool = False) -> np.ndarray:
         """Embed `texts` into an (n, dim) float32 array of unit vectors."""
