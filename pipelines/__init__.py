@@ -1,0 +1,1 @@
+"""Staged data pipelines (DVC): closed-set lists, OpenStreetMap, street images -> description pool and distributions."""
