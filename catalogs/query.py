@@ -27,6 +27,24 @@ class QueryFilters:
 RESULT_COLUMNS = ("asset_id", "category", "object_class", "source", "license", "depth", "width", "height", "description", "score")
 
 
+def _asset_filters(filters: QueryFilters) -> tuple[list[str], dict[str, object]]:
+    """SQL conditions on `assets a` and their bound parameters; values never enter the SQL text."""
+    where: list[str] = []
+    params: dict[str, object] = {}
+    for column in ("category", "object_class", "source", "license"):
+        value = getattr(filters, column)
+        if value is not None:
+            where.append(f"a.{column} = ${column}")
+            params[column] = str(value)
+    if filters.zone is not None:
+        where.append("list_contains(a.zones, $zone)")
+        params["zone"] = str(filters.zone)
+    if filters.max_height is not None:
+        where.append("a.height <= $max_height")
+        params["max_height"] = float(filters.max_height)
+    return where, params
+
+
 def search(
     con: duckdb.DuckDBPyConnection,
     query_vector: np.ndarray,
@@ -37,39 +55,45 @@ def search(
 ) -> list[dict]:
     """Return up to `limit` assets ranked by cosine similarity of their text embedding to `query_vector`."""
     filters = filters or QueryFilters()
+    if int(limit) < 1:
+        raise ValueError(f"limit must be at least 1, got {limit}")
     meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
     dim = int(meta["embedding_dim"])
     model = model or meta["embedding_model"]
     vec = np.asarray(query_vector, dtype=np.float32).reshape(-1)
     if vec.shape[0] != dim:
         raise ValueError(f"query vector has {vec.shape[0]} dimensions, the catalog's embeddings have {dim}")
-    where = ["e.owner_kind = 'asset_text'", "e.model = $model"]
-    params: dict[str, object] = {"model": model, "q": vec.tolist(), "limit": int(limit)}
-    if filters.category is not None:
-        where.append("a.category = $category")
-        params["category"] = filters.category
-    if filters.object_class is not None:
-        where.append("a.object_class = $object_class")
-        params["object_class"] = filters.object_class
-    if filters.zone is not None:
-        where.append("list_contains(a.zones, $zone)")
-        params["zone"] = filters.zone
-    if filters.max_height is not None:
-        where.append("a.height <= $max_height")
-        params["max_height"] = float(filters.max_height)
-    if filters.source is not None:
-        where.append("a.source = $source")
-        params["source"] = filters.source
-    if filters.license is not None:
-        where.append("a.license = $license")
-        params["license"] = filters.license
-    sql = f"""
-        SELECT a.asset_id, a.category, a.object_class, a.source, a.license, a.depth, a.width, a.height,
-               a.description, array_cosine_similarity(e.vector, $q::FLOAT[{dim}]) AS score
-        FROM embeddings e JOIN assets a ON a.asset_id = e.owner_id
-        WHERE {' AND '.join(where)}
-        ORDER BY score DESC, a.asset_id
-        LIMIT $limit
-    """
+    norm = float(np.linalg.norm(vec))
+    if not np.isfinite(norm) or norm == 0.0:
+        raise ValueError("query vector is zero or not finite; embed a non-empty text")
+    # Stored vectors are unit length (CatalogWriter.upsert_embeddings), so the inner product with the unit
+    # query vector is the cosine similarity, without recomputing 100k norms per query.
+    vec = vec / norm
+    where, params = _asset_filters(filters)
+    params.update({"model": model, "q": vec.tolist(), "limit": int(limit)})
+    score = f"array_inner_product(e.vector, $q::FLOAT[{dim}])"
+    columns = ", ".join(f"a.{c}" for c in RESULT_COLUMNS if c != "score")
+    if where:
+        # Selective filters first: the join computes similarities only for the assets that pass.
+        sql = f"""
+            SELECT {columns}, {score} AS score
+            FROM embeddings e JOIN assets a ON a.asset_id = e.owner_id
+            WHERE e.owner_kind = 'asset_text' AND e.model = $model AND {' AND '.join(where)}
+            ORDER BY score DESC, a.asset_id
+            LIMIT $limit
+        """
+    else:
+        # No filter: rank the embeddings alone (a top-k scan), then fetch the few winning asset rows.
+        sql = f"""
+            WITH top AS (
+                SELECT e.owner_id, {score} AS score FROM embeddings e
+                WHERE e.owner_kind = 'asset_text' AND e.model = $model
+                ORDER BY score DESC, e.owner_id
+                LIMIT $limit
+            )
+            SELECT {columns}, top.score AS score
+            FROM top JOIN assets a ON a.asset_id = top.owner_id
+            ORDER BY score DESC, a.asset_id
+        """
     rows = con.execute(sql, params).fetchall()
     return [dict(zip(RESULT_COLUMNS, r)) for r in rows]

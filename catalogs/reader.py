@@ -24,12 +24,22 @@ def open_catalog(path: str | Path) -> duckdb.DuckDBPyConnection:
         raise CatalogError(
             f"no catalog at {p}; build it with `curbside catalog build --catalog {p}`"
         )
+    if p.is_dir():
+        raise CatalogError(f"{p} is a directory, not a catalog file; pass the .duckdb file to --catalog")
+    con = None
     try:
         con = duckdb.connect(str(p), read_only=True)
         meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
     except duckdb.Error as e:
-        raise CatalogError(f"{p} is not a readable curbside catalog ({e}); rebuild it with `curbside catalog build`") from e
-    version = int(meta.get("schema_version", -1))
+        if con is not None:
+            con.close()
+        raise CatalogError(
+            f"{p} is not a readable curbside catalog ({e}); rebuild it with `curbside catalog build --catalog {p}`"
+        ) from e
+    try:
+        version = int(meta.get("schema_version", -1))
+    except ValueError:
+        version = -1
     if version != SCHEMA_VERSION:
         con.close()
         raise CatalogError(

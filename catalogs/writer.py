@@ -14,7 +14,15 @@ import numpy as np
 import pyarrow as pa
 
 from catalogs.records import AssetRecord, DescriptionRecord, MatchRecord, RejectionRecord, ViewRecord
-from catalogs.schema import ASSET_COLUMNS, DEFAULT_EMBEDDING_DIM, SCHEMA_VERSION, CatalogError, ddl
+from catalogs.schema import (
+    ASSET_COLUMNS,
+    DEFAULT_EMBEDDING_DIM,
+    OBJECT_CLASSES,
+    SCHEMA_VERSION,
+    ZONES,
+    CatalogError,
+    ddl,
+)
 
 DEFAULT_EMBEDDING_MODEL = "all-MiniLM-L6-v2"
 
@@ -23,6 +31,23 @@ def asset_root(catalog_path: str | Path) -> Path:
     """Directory that holds the files (meshes, views) of the catalog at `catalog_path`."""
     p = Path(catalog_path)
     return p.parent / f"{p.stem}_assets"
+
+
+def check_asset(record: AssetRecord) -> None:
+    """Raise CatalogError naming the field when an asset record breaks the schema's conventions."""
+    where = f"asset {record.asset_id!r}"
+    if not record.asset_id:
+        raise CatalogError("an asset record has an empty asset_id; give every asset a unique id")
+    if record.object_class not in OBJECT_CLASSES:
+        raise CatalogError(f"{where}: object_class {record.object_class!r} is not one of {', '.join(OBJECT_CLASSES)}")
+    bad_zones = [z for z in record.zones if z not in ZONES]
+    if bad_zones:
+        raise CatalogError(f"{where}: unknown zone(s) {bad_zones}; valid zones are {', '.join(ZONES)}")
+    for name, value in zip(("depth", "width", "height"), record.size):
+        if not (np.isfinite(value) and value > 0):
+            raise CatalogError(f"{where}: {name} must be a positive number of metres, got {value!r}")
+    if record.mass is not None and not (np.isfinite(record.mass) and record.mass > 0):
+        raise CatalogError(f"{where}: mass must be a positive number of kilograms or None, got {record.mass!r}")
 
 
 class CatalogWriter:
@@ -37,8 +62,16 @@ class CatalogWriter:
     ) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.con = duckdb.connect(str(self.path))
-        self._init_schema(embedding_dim, embedding_model)
+        self._depth = 0  # nesting level of transaction(); only the outermost one begins and commits
+        try:
+            self.con = duckdb.connect(str(self.path))
+        except duckdb.Error as e:
+            raise CatalogError(f"cannot open {self.path} for writing ({e}); close other programs that hold it") from e
+        try:
+            self._init_schema(embedding_dim, embedding_model)
+        except BaseException:
+            self.con.close()
+            raise
 
     def _init_schema(self, embedding_dim: int, embedding_model: str) -> None:
         existing = {r[0] for r in self.con.execute("SELECT table_name FROM information_schema.tables").fetchall()}
@@ -75,19 +108,40 @@ class CatalogWriter:
 
     @contextmanager
     def transaction(self) -> Iterator[duckdb.DuckDBPyConnection]:
-        """Run a block in one transaction: all of it lands, or none of it."""
+        """Run a block in one transaction: all of it lands, or none of it (nested blocks join the outer one)."""
+        if self._depth > 0:
+            # DuckDB has no savepoints: an inner block joins the outer transaction, and an error in it
+            # propagates so the outermost block rolls everything back.
+            self._depth += 1
+            try:
+                yield self.con
+            finally:
+                self._depth -= 1
+            return
         self.con.execute("BEGIN TRANSACTION")
+        self._depth = 1
         try:
             yield self.con
         except BaseException:
+            self._depth = 0
             self.con.execute("ROLLBACK")
             raise
+        self._depth = 0
         self.con.execute("COMMIT")
 
     def _replace(self, table: str, keys: Sequence[str], rows: list[dict], columns: Sequence[str]) -> int:
         """Delete rows whose key matches, then insert: an upsert that works for LIST and JSON columns."""
         if not rows:
             return 0
+        seen: set[tuple] = set()
+        for r in rows:
+            key = tuple(r[k] for k in keys)
+            if key in seen:
+                raise CatalogError(
+                    f"{table}: the batch holds {dict(zip(keys, key))} twice; give each row a unique key "
+                    f"({', '.join(keys)}) or write the two rows in separate calls"
+                )
+            seen.add(key)
         data = {c: [r[c] for r in rows] for c in columns}
         batch = pa.table(data)
         self.con.register("_batch", batch)
@@ -105,6 +159,7 @@ class CatalogWriter:
         """Insert or replace assets by asset_id; returns the number written."""
         rows = []
         for r in records:
+            check_asset(r)
             row = r.to_row()
             row["params"] = json.dumps(row["params"], sort_keys=True)
             rows.append(row)
@@ -153,6 +208,8 @@ class CatalogWriter:
         n = len(owner_ids)
         if n == 0:
             return 0
+        if len(set(owner_ids)) != n:
+            raise CatalogError(f"embeddings: duplicate owner ids in one batch ({owner_kind}); pass each owner once")
         vec = pa.FixedSizeListArray.from_arrays(pa.array(vectors.reshape(-1)), self.embedding_dim)
         batch = pa.table({
             "owner_kind": [owner_kind] * n,
@@ -197,8 +254,11 @@ def build_catalog(
 ) -> Iterator[CatalogWriter]:
     """Build a new catalog at `path` atomically: write a temporary file and rename it only on success."""
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    for stale in (tmp, Path(str(tmp) + ".wal")):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # One temporary name per process, so parallel builds (pytest-xdist workers) never share a file.
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp_wal = Path(str(tmp) + ".wal")
+    for stale in (tmp, tmp_wal):
         stale.unlink(missing_ok=True)
     writer = CatalogWriter(tmp, embedding_dim=embedding_dim, embedding_model=embedding_model)
     try:
@@ -207,7 +267,8 @@ def build_catalog(
     except BaseException:
         writer.con.close()
         tmp.unlink(missing_ok=True)
-        Path(str(tmp) + ".wal").unlink(missing_ok=True)
+        tmp_wal.unlink(missing_ok=True)
         raise
+    # A WAL left by an older catalog at `path` would be replayed onto the new file: drop it first.
     Path(str(path) + ".wal").unlink(missing_ok=True)
     os.replace(tmp, path)

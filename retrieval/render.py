@@ -1,0 +1,137 @@
+"""Multi-view rendering on CPU with PyBullet's TinyRenderer, informative-view selection and contact sheets.
+
+Informative-view criterion (docs/retrieval.md): score = coverage x edge_entropy, where coverage is the fraction
+of pixels covered by the object and edge_entropy is the normalised Shannon entropy of the gradient-orientation
+histogram (8 bins, magnitude-weighted) over the object's pixels. Views that show a large silhouette with edges
+in many directions (a bench seen three-quarter) beat thin or edge-on views (a bench seen end-on).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+MAX_VIEWS = 20
+
+
+@dataclass(frozen=True)
+class ViewSpec:
+    """Camera placement of one view: azimuth from +x (front) counter-clockwise, elevation above the horizon, degrees."""
+
+    azimuth: float
+    elevation: float
+
+
+def view_specs(n_views: int = 8, elevations: tuple[float, float] = (15.0, 40.0)) -> list[ViewSpec]:
+    """Spread `n_views` over two elevations; the second ring is offset half a step so no azimuth repeats."""
+    if not 1 <= n_views <= MAX_VIEWS:
+        raise ValueError(f"n_views must be in 1..{MAX_VIEWS}, got {n_views}; lower it or raise MAX_VIEWS")
+    low = (n_views + 1) // 2
+    high = n_views - low
+    specs = [ViewSpec(round(i * 360.0 / low + 30.0, 3) % 360.0, elevations[0]) for i in range(low)]
+    if high:
+        specs += [ViewSpec(round(i * 360.0 / high + 30.0 + 180.0 / high, 3) % 360.0, elevations[1]) for i in range(high)]
+    return specs
+
+
+@lru_cache(maxsize=1)
+def _client() -> int:
+    """One DIRECT PyBullet client per process: connecting costs more than rendering a view."""
+    import pybullet as p
+
+    return p.connect(p.DIRECT)
+
+
+def obj_bounds(obj_path: str | Path) -> np.ndarray:
+    """(2, 3) min/max corner of the vertices of an OBJ file."""
+    verts = [line.split()[1:4] for line in Path(obj_path).read_text().splitlines() if line.startswith("v ")]
+    v = np.asarray(verts, dtype=np.float64)
+    return np.stack([v.min(axis=0), v.max(axis=0)])
+
+
+def render_obj(
+    obj_path: str | Path, specs: list[ViewSpec], size: int = 224, fov: float = 40.0, bounds: np.ndarray | None = None,
+) -> list[np.ndarray]:
+    """Render a textured OBJ (z-up) from each view on a white background; returns HxWx3 uint8 images."""
+    import pybullet as p
+
+    cid = _client()
+    vis = p.createVisualShape(p.GEOM_MESH, fileName=str(obj_path), physicsClientId=cid)
+    if vis < 0:
+        raise RuntimeError(f"PyBullet could not load {obj_path}; check that the OBJ and its MTL exist")
+    body = p.createMultiBody(baseMass=0, baseVisualShapeIndex=vis, physicsClientId=cid)
+    try:
+        # A visual-only body has an empty AABB, so the camera frames the mesh's own bounds.
+        lo, hi = np.asarray(bounds if bounds is not None else obj_bounds(obj_path), dtype=np.float64)
+        centre = (lo + hi) / 2
+        radius = max(float(np.linalg.norm(hi - lo)) / 2, 1e-6)
+        # Distance at which the bounding sphere fills the vertical field of view with a small margin.
+        dist = radius / math.sin(math.radians(fov / 2)) * 1.02
+        proj = p.computeProjectionMatrixFOV(fov, 1.0, dist * 0.05, dist * 3.0, physicsClientId=cid)
+        images = []
+        for s in specs:
+            view = p.computeViewMatrixFromYawPitchRoll(
+                centre.tolist(), dist, yaw=s.azimuth + 90.0, pitch=-s.elevation, roll=0, upAxisIndex=2,
+                physicsClientId=cid,
+            )
+            _, _, rgba, _, seg = p.getCameraImage(
+                size, size, view, proj, renderer=p.ER_TINY_RENDERER, shadow=0,
+                lightDirection=[1.0, 0.6, 2.0], physicsClientId=cid,
+            )
+            rgb = np.asarray(rgba, dtype=np.uint8).reshape(size, size, 4)[:, :, :3].copy()
+            mask = np.asarray(seg).reshape(size, size) < 0
+            rgb[mask] = 255
+            images.append(rgb)
+        return images
+    finally:
+        p.removeBody(body, physicsClientId=cid)
+
+
+def informativeness(image: np.ndarray) -> float:
+    """Foreground coverage times gradient-orientation entropy (normalised to [0, 1]); 0 for an empty view."""
+    gray = image.astype(np.float32).mean(axis=2)
+    fg = (image < 250).any(axis=2)
+    coverage = float(fg.mean())
+    if coverage == 0.0:
+        return 0.0
+    gy, gx = np.gradient(gray)
+    mag = np.hypot(gx, gy)
+    ang = np.mod(np.arctan2(gy, gx), np.pi)
+    sel = mag > 4.0
+    if not sel.any():
+        return 0.0
+    hist, _ = np.histogram(ang[sel], bins=8, range=(0, np.pi), weights=mag[sel])
+    prob = hist / max(hist.sum(), 1e-9)
+    nz = prob[prob > 0]
+    entropy = float(-(nz * np.log(nz)).sum() / math.log(8))
+    return coverage * entropy
+
+
+def select_informative(images: list[np.ndarray], k: int) -> tuple[list[int], list[float]]:
+    """Indices of the `k` most informative views (ties broken by view order) and every view's score."""
+    scores = [informativeness(im) for im in images]
+    order = sorted(range(len(images)), key=lambda i: (-round(scores[i], 9), i))
+    return sorted(order[: max(1, k)]), scores
+
+
+def contact_sheet(images: list[np.ndarray], selected: list[int] | None = None, cols: int = 4, title: str | None = None):
+    """Grid of the views as a PIL image; selected (informative) views get a green frame."""
+    from PIL import Image, ImageDraw
+
+    h, w = images[0].shape[:2]
+    rows = math.ceil(len(images) / cols)
+    top = 18 if title else 0
+    sheet = Image.new("RGB", (cols * w, rows * h + top), "white")
+    draw = ImageDraw.Draw(sheet)
+    if title:
+        draw.text((4, 3), title[:120], fill=(0, 0, 0))
+    for i, im in enumerate(images):
+        x, y = (i % cols) * w, (i // cols) * h + top
+        sheet.paste(Image.fromarray(im), (x, y))
+        if selected and i in selected:
+            draw.rectangle([x + 1, y + 1, x + w - 2, y + h - 2], outline=(0, 170, 0), width=3)
+    return sheet

@@ -1,0 +1,142 @@
+"""Scoring: per-view text-image similarity against the description pool, aggregated over the informative views,
+fused with metadata-text similarity; thresholds and top-k.
+
+fused = w_image * aggregate_v(cos(image_v, description)) + w_text * cos(metadata_text, description),
+with the weights renormalised over the signals present (no metadata text -> image only).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+
+from curbside.config import check_choice
+
+IMAGE_ENCODERS = ("imagenet", "clip", "none")
+AGGREGATES = ("max", "mean")
+
+
+@dataclass(frozen=True)
+class DescriptionPool:
+    """The descriptions assets are matched against: ids, texts and the category of each."""
+
+    ids: tuple[str, ...]
+    texts: tuple[str, ...]
+    categories: tuple[str | None, ...]
+    origin: str = "descriptions"
+
+
+def category_pool(categories: list[str]) -> DescriptionPool:
+    """One prompt per category ("a photo of a street lamp"), used when the catalog's description pool is empty."""
+    cats = sorted(categories)
+    return DescriptionPool(tuple(f"category:{c}" for c in cats),
+                           tuple(f"a photo of a {c.replace('_', ' ')}" for c in cats), tuple(cats), "category_prompts")
+
+
+def load_pool(con, categories: list[str]) -> DescriptionPool:  # noqa: ANN001 - duckdb connection
+    """The catalog's description pool when it has entries, else the category prompts."""
+    rows = con.execute("SELECT description_id, text, category FROM descriptions ORDER BY description_id").fetchall()
+    if not rows:
+        return category_pool(categories)
+    return DescriptionPool(tuple(r[0] for r in rows), tuple(r[1] for r in rows), tuple(r[2] for r in rows))
+
+
+@dataclass(frozen=True)
+class ScoringConfig:
+    """How images and metadata text are scored against the pool."""
+
+    image_encoder: str = "imagenet"
+    clip_model: str | None = None
+    text_model: str | None = None
+    aggregate: str = "max"
+    image_weight: float = 0.6
+    text_weight: float = 0.4
+    threshold: float = 0.35
+    top_k_per_asset: int = 3
+    top_k_per_description: int = 100
+    threads: int = 1
+
+    def __post_init__(self) -> None:
+        check_choice(self.image_encoder, IMAGE_ENCODERS, what="image encoder")
+        check_choice(self.aggregate, AGGREGATES, what="view aggregate")
+        if self.image_encoder == "clip" and not self.clip_model:
+            raise ValueError("the clip image encoder needs clip_model (a local weights folder); or use imagenet")
+        if self.image_weight < 0 or self.text_weight < 0 or self.image_weight + self.text_weight <= 0:
+            raise ValueError("image_weight and text_weight must be >= 0 and not both 0")
+
+    @property
+    def scorer_name(self) -> str:
+        """Identifies the scorer in every MatchRecord (encoders, aggregate, weights)."""
+        img = self.image_encoder if self.image_encoder != "clip" else f"clip[{str(self.clip_model).rstrip('/').split('/')[-1]}]"
+        text = (self.text_model or "all-MiniLM-L6-v2").rstrip("/").split("/")[-1]
+        return f"{img}+{text}:{self.aggregate}:w{self.image_weight:g}/{self.text_weight:g}"
+
+
+@dataclass
+class AssetScores:
+    """Scores of one asset against every pool entry, plus its embeddings."""
+
+    fused: np.ndarray
+    image: np.ndarray | None
+    text: np.ndarray | None
+    image_embedding: np.ndarray | None  # mean of the selected views' embeddings (image encoder's space)
+    text_embedding: np.ndarray | None  # metadata text embedding (text encoder's space)
+    extra: dict = field(default_factory=dict)
+
+
+class Scorer:
+    """Loads the encoders once and scores assets against a fixed pool."""
+
+    def __init__(self, config: ScoringConfig, pool: DescriptionPool) -> None:
+        from retrieval.encoders.text import TextEncoder
+
+        self.config = config
+        self.pool = pool
+        self.text_encoder = TextEncoder(config.text_model)
+        self.image_encoder = None
+        if config.image_encoder == "imagenet":
+            from retrieval.encoders.imagenet import ImageNetEncoder
+
+            self.image_encoder = ImageNetEncoder(self.text_encoder, threads=config.threads)
+        elif config.image_encoder == "clip":
+            from retrieval.encoders.clip import ClipEncoder
+
+            self.image_encoder = ClipEncoder(config.clip_model)
+        self.pool_text = self.text_encoder.encode(list(pool.texts))
+        self.pool_image = self.image_encoder.encode_texts(list(pool.texts)) if self.image_encoder else None
+
+    def score(self, images: list[np.ndarray], metadata_text: str) -> AssetScores:
+        """Score the (selected) views and the metadata text against every pool entry."""
+        c = self.config
+        img_scores = img_emb = None
+        if self.image_encoder is not None and images:
+            views = self.image_encoder.encode_images(images)
+            per_view = views @ self.pool_image.T
+            img_scores = per_view.max(axis=0) if c.aggregate == "max" else per_view.mean(axis=0)
+            img_emb = views.mean(axis=0)
+            img_emb = img_emb / max(float(np.linalg.norm(img_emb)), 1e-12)
+        txt_scores = txt_emb = None
+        if metadata_text.strip():
+            txt_emb = self.text_encoder.encode([metadata_text])[0]
+            txt_scores = self.pool_text @ txt_emb
+        wi = c.image_weight if img_scores is not None else 0.0
+        wt = c.text_weight if txt_scores is not None else 0.0
+        if wi + wt == 0:
+            fused = np.zeros(len(self.pool.ids), dtype=np.float32)
+        else:
+            fused = (wi * (img_scores if img_scores is not None else 0) + wt * (txt_scores if txt_scores is not None else 0)) / (wi + wt)
+        return AssetScores(np.asarray(fused, dtype=np.float64), img_scores, txt_scores, img_emb, txt_emb)
+
+    def top_matches(self, scores: AssetScores) -> list[tuple[int, float]]:
+        """(pool index, fused score) of the best entries above the threshold, best first, at most top_k_per_asset."""
+        order = sorted(range(len(scores.fused)), key=lambda i: (-round(float(scores.fused[i]), 9), i))
+        return [(i, float(scores.fused[i])) for i in order[: self.config.top_k_per_asset]
+                if scores.fused[i] >= self.config.threshold]
+
+
+@lru_cache(maxsize=2)
+def cached_scorer(config: ScoringConfig, pool: DescriptionPool) -> Scorer:
+    """One Scorer per (config, pool) per process: workers reuse the loaded models across assets."""
+    return Scorer(config, pool)

@@ -1,0 +1,76 @@
+"""Asset sources behind one interface: `objaverse`, `local:DIR` and `procedural` yield `SourceItem`s.
+
+A source lists candidate assets with their metadata (name, tags, licence, ...) and makes each one available as
+a local mesh file; everything after that (normalisation, rendering, scoring, curation) is source-agnostic.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+
+@dataclass
+class SourceItem:
+    """One candidate asset: where its mesh file is and what the source says about it."""
+
+    source: str
+    source_id: str
+    path: str
+    name: str = ""
+    description: str | None = None
+    tags: list[str] = field(default_factory=list)
+    category: str | None = None  # a trusted label (procedural category, LVIS category, sidecar), else None
+    license: str = "unknown"
+    attribution: str | None = None
+    up_axis: str | None = None  # None: guessed from the file format's convention
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def metadata_text(self) -> str:
+        """The free text the source gives about the asset, for metadata-text similarity."""
+        parts = [self.name, self.description or "", " ".join(self.tags)]
+        return ". ".join(p.strip() for p in parts if p and p.strip())
+
+    def content_hash(self) -> str:
+        """sha256 of the mesh file and every file next to it that it references (MTL, textures, sidecar)."""
+        h = hashlib.sha256()
+        p = Path(self.path)
+        for f in [p, *sorted(self.metadata.get("companion_files", []))]:
+            f = Path(f)
+            if f.exists():
+                h.update(f.name.encode())
+                with open(f, "rb") as fh:
+                    for chunk in iter(lambda: fh.read(1 << 20), b""):
+                        h.update(chunk)
+        return h.hexdigest()
+
+
+class Source(Protocol):
+    """What every source provides."""
+
+    name: str
+
+    def items(self, limit: int | None = None) -> Iterator[SourceItem]:
+        """Yield candidate assets (at most `limit`), in a deterministic order."""
+        ...
+
+
+def open_source(spec: str, **options: Any) -> Source:
+    """Open a source from its CLI spelling: `objaverse`, `local:DIR` or `procedural`."""
+    if spec == "procedural":
+        from retrieval.sources.procedural import ProceduralSource
+
+        return ProceduralSource(**options)
+    if spec == "objaverse":
+        from retrieval.sources.objaverse import ObjaverseSource
+
+        return ObjaverseSource(**options)
+    if spec.startswith("local:"):
+        from retrieval.sources.local import LocalSource
+
+        return LocalSource(spec[len("local:"):], **options)
+    raise ValueError(f"unknown source {spec!r}; use `objaverse`, `local:DIR` or `procedural`")

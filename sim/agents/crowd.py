@@ -1,0 +1,347 @@
+"""AgentManager: cohabitants that plan over the walkable grid and avoid each other, objects, curbs and the ego with ORCA.
+
+Each agent steers at a carrot a few cells ahead on its goal site's distance field (sim.agents.navgrid) and
+pyrvo (RVO2) turns that preferred velocity into a collision-free one. The ego is one more ORCA agent whose
+position and velocity the simulator overwrites every step, so agents react to it but ORCA never moves it.
+Deadlocks are resolved in two stages: an agent that makes no progress for `stuck_steps` side-steps to its
+right (the rotate half of push-and-rotate, which breaks symmetric face-offs), and one still stuck after
+`regoal_steps` gives up its goal and picks another.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pyrvo
+
+from curbside.config import ConfigError, merge_strict
+from sim.agents.kinds import AGENT_KINDS, DEFAULT_MIX, KIND_NAMES, agent_kind
+from sim.agents.navgrid import NavGrid, boundary_segments, build_navgrid
+
+AGENT_DTYPE = np.dtype([("x", "f8"), ("y", "f8"), ("vx", "f8"), ("vy", "f8"), ("radius", "f8"), ("kind", "U16")])
+IDLE, WALKING, RUNNING = 0, 1, 2
+
+AGENT_DEFAULTS: dict[str, Any] = {
+    "dynamic_density": 2.0,  # agents per 100 m of sidewalk (MetaUrban's rho_d); ignored when `counts` is given
+    "counts": {},  # explicit {kind: count}; non-empty overrides dynamic_density
+    "mix": dict(DEFAULT_MIX),  # kind shares when spawning by density
+    "max_agents": 1000,
+    "plan_radius": 0.5,  # objects and edges are grown by this much for planning (the widest ORCA radius)
+    "n_goal_sites": 32,  # distance fields shared by all agents; more sites = more varied goals, slower reset
+    "goal_spread": 2.5,  # each agent's goal is a free cell within this distance of its site
+    "lookahead_cells": 8,
+    "arrive_radius": 0.5,
+    "crowded_arrive_radius": 2.0,  # a stalled agent this close to its goal has arrived (someone stands on it)
+    "idle_prob": 0.25,  # chance to stand still on arrival
+    "idle_time": [2.0, 8.0],
+    "run_prob": 0.1,  # chance that a kind able to run runs to its next goal
+    "neighbor_dist": 5.0,
+    "max_neighbors": 10,
+    "time_horizon": 2.0,
+    "time_horizon_obst": 1.0,
+    "safety_margin": 0.05,  # added to every ORCA radius so sampling error never lets bodies touch
+    "ego_margin": 0.25,  # the ego does not reciprocate, so agents keep extra room from it
+    "stuck_steps": 30,
+    "regoal_steps": 100,
+    "stuck_progress": 0.25,  # metres of field distance that count as progress
+    "budget_factor": 2.0,  # goal time budget = factor * path length / speed + slack
+    "budget_slack": 10.0,
+    "spawn_clearance": 0.3,
+    "trail_length": 15,
+}
+
+
+@dataclass(frozen=True)
+class EgoState:
+    """The ego as ORCA sees it: centre, velocity and radius in the world frame."""
+
+    x: float
+    y: float
+    vx: float = 0.0
+    vy: float = 0.0
+    radius: float = 0.5
+
+
+def _as_ego(ego: EgoState | Mapping[str, float] | Sequence[float] | None) -> EgoState | None:
+    if ego is None or isinstance(ego, EgoState):
+        return ego
+    if isinstance(ego, Mapping):
+        return EgoState(**{k: float(v) for k, v in ego.items()})
+    return EgoState(*(float(v) for v in ego))
+
+
+def sidewalk_length(spec: dict[str, Any]) -> float:
+    """Total sidewalk length in metres (clear-path polylines, else curb edges) used by dynamic_density."""
+    total = 0.0
+    for sw in spec.get("sidewalks", []):
+        line = np.asarray(sw.get("clear_path") or sw.get("edge") or [], dtype=np.float64)
+        if len(line) >= 2:
+            total += float(np.linalg.norm(np.diff(line, axis=0), axis=1).sum())
+    return total
+
+
+class AgentManager:
+    """Spawns, plans and moves cohabitants on one scene; `reset` then `step` every simulator tick."""
+
+    def __init__(self, config: Mapping[str, Any] | None = None) -> None:
+        self.config = merge_strict(AGENT_DEFAULTS, config, name="agents config")
+        for kind in self.config["counts"]:
+            agent_kind(kind)
+        if any(v < 0 for v in self.config["mix"].values()) or sum(self.config["mix"].values()) <= 0:
+            raise ConfigError("agents config mix needs non-negative shares with a positive sum")
+        self.grid: NavGrid | None = None
+        self.n = 0
+        self.time = 0.0
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, spec: dict[str, Any], rng: np.random.Generator, ego: EgoState | None = None,
+              keep_clear: Sequence[tuple[float, float, float]] = ()) -> np.ndarray:
+        """Build the planner for `spec`, spawn agents away from `keep_clear` discs (x, y, r) and return states()."""
+        c = self.config
+        self.rng = rng
+        self.grid = build_navgrid(spec, rng, plan_radius=c["plan_radius"], n_sites=c["n_goal_sites"])
+        kinds = self._draw_kinds(spec, rng)
+        self.n = n = len(kinds)
+        self.kind_idx = np.array([KIND_NAMES.index(k) for k in kinds], dtype=np.int16)
+        self.radius = np.array([AGENT_KINDS[k].radius for k in kinds])
+        ego = _as_ego(ego)
+        clear = list(keep_clear) + ([(ego.x, ego.y, ego.radius + 1.0)] if ego else [])
+        self.pos = self._spawn_positions(rng, clear)
+        self.vel = np.zeros((n, 2))
+        self.movement = np.full(n, WALKING, dtype=np.int8)
+        self.speed = np.zeros(n)
+        self.site = np.zeros(n, dtype=np.int64)
+        self.goal = np.zeros((n, 2))
+        self.idle_left = np.zeros(n)
+        self.best = np.full(n, np.inf)
+        self.stall = np.zeros(n, dtype=np.int64)
+        self.goal_t0 = np.zeros(n)
+        self.budget = np.zeros(n)
+        self.time = 0.0
+        self.counts = {"in_time": 0, "late": 0, "abandoned": 0}
+        self._build_orca(spec)
+        nodes = self.grid.nearest_node(self.pos)
+        for i in range(n):
+            if rng.random() < c["idle_prob"]:
+                self.movement[i] = IDLE
+                self.idle_left[i] = rng.uniform(0.0, c["idle_time"][1])
+            else:
+                self._new_goal(i, int(nodes[i]))
+        self.trail = np.repeat(self.pos[None], c["trail_length"], axis=0)
+        self._set_ego(ego)
+        return self.states()
+
+    def _draw_kinds(self, spec: dict[str, Any], rng: np.random.Generator) -> list[str]:
+        c = self.config
+        if c["counts"]:
+            kinds = [k for k in KIND_NAMES for _ in range(int(c["counts"].get(k, 0)))]
+        else:
+            n = int(round(c["dynamic_density"] * sidewalk_length(spec) / 100.0))
+            names = list(c["mix"])
+            p = np.array([c["mix"][k] for k in names], dtype=np.float64)
+            kinds = list(rng.choice(names, size=n, p=p / p.sum())) if n else []
+        if len(kinds) > c["max_agents"]:
+            raise ConfigError(f"{len(kinds)} agents requested but max_agents is {c['max_agents']}; "
+                              "lower dynamic_density/counts or raise max_agents")
+        return [str(k) for k in kinds]
+
+    def _spawn_positions(self, rng: np.random.Generator, clear: list[tuple[float, float, float]]) -> np.ndarray:
+        g = self.grid
+        cand = g.node_xy(rng.permutation(g.n_nodes))
+        for x, y, r in clear:
+            cand = cand[np.hypot(cand[:, 0] - x, cand[:, 1] - y) > r]
+        cand = cand + rng.uniform(-0.3, 0.3, cand.shape) * g.res  # off the cell centres, still in the cell
+        pos = np.zeros((self.n, 2))
+        placed, k = 0, 0
+        while placed < self.n and k < len(cand):
+            p = cand[k]
+            k += 1
+            if placed:
+                d = np.linalg.norm(pos[:placed] - p, axis=1)
+                if np.any(d < self.radius[:placed] + self.radius[placed] + self.config["spawn_clearance"]):
+                    continue
+            pos[placed] = p
+            placed += 1
+        if placed < self.n:
+            raise ValueError(f"only {placed} of {self.n} agents fit on this scene's walkable area; "
+                             "lower dynamic_density or the explicit counts")
+        return pos
+
+    def _build_orca(self, spec: dict[str, Any]) -> None:
+        c = self.config
+        self.sim = pyrvo.RVOSimulator(0.1, c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
+                                      c["time_horizon_obst"], 0.3, 2.0)
+        for i in range(self.n):
+            kind = AGENT_KINDS[KIND_NAMES[self.kind_idx[i]]]
+            top = (kind.run_speed or kind.pref_speed) + 3.0 * kind.speed_std
+            self.sim.add_agent(tuple(self.pos[i]), c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
+                               c["time_horizon_obst"], float(self.radius[i] + c["safety_margin"]), float(top))
+        # The ego is the last ORCA agent; it starts parked far away so it influences nobody until placed.
+        self.ego_id = self.sim.add_agent(self._parked(), c["neighbor_dist"], c["max_neighbors"],
+                                         c["time_horizon"], c["time_horizon_obst"], 0.1, 50.0)
+        for o in spec.get("objects", []):
+            pts = np.asarray(o.get("footprint") or [], dtype=np.float64)
+            if len(pts) >= 3:
+                area2 = np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])
+                self.sim.add_obstacle([tuple(p) for p in (pts if area2 > 0 else pts[::-1])])  # RVO2 wants CCW
+        g = self.grid
+        for a, b in boundary_segments(g.cells > 0, g.origin, g.res):
+            self.sim.add_obstacle([a, b])
+        self.sim.process_obstacles()
+
+    def _parked(self) -> tuple[float, float]:
+        g = self.grid
+        return (float(g.origin[0]) - 1e4, float(g.origin[1]) - 1e4)
+
+    # ------------------------------------------------------------------ goals
+    def _new_goal(self, i: int, node: int, abandon: bool = False) -> None:
+        c, g, rng = self.config, self.grid, self.rng
+        here = int(np.argmin(np.linalg.norm(g.node_xy(g.sites) - self.pos[i], axis=1)))
+        choices = np.delete(np.arange(len(g.sites)), here) if len(g.sites) > 1 else np.arange(len(g.sites))
+        site = int(rng.choice(choices))
+        if abandon:
+            self.counts["abandoned"] += 1
+        kind = AGENT_KINDS[KIND_NAMES[self.kind_idx[i]]]
+        run = kind.run_speed is not None and rng.random() < c["run_prob"]
+        self.movement[i] = RUNNING if run else WALKING
+        self.speed[i] = kind.sample_speed(rng, "running" if run else "walking")
+        dist, _ = g.field(site)
+        centre = g.node_xy(np.array([g.sites[site]]))[0]
+        near = np.flatnonzero(np.linalg.norm(g.node_xy(np.flatnonzero(dist < c["goal_spread"] * 1.5)) - centre, axis=1)
+                              < c["goal_spread"])
+        near_nodes = np.flatnonzero(dist < c["goal_spread"] * 1.5)[near]
+        goal_node = int(rng.choice(near_nodes)) if len(near_nodes) else int(g.sites[site])
+        self.site[i] = site
+        self.goal[i] = g.node_xy(np.array([goal_node]))[0]
+        length = float(dist[node]) + c["goal_spread"]
+        self.goal_t0[i] = self.time
+        self.budget[i] = c["budget_factor"] * length / max(self.speed[i], 0.1) + c["budget_slack"]
+        self.best[i] = np.inf
+        self.stall[i] = 0
+
+    # ------------------------------------------------------------------ step
+    def _set_ego(self, ego: EgoState | None) -> None:
+        if ego is None:
+            self.sim.set_agent_position(self.ego_id, self._parked())
+            self.sim.set_agent_velocity(self.ego_id, (0.0, 0.0))
+            self.sim.set_agent_pref_velocity(self.ego_id, (0.0, 0.0))
+            return
+        self.sim.set_agent_radius(self.ego_id, float(ego.radius + self.config["ego_margin"]))
+        self.sim.set_agent_position(self.ego_id, (ego.x, ego.y))
+        self.sim.set_agent_velocity(self.ego_id, (ego.vx, ego.vy))
+        self.sim.set_agent_pref_velocity(self.ego_id, (ego.vx, ego.vy))
+
+    def step(self, dt: float, ego: EgoState | Mapping[str, float] | Sequence[float] | None = None) -> np.ndarray:
+        """Advance every agent by `dt` seconds around the ego (None: no ego) and return states()."""
+        if self.grid is None:
+            raise RuntimeError("AgentManager.step called before reset(spec, rng)")
+        c, g = self.config, self.grid
+        self._set_ego(_as_ego(ego))
+        self.time += dt
+        pref = np.zeros((self.n, 2))
+        if self.n:
+            nodes = g.nearest_node(self.pos)
+            self._update_goals(dt, nodes)
+            moving = self.movement != IDLE
+            if moving.any():
+                pref[moving] = self._preferred(nodes[moving], np.flatnonzero(moving))
+        self.sim.set_time_step(float(dt))
+        for i in range(self.n):
+            self.sim.set_agent_pref_velocity(i, (float(pref[i, 0]), float(pref[i, 1])))
+        self.sim.do_step()
+        new_pos = np.array([self.sim.get_agent_position(i).to_tuple() for i in range(self.n)]).reshape(self.n, 2)
+        new_vel = np.array([self.sim.get_agent_velocity(i).to_tuple() for i in range(self.n)]).reshape(self.n, 2)
+        # ORCA's obstacle handling is not a hard guarantee at concave corners: an agent whose step would leave
+        # the walkable area stays put instead.
+        bad = ~g.is_walkable(new_pos) if self.n else np.zeros(0, dtype=bool)
+        for i in np.flatnonzero(bad):
+            self.sim.set_agent_position(int(i), (float(self.pos[i, 0]), float(self.pos[i, 1])))
+            self.sim.set_agent_velocity(int(i), (0.0, 0.0))
+            new_pos[i], new_vel[i] = self.pos[i], 0.0
+        self.pos, self.vel = new_pos, new_vel
+        self.trail = np.roll(self.trail, -1, axis=0)
+        self.trail[-1] = self.pos
+        return self.states()
+
+    def _update_goals(self, dt: float, nodes: np.ndarray) -> None:
+        c = self.config
+        idle = self.movement == IDLE
+        self.idle_left[idle] -= dt
+        for i in np.flatnonzero(idle & (self.idle_left <= 0)):
+            self._new_goal(int(i), int(nodes[i]))
+        moving = np.flatnonzero(self.movement != IDLE)
+        if not len(moving):
+            return
+        to_goal = np.linalg.norm(self.pos[moving] - self.goal[moving], axis=1)
+        arrived = (to_goal < c["arrive_radius"]) | (
+            (to_goal < c["crowded_arrive_radius"]) & (self.stall[moving] >= c["stuck_steps"] // 2))
+        dist = self.grid.distance(nodes[moving], self.site[moving])
+        for k, i in enumerate(moving):
+            if arrived[k]:
+                late = self.time - self.goal_t0[i] > self.budget[i]
+                self.counts["late" if late else "in_time"] += 1
+                if self.rng.random() < c["idle_prob"]:
+                    self.movement[i] = IDLE
+                    self.idle_left[i] = self.rng.uniform(*c["idle_time"])
+                else:
+                    self._new_goal(int(i), int(nodes[i]))
+                continue
+            if dist[k] < self.best[i] - c["stuck_progress"]:
+                self.best[i], self.stall[i] = dist[k], 0
+            else:
+                self.stall[i] += 1
+                if self.stall[i] >= c["regoal_steps"]:
+                    self._new_goal(int(i), int(nodes[i]), abandon=True)
+
+    def _preferred(self, nodes: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        g, c = self.grid, self.config
+        sites = self.site[idx]
+        steps = c["lookahead_cells"]
+        carrot = g.node_xy(g.lookahead(nodes, sites, steps))
+        # A carrot behind a concave corner (a crosswalk mouth) would press the agent into the curb: fall back
+        # to nearer points of the path until one is in sight.
+        for k, i in enumerate(idx):
+            p, r = (float(self.pos[i, 0]), float(self.pos[i, 1])), float(self.radius[i])
+            s = steps
+            while s > 1 and not self.sim.query_visibility(p, (float(carrot[k, 0]), float(carrot[k, 1])), r):
+                s //= 2
+                carrot[k] = g.node_xy(g.lookahead(nodes[k:k + 1], sites[k:k + 1], s))[0]
+        # Close to the site the field's single target cell would pull everyone to one point: aim at the own goal.
+        near = g.distance(nodes, sites) < 1.5 * c["goal_spread"]
+        carrot[near] = self.goal[idx[near]]
+        d = carrot - self.pos[idx]
+        norm = np.linalg.norm(d, axis=1, keepdims=True)
+        direction = np.where(norm > 1e-6, d / np.maximum(norm, 1e-6), 0.0)
+        to_goal = np.linalg.norm(self.goal[idx] - self.pos[idx], axis=1)
+        speed = np.minimum(self.speed[idx], np.maximum(to_goal, 0.3))
+        stuck = self.stall[idx] >= c["stuck_steps"]
+        if stuck.any():
+            # Side-step to the right (about 60 degrees): symmetric face-offs are ORCA's classic deadlock.
+            cs, sn = np.cos(-1.0), np.sin(-1.0)
+            dx, dy = direction[stuck, 0].copy(), direction[stuck, 1].copy()
+            direction[stuck, 0], direction[stuck, 1] = cs * dx - sn * dy, sn * dx + cs * dy
+        return direction * speed[:, None]
+
+    # ------------------------------------------------------------------ outputs
+    def states(self) -> np.ndarray:
+        """Every agent's x, y, vx, vy, radius and kind as a structured array of AGENT_DTYPE."""
+        out = np.zeros(self.n, dtype=AGENT_DTYPE)
+        if self.n:
+            out["x"], out["y"] = self.pos[:, 0], self.pos[:, 1]
+            out["vx"], out["vy"] = self.vel[:, 0], self.vel[:, 1]
+            out["radius"] = self.radius
+            out["kind"] = np.asarray(KIND_NAMES)[self.kind_idx]
+        return out
+
+    def goal_stats(self) -> dict[str, float]:
+        """Goals reached within budget, late and abandoned so far, and the in-time fraction of finished goals."""
+        done = sum(self.counts.values())
+        return {**self.counts, "finished": done, "in_time_fraction": self.counts["in_time"] / done if done else 1.0}
+
+    def overdue(self) -> int:
+        """Agents still travelling whose time budget has already run out (goals that will count as late)."""
+        moving = self.movement != IDLE
+        return int(np.sum(moving & (self.time - self.goal_t0 > self.budget)))

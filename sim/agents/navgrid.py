@@ -1,0 +1,241 @@
+"""The cohabitants' global planner: a free-space graph over the walkable grid and lazy distance fields per goal site.
+
+Roads are not walkable cells, so paths cross them only on crosswalks. Each goal site gets one Dijkstra run
+(scipy, C speed) whose predecessor tree gives every cell its next step toward that site; agents sharing a
+site share the field, so planning 100 agents costs at most `n_sites` Dijkstra runs.
+"""
+
+from __future__ import annotations
+
+import base64
+import zlib
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import ndimage
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+try:  # shapely 2 ships vectorised predicates; the planner rasterises footprints with them
+    import shapely
+    from shapely.geometry import Polygon
+except ImportError as exc:  # pragma: no cover - shapely is a core dependency
+    raise ImportError("sim.agents needs shapely>=2: pip install shapely") from exc
+
+LEGEND_SIDEWALK, LEGEND_CROSSWALK, LEGEND_RAMP = 1, 2, 3
+
+
+def decode_cells(spec: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, float]:
+    """Decode the spec's walkable grid into (uint8 cells [rows, cols], origin [x0, y0], resolution)."""
+    try:
+        w = spec["walkable"]
+        rows, cols = (int(v) for v in w["shape"])
+        if w.get("encoding", "zlib+base64:uint8") != "zlib+base64:uint8":
+            raise ValueError(f"unsupported walkable encoding {w['encoding']!r}; expected 'zlib+base64:uint8'")
+        raw = zlib.decompress(base64.b64decode(w["cells"]))
+        cells = np.frombuffer(raw, dtype=np.uint8).reshape(rows, cols).copy()
+        return cells, np.asarray(w["origin"], dtype=np.float64), float(w["resolution"])
+    except KeyError as exc:
+        raise ValueError(f"scene spec lacks walkable.{exc.args[0]}; regenerate it with sim.scene.generate_scene") from None
+
+
+def rasterize_polygons(polys: list[np.ndarray], origin: np.ndarray, res: float, shape: tuple[int, int],
+                       inflate: float = 0.0) -> np.ndarray:
+    """Return a bool mask of the cells whose centres lie in any polygon grown by `inflate` metres."""
+    mask = np.zeros(shape, dtype=bool)
+    for pts in polys:
+        poly = Polygon(pts)
+        if inflate > 0:
+            poly = poly.buffer(inflate, quad_segs=4)
+        xmin, ymin, xmax, ymax = poly.bounds
+        j0 = max(int(np.floor((xmin - origin[0]) / res)), 0)
+        j1 = min(int(np.ceil((xmax - origin[0]) / res)), shape[1])
+        i0 = max(int(np.floor((ymin - origin[1]) / res)), 0)
+        i1 = min(int(np.ceil((ymax - origin[1]) / res)), shape[0])
+        if j0 >= j1 or i0 >= i1:
+            continue
+        xs = origin[0] + (np.arange(j0, j1) + 0.5) * res
+        ys = origin[1] + (np.arange(i0, i1) + 0.5) * res
+        gx, gy = np.meshgrid(xs, ys)
+        mask[i0:i1, j0:j1] |= shapely.contains_xy(poly, gx, gy)
+    return mask
+
+
+def boundary_segments(mask: np.ndarray, origin: np.ndarray, res: float) -> list[tuple[tuple[float, float], tuple[float, float]]]:
+    """Return the edges between True and False cells of `mask` as merged straight segments in world metres."""
+    segs: list[tuple[tuple[float, float], tuple[float, float]]] = []
+    padded = np.pad(mask, 1, constant_values=False)
+    x0, y0 = float(origin[0]), float(origin[1])
+    # Horizontal edges sit between rows; runs of consecutive differing columns merge into one segment.
+    hdiff = padded[1:, 1:-1] != padded[:-1, 1:-1]  # (rows+1, cols)
+    vdiff = padded[1:-1, 1:] != padded[1:-1, :-1]  # (rows, cols+1)
+    for i, row in enumerate(hdiff):
+        for a, b in _runs(row):
+            y = y0 + i * res
+            segs.append(((x0 + a * res, y), (x0 + b * res, y)))
+    for j, col in enumerate(vdiff.T):
+        for a, b in _runs(col):
+            x = x0 + j * res
+            segs.append(((x, y0 + a * res), (x, y0 + b * res)))
+    return segs
+
+
+def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
+    """Start (inclusive) and end (exclusive) indices of the runs of True in a 1-D bool array."""
+    if not flags.any():
+        return []
+    d = np.diff(np.concatenate(([0], flags.astype(np.int8), [0])))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
+
+
+@dataclass
+class NavGrid:
+    """Walkable surfaces, object cells, the planning graph and cached distance fields for one scene."""
+
+    cells: np.ndarray  # uint8 legend codes
+    origin: np.ndarray
+    res: float
+    walkable: np.ndarray  # surfaces an agent centre may occupy (objects subtracted)
+    free: np.ndarray  # planning cells: walkable, away from objects and edges, one connected component
+    node_of: np.ndarray  # int32 [rows, cols] -> node id, -1 off the graph
+    node_rc: np.ndarray  # int32 [n, 2] row, col of every node
+    graph: csr_matrix
+    nearest_rc: np.ndarray  # int32 [2, rows, cols]: nearest free cell of every cell
+    sites: np.ndarray  # node ids of goal sites
+    _fields: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of planning cells."""
+        return int(self.node_rc.shape[0])
+
+    def node_xy(self, nodes: np.ndarray) -> np.ndarray:
+        """World centres [n, 2] of graph nodes."""
+        rc = self.node_rc[nodes]
+        return np.stack([self.origin[0] + (rc[..., 1] + 0.5) * self.res, self.origin[1] + (rc[..., 0] + 0.5) * self.res], -1)
+
+    def cell_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(row, col) of the cells holding world points [n, 2], clipped to the grid."""
+        xy = np.atleast_2d(xy)
+        j = np.clip(np.floor((xy[:, 0] - self.origin[0]) / self.res).astype(np.int64), 0, self.cells.shape[1] - 1)
+        i = np.clip(np.floor((xy[:, 1] - self.origin[1]) / self.res).astype(np.int64), 0, self.cells.shape[0] - 1)
+        return i, j
+
+    def inside(self, xy: np.ndarray) -> np.ndarray:
+        """Whether world points lie inside the grid's extent."""
+        xy = np.atleast_2d(xy)
+        h, w = self.cells.shape
+        fx = (xy[:, 0] - self.origin[0]) / self.res
+        fy = (xy[:, 1] - self.origin[1]) / self.res
+        return (fx >= 0) & (fx < w) & (fy >= 0) & (fy < h)
+
+    def is_walkable(self, xy: np.ndarray) -> np.ndarray:
+        """Whether world points lie on a walkable cell that no object covers."""
+        i, j = self.cell_of(xy)
+        return self.inside(xy) & self.walkable[i, j]
+
+    def nearest_node(self, xy: np.ndarray) -> np.ndarray:
+        """Graph node nearest to each world point (agents pushed off the graph snap back to it)."""
+        i, j = self.cell_of(xy)
+        return self.node_of[self.nearest_rc[0, i, j], self.nearest_rc[1, i, j]]
+
+    def field(self, site: int) -> tuple[np.ndarray, np.ndarray]:
+        """(distance to site in metres, next node toward site) for every node; computed once per site."""
+        if site not in self._fields:
+            dist, pred = dijkstra(self.graph, directed=True, indices=int(self.sites[site]), return_predecessors=True)
+            self._fields[site] = (dist, pred)
+        return self._fields[site]
+
+    def plan_all(self, sites: np.ndarray) -> None:
+        """Compute the fields of all `sites` not yet cached in one Dijkstra call."""
+        todo = sorted({int(s) for s in sites} - set(self._fields))
+        if not todo:
+            return
+        dist, pred = dijkstra(self.graph, directed=True, indices=self.sites[todo], return_predecessors=True)
+        for k, s in enumerate(todo):
+            self._fields[s] = (dist[k], pred[k])
+
+    def distance(self, nodes: np.ndarray, sites: np.ndarray) -> np.ndarray:
+        """Path length in metres from each node to its agent's goal site."""
+        out = np.empty(len(nodes))
+        for s in np.unique(sites):
+            m = sites == s
+            out[m] = self.field(int(s))[0][nodes[m]]
+        return out
+
+    def lookahead(self, nodes: np.ndarray, sites: np.ndarray, steps: int) -> np.ndarray:
+        """Node reached by following each agent's field `steps` cells toward its site (the carrot to steer at)."""
+        out = nodes.copy()
+        for s in np.unique(sites):
+            m = sites == s
+            pred = self.field(int(s))[1]
+            cur = nodes[m]
+            for _ in range(steps):
+                nxt = pred[cur]
+                cur = np.where(nxt >= 0, nxt, cur)
+            out[m] = cur
+        return out
+
+
+def build_navgrid(spec: dict[str, Any], rng: np.random.Generator, *, plan_radius: float = 0.3, n_sites: int = 32) -> NavGrid:
+    """Build the planning grid of a scene spec: object footprints inflated by `plan_radius`, goal sites spread out."""
+    cells, origin, res = decode_cells(spec)
+    surface = cells > 0
+    footprints = [np.asarray(o["footprint"], dtype=np.float64) for o in spec.get("objects", []) if o.get("footprint")]
+    objects = rasterize_polygons(footprints, origin, res, cells.shape)
+    walkable = surface & ~objects
+    inflated = rasterize_polygons(footprints, origin, res, cells.shape, inflate=plan_radius)
+    # Keep plans a body radius away from curbs and building edges, so ORCA obstacles are rarely touched.
+    edge_clear = ndimage.distance_transform_edt(surface) * res > plan_radius
+    free = surface & ~inflated & edge_clear
+    labels, n = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))
+    if n == 0:
+        raise ValueError("the scene has no walkable cell wide enough for agents; widen sidewalks or lower plan_radius")
+    sizes = np.bincount(labels.ravel())
+    sizes[0] = 0
+    free = labels == int(np.argmax(sizes))
+
+    node_rc = np.argwhere(free).astype(np.int32)
+    node_of = np.full(cells.shape, -1, dtype=np.int32)
+    node_of[node_rc[:, 0], node_rc[:, 1]] = np.arange(len(node_rc), dtype=np.int32)
+    graph = _grid_graph(free, node_of, res)
+    _, idx = ndimage.distance_transform_edt(~free, return_indices=True)
+    nearest_rc = idx.astype(np.int32)
+
+    sidewalk_nodes = np.flatnonzero(cells[node_rc[:, 0], node_rc[:, 1]] == LEGEND_SIDEWALK)
+    candidates = sidewalk_nodes if len(sidewalk_nodes) else np.arange(len(node_rc))
+    sites = _spread_sites(node_rc[candidates].astype(np.float64), candidates, n_sites, rng)
+    return NavGrid(cells, origin, res, walkable, free, node_of, node_rc, graph, nearest_rc, sites)
+
+
+def _grid_graph(free: np.ndarray, node_of: np.ndarray, res: float) -> csr_matrix:
+    """8-connected graph over free cells; diagonals only where both orthogonal cells are free (no corner cutting)."""
+    padded = np.pad(node_of, 1, constant_values=-1)
+    rc = np.argwhere(free) + 1  # indices into the padded array
+    u_all = padded[rc[:, 0], rc[:, 1]]
+    src, dst, wt = [], [], []
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        v = padded[rc[:, 0] + di, rc[:, 1] + dj]
+        ok = v >= 0
+        if di and dj:
+            ok &= (padded[rc[:, 0] + di, rc[:, 1]] >= 0) & (padded[rc[:, 0], rc[:, 1] + dj] >= 0)
+        u, v = u_all[ok], v[ok]
+        c = np.full(len(u), res * (np.sqrt(2.0) if (di and dj) else 1.0))
+        src += [u, v]
+        dst += [v, u]
+        wt += [c, c]
+    n = int(free.sum())
+    return csr_matrix((np.concatenate(wt), (np.concatenate(src), np.concatenate(dst))), shape=(n, n))
+
+
+def _spread_sites(rc: np.ndarray, candidates: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
+    """Pick `k` candidate nodes by farthest-point sampling from a random start, so goals cover the whole scene."""
+    k = min(k, len(candidates))
+    chosen = [int(rng.integers(len(candidates)))]
+    d = np.linalg.norm(rc - rc[chosen[0]], axis=1)
+    for _ in range(k - 1):
+        nxt = int(np.argmax(d))
+        chosen.append(nxt)
+        d = np.minimum(d, np.linalg.norm(rc - rc[nxt], axis=1))
+    return candidates[np.asarray(chosen)]

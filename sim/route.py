@@ -1,0 +1,245 @@
+"""Reference routes: start and goal on the walkable area, a grid planner over the walkable mask minus
+static obstacles inflated by the machine's half-width, smoothing, and progress / lateral offset along it.
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+import zlib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import shapely
+from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+from shapely.geometry import Polygon
+
+SIDEWALK, CROSSWALK, RAMP = 1, 2, 3
+
+
+class RouteError(RuntimeError):
+    """No route of the requested length exists in this scene for this machine."""
+
+
+@dataclass
+class Grid:
+    """The walkable raster of a scene: `labels` (legend values), origin (x0, y0) and cell size."""
+
+    labels: np.ndarray
+    origin: tuple[float, float]
+    resolution: float
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(rows, cols)."""
+        return self.labels.shape  # type: ignore[return-value]
+
+    def to_cell(self, x: float, y: float) -> tuple[int, int]:
+        """(row, col) of the cell that contains the world point (x, y)."""
+        return int(math.floor((y - self.origin[1]) / self.resolution)), int(math.floor((x - self.origin[0]) / self.resolution))
+
+    def to_world(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """World (x, y) of cell centres, as an (n, 2) array."""
+        r = self.resolution
+        return np.stack([self.origin[0] + (np.asarray(cols) + 0.5) * r, self.origin[1] + (np.asarray(rows) + 0.5) * r], -1)
+
+    def label_at(self, x: float, y: float) -> int:
+        """Legend value under (x, y); 0 outside the grid."""
+        i, j = self.to_cell(x, y)
+        if 0 <= i < self.labels.shape[0] and 0 <= j < self.labels.shape[1]:
+            return int(self.labels[i, j])
+        return 0
+
+
+def decode_walkable(spec: Mapping[str, Any]) -> Grid:
+    """Decode the spec's `walkable` raster (zlib+base64 uint8, row-major) into a Grid."""
+    w = spec["walkable"]
+    if w.get("encoding") != "zlib+base64:uint8":
+        raise ValueError(f"unsupported walkable encoding {w.get('encoding')!r}; expected 'zlib+base64:uint8'")
+    rows, cols = (int(v) for v in w["shape"])
+    raw = np.frombuffer(zlib.decompress(base64.b64decode(w["cells"])), dtype=np.uint8)
+    if raw.size != rows * cols:
+        raise ValueError(f"walkable cells hold {raw.size} values but shape is {rows}x{cols}; the spec is corrupt")
+    return Grid(raw.reshape(rows, cols).copy(), (float(w["origin"][0]), float(w["origin"][1])), float(w["resolution"]))
+
+
+def encode_walkable(labels: np.ndarray) -> str:
+    """Inverse of the `cells` decoding (for hand-built specs and tests)."""
+    return base64.b64encode(zlib.compress(np.ascontiguousarray(labels, dtype=np.uint8).tobytes())).decode()
+
+
+def object_mask(grid: Grid, objects: Sequence[Mapping[str, Any]]) -> np.ndarray:
+    """Boolean raster of the cells whose centres lie inside an object footprint."""
+    mask = np.zeros(grid.shape, dtype=bool)
+    r = grid.resolution
+    for obj in objects:
+        fp = np.asarray(obj["footprint"], dtype=float)
+        i0, j0 = grid.to_cell(fp[:, 0].min(), fp[:, 1].min())
+        i1, j1 = grid.to_cell(fp[:, 0].max(), fp[:, 1].max())
+        i0, j0 = max(i0, 0), max(j0, 0)
+        i1, j1 = min(i1, grid.shape[0] - 1), min(j1, grid.shape[1] - 1)
+        if i1 < i0 or j1 < j0:
+            continue
+        jj, ii = np.meshgrid(np.arange(j0, j1 + 1), np.arange(i0, i1 + 1))
+        xs, ys = grid.origin[0] + (jj + 0.5) * r, grid.origin[1] + (ii + 0.5) * r
+        inside = shapely.contains_xy(Polygon(fp), xs, ys)
+        # Thin objects (poles) may cover no cell centre: mark the cell under their centre anyway.
+        if not inside.any():
+            ci, cj = grid.to_cell(*fp.mean(0))
+            if 0 <= ci < grid.shape[0] and 0 <= cj < grid.shape[1]:
+                mask[ci, cj] = True
+        mask[i0:i1 + 1, j0:j1 + 1] |= inside
+    return mask
+
+
+class Route:
+    """A smoothed reference polyline with arc length, projection and look-ahead queries."""
+
+    def __init__(self, points: np.ndarray, spacing: float = 0.25) -> None:
+        pts = _resample(np.asarray(points, dtype=float), spacing)
+        self.points = pts
+        seg = np.diff(pts, axis=0)
+        self.seg = seg
+        self.seg_len = np.maximum(np.hypot(seg[:, 0], seg[:, 1]), 1e-9)
+        self.s = np.concatenate([[0.0], np.cumsum(self.seg_len)])
+        self.length = float(self.s[-1])
+        self.spacing = spacing
+
+    @property
+    def start(self) -> np.ndarray:
+        """First point."""
+        return self.points[0]
+
+    @property
+    def goal(self) -> np.ndarray:
+        """Last point."""
+        return self.points[-1]
+
+    def point_at(self, s: np.ndarray | float) -> np.ndarray:
+        """Point(s) at arc length `s` (clamped to the route)."""
+        s = np.clip(s, 0.0, self.length)
+        return np.stack([np.interp(s, self.s, self.points[:, 0]), np.interp(s, self.s, self.points[:, 1])], -1)
+
+    def heading_at(self, s: float) -> float:
+        """Direction of travel (radians) at arc length `s`."""
+        k = int(min(max(np.searchsorted(self.s, s, side="right") - 1, 0), len(self.seg) - 1))
+        return math.atan2(self.seg[k, 1], self.seg[k, 0])
+
+    def project(self, x: float, y: float, s_hint: float | None = None, window: tuple[float, float] = (3.0, 8.0)) -> tuple[float, float]:
+        """(arc length, signed lateral offset; left positive) of the closest route point, searched near s_hint."""
+        if s_hint is None:
+            k0, k1 = 0, len(self.seg)
+        else:
+            k0 = max(int(np.searchsorted(self.s, s_hint - window[0])) - 1, 0)
+            k1 = min(int(np.searchsorted(self.s, s_hint + window[1])) + 1, len(self.seg))
+        a = self.points[k0:k1]
+        d = self.seg[k0:k1]
+        qx, qy = x - a[:, 0], y - a[:, 1]
+        t = np.clip((qx * d[:, 0] + qy * d[:, 1]) / (self.seg_len[k0:k1] ** 2), 0.0, 1.0)
+        ex, ey = qx - t * d[:, 0], qy - t * d[:, 1]
+        dist2 = ex * ex + ey * ey
+        k = int(np.argmin(dist2))
+        cross = d[k, 0] * qy[k] - d[k, 1] * qx[k]
+        lateral = math.sqrt(float(dist2[k])) * (1.0 if cross >= 0 else -1.0)
+        return float(self.s[k0 + k] + t[k] * self.seg_len[k0 + k]), lateral
+
+
+def _resample(pts: np.ndarray, spacing: float) -> np.ndarray:
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    keep = np.concatenate([[True], seg > 1e-9])
+    pts = pts[keep]
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    if len(pts) < 2 or s[-1] <= 0:
+        raise RouteError("a route needs two distinct points")
+    n = max(int(math.ceil(s[-1] / spacing)), 1)
+    ss = np.linspace(0.0, s[-1], n + 1)
+    return np.stack([np.interp(ss, s, pts[:, 0]), np.interp(ss, s, pts[:, 1])], -1)
+
+
+def _chaikin(pts: np.ndarray, iterations: int) -> np.ndarray:
+    for _ in range(iterations):
+        if len(pts) < 3:
+            return pts
+        q = 0.75 * pts[:-1] + 0.25 * pts[1:]
+        r = 0.25 * pts[:-1] + 0.75 * pts[1:]
+        mid = np.empty((2 * len(q), 2))
+        mid[0::2], mid[1::2] = q, r
+        pts = np.vstack([pts[:1], mid[1:-1], pts[-1:]])
+    return pts
+
+
+class RoutePlanner:
+    """Grid planner for one scene and one machine width: samples start/goal pairs and plans smoothed routes."""
+
+    def __init__(self, spec: Mapping[str, Any], half_width: float, margin: float = 0.25, comfort: float = 0.75) -> None:
+        self.grid = decode_walkable(spec)
+        g = self.grid
+        blocked = (g.labels == 0) | object_mask(g, spec.get("objects", []))
+        # Distance from each cell centre to the nearest blocked cell's edge, in metres.
+        clearance = ndimage.distance_transform_edt(~blocked) * g.resolution - 0.5 * g.resolution
+        free = clearance >= half_width + margin
+        labels, n = ndimage.label(free, structure=np.ones((3, 3)))
+        if n == 0:
+            raise RouteError(f"no walkable cell is wide enough for a machine of half-width {half_width:.2f} m")
+        sizes = np.bincount(labels.ravel())[1:]
+        self.free = labels == (int(np.argmax(sizes)) + 1)  # keep the largest connected component
+        self.clearance = clearance
+        rows, cols = np.nonzero(self.free)
+        self.node = -np.ones(g.shape, dtype=np.int64)
+        self.node[rows, cols] = np.arange(len(rows))
+        self.rows, self.cols = rows, cols
+        # Edges near obstacles cost up to 3x their length, so routes keep to the middle of the clear path
+        # when there is room, and squeeze past obstacles only when they must.
+        prefer = half_width + margin + comfort
+        self.penalty = 1.0 + 2.0 * np.clip(1.0 - clearance / prefer, 0.0, 1.0)
+        self.graph = self._graph()
+
+    def _graph(self):
+        node, res = self.node, self.grid.resolution
+        src, dst, w = [], [], []
+        rows, cols = node.shape
+        for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+            j0, j1 = max(0, -dj), cols - max(0, dj)
+            a = node[0:rows - di, j0:j1]
+            b = node[di:rows, j0 + dj:j1 + dj]
+            ok = (a >= 0) & (b >= 0)
+            src.append(a[ok])
+            dst.append(b[ok])
+            pen = 0.5 * (self.penalty[0:rows - di, j0:j1][ok] + self.penalty[di:rows, j0 + dj:j1 + dj][ok])
+            w.append(res * math.hypot(di, dj) * pen)
+        src, dst, w = np.concatenate(src), np.concatenate(dst), np.concatenate(w)
+        n = len(self.rows)
+        return coo_matrix((np.concatenate([w, w]), (np.concatenate([src, dst]), np.concatenate([dst, src]))), shape=(n, n)).tocsr()
+
+    def sample(self, rng: np.random.Generator, min_length: float = 5.0, max_length: float = 60.0,
+               tries: int = 20, spacing: float = 0.25) -> Route:
+        """Draw a start on a sidewalk cell and a goal whose shortest-path distance is in [min, max]; plan it."""
+        sidewalk = self.grid.labels[self.rows, self.cols] == SIDEWALK
+        candidates = np.nonzero(sidewalk)[0]
+        if len(candidates) == 0:
+            candidates = np.arange(len(self.rows))
+        for _ in range(tries):
+            start = int(candidates[rng.integers(len(candidates))])
+            dist, pred = dijkstra(self.graph, indices=start, limit=1.5 * max_length, return_predecessors=True)
+            ok = np.nonzero((dist >= min_length) & np.isfinite(dist) & sidewalk)[0]
+            if len(ok) == 0:
+                continue
+            goal = int(ok[rng.integers(len(ok))])
+            chain = [goal]
+            while chain[-1] != start:
+                chain.append(int(pred[chain[-1]]))
+            chain.reverse()
+            cells = self.grid.to_world(self.rows[chain], self.cols[chain])
+            # Keep every 4th cell (1 m at 0.25 m cells) and corner-cut: removes the 8-connected staircase.
+            coarse = np.vstack([cells[:-1:4], cells[-1:]])
+            route = Route(_chaikin(coarse, 3), spacing)
+            if min_length <= route.length <= max_length:
+                return route
+        raise RouteError(
+            f"found no route between {min_length} and {max_length} m in {tries} tries; use a larger scene "
+            "(more blocks) or a shorter `route_length`"
+        )

@@ -1,0 +1,132 @@
+"""Road-frame geometry: centerlines parametrised by arc length s and lateral offset d (left positive)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, MultiPolygon, Polygon
+from shapely.geometry.polygon import orient
+
+
+def unit(angle: float) -> np.ndarray:
+    """Unit vector pointing at `angle` (radians)."""
+    return np.array([math.cos(angle), math.sin(angle)])
+
+
+class Centerline:
+    """A polyline with cumulative arc length and vertex headings; maps (s, d) road coordinates to the world."""
+
+    def __init__(self, pts: np.ndarray) -> None:
+        self.pts = np.asarray(pts, dtype=np.float64)
+        d = np.diff(self.pts, axis=0)
+        seg = np.hypot(d[:, 0], d[:, 1])
+        self.s = np.concatenate([[0.0], np.cumsum(seg)])
+        self.length = float(self.s[-1])
+        h = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+        hv = np.empty(len(self.pts))
+        hv[0], hv[-1] = h[0], h[-1]
+        # The average of adjacent chord headings is the true tangent for uniformly sampled arcs.
+        hv[1:-1] = 0.5 * (h[:-1] + h[1:])
+        self.heading = hv
+
+    def offset(self, d: float) -> np.ndarray:
+        """Vertices shifted sideways by `d` (left positive)."""
+        n = np.stack([-np.sin(self.heading), np.cos(self.heading)], axis=1)
+        return self.pts + d * n
+
+    def frame(self, s: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+        """Points and headings at arc lengths `s` (linear interpolation between vertices)."""
+        s = np.atleast_1d(np.asarray(s, dtype=np.float64))
+        x = np.interp(s, self.s, self.pts[:, 0])
+        y = np.interp(s, self.s, self.pts[:, 1])
+        return np.stack([x, y], axis=1), np.interp(s, self.s, self.heading)
+
+    def to_world(self, s: np.ndarray | float, d: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+        """World points at road coordinates (s, d) and the road heading there."""
+        p, h = self.frame(s)
+        d = np.asarray(d, dtype=np.float64)
+        return p + d[..., None] * np.stack([-np.sin(h), np.cos(h)], axis=1), h
+
+    def project(self, xy: np.ndarray) -> np.ndarray:
+        """Arc length of the closest centerline point to each of `xy`."""
+        return shapely.line_locate_point(self.line, shapely.points(np.asarray(xy)))
+
+    @property
+    def line(self) -> LineString:
+        """The centerline as a shapely LineString."""
+        return LineString(self.pts)
+
+
+def straight(p: np.ndarray, h: float, length: float) -> Centerline:
+    """Straight centerline from `p` along heading `h`."""
+    return Centerline(np.stack([p, p + length * unit(h)]))
+
+
+def arc_about(c: np.ndarray, radius: float, a0: float, a1: float, step: float = 2.0) -> Centerline:
+    """Circular arc about centre `c` from polar angle a0 to a1 (counter-clockwise when a1 > a0)."""
+    n = max(8, int(math.ceil(abs(a1 - a0) * radius / step)) + 1)
+    a = np.linspace(a0, a1, n)
+    return Centerline(c + radius * np.stack([np.cos(a), np.sin(a)], axis=1))
+
+
+def arc(p: np.ndarray, h: float, radius: float, angle: float) -> Centerline:
+    """Arc leaving `p` at heading `h`, turning by signed `angle` (positive: left) on `radius`."""
+    sign = 1.0 if angle > 0 else -1.0
+    c = p + sign * radius * unit(h + math.pi / 2)
+    a0 = h - sign * math.pi / 2
+    return arc_about(c, radius, a0, a0 + angle)
+
+
+def strip(cl: Centerline, d0: float, d1: float, s0: float | None = None, s1: float | None = None) -> Polygon:
+    """Polygon between lateral offsets d0 and d1, optionally restricted to arc lengths [s0, s1]."""
+    if s0 is None and s1 is None:
+        a, b = cl.offset(d0), cl.offset(d1)
+    else:
+        s0 = 0.0 if s0 is None else s0
+        s1 = cl.length if s1 is None else s1
+        inner = cl.s[(cl.s > s0) & (cl.s < s1)]
+        s = np.concatenate([[s0], inner, [s1]])
+        a, _ = cl.to_world(s, np.full(len(s), d0))
+        b, _ = cl.to_world(s, np.full(len(s), d1))
+    return orient(Polygon(np.concatenate([a, b[::-1]])), 1.0)
+
+
+def rectangle(center: np.ndarray, yaw: float, depth: float, width: float) -> np.ndarray:
+    """Four corners (counter-clockwise) of a depth x width rectangle centred at `center`, x axis at `yaw`."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    ex = np.array([c, s]) * depth / 2
+    ey = np.array([-s, c]) * width / 2
+    return np.stack([center - ex - ey, center + ex - ey, center + ex + ey, center - ex + ey])
+
+
+def largest(geom: shapely.Geometry) -> Polygon | None:
+    """The largest polygon in `geom` (None when it has no area)."""
+    if geom.is_empty:
+        return None
+    if isinstance(geom, Polygon):
+        return geom if geom.area > 1e-6 else None
+    parts = [g for g in getattr(geom, "geoms", []) if isinstance(g, (Polygon, MultiPolygon)) and g.area > 1e-6]
+    polys = [p for g in parts for p in (g.geoms if isinstance(g, MultiPolygon) else [g])]
+    return max(polys, key=lambda p: p.area) if polys else None
+
+
+def longest_line(geom: shapely.Geometry) -> LineString | None:
+    """The longest LineString in `geom` (merging touching pieces first)."""
+    if geom.is_empty:
+        return None
+    if isinstance(geom, LineString):
+        return geom
+    lines = [g for g in getattr(geom, "geoms", []) if isinstance(g, LineString)]
+    if not lines:
+        return None
+    merged = shapely.line_merge(shapely.MultiLineString(lines))
+    if isinstance(merged, LineString):
+        return merged
+    return max(merged.geoms, key=lambda g: g.length)
+
+
+def ring_coords(poly: Polygon) -> list[list[float]]:
+    """Exterior of `poly` counter-clockwise, without the closing point."""
+    return np.asarray(orient(poly, 1.0).exterior.coords)[:-1].tolist()

@@ -1,0 +1,156 @@
+"""The walkable grid of a scene spec: rasterisation, encoding, decoding, and object obstacle masks.
+
+Cell (i, j) covers x in [x0 + j*res, x0 + (j+1)*res) and y in [y0 + i*res, y0 + (i+1)*res); a cell is
+inside a polygon when its centre is.
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+import zlib
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import shapely
+from shapely.geometry import Polygon
+
+ENCODING = "zlib+base64:uint8"
+LEGEND = {"0": "not walkable", "1": "sidewalk", "2": "crosswalk", "3": "curb ramp"}
+SIDEWALK, CROSSWALK, RAMP = 1, 2, 3
+
+
+@dataclass(frozen=True)
+class WalkableGrid:
+    """Decoded walkable grid: `mask` holds the legend codes (0 = not walkable), row i is y, column j is x."""
+
+    mask: np.ndarray
+    origin: tuple[float, float]
+    resolution: float
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(rows, cols)."""
+        return self.mask.shape  # type: ignore[return-value]
+
+    @property
+    def walkable(self) -> np.ndarray:
+        """Boolean mask of walkable surfaces (sidewalk, crosswalk, curb ramp)."""
+        return self.mask > 0
+
+    def world_to_cell(self, xy: np.ndarray | Sequence[float]) -> np.ndarray:
+        """Integer (row, col) of world points `xy` (..., 2); may fall outside the grid (see `inside`)."""
+        xy = np.asarray(xy, dtype=np.float64)
+        col = np.floor((xy[..., 0] - self.origin[0]) / self.resolution)
+        row = np.floor((xy[..., 1] - self.origin[1]) / self.resolution)
+        return np.stack([row, col], axis=-1).astype(np.int64)
+
+    def cell_to_world(self, rc: np.ndarray | Sequence[int]) -> np.ndarray:
+        """World (x, y) of the centres of cells `rc` (..., 2) given as (row, col)."""
+        rc = np.asarray(rc, dtype=np.float64)
+        x = self.origin[0] + (rc[..., 1] + 0.5) * self.resolution
+        y = self.origin[1] + (rc[..., 0] + 0.5) * self.resolution
+        return np.stack([x, y], axis=-1)
+
+    def inside(self, rc: np.ndarray) -> np.ndarray:
+        """Whether cells `rc` (..., 2) lie inside the grid."""
+        rc = np.asarray(rc)
+        return (rc[..., 0] >= 0) & (rc[..., 0] < self.shape[0]) & (rc[..., 1] >= 0) & (rc[..., 1] < self.shape[1])
+
+    def is_walkable(self, xy: np.ndarray | Sequence[float]) -> np.ndarray:
+        """Whether world points `xy` (..., 2) fall on walkable cells (False outside the grid)."""
+        rc = self.world_to_cell(xy)
+        ok = self.inside(rc)
+        out = np.zeros(ok.shape, dtype=bool)
+        out[ok] = self.mask[rc[ok][:, 0], rc[ok][:, 1]] > 0
+        return out
+
+
+def grid_frame(bounds: Sequence[float], resolution: float) -> tuple[tuple[float, float], tuple[int, int]]:
+    """Origin snapped to the resolution and the (rows, cols) covering `bounds` [xmin, ymin, xmax, ymax]."""
+    x0 = math.floor(bounds[0] / resolution) * resolution
+    y0 = math.floor(bounds[1] / resolution) * resolution
+    cols = int(math.ceil((bounds[2] - x0) / resolution))
+    rows = int(math.ceil((bounds[3] - y0) / resolution))
+    return (round(x0, 4), round(y0, 4)), (rows, cols)
+
+
+def paint(mask: np.ndarray, origin: tuple[float, float], resolution: float, poly: Polygon, value: int | bool) -> None:
+    """Set the cells of `mask` whose centres lie inside `poly` to `value` (only its bounding box is tested)."""
+    if poly.is_empty:
+        return
+    xmin, ymin, xmax, ymax = poly.bounds
+    j0 = max(int(math.floor((xmin - origin[0]) / resolution - 0.5)), 0)
+    j1 = min(int(math.ceil((xmax - origin[0]) / resolution - 0.5)) + 1, mask.shape[1])
+    i0 = max(int(math.floor((ymin - origin[1]) / resolution - 0.5)), 0)
+    i1 = min(int(math.ceil((ymax - origin[1]) / resolution - 0.5)) + 1, mask.shape[0])
+    if j1 <= j0 or i1 <= i0:
+        return
+    xs = origin[0] + (np.arange(j0, j1) + 0.5) * resolution
+    ys = origin[1] + (np.arange(i0, i1) + 0.5) * resolution
+    X, Y = np.meshgrid(xs, ys)
+    shapely.prepare(poly)
+    inside = shapely.contains_xy(poly, X, Y)
+    mask[i0:i1, j0:j1][inside] = value
+
+
+def rasterize(
+    layers: Iterable[tuple[int, Iterable[Polygon]]], bounds: Sequence[float], resolution: float
+) -> tuple[np.ndarray, tuple[float, float]]:
+    """Paint (code, polygons) layers in order (later layers win) onto a grid covering `bounds`."""
+    origin, shape = grid_frame(bounds, resolution)
+    mask = np.zeros(shape, dtype=np.uint8)
+    for code, polys in layers:
+        for p in polys:
+            paint(mask, origin, resolution, p, code)
+    return mask, origin
+
+
+def encode_walkable(mask: np.ndarray, origin: tuple[float, float], resolution: float) -> dict[str, Any]:
+    """The spec's `walkable` object for `mask`."""
+    data = np.ascontiguousarray(mask, dtype=np.uint8).tobytes()
+    return {
+        "origin": [float(origin[0]), float(origin[1])],
+        "resolution": float(resolution),
+        "shape": [int(mask.shape[0]), int(mask.shape[1])],
+        "encoding": ENCODING,
+        "legend": dict(LEGEND),
+        "cells": base64.b64encode(zlib.compress(data, 6)).decode("ascii"),
+    }
+
+
+def decode_walkable(spec: dict[str, Any]) -> WalkableGrid:
+    """Decode the `walkable` grid of a scene spec (or of its `walkable` object itself)."""
+    w = spec.get("walkable", spec)
+    if w.get("encoding") != ENCODING:
+        raise ValueError(f"walkable grid encoding {w.get('encoding')!r} is not supported; expected {ENCODING!r}")
+    rows, cols = (int(v) for v in w["shape"])
+    raw = zlib.decompress(base64.b64decode(w["cells"]))
+    if len(raw) != rows * cols:
+        raise ValueError(f"walkable grid holds {len(raw)} cells but its shape says {rows}x{cols}; regenerate the scene")
+    mask = np.frombuffer(raw, dtype=np.uint8).reshape(rows, cols).copy()
+    return WalkableGrid(mask=mask, origin=(float(w["origin"][0]), float(w["origin"][1])), resolution=float(w["resolution"]))
+
+
+def _footprint(obj: Any) -> Polygon:
+    if isinstance(obj, Polygon):
+        return obj
+    if isinstance(obj, dict):
+        obj = obj["footprint"]
+    return Polygon(obj)
+
+
+def obstacle_mask(grid: WalkableGrid, objects: Iterable[Any], inflate: float = 0.0) -> np.ndarray:
+    """Boolean mask of cells covered by object footprints grown by `inflate` metres (an agent's radius).
+
+    `objects` are spec objects (dicts with `footprint`), lists of [x, y] points, or shapely polygons.
+    """
+    out = np.zeros(grid.shape, dtype=bool)
+    for obj in objects:
+        poly = _footprint(obj)
+        if inflate > 0:
+            poly = poly.buffer(inflate, join_style="mitre" if inflate < 0.05 else "round", quad_segs=4)
+        paint(out, grid.origin, grid.resolution, poly, True)
+    return out

@@ -1,0 +1,236 @@
+"""Object placement per class: periodic standard infrastructure, zoned non-standard, clutter, buildings."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections import Counter
+from typing import Any
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Polygon
+from shapely.strtree import STRtree
+
+from sim.scene.categories import CATEGORIES, CLUTTER_ZONES, CategorySampler
+from sim.scene.geometry import rectangle
+from sim.scene.sidewalks import Sidewalk, Zone
+
+CELL = 5.0  # spatial-hash cell size (m) for the incremental overlap test
+GAP = 0.02  # clearance kept between footprints so rounding to 0.1 mm never makes them touch
+
+
+def _wrap(a: float) -> float:
+    return float(math.atan2(math.sin(a), math.cos(a)))
+
+
+def corridor(sw: Sidewalk, width: float, extend: float = 4.0) -> Polygon:
+    """Keep-out band of `width` along the clear path, extended past both ends so corners stay open."""
+    pts = np.asarray(sw.clear_path.coords)
+    a, b = pts[1] - pts[0], pts[-1] - pts[-2]
+    a /= max(np.hypot(*a), 1e-9)
+    b /= max(np.hypot(*b), 1e-9)
+    ext = np.concatenate([[pts[0] - extend * a], pts, [pts[-1] + extend * b]])
+    return LineString(ext).buffer(width / 2, cap_style="flat", quad_segs=2)
+
+
+class Placer:
+    """Places objects one by one, refusing those that leave their zone, overlap, or block the clear path."""
+
+    def __init__(self, cfg: dict[str, Any], rng: np.random.Generator, catalog: Any, sampler: CategorySampler) -> None:
+        self.cfg, self.rng, self.catalog, self.sampler = cfg, rng, catalog, sampler
+        self.objects: list[dict[str, Any]] = []
+        self.polys: list[Polygon] = []
+        self.cells: dict[tuple[int, int], list[int]] = {}
+        self.refused: Counter[str] = Counter()
+        self.fallback: list[str] = []
+        self.z = float(cfg["curb_height"])
+        self.min_depth = {c: self._min_depth(c) for c in CATEGORIES}
+        self.keep_out: STRtree | None = None
+        self.keep_polys: list[Polygon] = []
+
+    def _in_catalog(self, category: str) -> bool:
+        return self.catalog is not None and len(self.catalog.candidates(category)) > 0
+
+    def _min_depth(self, category: str) -> float:
+        if self._in_catalog(category):
+            return float(self.catalog.table.size[self.catalog.candidates(category), 0].min())
+        return CATEGORIES[category][2][0]
+
+    def set_keep_out(self, polys: list[Polygon]) -> None:
+        """Areas no object may touch (clear-path corridors, ramp approaches)."""
+        self.keep_polys = polys
+        self.keep_out = STRtree(polys) if polys else None
+
+    def asset(self, category: str, zone: str, max_depth: float, max_width: float | None = None) -> tuple[str | None, list[float]] | None:
+        """(asset_id, size) of an asset of `category` that fits, a fallback box, or None when nothing fits."""
+        if self._in_catalog(category):
+            rec = self.catalog.sample(self.rng, category, zone=zone, max_depth=max_depth, max_width=max_width)
+            if rec is None:
+                rec = self.catalog.sample(self.rng, category, max_depth=max_depth, max_width=max_width)
+            return None if rec is None else (rec.asset_id, [float(v) for v in rec.size])
+        if category not in self.fallback:
+            self.fallback.append(category)
+            src = "no catalog was given" if self.catalog is None else f"catalog {self.catalog.path} has no {category!r} asset"
+            warnings.warn(f"{src}; placing default-size boxes for category {category!r}", stacklevel=4)
+        size = list(CATEGORIES[category][2])
+        return None if size[0] > max_depth or (max_width is not None and size[1] > max_width) else (None, size)
+
+    def _free(self, poly: Polygon, check: Polygon) -> bool:
+        x0, y0, x1, y1 = check.bounds
+        idx: set[int] = set()
+        for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
+            for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
+                idx.update(self.cells.get((i, j), ()))
+        if idx and shapely.intersects(check, [self.polys[k] for k in sorted(idx)]).any():
+            return False
+        return self.keep_out is None or len(self.keep_out.query(poly, predicate="intersects")) == 0
+
+    def try_place(
+        self, sw: Sidewalk, zone: Zone, category: str, asset: tuple[str | None, list[float]],
+        center: np.ndarray, yaw: float, *, keep_out: bool = True,
+    ) -> bool:
+        """Place one object if its footprint lies in `zone`, overlaps nothing and (optionally) avoids keep-outs."""
+        depth, width, height = asset[1]
+        corners = rectangle(center, yaw, depth, width)
+        poly = Polygon(corners)
+        if not zone.polygon.contains(poly):
+            return False
+        check = Polygon(rectangle(center, yaw, depth + GAP, width + GAP))
+        saved, self.keep_out = self.keep_out, (self.keep_out if keep_out else None)
+        try:
+            if not self._free(poly, check):
+                return False
+        finally:
+            self.keep_out = saved
+        k = len(self.polys)
+        self.polys.append(check)
+        x0, y0, x1, y1 = check.bounds
+        for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
+            for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
+                self.cells.setdefault((i, j), []).append(k)
+        self.objects.append({
+            "id": f"o{len(self.objects)}",
+            "asset_id": asset[0],
+            "category": category,
+            "object_class": CATEGORIES[category][0],
+            "zone": zone.kind,
+            "sidewalk_id": sw.id,
+            "position": [float(center[0]), float(center[1]), self.z],
+            "yaw": _wrap(yaw),
+            "size": [float(depth), float(width), float(height)],
+            "footprint": corners.tolist(),
+        })
+        return True
+
+    def _count(self, per_100m: float, length: float) -> int:
+        x = per_100m / 100.0 * float(self.cfg["object_density"]) * length
+        return int(x) + int(self.rng.random() < x - int(x))
+
+    def standard(self, sw: Sidewalk) -> None:
+        """Standard infrastructure at regular stations along the curb, in the furnishing zone."""
+        zone = sw.zone("furnishing") or sw.zone("near_road_buffer")
+        rho = float(self.cfg["object_density"])
+        if zone is None or rho <= 0:
+            return
+        spacing = float(self.cfg["standard_spacing"]) / rho
+        s0, s1 = sw.s_range
+        stations = np.arange(s0 + 1.0 + self.rng.uniform(0, min(spacing, s1 - s0)), s1 - 1.0, spacing)
+        allowed = [c for c, (k, _, _) in CATEGORIES.items() if k == "standard" and self.min_depth[c] <= zone.width - 0.05]
+        cl, side = sw.roadway.centerline, sw.side
+        for s in stations:
+            cat = self.sampler.draw(self.rng, "standard", allowed)
+            if cat is None:
+                return
+            a = self.asset(cat, "furnishing", zone.width - 0.05)
+            ok = False
+            if a is not None:
+                for ds in (0.0, 0.8, -0.8, 1.6)[: max(1, int(self.cfg["placement_tries"]))]:
+                    p, h = cl.to_world(np.array([s + ds]), np.array([side * (zone.d0 + zone.d1) / 2]))
+                    if self.try_place(sw, zone, cat, a, p[0], float(h[0]) + side * math.pi / 2):
+                        ok = True
+                        break
+            if not ok:
+                self.refused[cat] += 1
+
+    def _random_in(self, sw: Sidewalk, zone: Zone, category: str, asset: tuple[str | None, list[float]], yaw_mode: str) -> bool:
+        depth, width, _ = asset[1]
+        half = max(depth, width) / 2 if yaw_mode == "random" else depth / 2
+        lo, hi = zone.d0 + half, zone.d1 - half
+        if hi < lo:
+            return False
+        cl, side = sw.roadway.centerline, sw.side
+        for _ in range(max(1, int(self.cfg["placement_tries"]))):
+            s = self.rng.uniform(*sw.s_range)
+            d = self.rng.uniform(lo, hi)
+            p, h = cl.to_world(np.array([s]), np.array([side * d]))
+            if yaw_mode == "random":
+                yaw = float(self.rng.uniform(-math.pi, math.pi))
+            else:
+                # Furnishing objects face the walkway (away from the road); frontage objects face the road.
+                yaw = float(h[0]) + side * math.pi / 2 * (1 if zone.kind == "furnishing" else -1)
+            if self.try_place(sw, zone, category, asset, p[0], yaw):
+                return True
+        return False
+
+    def non_standard(self, sw: Sidewalk) -> None:
+        """Non-standard infrastructure at random spots in their designated zones."""
+        present = {z.kind: z for z in sw.zones}
+        length = sw.s_range[1] - sw.s_range[0]
+        for _ in range(self._count(float(self.cfg["non_standard_per_100m"]), length)):
+            allowed = [c for c, (k, zs, _) in CATEGORIES.items() if k == "non_standard" and any(
+                z in present and self.min_depth[c] <= present[z].width for z in zs)]
+            cat = self.sampler.draw(self.rng, "non_standard", allowed)
+            if cat is None:
+                return
+            zones = [present[z] for z in CATEGORIES[cat][1] if z in present and self.min_depth[cat] <= present[z].width]
+            zone = zones[int(self.rng.integers(len(zones)))]
+            a = self.asset(cat, zone.kind, zone.width)
+            if a is None or not self._random_in(sw, zone, cat, a, "aligned"):
+                self.refused[cat] += 1
+
+    def clutter(self, sw: Sidewalk) -> None:
+        """Clutter anywhere on the sidewalk except the clear-path corridor."""
+        zones = [z for z in sw.zones if z.kind in CLUTTER_ZONES]
+        length = sw.s_range[1] - sw.s_range[0]
+        for _ in range(self._count(float(self.cfg["clutter_per_100m"]), length)):
+            zone = zones[int(self.rng.integers(len(zones)))]
+            cat = self.sampler.draw(self.rng, "clutter")
+            if cat is None:
+                return
+            a = self.asset(cat, zone.kind, zone.width)
+            if a is None or not self._random_in(sw, zone, cat, a, "random"):
+                self.refused[cat] += 1
+
+    def buildings(self, sw: Sidewalk) -> int:
+        """Building facades side by side along the building zone; returns how many spots were skipped."""
+        zone = sw.building
+        if zone is None:
+            return 0
+        cl, side = sw.roadway.centerline, sw.side
+        ends = cl.project(np.asarray(zone.polygon.exterior.coords))
+        s, s_end = float(ends.min()), float(ends.max())
+        skipped = 0
+        while s < s_end - 4.0:
+            want = float(self.rng.uniform(8.0, 20.0))
+            a = self.asset("building_facade", "building", zone.width, want)
+            if a is None:
+                skipped += 1
+                s += 3.0
+                continue
+            if a[0] is None:
+                a = (None, [zone.width, want, float(self.rng.uniform(6.0, 30.0))])
+            placed = False
+            # Only fallback boxes may be narrowed; a catalog mesh keeps its real size.
+            for shrink in (1.0, 0.6, 0.35) if a[0] is None else (1.0,):
+                size = [a[1][0], max(a[1][1] * shrink, 3.0), a[1][2]]
+                sc = s + size[1] / 2 + 0.1
+                p, h = cl.to_world(np.array([sc]), np.array([side * (zone.d0 + size[0] / 2)]))
+                if self.try_place(sw, zone, "building_facade", (a[0], size), p[0], float(h[0]) - side * math.pi / 2, keep_out=False):
+                    s = sc + size[1] / 2 + 0.1
+                    placed = True
+                    break
+            if not placed:
+                skipped += 1
+                s += 3.0
+        return skipped

@@ -1,0 +1,55 @@
+"""Canonical serialisation of scene specs: rounding, dumps (byte-identical), load (version-checked)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from sim.scene.config import SPEC_VERSION
+
+DECIMALS = 4
+
+
+def canonical(obj: Any) -> Any:
+    """Copy of `obj` with floats rounded to 0.1 mm, tuples as lists and numpy scalars as Python numbers."""
+    if isinstance(obj, float):
+        r = round(obj, DECIMALS)
+        return 0.0 if r == 0 else r  # -0.0 and 0.0 must serialise alike
+    if isinstance(obj, bool) or obj is None or isinstance(obj, (int, str)):
+        return obj
+    if isinstance(obj, dict):
+        return {str(k): canonical(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [canonical(v) for v in obj]
+    if hasattr(obj, "tolist"):
+        return canonical(obj.tolist())
+    raise TypeError(f"cannot serialise {type(obj).__name__} in a scene spec")
+
+
+def dumps(spec: dict[str, Any]) -> str:
+    """Canonical JSON of a spec: sorted keys, no spaces, floats rounded to 4 decimals."""
+    return json.dumps(canonical(spec), sort_keys=True, separators=(",", ":"), allow_nan=False)
+
+
+def save(spec: dict[str, Any], path: str | Path) -> Path:
+    """Write the canonical JSON of `spec` to `path` (parents created)."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(dumps(spec), encoding="utf-8")
+    return p
+
+
+def load(path: str | Path) -> dict[str, Any]:
+    """Read a scene spec, refusing a missing file or another spec version."""
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"no scene spec at {p}; create one with `curbside scenes generate --out {p}`")
+    spec = json.loads(p.read_text(encoding="utf-8"))
+    version = spec.get("version") if isinstance(spec, dict) else None
+    if version != SPEC_VERSION:
+        raise ValueError(
+            f"{p} is a scene spec of version {version!r}; this curbside reads {SPEC_VERSION!r}: "
+            "regenerate it with `curbside scenes generate`"
+        )
+    return spec

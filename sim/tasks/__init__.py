@@ -1,0 +1,1 @@
+"""Tasks: episode definitions (config defaults, reward, scene sources) for the simulator envs."""

@@ -1,0 +1,278 @@
+"""Scene spec (`curbside.scene/1`) -> static PyBullet world: ground, roads, raised sidewalks with curbs,
+curb ramps, crosswalks, buildings and static objects.
+
+Surfaces are static concave triangle meshes (extruded polygons: a constrained Delaunay triangulation of
+the top plus side walls, which are the curbs); ramps are convex wedges; objects get box collision from
+their `size` by default, or the convex hull of their catalog mesh when `collision="convex"`.
+A `World` is built once per scene; environments reuse it across resets on the same scene.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import pybullet as p
+import shapely
+from shapely.geometry import LineString, Point, Polygon
+from shapely.geometry.polygon import orient
+
+SPEC_VERSION = "curbside.scene/1"
+
+# Body kinds: what a contact with or a ray hit on that body means.
+SURFACE_KINDS = ("ground", "sidewalk", "ramp")
+COLORS = {
+    "ground": (0.33, 0.36, 0.33, 1.0),
+    "road": (0.22, 0.22, 0.24, 1.0),
+    "sidewalk": (0.72, 0.70, 0.66, 1.0),
+    "ramp": (0.85, 0.75, 0.35, 1.0),
+    "crosswalk": (0.93, 0.93, 0.93, 1.0),
+    "building": (0.55, 0.45, 0.40, 1.0),
+}
+
+
+class SceneError(ValueError):
+    """A scene spec this simulator cannot build (wrong version, missing or malformed fields)."""
+
+
+def check_spec(spec: Mapping[str, Any]) -> None:
+    """Raise SceneError unless `spec` is a `curbside.scene/1` document with the fields the simulator needs."""
+    if not isinstance(spec, Mapping):
+        raise SceneError(f"a scene spec must be a JSON object (dict), got {type(spec).__name__}")
+    version = spec.get("version")
+    if version != SPEC_VERSION:
+        raise SceneError(
+            f"scene spec version {version!r} is not supported; this simulator reads {SPEC_VERSION!r}: "
+            "regenerate the scene with `curbside scenes generate` (see docs/scene_spec.md)"
+        )
+    missing = [k for k in ("bounds", "roads", "sidewalks", "crosswalks", "objects", "walkable") if k not in spec]
+    if missing:
+        raise SceneError(f"scene spec lacks {missing}; see docs/scene_spec.md for the required fields")
+
+
+def category_color(category: str) -> tuple[float, float, float, float]:
+    """A stable colour per object category (hash-free so it is the same in every process)."""
+    h = sum((i + 1) * ord(ch) for i, ch in enumerate(category))
+    rng = np.random.default_rng(h)
+    r, g, b = rng.uniform(0.25, 0.95, 3)
+    return (float(r), float(g), float(b), 1.0)
+
+
+def _triangles(poly: Polygon) -> list[np.ndarray]:
+    """Counter-clockwise triangles (3x2 arrays) covering `poly`, holes respected."""
+    tris = []
+    for t in shapely.constrained_delaunay_triangles(poly).geoms:
+        xy = np.asarray(t.exterior.coords)[:3]
+        area2 = (xy[1, 0] - xy[0, 0]) * (xy[2, 1] - xy[0, 1]) - (xy[2, 0] - xy[0, 0]) * (xy[1, 1] - xy[0, 1])
+        if abs(area2) < 1e-9:
+            continue
+        tris.append(xy if area2 > 0 else xy[::-1])
+    return tris
+
+
+def extrusion_mesh(poly: Polygon, z0: float, z1: float, *, walls: bool = True) -> tuple[list, list]:
+    """Vertices and triangle indices of `poly` extruded from z0 to z1 (top plus outward-facing side walls)."""
+    poly = orient(poly, 1.0)
+    verts: list[list[float]] = []
+    idx: list[int] = []
+    for tri in _triangles(poly):
+        base = len(verts)
+        verts.extend([[float(x), float(y), z1] for x, y in tri])
+        idx.extend([base, base + 1, base + 2])
+    if walls and z1 > z0:
+        for ring in [poly.exterior, *poly.interiors]:
+            pts = np.asarray(ring.coords)
+            for a, b in zip(pts[:-1], pts[1:]):
+                base = len(verts)
+                verts.extend([[a[0], a[1], z0], [b[0], b[1], z0], [b[0], b[1], z1], [a[0], a[1], z1]])
+                idx.extend([base, base + 1, base + 2, base, base + 2, base + 3])
+    return verts, idx
+
+
+def _polys(geom: Any) -> list[Polygon]:
+    """The non-empty polygons of a (multi)polygon or collection."""
+    if geom.is_empty:
+        return []
+    if isinstance(geom, Polygon):
+        return [geom]
+    return [g for g in getattr(geom, "geoms", []) if isinstance(g, Polygon) and not g.is_empty]
+
+
+def _obj_vertices(path: str) -> np.ndarray:
+    """Vertex positions of a Wavefront OBJ file (enough for a convex hull)."""
+    out = []
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            if line.startswith("v "):
+                out.append([float(v) for v in line.split()[1:4]])
+    if not out:
+        raise SceneError(f"mesh {path} has no vertices; rebuild the asset or use collision='box'")
+    return np.asarray(out)
+
+
+class World:
+    """The static PyBullet world built from one scene spec; `kinds` maps body id -> what it is."""
+
+    def __init__(self, spec: Mapping[str, Any], *, client: int | None = None, gui: bool = False,
+                 collision: str = "box", catalog: Any = None, visual_meshes: bool = False,
+                 physics_dt: float = 0.02) -> None:
+        check_spec(spec)
+        if collision not in ("box", "convex"):
+            raise SceneError(f"unknown collision {collision!r}; valid: box, convex")
+        self.spec = spec
+        self.curb_height = float(spec.get("curb_height", 0.15))
+        self.owns_client = client is None
+        self.client = p.connect(p.GUI if gui else p.DIRECT) if client is None else client
+        self.kinds: dict[int, str] = {}
+        self.object_ids: list[int] = []
+        self.object_index: dict[int, int] = {}  # body id -> index into spec["objects"]
+        self._collision = collision
+        self._catalog = catalog
+        self._visual_meshes = visual_meshes
+        p.resetSimulation(physicsClientId=self.client)
+        p.setGravity(0, 0, -9.81, physicsClientId=self.client)
+        p.setTimeStep(physics_dt, physicsClientId=self.client)
+        # One solver pass per substep: the world holds one dynamic body, so more iterations buy nothing.
+        p.setPhysicsEngineParameter(numSolverIterations=10, deterministicOverlappingPairs=1,
+                                    physicsClientId=self.client)
+        self._build()
+
+    # -- building -----------------------------------------------------------------------------------
+    def _add(self, kind: str, col: int, vis: int, pos=(0, 0, 0), orn=(0, 0, 0, 1)) -> int:
+        body = p.createMultiBody(0, col, vis, basePosition=list(pos), baseOrientation=list(orn),
+                                 physicsClientId=self.client)
+        self.kinds[body] = kind
+        return body
+
+    def _mesh_body(self, kind: str, verts: list, idx: list, color, collide: bool = True) -> int | None:
+        if not idx:
+            return None
+        c = self.client
+        col = p.createCollisionShape(p.GEOM_MESH, vertices=verts, indices=idx, physicsClientId=c) if collide else -1
+        vis = p.createVisualShape(p.GEOM_MESH, vertices=verts, indices=idx, rgbaColor=list(color), physicsClientId=c)
+        return self._add(kind, col, vis)
+
+    def _build(self) -> None:
+        spec, c, h = self.spec, self.client, self.curb_height
+        xmin, ymin, xmax, ymax = (float(v) for v in spec["bounds"])
+        cx, cy = 0.5 * (xmin + xmax), 0.5 * (ymin + ymax)
+        hx, hy = 0.5 * (xmax - xmin) + 50.0, 0.5 * (ymax - ymin) + 50.0
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[hx, hy, 0.5], physicsClientId=c)
+        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[hx, hy, 0.5], rgbaColor=list(COLORS["ground"]), physicsClientId=c)
+        self.ground = self._add("ground", col, vis, (cx, cy, -0.5))
+        # Painted surfaces on the road are visual only: the ground plane carries the wheels there.
+        for road in spec["roads"]:
+            for poly in _polys(Polygon(road["polygon"]).buffer(0)):
+                self._mesh_body("road", *extrusion_mesh(poly, 0.0, 0.002, walls=False), COLORS["road"], collide=False)
+        for cw in spec["crosswalks"]:
+            for poly in _polys(Polygon(cw["polygon"]).buffer(0)):
+                self._mesh_body("crosswalk", *extrusion_mesh(poly, 0.0, 0.004, walls=False), COLORS["crosswalk"], collide=False)
+        ramps_by_sidewalk: dict[str, list[Polygon]] = {}
+        sidewalks = {sw["id"]: sw for sw in spec["sidewalks"]}
+        for cw in spec["crosswalks"]:
+            for ramp in cw.get("ramps", []):
+                poly = Polygon(ramp["polygon"]).buffer(0)
+                ramps_by_sidewalk.setdefault(ramp["sidewalk_id"], []).append(poly)
+                self._build_ramp(poly, sidewalks.get(ramp["sidewalk_id"]))
+        rng = np.random.default_rng(int(spec.get("seed", 0)))
+        for sw in spec["sidewalks"]:
+            geom = Polygon(sw["polygon"]).buffer(0)
+            for ramp in ramps_by_sidewalk.get(sw["id"], []):
+                geom = geom.difference(ramp)
+            for poly in _polys(geom):
+                self._mesh_body("sidewalk", *extrusion_mesh(poly, 0.0, h), COLORS["sidewalk"])
+            for zone in sw.get("zones", []):
+                if zone.get("kind") == "building":
+                    height = float(rng.uniform(6.0, 18.0))
+                    for poly in _polys(Polygon(zone["polygon"]).buffer(0)):
+                        self._mesh_body("building", *extrusion_mesh(poly, 0.0, height), COLORS["building"])
+        for i, obj in enumerate(spec["objects"]):
+            body = self._build_object(obj)
+            self.object_ids.append(body)
+            self.object_index[body] = i
+
+    def _build_ramp(self, poly: Polygon, sidewalk: Mapping[str, Any] | None) -> None:
+        h = self.curb_height
+        pts = np.asarray(orient(poly, 1.0).exterior.coords)[:-1]
+        if sidewalk is not None and len(sidewalk.get("edge", [])) >= 2:
+            curb = LineString(sidewalk["edge"])
+        else:
+            curb = shapely.union_all([Polygon(r["polygon"]) for r in self.spec["roads"]]).boundary
+        d = np.array([curb.distance(Point(x, y)) for x, y in pts])
+        # The vertices on the curb line sit at road level; the rest rise to the sidewalk over the ramp.
+        z = np.where(d < max(0.05, 0.25 * float(d.max())), 0.0, h)
+        if z.max() == 0.0:
+            z = np.full(len(pts), h)
+        top = [[float(x), float(y), float(zz)] for (x, y), zz in zip(pts, z)]
+        verts = top + [[float(x), float(y), -0.02] for x, y in pts]
+        col = p.createCollisionShape(p.GEOM_MESH, vertices=verts, physicsClientId=self.client)
+        n = len(pts)
+        idx = []
+        for k in range(1, n - 1):
+            idx += [0, k, k + 1]
+        vis = p.createVisualShape(p.GEOM_MESH, vertices=top, indices=idx, rgbaColor=list(COLORS["ramp"]),
+                                  physicsClientId=self.client)
+        self._add("ramp", col, vis)
+
+    def _build_object(self, obj: Mapping[str, Any]) -> int:
+        c = self.client
+        x, y, z = (float(v) for v in obj["position"])
+        d, w, hgt = (max(float(v), 0.02) for v in obj["size"])
+        orn = p.getQuaternionFromEuler([0, 0, float(obj.get("yaw", 0.0))])
+        color = list(category_color(str(obj.get("category", "object"))))
+        mesh = self._mesh_path(obj) if (self._collision == "convex" or self._visual_meshes) else None
+        if mesh is not None:
+            v = _obj_vertices(mesh)
+            lo, hi = v.min(0), v.max(0)
+            scale = np.array([d, w, hgt]) / np.maximum(hi - lo, 1e-6)
+            # Fit the mesh into the spec's box: base centred on the footprint, bottom on the surface.
+            v = (v - [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]) * scale
+        if mesh is not None and self._collision == "convex":
+            col = p.createCollisionShape(p.GEOM_MESH, vertices=v.tolist(), physicsClientId=c)
+            col_pos = (x, y, z)
+        else:
+            col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[d / 2, w / 2, hgt / 2], physicsClientId=c)
+            col_pos = None
+        if mesh is not None and self._visual_meshes:
+            vis = p.createVisualShape(p.GEOM_MESH, fileName=str(mesh), meshScale=list(scale), rgbaColor=color,
+                                      physicsClientId=c)
+        else:
+            vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[d / 2, w / 2, hgt / 2], rgbaColor=color, physicsClientId=c)
+        if col_pos is None:
+            return self._add("object", col, vis, (x, y, z + hgt / 2), orn)
+        return self._add("object", col, vis, col_pos, orn)
+
+    def _mesh_path(self, obj: Mapping[str, Any]) -> str | None:
+        if self._catalog is None or not obj.get("asset_id"):
+            return None
+        rec = self._catalog.get(obj["asset_id"])
+        rel = getattr(rec, "collision_path", None) or getattr(rec, "mesh_path", None)
+        path = self._catalog.resolve(rel)
+        if path is None or path.suffix.lower() != ".obj" or not path.exists():
+            return None
+        return str(path)
+
+    # -- queries ------------------------------------------------------------------------------------
+    def surface_height(self, x: float, y: float) -> float:
+        """Height of the driving surface under (x, y), from a vertical ray (objects excluded by the caller)."""
+        hits = p.rayTestBatch([[x, y, 30.0]], [[x, y, -1.0]], physicsClientId=self.client)
+        for hit in hits:
+            if hit[0] >= 0:
+                return float(hit[3][2])
+        return 0.0
+
+    def object_category(self, body: int) -> str:
+        """Category of the static object whose body id is `body` ('object' when unknown)."""
+        i = self.object_index.get(body)
+        return "object" if i is None else str(self.spec["objects"][i].get("category", "object"))
+
+    def close(self) -> None:
+        """Disconnect from PyBullet when this world owns the client."""
+        if self.owns_client and self.client is not None:
+            try:
+                p.disconnect(physicsClientId=self.client)
+            except p.error:
+                pass
+            self.client = None
