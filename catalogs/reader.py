@@ -14,7 +14,7 @@ import duckdb
 import numpy as np
 
 from catalogs.records import AssetRecord
-from catalogs.schema import ASSET_COLUMNS, SCHEMA_VERSION, CatalogError
+from catalogs.schema import ASSET_COLUMNS, SCHEMA_VERSION, CatalogError, stored_version
 
 
 def open_catalog(path: str | Path) -> duckdb.DuckDBPyConnection:
@@ -36,10 +36,7 @@ def open_catalog(path: str | Path) -> duckdb.DuckDBPyConnection:
         raise CatalogError(
             f"{p} is not a readable curbside catalog ({e}); rebuild it with `curbside catalog build --catalog {p}`"
         ) from e
-    try:
-        version = int(meta.get("schema_version", -1))
-    except ValueError:
-        version = -1
+    version = stored_version(meta)
     if version != SCHEMA_VERSION:
         con.close()
         raise CatalogError(

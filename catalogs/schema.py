@@ -19,6 +19,14 @@ class CatalogError(RuntimeError):
     """A catalog that is missing, of another schema version, or otherwise unusable."""
 
 
+def stored_version(meta: dict[str, str]) -> int:
+    """The schema version recorded in a catalog's meta table; -1 when absent or unreadable."""
+    try:
+        return int(meta.get("schema_version", -1))
+    except (TypeError, ValueError):
+        return -1
+
+
 def ddl(embedding_dim: int = DEFAULT_EMBEDDING_DIM) -> list[str]:
     """Return the CREATE statements of the schema; text embeddings are FLOAT[embedding_dim] arrays."""
     return [

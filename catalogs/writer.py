@@ -22,6 +22,7 @@ from catalogs.schema import (
     ZONES,
     CatalogError,
     ddl,
+    stored_version,
 )
 
 DEFAULT_EMBEDDING_MODEL = "all-MiniLM-L6-v2"
@@ -77,7 +78,7 @@ class CatalogWriter:
         existing = {r[0] for r in self.con.execute("SELECT table_name FROM information_schema.tables").fetchall()}
         if "meta" in existing:
             meta = dict(self.con.execute("SELECT key, value FROM meta").fetchall())
-            if int(meta.get("schema_version", -1)) != SCHEMA_VERSION:
+            if stored_version(meta) != SCHEMA_VERSION:
                 raise CatalogError(
                     f"catalog {self.path} has schema version {meta.get('schema_version')}, this curbside writes "
                     f"version {SCHEMA_VERSION}; rebuild it with `curbside catalog build --catalog {self.path}`"

@@ -50,7 +50,9 @@ class ZeroShotDetector:
             idx = np.array([next((i for i, p in enumerate(prompts) if n and n in p), -1) for n in names], dtype=np.int64)
             keep = idx >= 0
             return res["boxes"].cpu().numpy()[keep], res["scores"].cpu().numpy()[keep], idx[keep]
-        inputs = self.processor(text=[prompts], images=image, return_tensors="pt").to(self.device)
+        # OWL text towers have 16 positions; pad every prompt to that length as the original models do.
+        inputs = self.processor(text=prompts, images=image, padding="max_length", truncation=True,
+                                return_tensors="pt").to(self.device)
         with torch.no_grad():
             out = self.model(**inputs)
         # OWLv2 pads images to a square before resizing, so boxes are relative to the padded square.

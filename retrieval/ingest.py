@@ -89,6 +89,9 @@ def process_item(item: SourceItem, config: IngestConfig, pool: DescriptionPool, 
     from retrieval.scoring import cached_scorer
 
     h = item.content_hash()
+    if "rejected" in item.metadata:  # refused by the source's prefilter (licence, annotated size, download)
+        reason, detail = item.metadata["rejected"]
+        return _reject(item, h, "fetch", reason, detail)
     stage = "normalize"
     times: dict[str, float] = {}
     try:
@@ -145,7 +148,8 @@ def process_item(item: SourceItem, config: IngestConfig, pool: DescriptionPool, 
             asset_id=aid, source=item.source, source_id=item.source_id, category=category,
             object_class=prior.object_class if prior else "clutter",
             zones=list(prior.zones) if prior else ["clear"], depth=round(depth, 6), width=round(width, 6),
-            height=round(height, 6), description=item.description or pool.texts[top[0][0]] if top else (item.description or item.name),
+            height=round(height, 6),
+            description=item.description or (f"{category.replace('_', ' ')}: {item.name}" if item.name else category),
             synonyms=list(item.tags), license=item.license, attribution=item.attribution,
             mesh_path=rel(obj), glb_path=rel(glb), collision=config.collision, collision_path=rel(coll),
             face_count=int(final.mesh.faces.shape[0]), watertight=bool(final.mesh.is_watertight), content_hash=h,
@@ -180,3 +184,111 @@ def _config_from_dict(d: dict[str, Any]) -> IngestConfig:
 
 
 config_from_dict = _config_from_dict
+
+
+@dataclass
+class IngestReport:
+    """Counts and per-stage timings of one ingest run."""
+
+    written: int = 0
+    rejected: int = 0
+    skipped: int = 0
+    duplicates: int = 0
+    pruned_matches: int = 0
+    seconds: dict[str, float] = field(default_factory=dict)
+    reasons: dict[str, int] = field(default_factory=dict)
+
+
+def ingest(source, catalog_path: str | Path, config: IngestConfig | None = None, *, executor: str = "local",  # noqa: ANN001
+           workers: int | None = None, address: str | None = None, limit: int | None = None,
+           progress: bool = True) -> IngestReport:
+    """Run the stage for a source into the catalog at `catalog_path` (created if missing); resumable."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from catalogs.writer import CatalogWriter, asset_root
+    from retrieval.curation import load_size_priors
+    from retrieval.executors import run_map
+    from retrieval.scoring import cached_scorer, load_pool
+
+    config = config or IngestConfig()
+    catalog_path = Path(catalog_path)
+    report = IngestReport()
+    with CatalogWriter(catalog_path) as writer:
+        con = writer.con
+        pool = load_pool(con, sorted(load_size_priors()))
+        scorer = cached_scorer(config.scoring, pool)
+        if pool.origin == "category_prompts":
+            from catalogs.records import DescriptionRecord
+
+            writer.upsert_descriptions(DescriptionRecord(i, t, c, sources=["category_prompt"])
+                                       for i, t, c in zip(pool.ids, pool.texts, pool.categories))
+            if scorer.pool_text.shape[1] == writer.embedding_dim:
+                writer.upsert_embeddings("description", list(pool.ids), scorer.pool_text)
+        done = {(s, i): h for s, i, h in con.execute("SELECT source, source_id, content_hash FROM assets").fetchall()}
+        refused = {(s, i): d for s, i, d in con.execute("SELECT source, source_id, detail FROM rejections").fetchall()}
+        pending = []
+        for item in source.items(limit):
+            key = (item.source, item.source_id)
+            if key in done or key in refused:
+                h = item.content_hash()
+                if done.get(key) == h or (refused.get(key) or "").endswith(f"[sha256:{h[:16]}]"):
+                    report.skipped += 1
+                    continue
+            pending.append(item)
+        root = asset_root(catalog_path)
+        args = (config, pool, str(root), str(catalog_path.parent))
+        columns = (TextColumn("[bold]ingest {task.fields[src]}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+        with Progress(*columns, disable=not progress) as bar:
+            task = bar.add_task("ingest", total=len(pending), src=getattr(source, "name", "?"))
+            for res in run_map(process_item, pending, executor=executor, workers=workers, address=address, args=args):
+                _write_result(writer, res, config, catalog_path)
+                for k, v in res.seconds.items():
+                    report.seconds[k] = report.seconds.get(k, 0.0) + v
+                if res.rejection is not None:
+                    report.rejected += 1
+                    report.reasons[res.rejection.reason] = report.reasons.get(res.rejection.reason, 0) + 1
+                    if config.max_rejections is not None and report.rejected > config.max_rejections:
+                        raise TooManyRejections(
+                            f"{report.rejected} assets rejected (> max_rejections {config.max_rejections}); last: "
+                            f"{res.source_id}: {res.rejection.reason}. Check the source, or raise max_rejections; "
+                            f"finished assets are kept and a re-run resumes")
+                else:
+                    report.written += 1
+                bar.advance(task)
+        from retrieval.finalize import finalize
+
+        report.pruned_matches, report.duplicates = finalize(writer, config)
+    return report
+
+
+def _write_result(writer, res: ItemResult, config: IngestConfig, catalog_path: Path) -> None:  # noqa: ANN001
+    """Write one result; the asset row goes last because it marks the asset finished."""
+    con = writer.con
+    aid = f"{res.source}:{res.source_id}"
+    if res.rejection is not None:
+        # A file that changed and now fails must not leave its old rows behind.
+        for table in ("matches", "views"):
+            con.execute(f"DELETE FROM {table} WHERE asset_id = ?", [aid])
+        con.execute("DELETE FROM embeddings WHERE owner_id = ? AND owner_kind IN (?, ?)",
+                    [aid, IMAGE_EMBEDDING_KIND, TEXT_EMBEDDING_KIND])
+        con.execute("DELETE FROM assets WHERE asset_id = ?", [aid])
+        writer.record_rejections([res.rejection])
+        return
+    con.execute("DELETE FROM rejections WHERE source = ? AND source_id = ?", [res.source, res.source_id])
+    con.execute("DELETE FROM views WHERE asset_id = ?", [aid])
+    con.execute("DELETE FROM matches WHERE asset_id = ?", [aid])
+    writer.upsert_views(res.views)
+    if res.text_embedding is not None:
+        writer.upsert_embeddings(TEXT_EMBEDDING_KIND, [aid], res.text_embedding[None, :])
+    if res.image_embedding is not None:
+        if res.image_embedding.shape[0] == writer.embedding_dim:
+            writer.upsert_embeddings(IMAGE_EMBEDDING_KIND, [aid], res.image_embedding[None, :],
+                                     model=config.scoring.scorer_name.split(":")[0])
+        else:
+            # CLIP's space has another width than the catalog's FLOAT[n] column: kept next to the asset instead.
+            from catalogs.writer import asset_root
+
+            np.save(asset_root(catalog_path) / "retrieval" / res.source / Path(res.asset.mesh_path).parent.name /
+                    "image_embedding.npy", res.image_embedding)
+    writer.upsert_matches(res.matches)
+    writer.upsert_assets([res.asset])

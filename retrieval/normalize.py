@@ -40,7 +40,7 @@ class AssetRejected(Exception):
         self.detail = detail
 
 
-@dataclass
+@dataclass(frozen=True)
 class QualityLimits:
     """Thresholds of the mesh quality filters."""
 

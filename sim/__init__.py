@@ -1,15 +1,11 @@
 """The simulator: scene generation (sim.scene), PyBullet world, machines, sensors, agents, tasks, metrics, envs.
 
-Importing `sim` registers the Gymnasium environments (entry points are strings, so nothing heavy loads).
+Importing `sim` registers the Gymnasium environments `curbside/PointNav-v0` and `curbside/SocialNav-v0`
+(entry points are strings, so nothing heavy loads; see sim.envs.ENV_IDS).
 """
 
-from gymnasium.envs.registration import register, registry
+from sim.envs import ENV_IDS, register_envs
 
-_ENVS = {
-    "curbside/PointNav-v0": "sim.envs.pointnav:PointNavEnv",
-    "curbside/SocialNav-v0": "sim.envs.socialnav:SocialNavEnv",
-}
+register_envs()
 
-for _env_id, _entry_point in _ENVS.items():
-    if _env_id not in registry:
-        register(id=_env_id, entry_point=_entry_point)
+__all__ = ["ENV_IDS", "register_envs"]

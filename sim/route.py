@@ -215,6 +215,30 @@ class RoutePlanner:
         n = len(self.rows)
         return coo_matrix((np.concatenate([w, w]), (np.concatenate([src, dst]), np.concatenate([dst, src]))), shape=(n, n)).tocsr()
 
+    def _nearest_node(self, x: float, y: float) -> int:
+        pts = self.grid.to_world(self.rows, self.cols)
+        k = int(np.argmin((pts[:, 0] - x) ** 2 + (pts[:, 1] - y) ** 2))
+        if math.hypot(pts[k, 0] - x, pts[k, 1] - y) > 2.0:
+            raise RouteError(f"({x:.2f}, {y:.2f}) is more than 2 m from any cell this machine can use; pick a point on a sidewalk")
+        return k
+
+    def _route(self, chain: list[int], spacing: float) -> Route:
+        cells = self.grid.to_world(self.rows[chain], self.cols[chain])
+        # Keep every 4th cell (1 m at 0.25 m cells) and corner-cut: removes the 8-connected staircase.
+        coarse = np.vstack([cells[:-1:4], cells[-1:]])
+        return Route(_chaikin(coarse, 3), spacing)
+
+    def plan(self, start: Sequence[float], goal: Sequence[float], spacing: float = 0.25) -> Route:
+        """The smoothed route between two given world points (each snapped to the nearest usable cell)."""
+        a, b = self._nearest_node(*start[:2]), self._nearest_node(*goal[:2])
+        dist, pred = dijkstra(self.graph, indices=a, return_predecessors=True)
+        if not np.isfinite(dist[b]):
+            raise RouteError(f"no path from {list(start)} to {list(goal)} for this machine")
+        chain = [b]
+        while chain[-1] != a:
+            chain.append(int(pred[chain[-1]]))
+        return self._route(chain[::-1], spacing)
+
     def sample(self, rng: np.random.Generator, min_length: float = 5.0, max_length: float = 60.0,
                tries: int = 20, spacing: float = 0.25) -> Route:
         """Draw a start on a sidewalk cell and a goal whose shortest-path distance is in [min, max]; plan it."""
@@ -233,10 +257,7 @@ class RoutePlanner:
             while chain[-1] != start:
                 chain.append(int(pred[chain[-1]]))
             chain.reverse()
-            cells = self.grid.to_world(self.rows[chain], self.cols[chain])
-            # Keep every 4th cell (1 m at 0.25 m cells) and corner-cut: removes the 8-connected staircase.
-            coarse = np.vstack([cells[:-1:4], cells[-1:]])
-            route = Route(_chaikin(coarse, 3), spacing)
+            route = self._route(chain, spacing)
             if min_length <= route.length <= max_length:
                 return route
         raise RouteError(

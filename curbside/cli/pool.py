@@ -5,3 +5,54 @@ from __future__ import annotations
 import typer
 
 app = typer.Typer(help="Inspect the description pool from the distribution pipeline.", no_args_is_help=True)
+
+DEFAULT_POOL = "data/pool/pool.parquet"
+
+
+@app.command("show")
+def show(
+    country: str = typer.Option(None, "--country", help="ISO 3166-1 alpha-2 code: rank clusters by this country's count."),
+    top: int = typer.Option(20, "--top", min=1, help="Number of clusters to list."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
+    pool: str = typer.Option(DEFAULT_POOL, "--pool", help="Path of pool.parquet (written by `dvc repro`)."),
+) -> None:
+    """List the largest description-pool clusters (overall or for one country)."""
+    import json
+    from pathlib import Path
+
+    import pandas as pd
+
+    from pipelines.countries import check_country
+
+    if not Path(pool).exists():
+        typer.secho(f"{pool} not found; run `DVC_NO_ANALYTICS=1 dvc repro` first", fg="red", err=True)
+        raise typer.Exit(2)
+    df = pd.read_parquet(pool)
+    counts = [json.loads(c) for c in df["country_counts"]]
+    if country:
+        try:
+            code = check_country(country, where="--country")
+        except ValueError as exc:
+            typer.secho(str(exc), fg="red", err=True)
+            raise typer.Exit(2) from None
+        df = df.assign(rank_count=[c.get(code, 0) for c in counts])
+        df = df[df["rank_count"] > 0]
+    else:
+        df = df.assign(rank_count=df["count"])
+    df = df.sort_values(["rank_count", "cluster_id"], ascending=[False, True]).head(top)
+    rows = [{"cluster_id": int(r.cluster_id), "text": r.text, "category": r.category, "count": int(r.rank_count),
+             "n_members": int(r.n_members), "members": list(r.members)[:5], "sources": list(r.sources),
+             "country_counts": json.loads(r.country_counts)} for r in df.itertuples()]
+    if as_json:
+        typer.echo(json.dumps(rows, indent=2))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"description pool{' - ' + code if country else ''}: top {len(rows)}")
+    for col in ("id", "representative", "category", "count", "members", "sources", "example members"):
+        table.add_column(col)
+    for r in rows:
+        table.add_row(str(r["cluster_id"]), r["text"], r["category"], str(r["count"]), str(r["n_members"]),
+                      ",".join(r["sources"]), "; ".join(r["members"][1:4]))
+    Console().print(table)

@@ -21,7 +21,7 @@ def bench(g: Ctx, p: Parts) -> str:
         p.slab((-d / 2, d / 2), (-w / 2, w / 2), (sh - 0.1, sh), g.body)
         for y in (-w / 2 + 0.15, w / 2 - 0.15):
             p.slab((-d / 2 + 0.05, d / 2 - 0.05), (y - 0.1, y + 0.1), (0.0, sh - 0.1), g.body)
-        return "solid and backless"
+        return "without backrest"
     x_back = -d / 2 + (0.1 if back else 0.0)
     n = g.pick("slats", [3, 4, 5])
     edges = np.linspace(x_back, d / 2, n + 1)
@@ -34,7 +34,7 @@ def bench(g: Ctx, p: Parts) -> str:
     if back:
         for z in np.linspace(sh + 0.12, h - 0.08, 3):
             p.slab((-d / 2 + 0.02, -d / 2 + 0.06), (-w / 2, w / 2), (z, z + 0.08), g.body)
-    arms = g.flag("armrests", 0.4)
+    arms = back and g.flag("armrests", 0.4)  # armrests would stand above a backless bench's sampled height
     if arms:
         for y in (-w / 2 + 0.12, w / 2 - 0.12):
             p.slab((x_back, d / 2 - 0.06), (y - 0.03, y + 0.03), (sh + 0.2, sh + 0.24), frame)
@@ -59,7 +59,7 @@ def trash_bin(g: Ctx, p: Parts) -> str:
         p.slab((-d / 2 + 0.01, d / 2 - 0.01), (-w / 2 + 0.01, w / 2 - 0.01), (0.0, h - lid_h), g.body)
         p.slab((-d / 2, d / 2), (-w / 2, w / 2), (h - lid_h, h), g.body)
         p.slab((d / 2 - 0.012, d / 2), (-w * 0.3, w * 0.3), (h - lid_h - 0.18, h - lid_h - 0.03), BLACK)
-    return f"{shape} with a lid"
+    return f"with a {shape} body and a lid"
 
 
 _STREAMS = (("#1e63b5", "paper"), ("#2e8b3e", "glass"), ("#f0c419", "plastic"), ("#9e9e9e", "general waste"))
@@ -83,8 +83,9 @@ def recycling_bin(g: Ctx, p: Parts) -> str:
 
 def planter(g: Ctx, p: Parts) -> str:
     """Square or round pot with soil and a mound of foliage."""
-    h, d = g.dim("height"), g.dim("depth")
+    h = g.dim("height")
     shape = g.pick("shape", ["box", "round"])
+    d = g.dim("depth", lo=0.6 if shape == "round" else None)
     w = g.set("width", d) if shape == "round" else g.dim("width", lo=d)
     ph = h * g.u("pot_fraction", 0.45, 0.65)
     if shape == "round":
@@ -103,18 +104,18 @@ def planter(g: Ctx, p: Parts) -> str:
         for k in range(3):
             y = -w / 4 + k * w / 4
             p.sphere(min(d, w) * 0.08, (d * 0.15, y, h - fh * 0.3), "#d81b60", 1)
-    return f"{shape} with shrubs" + (" and flowers" if flowers else "")
+    return f"with a {'box-shaped' if shape == 'box' else 'round'} pot, shrubs" + (" and flowers" if flowers else "")
 
 
 def mailbox(g: Ctx, p: Parts) -> str:
     """Red pillar box with a domed cap, or a box on legs with a rounded top; the slot faces +x."""
     if g.variant.color == "red":
         g.set("style", "pillar")
-        h, d = g.dim("height", lo=1.35), g.dim("depth", hi=0.6)
+        h, d = g.dim("height", lo=1.35), g.dim("depth", lo=0.45, hi=0.6)
         w = g.set("width", d)
         r = d / 2
-        p.cylinder(r * 1.08, 0.0, 0.1, g.body)
-        p.cylinder(r * 0.95, 0.1, h - r * 0.55, g.body)
+        p.cylinder(r, 0.0, 0.1, g.body)
+        p.cylinder(r * 0.9, 0.1, h - r * 0.55, g.body)
         p.cylinder(r, h - r * 0.75, h - r * 0.55, g.body)
         p.sphere((r, r, r * 0.55), (0.0, 0.0, h - r * 0.55), g.body)
         zs = h - r * 1.3
@@ -126,22 +127,12 @@ def mailbox(g: Ctx, p: Parts) -> str:
     leg = g.u("leg_height", 0.12, 0.22)
     top = h - w / 2
     p.slab((-d / 2, d / 2), (-w / 2, w / 2), (leg, top), g.body)
-    cap = p.frustum(w / 2, w / 2, -d / 2, d / 2, g.body, sections=24)
-    cap.apply_transform(_x_cylinder(top))
+    p.rod((-d / 2, 0.0, top), (d / 2, 0.0, top), w / 2, g.body, sections=24)
     for x in (-d / 2 + 0.04, d / 2 - 0.04):
         for y in (-w / 2 + 0.04, w / 2 - 0.04):
             p.slab((x - 0.03, x + 0.03), (y - 0.03, y + 0.03), (0.0, leg), DARK)
     p.slab((d / 2, d / 2 + 0.01), (-w * 0.3, w * 0.3), (top - 0.05, top + 0.08), DARK)
     return "on legs with a rounded top"
-
-
-def _x_cylinder(z: float) -> np.ndarray:
-    """Transform laying a vertical cylinder along x with its axis at height z."""
-    import trimesh
-
-    m = trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0])
-    m[:3, 3] = [0.0, 0.0, z]
-    return m
 
 
 def bike_rack(g: Ctx, p: Parts) -> str:

@@ -60,7 +60,8 @@ def traffic_sign(g: Ctx, p: Parts) -> str:
     zc = h - ph / 2
     xc = (x_plate[0] + x_plate[1]) / 2
     if shape == "octagonal":
-        plate = p.frustum(w / 2, w / 2, -plate_t / 2, plate_t / 2, g.body, sections=8, rot_z=np.pi / 8)
+        rad = w / 2 / np.cos(np.pi / 8)  # flat-to-flat width of the octagon equals w
+        plate = p.frustum(rad, rad, -plate_t / 2, plate_t / 2, g.body, sections=8, rot_z=np.pi / 8)
         plate.apply_transform(_to_x_axis(xc, zc))
     elif shape == "diamond":
         s = w / np.sqrt(2)
@@ -91,8 +92,7 @@ def traffic_light(g: Ctx, p: Parts) -> str:
     lamp_r = min(w * 0.32, head_h / 7)
     for k, col in enumerate(("#e53935", "#ffb300", "#43a047")):
         zc = h - head_h * (k + 0.5) / 3
-        disc = p.frustum(lamp_r, lamp_r, -0.015, 0.015, col, sections=16)
-        disc.apply_transform(_to_x_axis(hx1 + 0.015, zc))
+        p.rod((hx1, 0.0, zc), (hx1 + 0.03, 0.0, zc), lamp_r, col, sections=16)
     pedestrian = g.flag("pedestrian_signal", 0.5)
     if pedestrian:
         z = h - head_h - 0.05
@@ -157,10 +157,13 @@ def tree(g: Ctx, p: Parts) -> str:
         return "conifer"
     c = (h - crown_z) / 2
     p.sphere((d / 2, w / 2, c), (0.0, 0.0, crown_z + c), g.body)
-    for k in range(3):
-        a = 2 * np.pi * k / 3 + g.u(f"lump{k}_angle", 0.0, 1.0)
-        rr = min(d, w) * 0.22
-        p.sphere(rr, (0.3 * d / 2 * np.cos(a), 0.3 * w / 2 * np.sin(a), crown_z + c * 1.35), g.body, 1)
+    # Lumps poke out of the ellipsoid so the crown reads as foliage, but stay inside the sampled box.
+    rr = 0.42 * min(d / 2, w / 2, c)
+    a0 = g.u("lump_angle", 0.0, 2 * np.pi)
+    for k in range(5):
+        a, up = a0 + 2 * np.pi * k / 5, (0.35 if k % 2 else -0.1)
+        x, y = (d / 2 - rr) * 0.95 * np.cos(a), (w / 2 - rr) * 0.95 * np.sin(a)
+        p.sphere(rr, (x, y, crown_z + c * (1 + up)), g.body, 1)
     return "deciduous"
 
 
@@ -171,8 +174,7 @@ def parking_meter(g: Ctx, p: Parts) -> str:
     top_r = min(w / 2, head_h * 0.3)
     p.cylinder(0.045, 0.0, h - head_h, METAL, sections=12)
     p.slab((-d / 2, d / 2 - 0.01), (-w / 2, w / 2), (h - head_h, h - top_r), g.body)
-    dome = p.frustum(top_r, top_r, -(d - 0.01) / 2, (d - 0.01) / 2, g.body, sections=16)
-    dome.apply_transform(_to_x_axis(-0.005, h - top_r))
+    p.rod((-d / 2, 0.0, h - top_r), (d / 2 - 0.01, 0.0, h - top_r), top_r, g.body, sections=16)
     zc = h - head_h * 0.45
     p.slab((d / 2 - 0.01, d / 2), (-w * 0.3, w * 0.3), (zc, zc + head_h * 0.25), GLASS)
     p.slab((d / 2 - 0.01, d / 2), (-w * 0.08, w * 0.08), (zc - 0.08, zc - 0.05), DARK)

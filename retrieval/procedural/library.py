@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -105,6 +106,7 @@ def generate(category: str, seed: int) -> ProceduralAsset:
     values = dict(depth=dims[0], width=dims[1], height=dims[2], color=variant.color, material=variant.material,
                   detail=detail)
     description = " ".join(spec.description.format(**values).split())
+    description = re.sub(r"\ba ([aeiou])", r"an \1", description)
     return ProceduralAsset(
         category=category, seed=int(seed), object_class=spec.object_class, zones=list(spec.zones), mesh=mesh,
         face_colors=colors, color=variant.color, material=variant.material, dims=dims,  # type: ignore[arg-type]

@@ -38,10 +38,11 @@ class SourceItem:
     def content_hash(self) -> str:
         """sha256 of the mesh file and every file next to it that it references (MTL, textures, sidecar)."""
         h = hashlib.sha256()
-        p = Path(self.path)
-        for f in [p, *sorted(self.metadata.get("companion_files", []))]:
+        h.update(f"{self.source}:{self.source_id}".encode())
+        files = [self.path, *sorted(self.metadata.get("companion_files", []))] if self.path else []
+        for f in files:
             f = Path(f)
-            if f.exists():
+            if f.is_file():
                 h.update(f.name.encode())
                 with open(f, "rb") as fh:
                     for chunk in iter(lambda: fh.read(1 << 20), b""):

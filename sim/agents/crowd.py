@@ -32,7 +32,8 @@ AGENT_DEFAULTS: dict[str, Any] = {
     "plan_radius": 0.5,  # objects and edges are grown by this much for planning (the widest ORCA radius)
     "n_goal_sites": 32,  # distance fields shared by all agents; more sites = more varied goals, slower reset
     "goal_spread": 2.5,  # each agent's goal is a free cell within this distance of its site
-    "lookahead_cells": 8,
+    "lookahead_cells": 8,  # 1, 2, 4 or 8
+    "keep_right": 0.5,  # metres the carrot is shifted to the right of the path (lane formation)
     "arrive_radius": 0.5,
     "crowded_arrive_radius": 2.0,  # a stalled agent this close to its goal has arrived (someone stands on it)
     "idle_prob": 0.25,  # chance to stand still on arrival
@@ -42,10 +43,10 @@ AGENT_DEFAULTS: dict[str, Any] = {
     "max_neighbors": 10,
     "time_horizon": 2.0,
     "time_horizon_obst": 1.0,
-    "safety_margin": 0.05,  # added to every ORCA radius so sampling error never lets bodies touch
+    "safety_margin": 0.1,  # added to every ORCA radius so sampling error never lets bodies touch
     "ego_margin": 0.25,  # the ego does not reciprocate, so agents keep extra room from it
     "stuck_steps": 30,
-    "regoal_steps": 100,
+    "regoal_steps": 150,
     "stuck_progress": 0.25,  # metres of field distance that count as progress
     "budget_factor": 2.0,  # goal time budget = factor * path length / speed + slack
     "budget_slack": 10.0,
@@ -92,7 +93,10 @@ class AgentManager:
             agent_kind(kind)
         if any(v < 0 for v in self.config["mix"].values()) or sum(self.config["mix"].values()) <= 0:
             raise ConfigError("agents config mix needs non-negative shares with a positive sum")
+        if self.config["lookahead_cells"] not in (1, 2, 4, 8):
+            raise ConfigError(f"agents config lookahead_cells must be 1, 2, 4 or 8, got {self.config['lookahead_cells']}")
         self.grid: NavGrid | None = None
+        self._scene: Any = None  # the spec the cached grid and ORCA obstacles belong to
         self.n = 0
         self.time = 0.0
 
@@ -102,7 +106,9 @@ class AgentManager:
         """Build the planner for `spec`, spawn agents away from `keep_clear` discs (x, y, r) and return states()."""
         c = self.config
         self.rng = rng
-        self.grid = build_navgrid(spec, rng, plan_radius=c["plan_radius"], n_sites=c["n_goal_sites"])
+        fresh = spec is not self._scene
+        if fresh:
+            self.grid = build_navgrid(spec, plan_radius=c["plan_radius"], n_sites=c["n_goal_sites"])
         kinds = self._draw_kinds(spec, rng)
         self.n = n = len(kinds)
         self.kind_idx = np.array([KIND_NAMES.index(k) for k in kinds], dtype=np.int16)
@@ -122,7 +128,8 @@ class AgentManager:
         self.budget = np.zeros(n)
         self.time = 0.0
         self.counts = {"in_time": 0, "late": 0, "abandoned": 0}
-        self._build_orca(spec)
+        self._build_orca(spec, fresh)
+        self._scene = spec
         nodes = self.grid.nearest_node(self.pos)
         for i in range(n):
             if rng.random() < c["idle_prob"]:
@@ -170,10 +177,13 @@ class AgentManager:
                              "lower dynamic_density or the explicit counts")
         return pos
 
-    def _build_orca(self, spec: dict[str, Any]) -> None:
+    def _build_orca(self, spec: dict[str, Any], fresh: bool) -> None:
         c = self.config
-        self.sim = pyrvo.RVOSimulator(0.1, c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
-                                      c["time_horizon_obst"], 0.3, 2.0)
+        if not fresh:
+            self.sim.clear_agents()  # static obstacles stay: same scene
+        else:
+            self.sim = pyrvo.RVOSimulator(0.1, c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
+                                          c["time_horizon_obst"], 0.3, 2.0)
         for i in range(self.n):
             kind = AGENT_KINDS[KIND_NAMES[self.kind_idx[i]]]
             top = (kind.run_speed or kind.pref_speed) + 3.0 * kind.speed_std
@@ -182,6 +192,8 @@ class AgentManager:
         # The ego is the last ORCA agent; it starts parked far away so it influences nobody until placed.
         self.ego_id = self.sim.add_agent(self._parked(), c["neighbor_dist"], c["max_neighbors"],
                                          c["time_horizon"], c["time_horizon_obst"], 0.1, 50.0)
+        if not fresh:
+            return
         for o in spec.get("objects", []):
             pts = np.asarray(o.get("footprint") or [], dtype=np.float64)
             if len(pts) >= 3:
@@ -208,7 +220,7 @@ class AgentManager:
         run = kind.run_speed is not None and rng.random() < c["run_prob"]
         self.movement[i] = RUNNING if run else WALKING
         self.speed[i] = kind.sample_speed(rng, "running" if run else "walking")
-        dist, _ = g.field(site)
+        dist = g.field(site)
         centre = g.node_xy(np.array([g.sites[site]]))[0]
         near = np.flatnonzero(np.linalg.norm(g.node_xy(np.flatnonzero(dist < c["goal_spread"] * 1.5)) - centre, axis=1)
                               < c["goal_spread"])
@@ -293,6 +305,9 @@ class AgentManager:
                 self.best[i], self.stall[i] = dist[k], 0
             else:
                 self.stall[i] += 1
+                if self.stall[i] == c["stuck_steps"]:
+                    # Progress during the side-step counts from here, not from before being pushed back.
+                    self.best[i] = dist[k]
                 if self.stall[i] >= c["regoal_steps"]:
                     self._new_goal(int(i), int(nodes[i]), abandon=True)
 
@@ -301,11 +316,21 @@ class AgentManager:
         sites = self.site[idx]
         steps = c["lookahead_cells"]
         carrot = g.node_xy(g.lookahead(nodes, sites, steps))
+        # Keep right: shortest paths hug the same inner edges in both directions, so opposing flows would meet
+        # head-on in one lane (ORCA then herds the weaker side backwards); a right offset forms two lanes.
+        d = carrot - self.pos[idx]
+        norm = np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-6)
+        shifted = carrot + np.stack([d[:, 1], -d[:, 0]], 1) / norm * c["keep_right"]
+        i_r, j_r = g.cell_of(shifted)
+        ok = g.inside(shifted) & g.free[i_r, j_r]
+        carrot[ok] = shifted[ok]
         # A carrot behind a concave corner (a crosswalk mouth) would press the agent into the curb: fall back
         # to nearer points of the path until one is in sight.
         for k, i in enumerate(idx):
             p, r = (float(self.pos[i, 0]), float(self.pos[i, 1])), float(self.radius[i])
             s = steps
+            if not self.sim.query_visibility(p, (float(carrot[k, 0]), float(carrot[k, 1])), r):
+                carrot[k] = g.node_xy(g.lookahead(nodes[k:k + 1], sites[k:k + 1], s))[0]
             while s > 1 and not self.sim.query_visibility(p, (float(carrot[k, 0]), float(carrot[k, 1])), r):
                 s //= 2
                 carrot[k] = g.node_xy(g.lookahead(nodes[k:k + 1], sites[k:k + 1], s))[0]
@@ -319,9 +344,17 @@ class AgentManager:
         speed = np.minimum(self.speed[idx], np.maximum(to_goal, 0.3))
         stuck = self.stall[idx] >= c["stuck_steps"]
         if stuck.any():
-            # Side-step to the right (about 60 degrees): symmetric face-offs are ORCA's classic deadlock.
-            cs, sn = np.cos(-1.0), np.sin(-1.0)
+            # Side-step (the rotate half of push-and-rotate): to the right when there is room, else to the left,
+            # switching sides every `stuck_steps` so an agent pinned against a curb or a wall gets out.
             dx, dy = direction[stuck, 0].copy(), direction[stuck, 1].copy()
+            right = np.stack([dy, -dx], 1)
+            probe = self.pos[idx[stuck]] + right * 1.0
+            i_r, j_r = g.cell_of(probe)
+            sign = np.where(g.inside(probe) & g.free[i_r, j_r], 1.0, -1.0)
+            phase = (self.stall[idx[stuck]] - c["stuck_steps"]) // c["stuck_steps"]
+            sign = np.where(phase % 2 == 1, -sign, sign)
+            ang = -1.2 * sign
+            cs, sn = np.cos(ang), np.sin(ang)
             direction[stuck, 0], direction[stuck, 1] = cs * dx - sn * dy, sn * dx + cs * dy
         return direction * speed[:, None]
 

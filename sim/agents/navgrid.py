@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import base64
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -103,7 +103,9 @@ class NavGrid:
     graph: csr_matrix
     nearest_rc: np.ndarray  # int32 [2, rows, cols]: nearest free cell of every cell
     sites: np.ndarray  # node ids of goal sites
-    _fields: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    _dist: np.ndarray | None = None  # [sites, nodes] path length to each site, inf until computed
+    _jump: np.ndarray | None = None
+    _done: np.ndarray | None = None
 
     @property
     def n_nodes(self) -> int:
@@ -140,46 +142,56 @@ class NavGrid:
         i, j = self.cell_of(xy)
         return self.node_of[self.nearest_rc[0, i, j], self.nearest_rc[1, i, j]]
 
-    def field(self, site: int) -> tuple[np.ndarray, np.ndarray]:
-        """(distance to site in metres, next node toward site) for every node; computed once per site."""
-        if site not in self._fields:
-            dist, pred = dijkstra(self.graph, directed=True, indices=int(self.sites[site]), return_predecessors=True)
-            self._fields[site] = (dist, pred)
-        return self._fields[site]
+    def _tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self._dist is None:
+            k, n = len(self.sites), self.n_nodes
+            self._dist = np.full((k, n), np.inf)
+            self._jump = np.zeros((len(JUMPS), k, n), dtype=np.int32)  # node reached after 2^j steps
+            self._done = np.zeros(k, dtype=bool)
+        return self._dist, self._jump, self._done
 
     def plan_all(self, sites: np.ndarray) -> None:
-        """Compute the fields of all `sites` not yet cached in one Dijkstra call."""
-        todo = sorted({int(s) for s in sites} - set(self._fields))
-        if not todo:
+        """Compute the distance fields of all `sites` not yet computed, in one Dijkstra call."""
+        dist_t, jump_t, done = self._tables()
+        todo = np.unique(np.asarray(sites, dtype=np.int64))
+        todo = todo[~done[todo]]
+        if not len(todo):
             return
         dist, pred = dijkstra(self.graph, directed=True, indices=self.sites[todo], return_predecessors=True)
+        dist, pred = np.atleast_2d(dist), np.atleast_2d(pred)
+        own = np.arange(self.n_nodes, dtype=np.int32)
         for k, s in enumerate(todo):
-            self._fields[s] = (dist[k], pred[k])
+            step = np.where(pred[k] >= 0, pred[k], own).astype(np.int32)  # the site (and unreachable) stay put
+            dist_t[s] = dist[k]
+            for j in range(len(JUMPS)):
+                jump_t[j, s] = step
+                step = step[step]  # composing the successor map doubles the look-ahead
+            done[s] = True
+
+    def field(self, site: int) -> np.ndarray:
+        """Distance in metres from every node to `site` (computed once per site)."""
+        self.plan_all(np.array([site]))
+        return self._dist[site]
 
     def distance(self, nodes: np.ndarray, sites: np.ndarray) -> np.ndarray:
         """Path length in metres from each node to its agent's goal site."""
-        out = np.empty(len(nodes))
-        for s in np.unique(sites):
-            m = sites == s
-            out[m] = self.field(int(s))[0][nodes[m]]
-        return out
+        self.plan_all(sites)
+        return self._dist[sites, nodes]
 
     def lookahead(self, nodes: np.ndarray, sites: np.ndarray, steps: int) -> np.ndarray:
-        """Node reached by following each agent's field `steps` cells toward its site (the carrot to steer at)."""
-        out = nodes.copy()
-        for s in np.unique(sites):
-            m = sites == s
-            pred = self.field(int(s))[1]
-            cur = nodes[m]
-            for _ in range(steps):
-                nxt = pred[cur]
-                cur = np.where(nxt >= 0, nxt, cur)
-            out[m] = cur
-        return out
+        """Node reached by following each agent's field `steps` (a power of two <= 8) cells toward its site."""
+        self.plan_all(sites)
+        return self._jump[JUMPS.index(steps), sites, nodes]
 
 
-def build_navgrid(spec: dict[str, Any], rng: np.random.Generator, *, plan_radius: float = 0.3, n_sites: int = 32) -> NavGrid:
-    """Build the planning grid of a scene spec: object footprints inflated by `plan_radius`, goal sites spread out."""
+JUMPS = [1, 2, 4, 8]
+
+
+def build_navgrid(spec: dict[str, Any], *, plan_radius: float = 0.5, n_sites: int = 32) -> NavGrid:
+    """Build the planning grid of a scene spec: object footprints inflated by `plan_radius`, goal sites spread out.
+
+    A pure function of the spec, so one grid (and its distance fields) serves every episode in a scene.
+    """
     cells, origin, res = decode_cells(spec)
     surface = cells > 0
     footprints = [np.asarray(o["footprint"], dtype=np.float64) for o in spec.get("objects", []) if o.get("footprint")]
@@ -205,7 +217,7 @@ def build_navgrid(spec: dict[str, Any], rng: np.random.Generator, *, plan_radius
 
     sidewalk_nodes = np.flatnonzero(cells[node_rc[:, 0], node_rc[:, 1]] == LEGEND_SIDEWALK)
     candidates = sidewalk_nodes if len(sidewalk_nodes) else np.arange(len(node_rc))
-    sites = _spread_sites(node_rc[candidates].astype(np.float64), candidates, n_sites, rng)
+    sites = _spread_sites(node_rc[candidates].astype(np.float64), candidates, n_sites)
     return NavGrid(cells, origin, res, walkable, free, node_of, node_rc, graph, nearest_rc, sites)
 
 
@@ -229,10 +241,10 @@ def _grid_graph(free: np.ndarray, node_of: np.ndarray, res: float) -> csr_matrix
     return csr_matrix((np.concatenate(wt), (np.concatenate(src), np.concatenate(dst))), shape=(n, n))
 
 
-def _spread_sites(rc: np.ndarray, candidates: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
-    """Pick `k` candidate nodes by farthest-point sampling from a random start, so goals cover the whole scene."""
+def _spread_sites(rc: np.ndarray, candidates: np.ndarray, k: int) -> np.ndarray:
+    """Pick `k` candidate nodes by farthest-point sampling from the first one, so goals cover the whole scene."""
     k = min(k, len(candidates))
-    chosen = [int(rng.integers(len(candidates)))]
+    chosen = [0]
     d = np.linalg.norm(rc - rc[chosen[0]], axis=1)
     for _ in range(k - 1):
         nxt = int(np.argmax(d))

@@ -49,6 +49,16 @@ class Centerline:
         d = np.asarray(d, dtype=np.float64)
         return p + d[..., None] * np.stack([-np.sin(h), np.cos(h)], axis=1), h
 
+    def point(self, s: float, d: float) -> tuple[np.ndarray, float]:
+        """Scalar fast path of `to_world`: the world point at (s, d) and the heading there."""
+        i = min(max(int(np.searchsorted(self.s, s)) - 1, 0), len(self.s) - 2)
+        s0, s1 = self.s[i], self.s[i + 1]
+        t = min(max((s - s0) / (s1 - s0), 0.0), 1.0) if s1 > s0 else 0.0
+        x = self.pts[i, 0] + t * (self.pts[i + 1, 0] - self.pts[i, 0])
+        y = self.pts[i, 1] + t * (self.pts[i + 1, 1] - self.pts[i, 1])
+        h = self.heading[i] + t * (self.heading[i + 1] - self.heading[i])
+        return np.array([x - d * math.sin(h), y + d * math.cos(h)]), float(h)
+
     def project(self, xy: np.ndarray) -> np.ndarray:
         """Arc length of the closest centerline point to each of `xy`."""
         return shapely.line_locate_point(self.line, shapely.points(np.asarray(xy)))
@@ -96,9 +106,10 @@ def strip(cl: Centerline, d0: float, d1: float, s0: float | None = None, s1: flo
 def rectangle(center: np.ndarray, yaw: float, depth: float, width: float) -> np.ndarray:
     """Four corners (counter-clockwise) of a depth x width rectangle centred at `center`, x axis at `yaw`."""
     c, s = math.cos(yaw), math.sin(yaw)
-    ex = np.array([c, s]) * depth / 2
-    ey = np.array([-s, c]) * width / 2
-    return np.stack([center - ex - ey, center + ex - ey, center + ex + ey, center - ex + ey])
+    ax, ay = c * depth / 2, s * depth / 2
+    bx, by = -s * width / 2, c * width / 2
+    x, y = float(center[0]), float(center[1])
+    return np.array([[x - ax - bx, y - ay - by], [x + ax - bx, y + ay - by], [x + ax + bx, y + ay + by], [x - ax + bx, y - ay + by]])
 
 
 def largest(geom: shapely.Geometry) -> Polygon | None:
@@ -110,6 +121,15 @@ def largest(geom: shapely.Geometry) -> Polygon | None:
     parts = [g for g in getattr(geom, "geoms", []) if isinstance(g, (Polygon, MultiPolygon)) and g.area > 1e-6]
     polys = [p for g in parts for p in (g.geoms if isinstance(g, MultiPolygon) else [g])]
     return max(polys, key=lambda p: p.area) if polys else None
+
+
+def clean(geom: shapely.Geometry, eps: float = 0.005) -> Polygon | None:
+    """Largest polygon of `geom` after removing slivers and zero-width spikes left by boolean operations."""
+    if geom.is_empty:
+        return None
+    opened = geom.buffer(-eps, join_style="mitre").buffer(eps, join_style="mitre")
+    poly = largest(opened)
+    return None if poly is None else largest(shapely.make_valid(poly.simplify(1e-4)))
 
 
 def longest_line(geom: shapely.Geometry) -> LineString | None:

@@ -93,10 +93,12 @@ class Placer:
         """Place one object if its footprint lies in `zone`, overlaps nothing and (optionally) avoids keep-outs."""
         depth, width, height = asset[1]
         corners = rectangle(center, yaw, depth, width)
-        poly = Polygon(corners)
+        poly = shapely.polygons(corners)
+        if not shapely.is_prepared(zone.polygon):
+            shapely.prepare(zone.polygon)
         if not zone.polygon.contains(poly):
             return False
-        check = Polygon(rectangle(center, yaw, depth + GAP, width + GAP))
+        check = shapely.polygons(rectangle(center, yaw, depth + GAP, width + GAP))
         saved, self.keep_out = self.keep_out, (self.keep_out if keep_out else None)
         try:
             if not self._free(poly, check):
@@ -146,8 +148,8 @@ class Placer:
             ok = False
             if a is not None:
                 for ds in (0.0, 0.8, -0.8, 1.6)[: max(1, int(self.cfg["placement_tries"]))]:
-                    p, h = cl.to_world(np.array([s + ds]), np.array([side * (zone.d0 + zone.d1) / 2]))
-                    if self.try_place(sw, zone, cat, a, p[0], float(h[0]) + side * math.pi / 2):
+                    p, h = cl.point(s + ds, side * (zone.d0 + zone.d1) / 2)
+                    if self.try_place(sw, zone, cat, a, p, h + side * math.pi / 2):
                         ok = True
                         break
             if not ok:
@@ -163,13 +165,13 @@ class Placer:
         for _ in range(max(1, int(self.cfg["placement_tries"]))):
             s = self.rng.uniform(*sw.s_range)
             d = self.rng.uniform(lo, hi)
-            p, h = cl.to_world(np.array([s]), np.array([side * d]))
+            p, h = cl.point(s, side * d)
             if yaw_mode == "random":
                 yaw = float(self.rng.uniform(-math.pi, math.pi))
             else:
                 # Furnishing objects face the walkway (away from the road); frontage objects face the road.
-                yaw = float(h[0]) + side * math.pi / 2 * (1 if zone.kind == "furnishing" else -1)
-            if self.try_place(sw, zone, category, asset, p[0], yaw):
+                yaw = h + side * math.pi / 2 * (1 if zone.kind == "furnishing" else -1)
+            if self.try_place(sw, zone, category, asset, p, yaw):
                 return True
         return False
 
@@ -225,8 +227,8 @@ class Placer:
             for shrink in (1.0, 0.6, 0.35) if a[0] is None else (1.0,):
                 size = [a[1][0], max(a[1][1] * shrink, 3.0), a[1][2]]
                 sc = s + size[1] / 2 + 0.1
-                p, h = cl.to_world(np.array([sc]), np.array([side * (zone.d0 + size[0] / 2)]))
-                if self.try_place(sw, zone, "building_facade", (a[0], size), p[0], float(h[0]) - side * math.pi / 2, keep_out=False):
+                p, h = cl.point(sc, side * (zone.d0 + size[0] / 2))
+                if self.try_place(sw, zone, "building_facade", (a[0], size), p, h - side * math.pi / 2, keep_out=False):
                     s = sc + size[1] / 2 + 0.1
                     placed = True
                     break

@@ -11,7 +11,7 @@ from shapely.geometry import LineString, Polygon
 
 from curbside.config import ConfigError
 from sim.scene.config import TEMPLATES
-from sim.scene.geometry import largest, longest_line, strip
+from sim.scene.geometry import clean, largest, longest_line, strip
 from sim.scene.roads import Block, Roadway
 
 
@@ -94,13 +94,13 @@ def build_sidewalks(blocks: list[Block], cfg: dict[str, Any], rng: np.random.Gen
                     bands.append((kind, d, d + wd))
                     d += wd
                 raw = _band(w, side, w.half_width, d)
-                poly = largest(raw.difference(taken))
+                poly = clean(raw.difference(taken))
                 bdepth = float(rng.uniform(*cfg["building_depth"]))
                 if poly is None or poly.area < 4.0:
                     continue
                 zones = []
                 for kind, d0, d1 in bands:
-                    zp = largest(_band(w, side, d0, d1).intersection(poly))
+                    zp = clean(_band(w, side, d0, d1).intersection(poly))
                     if zp is not None:
                         zones.append(Zone(kind, d0, d1, zp))
                 clear = next((z for z in zones if z.kind == "clear"), None)
@@ -124,7 +124,7 @@ def build_sidewalks(blocks: list[Block], cfg: dict[str, Any], rng: np.random.Gen
                     raw_buildings.append((sw, d, d + bdepth, _band(w, side, d, d + bdepth)))
     for sw, d0, d1, raw in raw_buildings:
         # Buildings come last: they yield to every sidewalk and to earlier buildings.
-        bp = largest(raw.difference(taken))
+        bp = clean(raw.difference(taken))
         if bp is not None and bp.area > 4.0:
             sw.building = Zone("building", d0, d1, bp)
             taken = taken.union(bp)

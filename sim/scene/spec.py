@@ -6,6 +6,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from sim.scene.config import SPEC_VERSION
 
 DECIMALS = 4
@@ -21,6 +23,14 @@ def canonical(obj: Any) -> Any:
     if isinstance(obj, dict):
         return {str(k): canonical(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
+        if obj and isinstance(obj[0], (float, list)):
+            # Coordinate arrays dominate specs: round them in one numpy call instead of per element.
+            try:
+                arr = np.asarray(obj)
+            except ValueError:
+                arr = None
+            if arr is not None and arr.dtype == np.float64:
+                return (np.round(arr, DECIMALS) + 0.0).tolist()
         return [canonical(v) for v in obj]
     if hasattr(obj, "tolist"):
         return canonical(obj.tolist())

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -77,4 +78,7 @@ def load_scene(config: Mapping[str, Any], seed: int) -> dict[str, Any]:
         raise RuntimeError(
             f"sim.scene.generate_scene is unavailable ({e}); pass config={{'scene_spec': ...}} or 'scene_path'"
         ) from e
-    return generate_scene(dict(config["scene"]), seed, config["catalog"])
+    with warnings.catch_warnings():
+        # Without a catalog the generator warns once per category; the env says it once per process instead.
+        warnings.filterwarnings("ignore", message="no catalog was given")
+        return generate_scene(dict(config["scene"]), seed, config["catalog"])

@@ -1,0 +1,16 @@
+"""Procedural street-object library: parametric trimesh generators for 33 categories with real-world sizes.
+
+`generate(category, seed)` builds one deterministic variant; `export_asset` writes OBJ+MTL+texture (PyBullet) and
+GLB; `to_record` turns it into a catalog row; `contact_sheet` renders a grid of thumbnails. See docs/procedural.md.
+"""
+
+from retrieval.procedural.contact import contact_sheet
+from retrieval.procedural.export import ExportedAsset, export_asset, pybullet_extents, to_record
+from retrieval.procedural.library import CATEGORIES, GENERATORS, ProceduralAsset, category_names, generate
+from retrieval.procedural.render import render_views
+from retrieval.procedural.spec import CategorySpec, Variant, load_categories
+
+__all__ = [
+    "CATEGORIES", "GENERATORS", "CategorySpec", "ExportedAsset", "ProceduralAsset", "Variant", "category_names",
+    "contact_sheet", "export_asset", "generate", "load_categories", "pybullet_extents", "render_views", "to_record",
+]

@@ -1,0 +1,10 @@
+"""Cohabitants: pedestrians, vulnerable road users and robots on sidewalks (ORCA), and vehicles on roads (IDM)."""
+
+from sim.agents.crowd import AGENT_DEFAULTS, AGENT_DTYPE, AgentManager, EgoState
+from sim.agents.kinds import AGENT_KINDS, DEFAULT_MIX, KIND_NAMES, MOVEMENTS, AgentKind, agent_kind
+from sim.agents.toy import toy_street_spec
+
+__all__ = [
+    "AGENT_DEFAULTS", "AGENT_DTYPE", "AGENT_KINDS", "DEFAULT_MIX", "KIND_NAMES", "MOVEMENTS",
+    "AgentKind", "AgentManager", "EgoState", "agent_kind", "toy_street_spec",
+]

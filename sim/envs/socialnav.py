@@ -1,0 +1,221 @@
+"""SocialNav: PointNav among cohabitants (sim.agents) and road traffic, with the social metrics PSC, STL and SNS."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import pybullet as p
+
+from sim.agents.crowd import AGENT_DEFAULTS, AgentManager, EgoState
+from sim.agents.kinds import AGENT_KINDS
+from sim.agents.render import draw_top_down
+from sim.agents.vehicles import VEHICLE_DEFAULTS, VehicleManager
+from sim.envs.pointnav import PointNavEnv
+from sim.metrics import POINTNAV_MEASURES, Measure, register_measure
+from sim.tasks.pointnav import DEFAULT_CONFIG as POINTNAV_CONFIG
+
+SOCIALNAV_MEASURES = [*POINTNAV_MEASURES, "psc", "stl", "sns"]
+DEFAULT_CONFIG: dict[str, Any] = {
+    **POINTNAV_CONFIG,
+    "agents": dict(AGENT_DEFAULTS),
+    "vehicles": dict(VEHICLE_DEFAULTS),
+    "traffic": True,  # vehicles on the roads
+    "personal_space": 0.5,  # PSC radius between the ego's and an agent's centres (iGibson)
+    "stl_cruise_speed": 2.5,  # m/s; t_ref = route length / min(this, v_max); the expert's cruise speed
+    "measures": list(SOCIALNAV_MEASURES),
+    "render": {**POINTNAV_CONFIG["render"], "camera": "map", "width": 256, "height": 256},
+}
+VEHICLE_HEIGHT = 1.5
+
+
+class SocialNavEnv(PointNavEnv):
+    """PointNav plus pedestrians, vulnerable road users, robots (ORCA) and vehicles (IDM) that react to the ego.
+
+    Spaces, reward and episode end are PointNav's (see its docstring). Additions:
+
+    | what | where |
+    |---|---|
+    | agents and vehicles | kinematic PyBullet bodies (cylinders per kind colour, boxes), seen by the LiDAR |
+    | cost | +1 per step in collision, agents (`collisions_agent`) and vehicles (`collisions_vehicle`) included |
+    | metrics | `psc`, `stl`, `sns` (docs/metrics.md) beside PointNav's |
+    | `agent_states()` | structured array x, y, vx, vy, radius, kind (sim.agents.AGENT_DTYPE) |
+    | `vehicle_states()` | structured array x, y, vx, vy, yaw, length, width |
+    | config | `agents` (sim.agents.AGENT_DEFAULTS), `vehicles`, `traffic`, `personal_space`, `stl_cruise_speed` |
+
+    `render()` with camera "map" (default) draws a top-down map with agents by kind and short trails;
+    "top_down" and "chase" are PointNav's TinyRenderer cameras.
+    """
+
+    default_config: dict[str, Any] = DEFAULT_CONFIG
+
+    def __init__(self, config: Mapping[str, Any] | None = None, render_mode: str | None = None) -> None:
+        super().__init__(config, render_mode)
+        self.crowd = AgentManager(self.config["agents"])
+        self.traffic = VehicleManager(self.config["vehicles"])
+        self.collision_kinds_all = [*self.collision_kinds_all, "agent", "vehicle"]
+        self._agent_bodies: list[int] = []
+        self._vehicle_bodies: list[int] = []
+        self._shapes: dict[Any, tuple[int, int]] = {}
+
+    # -- hooks -------------------------------------------------------------------------------------
+    def _on_scene(self, spec: Mapping[str, Any]) -> None:
+        # World rebuilt the Bullet scene from scratch: every body and shape id of the old scene is gone.
+        self._agent_bodies, self._vehicle_bodies, self._shapes = [], [], {}
+        self._collision_kinds = {}
+        cells = self.crowd_cells = None  # noqa: F841 - filled on reset from the crowd's grid
+
+    def _on_reset(self, rng: np.random.Generator) -> None:
+        spec = self.scene_spec
+        start = self.route.start
+        goal = self.route.goal
+        self.crowd.reset(spec, rng, ego=self._ego_state(), keep_clear=[(float(goal[0]), float(goal[1]), 1.0),
+                                                                   (float(start[0]), float(start[1]), 2.0)])
+        if self.config["traffic"]:
+            self.traffic.reset(spec, rng)
+        else:
+            self.traffic.n = 0
+        self._sync_bodies()
+        self._min_agent_distance = self._nearest_agent()
+
+    def _on_step(self) -> None:
+        ego = self._ego_state()
+        states = self.crowd.step(self.dt, ego)
+        if self.config["traffic"]:
+            people = np.concatenate([np.stack([states["x"], states["y"]], 1), [[ego.x, ego.y]]])
+            self.traffic.step(self.dt, people)
+        self._sync_bodies()
+        self._min_agent_distance = self._nearest_agent()
+
+    # -- bodies ------------------------------------------------------------------------------------
+    def _shape(self, key: Any, make: Any) -> tuple[int, int]:
+        if key not in self._shapes:
+            self._shapes[key] = make()
+        return self._shapes[key]
+
+    def _sync_bodies(self) -> None:
+        c = self.client
+        states = self.crowd.states()
+        vehicles = self.traffic.states() if self.config["traffic"] else np.zeros(0)
+        self._ensure_bodies(states, vehicles)
+        z = self._agent_base_heights(states)
+        for body, a, z0 in zip(self._agent_bodies, states, z):
+            h = AGENT_KINDS[str(a["kind"])].height
+            p.resetBasePositionAndOrientation(body, [a["x"], a["y"], z0 + h / 2], [0, 0, 0, 1], physicsClientId=c)
+        for body, v in zip(self._vehicle_bodies, vehicles):
+            q = p.getQuaternionFromEuler([0, 0, float(v["yaw"])])
+            p.resetBasePositionAndOrientation(body, [v["x"], v["y"], VEHICLE_HEIGHT / 2], q, physicsClientId=c)
+
+    def _ensure_bodies(self, states: np.ndarray, vehicles: np.ndarray) -> None:
+        c = self.client
+        kinds = [str(k) for k in states["kind"]]
+        if len(self._agent_bodies) != len(kinds) or getattr(self, "_body_kinds", None) != kinds:
+            for b in self._agent_bodies:
+                p.removeBody(b, physicsClientId=c)
+                self._collision_kinds.pop(b, None)
+            self._agent_bodies = []
+            for k in kinds:
+                kind = AGENT_KINDS[k]
+                col, vis = self._shape(k, lambda kind=kind: (
+                    p.createCollisionShape(p.GEOM_CYLINDER, radius=kind.radius, height=kind.height, physicsClientId=c),
+                    p.createVisualShape(p.GEOM_CYLINDER, radius=kind.radius, length=kind.height,
+                                        rgbaColor=[*kind.color, 1.0], physicsClientId=c)))
+                body = p.createMultiBody(0.0, col, vis, [0, 0, -20], physicsClientId=c)
+                self._agent_bodies.append(body)
+                self._collision_kinds[body] = "agent"
+            self._body_kinds = kinds
+        while len(self._vehicle_bodies) < len(vehicles):
+            cfg = self.traffic.config
+            half = [cfg["length"] / 2, cfg["width"] / 2, VEHICLE_HEIGHT / 2]
+            col, vis = self._shape("vehicle", lambda: (
+                p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c),
+                p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[0.25, 0.25, 0.65, 1.0], physicsClientId=c)))
+            body = p.createMultiBody(0.0, col, vis, [0, 0, -20], physicsClientId=c)
+            self._vehicle_bodies.append(body)
+            self._collision_kinds[body] = "vehicle"
+        for body in self._vehicle_bodies[len(vehicles):]:
+            p.resetBasePositionAndOrientation(body, [0, 0, -20], [0, 0, 0, 1], physicsClientId=c)
+
+    def _agent_base_heights(self, states: np.ndarray) -> np.ndarray:
+        g = self.crowd.grid
+        if not len(states):
+            return np.zeros(0)
+        i, j = g.cell_of(np.stack([states["x"], states["y"]], 1))
+        curb = float(self.scene_spec.get("curb_height", 0.15))
+        # Legend: sidewalk on the curb, crosswalk on the road, ramps half way.
+        return np.choose(np.minimum(g.cells[i, j], 3), [curb, curb, 0.0, curb / 2])
+
+    # -- state -------------------------------------------------------------------------------------
+    def _ego_state(self) -> EgoState:
+        m = self.machine
+        x, y, _ = m.position
+        s = m.spec
+        return EgoState(float(x), float(y), m.speed * math.cos(m.yaw), m.speed * math.sin(m.yaw),
+                        0.5 * math.hypot(s.length, s.width))
+
+    def _nearest_agent(self) -> float:
+        st = self.crowd.states()
+        if not len(st):
+            return math.inf
+        x, y, _ = self.machine.position
+        return float(np.min(np.hypot(st["x"] - x, st["y"] - y)))
+
+    def agent_states(self) -> np.ndarray:
+        """Every cohabitant's x, y, vx, vy, radius and kind (structured array; vehicles: vehicle_states())."""
+        return self.crowd.states()
+
+    def vehicle_states(self) -> np.ndarray:
+        """Every vehicle's x, y, vx, vy, yaw, length and width (structured array)."""
+        return self.traffic.states() if self.config["traffic"] else np.zeros(0, dtype=self.traffic.states().dtype)
+
+    def render(self) -> np.ndarray | None:
+        """RGB frame: the top-down agent map (camera 'map') or PointNav's TinyRenderer cameras."""
+        if self.render_mode != "rgb_array":
+            return None
+        r = self.config["render"]
+        if r["camera"] != "map":
+            return super().render()
+        m = self.machine
+        x, y, _ = m.position
+        return draw_top_down(self.scene_spec, (x, y), agents=self.crowd.states(), trails=self.crowd.trail,
+                             vehicles=self.vehicle_states(), ego=(x, y, m.yaw, m.spec.length, m.spec.width),
+                             route=self.route.point_at(np.linspace(0.0, self.route.length, 100)),
+                             size=int(r["width"]), view=float(r["top_down_height"]) * 1.6)
+
+
+@register_measure("psc")
+class PersonalSpaceCompliance(Measure):
+    """Fraction of steps with every agent's centre farther than `personal_space` from the ego's (iGibson)."""
+
+    def reset(self, env: Any) -> None:
+        self.ok = self.steps = 0
+
+    def update(self, env: Any) -> None:
+        self.steps += 1
+        self.ok += int(env._min_agent_distance > env.config["personal_space"])
+
+    def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
+        return {"psc": self.ok / self.steps if self.steps else 1.0}
+
+
+@register_measure("stl")
+class SuccessWeightedTimeLength(Measure):
+    """S * min(1, t_ref / t), t_ref = route length / min(stl_cruise_speed, v_max) (Deitke et al. 2022)."""
+
+    def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
+        v = min(float(env.config["stl_cruise_speed"]), env.machine.spec.v_max)
+        t_ref = env.route.length / v
+        t = max(env.steps * env.dt, 1e-9)
+        return {"stl": float(env.succeeded) * min(1.0, t_ref / t)}
+
+
+@register_measure("sns")
+class SocialNavigationScore(Measure):
+    """SNS = mean(STL, PSC) (Deitke et al. 2022); list it after `stl` and `psc`."""
+
+    def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
+        if "stl" not in metrics or "psc" not in metrics:
+            raise ValueError("measure 'sns' needs 'stl' and 'psc' listed before it in config.measures")
+        return {"sns": 0.5 * (metrics["stl"] + metrics["psc"])}

@@ -1,0 +1,59 @@
+"""Policy evaluation over episodes: SR, SPL, Cost and the mean of every other numeric metric the env reports."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+
+def make_policy(name: str, env: Any) -> Callable[[Any, np.ndarray], np.ndarray]:
+    """A callable (env, obs) -> action for `expert` (pure pursuit) or `random` (seeded by the env)."""
+    if name == "expert":
+        from sim.expert import PurePursuitExpert
+        expert = PurePursuitExpert()
+        return lambda e, obs: expert.act(e)
+    if name == "random":
+        return lambda e, obs: e.action_space.sample()
+    raise ValueError(f"unknown policy {name!r}; valid: expert, random")
+
+
+def run_episode(env: Any, policy: Callable[[Any, np.ndarray], np.ndarray], seed: int) -> dict[str, float]:
+    """Run one episode from reset(seed) to its end; return the metrics from the final info."""
+    obs, _ = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    while True:
+        obs, _, term, trunc, info = env.step(policy(env, obs))
+        if term or trunc:
+            return dict(info["metrics"])
+
+
+def evaluate(env_id: str, policy: str, episodes: int, config: Mapping[str, Any] | None = None, *,
+             seed: int = 0, progress: bool = False) -> dict[str, Any]:
+    """Mean metrics over `episodes` episodes with seeds seed..seed+N-1: keys sr, spl, cost, episodes, ..."""
+    import gymnasium as gym
+
+    from sim.envs import register_envs
+
+    register_envs()
+
+    env = gym.make(env_id, config=dict(config or {}))
+    act = make_policy(policy, env)
+    rows = []
+    try:
+        if progress:
+            from rich.progress import track
+            seeds = track(range(seed, seed + episodes), description=f"{env_id} {policy}")
+        else:
+            seeds = range(seed, seed + episodes)
+        for s in seeds:
+            rows.append(run_episode(env, act, s))
+    finally:
+        env.close()
+    keys = sorted({k for r in rows for k, v in r.items() if isinstance(v, (int, float))})
+    summary: dict[str, Any] = {k: float(np.mean([r.get(k, 0.0) for r in rows])) for k in keys}
+    summary["sr"] = summary.pop("success")
+    summary["episodes"] = episodes
+    summary["per_episode"] = rows
+    return summary

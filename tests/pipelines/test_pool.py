@@ -1,0 +1,100 @@
+"""embed + cluster (real MiniLM, DBSCAN) -> pool, catalog upsert, distribution, the `pool show` CLI, dvc.yaml."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+from pipelines.cluster import build_pool, write_pool_to_catalog
+from pipelines.distribution import compute_distribution, load_distribution
+from pipelines.embed import embed_texts, load_embeddings, save_embeddings
+
+ROWS = [
+    ("a green trash bin", "trash_bin", "images", "JP", 3), ("a green rubbish bin", "trash_bin", "osm", "JP", 2),
+    ("a green trash can", "trash_bin", "osm", "FI", 1), ("a street lamp", "street_lamp", "osm", "FI", 5),
+    ("a street light", "street_lamp", "closed_set", None, 1), ("a red fire hydrant", "fire_hydrant", "osm", "FI", 2),
+]
+
+
+@pytest.fixture(scope="module")
+def descriptions():
+    return pd.DataFrame(ROWS, columns=["text", "category", "source", "country", "count"]).astype({"country": "string"})
+
+
+@pytest.fixture(scope="module")
+def embedded(descriptions, tmp_path_factory):
+    texts = sorted(set(descriptions["text"]))
+    vecs, name = embed_texts(texts)
+    path = save_embeddings(tmp_path_factory.mktemp("emb") / "e.parquet", texts, vecs, name)
+    return load_embeddings(path)
+
+
+def test_pool_clusters_paraphrases(descriptions, embedded):
+    texts, vecs, model = embedded
+    assert model == "all-MiniLM-L6-v2" and vecs.shape == (6, 384)
+    pool = build_pool(descriptions, texts, vecs, eps=0.3, min_samples=2)
+    by_text = {m: r for r in pool.itertuples() for m in r.members}
+    assert by_text["a green trash bin"].cluster_id == by_text["a green rubbish bin"].cluster_id
+    assert by_text["a street lamp"].cluster_id == by_text["a street light"].cluster_id
+    assert by_text["a street lamp"].cluster_id != by_text["a red fire hydrant"].cluster_id
+    bins = by_text["a green trash bin"]
+    assert bins.category == "trash_bin" and json.loads(bins.country_counts)["JP"] == 5
+    assert pool["count"].sum() == descriptions["count"].sum() and pool["cluster_id"].tolist() == list(range(len(pool)))
+    lamps = by_text["a street lamp"]
+    assert set(lamps.sources) == {"osm", "closed_set"} and lamps.text == "a street lamp"
+
+
+def test_pool_to_catalog(descriptions, embedded, tmp_path):
+    import duckdb
+
+    texts, vecs, _ = embedded
+    pool = build_pool(descriptions, texts, vecs, eps=0.3, min_samples=2)
+    assert write_pool_to_catalog(pool, tmp_path / "c.duckdb") == len(pool)
+    con = duckdb.connect(str(tmp_path / "c.duckdb"))
+    assert con.execute("SELECT count(*) FROM descriptions").fetchone()[0] == len(pool)
+
+
+def test_distribution_sums_to_one(descriptions, tmp_path):
+    df = compute_distribution(descriptions, ["osm", "images"])
+    assert list(df.columns) == ["country", "category", "count", "frequency"]
+    sums = df.groupby("country")["frequency"].sum()
+    assert sums.to_dict() == pytest.approx({"FI": 1.0, "GLOBAL": 1.0, "JP": 1.0})
+    df.to_parquet(tmp_path / "d.parquet", index=False)
+    assert load_distribution("jp", tmp_path / "d.parquet") == {"trash_bin": 1.0}
+    assert load_distribution("GLOBAL", tmp_path / "d.parquet")["street_lamp"] == pytest.approx(5 / 13)
+    with pytest.raises(KeyError, match="available: FI, GLOBAL, JP"):
+        load_distribution("BR", tmp_path / "d.parquet")
+
+
+def test_pool_show_cli(descriptions, embedded, tmp_path):
+    from typer.testing import CliRunner
+
+    from curbside.cli.main import app
+
+    texts, vecs, _ = embedded
+    build_pool(descriptions, texts, vecs, eps=0.3, min_samples=2).to_parquet(tmp_path / "p.parquet")
+    res = CliRunner().invoke(app, ["pool", "show", "--pool", str(tmp_path / "p.parquet"), "--country", "JP", "--json"])
+    assert res.exit_code == 0, res.output
+    rows = json.loads(res.output)
+    assert len(rows) == 1 and rows[0]["category"] == "trash_bin" and rows[0]["count"] == 5
+    bad = CliRunner().invoke(app, ["pool", "show", "--pool", str(tmp_path / "p.parquet"), "--country", "XX"])
+    assert bad.exit_code == 2
+
+
+def test_dvc_yaml_stages_match_modules_and_params():
+    import importlib
+
+    import yaml
+
+    from pipelines.common import REPO_ROOT
+
+    stages = yaml.safe_load((REPO_ROOT / "dvc.yaml").read_text())["stages"]
+    params = yaml.safe_load((REPO_ROOT / "params.yaml").read_text())
+    assert list(stages) == ["closed_set", "osm", "detect", "describe", "embed", "cluster", "distribution"]
+    for name, st in stages.items():
+        mod = importlib.import_module(f"pipelines.{name}")
+        assert st["cmd"] == f"python -m pipelines.{name} --params params.yaml"
+        assert st["params"] == [name] and set(params[name]) == set(mod.DEFAULTS)
+        assert st["metrics"], name

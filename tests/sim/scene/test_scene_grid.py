@@ -1,0 +1,36 @@
+"""Walkable grid helpers: encoding round trip, world/cell conversions, obstacle masks."""
+
+from __future__ import annotations
+
+import numpy as np
+from shapely.geometry import box
+
+from sim.scene.grid import decode_walkable, encode_walkable, obstacle_mask, rasterize
+
+
+def test_rasterize_encode_decode_round_trip() -> None:
+    mask, origin = rasterize([(1, [box(0, 0, 4, 2)]), (2, [box(1, 0, 2, 2)])], (0, 0, 5, 3), 0.5)
+    grid = decode_walkable({"walkable": encode_walkable(mask, origin, 0.5)})
+    assert grid.shape == (6, 10)
+    assert np.array_equal(grid.mask, mask)
+    assert grid.mask[0, 0] == 1 and grid.mask[0, 2] == 2 and grid.mask[0, 9] == 0 and grid.mask[5, 0] == 0
+    assert int((grid.mask > 0).sum()) == 8 * 4  # 4 m x 2 m at 0.5 m
+
+
+def test_world_cell_conversions_are_inverse() -> None:
+    mask, origin = rasterize([(1, [box(-3, -2, 3, 2)])], (-3.1, -2.1, 3.1, 2.1), 0.25)
+    grid = decode_walkable({"walkable": encode_walkable(mask, origin, 0.25)})
+    rc = np.array([[0, 0], [3, 7], [grid.shape[0] - 1, grid.shape[1] - 1]])
+    assert np.array_equal(grid.world_to_cell(grid.cell_to_world(rc)), rc)
+    assert grid.is_walkable(np.array([[0.0, 0.0], [10.0, 0.0]])).tolist() == [True, False]
+
+
+def test_obstacle_mask_inflates_footprints() -> None:
+    mask, origin = rasterize([(1, [box(0, 0, 10, 10)])], (0, 0, 10, 10), 0.25)
+    grid = decode_walkable({"walkable": encode_walkable(mask, origin, 0.25)})
+    obj = {"footprint": [[4, 4], [6, 4], [6, 6], [4, 6]]}
+    bare = obstacle_mask(grid, [obj], inflate=0.0)
+    grown = obstacle_mask(grid, [obj], inflate=0.5)
+    assert bare.sum() == 64  # 2 m x 2 m
+    assert grown.sum() > bare.sum() and grown[bare].all()
+    assert not grown[grid.world_to_cell([1.0, 1.0])[0], grid.world_to_cell([1.0, 1.0])[1]]
