@@ -7,9 +7,13 @@ Targets on the 2-core dev machine: >= 600 steps/s, ratio >= 0.7, RSS growth < 50
 from __future__ import annotations
 
 import json
+import os
 import sys
 
-from sim.bench import run_bench
+# Run as a script, this file's folder comes first on sys.path and its name would shadow the `sim` package.
+sys.path[:] = [q for q in sys.path if os.path.abspath(q or ".") != os.path.dirname(os.path.abspath(__file__))]
+
+from sim.bench import run_bench  # noqa: E402
 
 if __name__ == "__main__":
     result = run_bench(quick="--quick" in sys.argv)
