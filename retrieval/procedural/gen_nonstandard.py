@@ -5,6 +5,8 @@ Conventions as in gen_standard: x = depth (front +x), y = width, z = height, bas
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 
 from retrieval.procedural.parts import BLACK, DARK, FOLIAGE, GLASS, METAL, SOIL, WHITE, Ctx, Parts
@@ -25,7 +27,7 @@ def bench(g: Ctx, p: Parts) -> str:
     x_back = -d / 2 + (0.1 if back else 0.0)
     n = g.pick("slats", [3, 4, 5])
     edges = np.linspace(x_back, d / 2, n + 1)
-    for a, b in zip(edges[:-1], edges[1:]):
+    for a, b in pairwise(edges):
         p.slab((a + 0.008, b - 0.008), (-w / 2, w / 2), (sh - 0.04, sh), g.body)
     for y in (-w / 2 + 0.12, w / 2 - 0.12):
         p.slab((x_back + 0.02, d / 2 - 0.04), (y - 0.03, y + 0.03), (0.0, sh - 0.04), frame)
@@ -73,7 +75,7 @@ def recycling_bin(g: Ctx, p: Parts) -> str:
     lid = 0.05
     p.slab((-d / 2 + 0.01, d / 2 - 0.01), (-w / 2, w / 2), (0.0, h - lid), g.body)
     edges = np.linspace(-w / 2, w / 2, n + 1)
-    for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+    for k, (a, b) in enumerate(pairwise(edges)):
         col = _STREAMS[k][0]
         p.slab((-d / 2, d / 2), (a + 0.005, b - 0.005), (h - lid, h), col)
         c = (a + b) / 2
@@ -94,7 +96,7 @@ def planter(g: Ctx, p: Parts) -> str:
     else:
         p.slab((-d / 2, d / 2), (-w / 2, w / 2), (0.0, ph), g.body)
         p.slab((-d / 2 + 0.04, d / 2 - 0.04), (-w / 2 + 0.04, w / 2 - 0.04), (ph, ph + 0.005), SOIL)
-    n = max(1, int(round(w / d)))
+    n = max(1, round(w / d))
     fh = h - ph
     for y in np.linspace(-w / 2 + w / (2 * n), w / 2 - w / (2 * n), n):
         rx, ry = d * 0.38, min(w / (2 * n), d / 2) * 0.85

@@ -96,6 +96,7 @@ def generate(category: str, seed: int) -> ProceduralAsset:
     detail = GENERATORS[category](ctx, parts)
     target = ctx.dims()
     mesh, colors = parts.build()
+    mesh.visual.face_colors = colors  # also on the mesh, for viewers and renderers that read trimesh visuals
     # Parts are laid out to fill the target box; the fit absorbs small overhangs (lamp lenses, handles) so that
     # recorded dims equal the mesh bounds exactly. Its scale is recorded so a generator drifting off is visible.
     scale = _fit(mesh, target)
@@ -103,8 +104,8 @@ def generate(category: str, seed: int) -> ProceduralAsset:
     dims = tuple(round(float(v), 6) for v in hi - lo)
     params = dict(ctx.params)
     params.update(variant=f"{variant.color} {variant.material}", fit_scale=[round(s, 4) for s in scale])
-    values = dict(depth=dims[0], width=dims[1], height=dims[2], color=variant.color, material=variant.material,
-                  detail=detail)
+    values = {"depth": dims[0], "width": dims[1], "height": dims[2], "color": variant.color,
+              "material": variant.material, "detail": detail}
     description = " ".join(spec.description.format(**values).split())
     description = re.sub(r"\ba ([aeiou])", r"an \1", description)
     return ProceduralAsset(

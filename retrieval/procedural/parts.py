@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 from typing import Any
 
 import numpy as np
@@ -136,7 +138,7 @@ class Parts:
             u, w = radius * np.cos(a), radius * np.sin(a)
             off = (u, 0.0, w) if plane == "xz" else (0.0, u, w)
             pts.append(tuple(np.asarray(center) + np.asarray(off)))
-        for p, q in zip(pts[:-1], pts[1:]):
+        for p, q in pairwise(pts):
             self.rod(p, q, tube, color, sections=8)
         for p in pts[1:-1]:
             self.sphere(tube, p, color, subdivisions=0)

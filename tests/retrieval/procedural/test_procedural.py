@@ -12,7 +12,14 @@ from PIL import Image
 
 from catalogs.schema import OBJECT_CLASSES, ZONES
 from retrieval.procedural import (
-    CATEGORIES, category_names, contact_sheet, export_asset, generate, pybullet_extents, render_views, to_record,
+    CATEGORIES,
+    category_names,
+    contact_sheet,
+    export_asset,
+    generate,
+    pybullet_extents,
+    render_views,
+    to_record,
 )
 from retrieval.procedural.spec import TABLE_PATH, load_categories
 
