@@ -153,6 +153,8 @@ class NavGrid:
     def plan_all(self, sites: np.ndarray) -> None:
         """Compute the distance fields of all `sites` not yet computed, in one Dijkstra call."""
         dist_t, jump_t, done = self._tables()
+        if done[sites].all():
+            return
         todo = np.unique(np.asarray(sites, dtype=np.int64))
         todo = todo[~done[todo]]
         if not len(todo):
