@@ -55,8 +55,8 @@ def planning_100(scene_seed: int) -> dict[str, float]:
             "mean_path_m": float(np.mean(lengths[np.isfinite(lengths)]))}
 
 
-def socialnav_steps(n_agents: int, steps: int) -> float:
-    """SocialNav env steps per second with `n_agents` agents and traffic, zero-throttle-free driving."""
+def socialnav_steps(n_agents: int, steps: int, env_id: str = "curbside/SocialNav-v0") -> float:
+    """Env steps per second with `n_agents` agents and traffic, driving straight at 30 % throttle."""
     import gymnasium as gym
 
     from sim.envs import register_envs
@@ -65,7 +65,8 @@ def socialnav_steps(n_agents: int, steps: int) -> float:
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        env = gym.make("curbside/SocialNav-v0", config={"agents": {"counts": {"pedestrian": n_agents}}}).unwrapped
+        cfg = {"agents": {"counts": {"pedestrian": n_agents}}} if "Social" in env_id else {}
+        env = gym.make(env_id, config=cfg).unwrapped
     env.reset(seed=0)
     a = np.array([0.0, 0.3], dtype=np.float32)
     t = time.perf_counter()
@@ -89,7 +90,9 @@ def main() -> None:
     r = planning_100(0)
     print(f"global planning, 100 agents: {r['total_s']:.3f} s (grid {r['grid_s']:.3f} s + fields {r['plan_100_s']:.3f} s; "
           f"{r['nodes']} cells, mean path {r['mean_path_m']:.1f} m; MetaUrban: 5 s on a Core i9)")
-    print(f"SocialNav env, 20 agents: {socialnav_steps(20, 300 if args.quick else 1000):.0f} steps/s (target >= 400)")
+    steps = 300 if args.quick else 1000
+    print(f"PointNav env (same scene, no agents): {socialnav_steps(0, steps, 'curbside/PointNav-v0'):.0f} steps/s")
+    print(f"SocialNav env, 20 agents + traffic: {socialnav_steps(20, steps):.0f} steps/s (target >= 400)")
 
 
 if __name__ == "__main__":

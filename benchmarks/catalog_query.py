@@ -92,6 +92,11 @@ def main() -> None:
         from retrieval.encoders.text import TextEncoder
 
         encoder = TextEncoder()
+        import torch
+
+        # One sentence needs no intra-op parallelism, and torch's spinning OpenMP workers would steal the
+        # cores DuckDB scans with (the CLI's query command does the same).
+        torch.set_num_threads(1)
     texts = ["fire hydrant", "somewhere to sit", "garbage can", "street light", "red mailbox"]
     table = Table(title=f"catalog query latency (ms, {args.repeats} queries each, limit 10)")
     for col in ("assets", "query", "p50", "p95"):

@@ -291,25 +291,24 @@ class AgentManager:
         arrived = (to_goal < c["arrive_radius"]) | (
             (to_goal < c["crowded_arrive_radius"]) & (self.stall[moving] >= c["stuck_steps"] // 2))
         dist = self.grid.distance(nodes[moving], self.site[moving])
-        for k, i in enumerate(moving):
-            if arrived[k]:
-                late = self.time - self.goal_t0[i] > self.budget[i]
-                self.counts["late" if late else "in_time"] += 1
-                if self.rng.random() < c["idle_prob"]:
-                    self.movement[i] = IDLE
-                    self.idle_left[i] = self.rng.uniform(*c["idle_time"])
-                else:
-                    self._new_goal(int(i), int(nodes[i]))
-                continue
-            if dist[k] < self.best[i] - c["stuck_progress"]:
-                self.best[i], self.stall[i] = dist[k], 0
+        progressed = dist < self.best[moving] - c["stuck_progress"]
+        go = moving[~arrived & progressed]
+        self.best[go], self.stall[go] = dist[~arrived & progressed], 0
+        held = ~arrived & ~progressed
+        self.stall[moving[held]] += 1
+        # Progress during the side-step counts from where it began, not from before being pushed back.
+        restart = held & (self.stall[moving] == c["stuck_steps"])
+        self.best[moving[restart]] = dist[restart]
+        for i in moving[arrived]:
+            late = self.time - self.goal_t0[i] > self.budget[i]
+            self.counts["late" if late else "in_time"] += 1
+            if self.rng.random() < c["idle_prob"]:
+                self.movement[i] = IDLE
+                self.idle_left[i] = self.rng.uniform(*c["idle_time"])
             else:
-                self.stall[i] += 1
-                if self.stall[i] == c["stuck_steps"]:
-                    # Progress during the side-step counts from here, not from before being pushed back.
-                    self.best[i] = dist[k]
-                if self.stall[i] >= c["regoal_steps"]:
-                    self._new_goal(int(i), int(nodes[i]), abandon=True)
+                self._new_goal(int(i), int(nodes[i]))
+        for i in moving[held & (self.stall[moving] >= c["regoal_steps"])]:
+            self._new_goal(int(i), int(nodes[i]), abandon=True)
 
     def _preferred(self, nodes: np.ndarray, idx: np.ndarray) -> np.ndarray:
         g, c = self.grid, self.config

@@ -107,6 +107,7 @@ class VehicleManager:
         c = self.config
         self.lanes = build_lanes(spec)
         self.crosswalks = [Polygon(cw["polygon"]).buffer(c["crosswalk_margin"]) for cw in spec.get("crosswalks", [])]
+        self._index_lanes()
         lane_id, s = [], []
         spacing = c["length"] + c["min_gap"] + 2.0
         for li, lane in enumerate(self.lanes):
@@ -125,6 +126,15 @@ class VehicleManager:
         self.occupied = np.zeros(len(self.crosswalks), dtype=bool)
         return self.states()
 
+    def _index_lanes(self) -> None:
+        # All lanes laid end to end (with a gap) so poses and leaders are found for every vehicle at once.
+        lengths = np.array([ln.length for ln in self.lanes])
+        self.lane_len = lengths
+        self.lane_off = np.concatenate([[0.0], np.cumsum(lengths + 1.0)])[:-1]
+        self.all_pts = np.concatenate([ln.points for ln in self.lanes]) if self.lanes else np.zeros((0, 2))
+        self.all_cum = np.concatenate([ln.cum + o for ln, o in zip(self.lanes, self.lane_off)]) if self.lanes else np.zeros(0)
+        self.crossings = [(li, ci, s_in) for li, ln in enumerate(self.lanes) for ci, s_in, _ in ln.crossings]
+
     def step(self, dt: float, people_xy: np.ndarray | None = None) -> np.ndarray:
         """Advance every vehicle by `dt` s; `people_xy` [n, 2] are agents and the ego (they make vehicles yield)."""
         c = self.config
@@ -133,37 +143,30 @@ class VehicleManager:
             self.occupied = np.array([bool(shapely.contains(cw, pts).any()) for cw in self.crosswalks])
         else:
             self.occupied = np.zeros(len(self.crosswalks), dtype=bool)
-        acc = np.zeros(self.n)
-        half = c["length"] / 2.0
-        for li, lane in enumerate(self.lanes):
-            idx = np.flatnonzero(self.lane_id == li)
-            if not len(idx):
-                continue
-            order = idx[np.argsort(self.s[idx])]
-            s, v = self.s[order], self.v[order]
-            # Leader of each vehicle: the next one along the ring.
-            gap = np.roll(s, -1) - s - c["length"]
-            gap[-1] += lane.length
-            dv = v - np.roll(v, -1)
-            if len(order) == 1:
-                gap[:] = np.inf
-                dv[:] = 0.0
-            for ci, s_in, _ in lane.crossings:
+        if self.n:
+            order = np.lexsort((self.s, self.lane_id))
+            ls, ss, v = self.lane_id[order], self.s[order], self.v[order]
+            first = np.searchsorted(ls, ls, side="left")
+            nxt = np.roll(np.arange(self.n), -1)
+            same = ls[nxt] == ls
+            lead = np.where(same, nxt, first)
+            gap = np.where(same, ss[lead] - ss, ss[lead] + self.lane_len[ls] - ss) - c["length"]
+            dv = v - v[lead]
+            alone = lead == np.arange(self.n)
+            gap[alone], dv[alone] = np.inf, 0.0
+            front = ss + c["length"] / 2.0
+            for li, ci, s_in in self.crossings:
                 if not self.occupied[ci]:
                     continue
                 # A vehicle whose front has not reached the stop line treats it as a standing leader.
-                stop = s_in - c["stop_gap"]
-                ahead = stop - (s + half)
-                wait = ahead > -0.5
-                closer = wait & (ahead < gap)
+                ahead = s_in - c["stop_gap"] - front
+                closer = (ls == li) & (ahead > -0.5) & (ahead < gap)
                 gap[closer] = np.maximum(ahead[closer], 0.0)
                 dv[closer] = v[closer]
+            acc = np.empty(self.n)
             acc[order] = self._idm(v, self.v0[order], gap, dv)
-        self.v = np.maximum(self.v + acc * dt, 0.0)
-        self.s = self.s + self.v * dt
-        for li, lane in enumerate(self.lanes):
-            m = self.lane_id == li
-            self.s[m] = np.mod(self.s[m], lane.length)
+            self.v = np.maximum(self.v + acc * dt, 0.0)
+            self.s = np.mod(self.s + self.v * dt, self.lane_len[self.lane_id])
         return self.states()
 
     def _idm(self, v: np.ndarray, v0: np.ndarray, gap: np.ndarray, dv: np.ndarray) -> np.ndarray:
@@ -177,13 +180,15 @@ class VehicleManager:
     def states(self) -> np.ndarray:
         """Every vehicle's centre, velocity, heading and size as a structured array of VEHICLE_DTYPE."""
         out = np.zeros(self.n, dtype=VEHICLE_DTYPE)
-        for li, lane in enumerate(self.lanes):
-            m = self.lane_id == li
-            if not m.any():
-                continue
-            xy, yaw = lane.pose(self.s[m])
-            out["x"][m], out["y"][m], out["yaw"][m] = xy[:, 0], xy[:, 1], yaw
-            out["vx"][m], out["vy"][m] = self.v[m] * np.cos(yaw), self.v[m] * np.sin(yaw)
+        if self.n:
+            g = self.lane_off[self.lane_id] + self.s
+            k = np.clip(np.searchsorted(self.all_cum, g, side="right") - 1, 0, len(self.all_cum) - 2)
+            seg = self.all_pts[k + 1] - self.all_pts[k]
+            t = (g - self.all_cum[k]) / np.maximum(self.all_cum[k + 1] - self.all_cum[k], 1e-9)
+            xy = self.all_pts[k] + seg * t[:, None]
+            yaw = np.arctan2(seg[:, 1], seg[:, 0])
+            out["x"], out["y"], out["yaw"] = xy[:, 0], xy[:, 1], yaw
+            out["vx"], out["vy"] = self.v * np.cos(yaw), self.v * np.sin(yaw)
         out["length"], out["width"] = self.config["length"], self.config["width"]
         return out
 

@@ -65,7 +65,6 @@ class SocialNavEnv(PointNavEnv):
         # World rebuilt the Bullet scene from scratch: every body and shape id of the old scene is gone.
         self._agent_bodies, self._vehicle_bodies, self._shapes = [], [], {}
         self._collision_kinds = {}
-        cells = self.crowd_cells = None  # noqa: F841 - filled on reset from the crowd's grid
 
     def _on_reset(self, rng: np.random.Generator) -> None:
         spec = self.scene_spec
@@ -101,12 +100,15 @@ class SocialNavEnv(PointNavEnv):
         vehicles = self.traffic.states() if self.config["traffic"] else np.zeros(0)
         self._ensure_bodies(states, vehicles)
         z = self._agent_base_heights(states)
-        for body, a, z0 in zip(self._agent_bodies, states, z):
-            h = AGENT_KINDS[str(a["kind"])].height
-            p.resetBasePositionAndOrientation(body, [a["x"], a["y"], z0 + h / 2], [0, 0, 0, 1], physicsClientId=c)
-        for body, v in zip(self._vehicle_bodies, vehicles):
-            q = p.getQuaternionFromEuler([0, 0, float(v["yaw"])])
-            p.resetBasePositionAndOrientation(body, [v["x"], v["y"], VEHICLE_HEIGHT / 2], q, physicsClientId=c)
+        if len(states):
+            half_h = np.array([AGENT_KINDS[k].height / 2 for k in self._body_kinds])
+            for body, x, y, zz in zip(self._agent_bodies, states["x"].tolist(), states["y"].tolist(), (z + half_h).tolist()):
+                p.resetBasePositionAndOrientation(body, [x, y, zz], [0, 0, 0, 1], physicsClientId=c)
+        if len(vehicles):
+            half_yaw = (0.5 * vehicles["yaw"]).tolist()
+            for body, x, y, h in zip(self._vehicle_bodies, vehicles["x"].tolist(), vehicles["y"].tolist(), half_yaw):
+                p.resetBasePositionAndOrientation(body, [x, y, VEHICLE_HEIGHT / 2], [0, 0, math.sin(h), math.cos(h)],
+                                                  physicsClientId=c)
 
     def _ensure_bodies(self, states: np.ndarray, vehicles: np.ndarray) -> None:
         c = self.client
