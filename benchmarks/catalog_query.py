@@ -19,11 +19,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from catalogs.query import QueryFilters, search  # noqa: E402
-from catalogs.reader import open_catalog  # noqa: E402
-from catalogs.records import AssetRecord  # noqa: E402
-from catalogs.schema import DEFAULT_EMBEDDING_DIM, ZONES  # noqa: E402
-from catalogs.writer import build_catalog  # noqa: E402
+from catalogs.query import QueryFilters, search
+from catalogs.reader import open_catalog
+from catalogs.records import AssetRecord
+from catalogs.schema import DEFAULT_EMBEDDING_DIM, ZONES
+from catalogs.writer import build_catalog
 
 CATEGORIES = {
     "street_lamp": "standard", "utility_pole": "standard", "traffic_sign": "standard", "traffic_light": "standard",

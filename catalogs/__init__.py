@@ -7,4 +7,4 @@ from catalogs.schema import SCHEMA_VERSION, CatalogError
 
 DEFAULT_CATALOG = "catalogs/default.duckdb"
 
-__all__ = ["SCHEMA_VERSION", "CatalogError", "DEFAULT_CATALOG"]
+__all__ = ["DEFAULT_CATALOG", "SCHEMA_VERSION", "CatalogError"]

@@ -89,16 +89,18 @@ def build_procedural_catalog(
         encoder = TextEncoder(text_model)
         vectors = encoder.encode([asset_text(r.category, r.description, r.synonyms) for r in records])
         bar.update(task, description="writing catalog")
-        with build_catalog(path, embedding_dim=encoder.dim, embedding_model=encoder.name) as writer:
-            with writer.transaction():
-                writer.upsert_assets(records)
-                writer.upsert_embeddings(ASSET_TEXT, [r.asset_id for r in records], vectors)
-                writer.set_meta({
-                    "built_by": "retrieval.build.build_procedural_catalog",
-                    "build_variants": str(variants),
-                    "build_seed": str(seed),
-                    "build_categories": ",".join(names),
-                })
+        with (
+            build_catalog(path, embedding_dim=encoder.dim, embedding_model=encoder.name) as writer,
+            writer.transaction(),
+        ):
+            writer.upsert_assets(records)
+            writer.upsert_embeddings(ASSET_TEXT, [r.asset_id for r in records], vectors)
+            writer.set_meta({
+                "built_by": "retrieval.build.build_procedural_catalog",
+                "build_variants": str(variants),
+                "build_seed": str(seed),
+                "build_categories": ",".join(names),
+            })
         bar.update(task, description="catalog written")
     per_category: dict[str, int] = {}
     for r in records:

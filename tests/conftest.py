@@ -15,11 +15,11 @@ os.environ["MPLBACKEND"] = "Agg"
 os.environ.setdefault("HF_HUB_DISABLE_PROGRESS_BARS", "1")
 os.environ.setdefault("TOKENIZERS_PARALLELISM", "false")
 
-from collections.abc import Callable  # noqa: E402
-from pathlib import Path  # noqa: E402
+from collections.abc import Callable
+from pathlib import Path
 
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import numpy as np
+import pytest
 
 
 @pytest.fixture(scope="session")
@@ -57,7 +57,7 @@ def copy_catalog(tmp_path: Path) -> Callable[[Path], Path]:
 
 
 @pytest.fixture(scope="session")
-def text_encoder():  # noqa: ANN201 - retrieval.encoders.text.TextEncoder, imported lazily
+def text_encoder():
     """The packaged all-MiniLM-L6-v2 text encoder, loaded once per process."""
     from retrieval.encoders.text import TextEncoder
 

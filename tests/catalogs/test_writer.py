@@ -56,11 +56,10 @@ def test_transaction_rolls_back_everything_on_error(tmp_path: Path, make_asset) 
     path = tmp_path / "c.duckdb"
     with CatalogWriter(path) as w:
         w.upsert_assets([make_asset("keep")])
-        with pytest.raises(RuntimeError, match="boom"):
-            with w.transaction():
-                w.upsert_assets([make_asset("lost1")])
-                w.upsert_assets([make_asset("keep", height=9.0)])  # nested upsert joins the outer transaction
-                raise RuntimeError("boom")
+        with pytest.raises(RuntimeError, match="boom"), w.transaction():
+            w.upsert_assets([make_asset("lost1")])
+            w.upsert_assets([make_asset("keep", height=9.0)])  # nested upsert joins the outer transaction
+            raise RuntimeError("boom")
         # A failing statement inside an upsert rolls back its own batch too.
         with pytest.raises(CatalogError):
             w.upsert_embeddings("asset_text", ["keep"], np.full((1, 384), np.nan))
@@ -107,20 +106,18 @@ def test_invalid_records_are_refused_with_the_field_named(tmp_path: Path, make_a
 
 def test_build_is_atomic_and_leaves_no_half_catalog(tmp_path: Path, make_asset) -> None:
     path = tmp_path / "c.duckdb"
-    with pytest.raises(RuntimeError, match="crash"):
-        with build_catalog(path) as w:
-            w.upsert_assets([make_asset("a0")])
-            raise RuntimeError("crash")
+    with pytest.raises(RuntimeError, match="crash"), build_catalog(path) as w:
+        w.upsert_assets([make_asset("a0")])
+        raise RuntimeError("crash")
     assert not path.exists()
     assert list(tmp_path.iterdir()) == []  # the temporary file is gone too
 
     with build_catalog(path) as w:
         w.upsert_assets([make_asset("old")])
         assert not path.exists()  # nothing at the final path until the build completes
-    with pytest.raises(RuntimeError, match="crash"):
-        with build_catalog(path) as w:
-            w.upsert_assets([make_asset("new")])
-            raise RuntimeError("crash")
+    with pytest.raises(RuntimeError, match="crash"), build_catalog(path) as w:
+        w.upsert_assets([make_asset("new")])
+        raise RuntimeError("crash")
     assert list(CatalogReader(path).table.asset_id) == ["old"]  # the previous catalog is untouched
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c.duckdb"]
 

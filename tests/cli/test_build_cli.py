@@ -13,7 +13,7 @@ from retrieval.build import asset_text, variant_seeds
 runner = CliRunner()
 
 
-def build(catalog: Path, *extra: str):  # noqa: ANN201 - click Result
+def build(catalog: Path, *extra: str):
     return runner.invoke(app, ["catalog", "build", "--catalog", str(catalog), "--category", "bench",
                                "--category", "bollard", *extra])
 

@@ -19,7 +19,7 @@ runner = CliRunner()
 REPO = Path(__file__).resolve().parents[2]
 
 
-def run(*args: str):  # noqa: ANN201 - click Result
+def run(*args: str):
     """Invoke `curbside catalog ARGS` in-process (the MiniLM model stays loaded between calls)."""
     return runner.invoke(app, ["catalog", *args])
 
@@ -40,17 +40,12 @@ def test_fire_hydrant_first(small_catalog: Path) -> None:
 
 @pytest.mark.parametrize(
     ("text", "expected"),
-    [("garbage can", "trash_bin"), ("street light", "street_lamp"), ("lamp post", "street_lamp"),
+    [("somewhere to sit", "bench"), ("garbage can", "trash_bin"), ("street light", "street_lamp"),
+     ("lamp post", "street_lamp"),
      ("traffic cone", "traffic_cone"), ("postbox", "mailbox")],
 )
 def test_paraphrases_find_the_right_category(small_catalog: Path, text: str, expected: str) -> None:
     assert query_json(small_catalog, text)["results"][0]["category"] == expected
-
-
-def test_somewhere_to_sit_finds_seats(small_catalog: Path) -> None:
-    # The library lists "somewhere to sit" as a synonym of both bench and chair: either is a right answer.
-    cats = [r["category"] for r in query_json(small_catalog, "somewhere to sit", "--limit", "3")["results"]]
-    assert cats[0] in {"bench", "chair"} and "bench" in cats[:2]
 
 
 def test_filters(small_catalog: Path) -> None:
@@ -166,7 +161,7 @@ def test_json_stdout_is_one_document_in_a_real_process(small_catalog: Path) -> N
     out = subprocess.run(
         [sys.executable, "-m", "curbside.cli.main", "catalog", "query", "fire hydrant", "--json", "--limit", "5",
          "--catalog", str(small_catalog)],
-        cwd=REPO, capture_output=True, text=True, env=env, timeout=120,
+        cwd=REPO, capture_output=True, text=True, env=env, timeout=120, check=False,
     )
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)  # raises if anything else reached stdout
