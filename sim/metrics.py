@@ -78,10 +78,15 @@ class PathLength(Measure):
 
 @register_measure("spl")
 class SPL(Measure):
-    """Success weighted by path length: S * l / max(p, l), l the reference route's length (Anderson et al. 2018)."""
+    """Success weighted by path length: S * l / max(p, l) (Anderson et al. 2018), l the shortest success path.
+
+    Success is declared at `success_completion` (95 %) of the reference route, so l is that fraction of the
+    route's length: with the full length, every successful episode would score 1 whatever its detours.
+    """
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        l_ref, p_len = env.route.length, env.path_length
+        l_ref = env.route.length * float(env.config["success_completion"])
+        p_len = env.path_length
         return {"spl": float(env.succeeded) * l_ref / max(p_len, l_ref)}
 
 

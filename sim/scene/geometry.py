@@ -27,6 +27,11 @@ class Centerline:
         h = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
         hv = np.empty(len(self.pts))
         hv[0], hv[-1] = h[0], h[-1]
+        if len(h) > 1:
+            # On uniformly sampled arcs the end tangent is the end chord turned back by half a step; using the
+            # chord itself tilts end cross-sections and opens gaps between sidewalks at block seams.
+            hv[0] -= 0.5 * (h[1] - h[0])
+            hv[-1] += 0.5 * (h[-1] - h[-2])
         # The average of adjacent chord headings is the true tangent for uniformly sampled arcs.
         hv[1:-1] = 0.5 * (h[:-1] + h[1:])
         self.heading = hv
