@@ -133,8 +133,10 @@ def process_item(item: SourceItem, config: IngestConfig, pool: DescriptionPool, 
         category = item.category or next((pool.categories[i] for i, _ in top if pool.categories[i]), None)
         if category is None:
             best = int(np.argmax(scores.fused))
-            raise AssetRejected("no_match", f"best {pool.ids[best]} at {scores.fused[best]:.3f} < threshold "
-                                            f"{config.scoring.threshold}")
+            raw = scores.raw_fused[best] if scores.raw_fused is not None else scores.fused[best]
+            raise AssetRejected("no_match", f"best {pool.ids[best]}: calibrated {scores.fused[best]:.3f}, raw "
+                                            f"{raw:.3f} (threshold {config.scoring.threshold}, min_lift "
+                                            f"{config.scoring.min_lift})")
         scale, unit = normalize_size(canon.extents, category, priors)
         final = scale_mesh(canon, scale)
         obj, _, _ = export_obj(final, out, "mesh")
@@ -241,7 +243,8 @@ def ingest(source, catalog_path: str | Path, config: IngestConfig | None = None,
         with Progress(*columns, disable=not progress) as bar:
             task = bar.add_task("ingest", total=len(pending), src=getattr(source, "name", "?"))
             for res in run_map(process_item, pending, executor=executor, workers=workers, address=address, args=args):
-                _write_result(writer, res, config, catalog_path)
+                with writer.transaction():  # one asset lands whole or not at all, even under SIGKILL
+                    _write_result(writer, res, config, catalog_path)
                 for k, v in res.seconds.items():
                     report.seconds[k] = report.seconds.get(k, 0.0) + v
                 if res.rejection is not None:

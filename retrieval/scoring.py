@@ -1,8 +1,16 @@
 """Scoring: per-view text-image similarity against the description pool, aggregated over the informative views,
 fused with metadata-text similarity; thresholds and top-k.
 
-fused = w_image * aggregate_v(cos(image_v, description)) + w_text * cos(metadata_text, description),
-with the weights renormalised over the signals present (no metadata text -> image only).
+Each signal is first calibrated against the description pool, per asset: raw cosines sit on signal-specific
+baselines (the imagenet image signal gives every description ~0.3-0.5), so fusing raw cosines lets the flatter,
+higher signal dominate. `softmax` (default) turns each signal into a distribution over the pool,
+softmax(cos / temperature); an uninformative signal (e.g. a name like "Object12") comes out near-uniform and so
+weighs little, a confident one peaks. `zscore` standardises over the pool; `none` fuses raw cosines.
+
+fused = (w_image * cal(aggregate_v cos(image_v, d)) + w_text * cal(cos(metadata_text, d))) / (w_image + w_text),
+with the weights renormalised over the signals present (no metadata text -> image only). A match needs the raw
+fused cosine >= threshold (absolute evidence) and the calibrated score >= min_lift x uniform (softmax: 1/|pool|;
+zscore: the pool mean plus min_lift standard deviations).
 """
 
 from __future__ import annotations
@@ -16,6 +24,7 @@ from curbside.config import check_choice
 
 IMAGE_ENCODERS = ("imagenet", "clip", "none")
 AGGREGATES = ("max", "mean")
+CALIBRATIONS = ("softmax", "zscore", "none")
 
 
 @dataclass(frozen=True)
@@ -54,6 +63,9 @@ class ScoringConfig:
     image_weight: float = 0.6
     text_weight: float = 0.4
     threshold: float = 0.35
+    calibration: str = "softmax"
+    temperature: float = 0.1
+    min_lift: float = 1.0
     top_k_per_asset: int = 3
     top_k_per_description: int = 100
     threads: int = 1
@@ -61,6 +73,9 @@ class ScoringConfig:
     def __post_init__(self) -> None:
         check_choice(self.image_encoder, IMAGE_ENCODERS, what="image encoder")
         check_choice(self.aggregate, AGGREGATES, what="view aggregate")
+        check_choice(self.calibration, CALIBRATIONS, what="score calibration")
+        if self.temperature <= 0:
+            raise ValueError(f"temperature must be > 0 (softmax calibration), got {self.temperature}")
         if self.image_encoder == "clip" and not self.clip_model:
             raise ValueError("the clip image encoder needs clip_model (a local weights folder); or use imagenet")
         if self.image_weight < 0 or self.text_weight < 0 or self.image_weight + self.text_weight <= 0:
@@ -71,18 +86,33 @@ class ScoringConfig:
         """Identifies the scorer in every MatchRecord (encoders, aggregate, weights)."""
         img = self.image_encoder if self.image_encoder != "clip" else f"clip[{str(self.clip_model).rstrip('/').split('/')[-1]}]"
         text = (self.text_model or "all-MiniLM-L6-v2").rstrip("/").split("/")[-1]
-        return f"{img}+{text}:{self.aggregate}:w{self.image_weight:g}/{self.text_weight:g}"
+        cal = {"softmax": f"sm{self.temperature:g}", "zscore": "z", "none": "raw"}[self.calibration]
+        return f"{img}+{text}:{self.aggregate}:w{self.image_weight:g}/{self.text_weight:g}:{cal}"
+
+
+def calibrate(scores: np.ndarray, method: str, temperature: float = 0.1) -> np.ndarray:
+    """Calibrate one signal's cosines against the pool: softmax(cos / T), z-score, or unchanged (`none`)."""
+    s = np.asarray(scores, dtype=np.float64)
+    if method == "none" or s.size == 0:
+        return s
+    if method == "softmax":
+        e = np.exp((s - s.max()) / temperature)  # shift by the max: no overflow, same distribution
+        return e / e.sum()
+    sd = float(s.std())
+    # A pool of one entry (or identical scores) has no spread to standardise by: nothing stands out.
+    return (s - s.mean()) / sd if sd > 1e-12 else np.zeros_like(s)
 
 
 @dataclass
 class AssetScores:
     """Scores of one asset against every pool entry, plus its embeddings."""
 
-    fused: np.ndarray
-    image: np.ndarray | None
+    fused: np.ndarray  # calibrated and fused: what matches are ranked by and store as `score`
+    image: np.ndarray | None  # raw aggregated image cosines
     text: np.ndarray | None
     image_embedding: np.ndarray | None  # mean of the selected views' embeddings (image encoder's space)
     text_embedding: np.ndarray | None  # metadata text embedding (text encoder's space)
+    raw_fused: np.ndarray | None = None  # fused raw cosines: the absolute threshold applies to these
     extra: dict = field(default_factory=dict)
 
 
@@ -123,17 +153,35 @@ class Scorer:
             txt_scores = self.pool_text @ txt_emb
         wi = c.image_weight if img_scores is not None else 0.0
         wt = c.text_weight if txt_scores is not None else 0.0
+        n = len(self.pool.ids)
         if wi + wt == 0:
-            fused = np.zeros(len(self.pool.ids), dtype=np.float32)
+            fused = raw = np.zeros(n, dtype=np.float64)
         else:
-            fused = (wi * (img_scores if img_scores is not None else 0) + wt * (txt_scores if txt_scores is not None else 0)) / (wi + wt)
-        return AssetScores(np.asarray(fused, dtype=np.float64), img_scores, txt_scores, img_emb, txt_emb)
+            def mix(f):  # noqa: ANN001, ANN202 - weighted mean of f(signal) over the signals present
+                parts = [w * f(x) for w, x in ((wi, img_scores), (wt, txt_scores)) if x is not None and w > 0]
+                return sum(parts) / (wi + wt)
+
+            raw = mix(lambda x: np.asarray(x, dtype=np.float64))
+            fused = mix(lambda x: calibrate(x, c.calibration, c.temperature))
+        return AssetScores(np.asarray(fused, dtype=np.float64), img_scores, txt_scores, img_emb, txt_emb,
+                           raw_fused=np.asarray(raw, dtype=np.float64))
+
+    def passes(self, scores: AssetScores, i: int) -> bool:
+        """Whether pool entry i clears the absolute threshold (raw fused cosine) and the calibrated lift."""
+        c = self.config
+        raw = scores.raw_fused if scores.raw_fused is not None else scores.fused
+        if raw[i] < c.threshold:
+            return False
+        if c.calibration == "softmax":
+            return scores.fused[i] * len(scores.fused) >= c.min_lift
+        if c.calibration == "zscore":
+            return scores.fused[i] >= c.min_lift
+        return True
 
     def top_matches(self, scores: AssetScores) -> list[tuple[int, float]]:
         """(pool index, fused score) of the best entries above the threshold, best first, at most top_k_per_asset."""
         order = sorted(range(len(scores.fused)), key=lambda i: (-round(float(scores.fused[i]), 9), i))
-        return [(i, float(scores.fused[i])) for i in order[: self.config.top_k_per_asset]
-                if scores.fused[i] >= self.config.threshold]
+        return [(i, float(scores.fused[i])) for i in order[: self.config.top_k_per_asset] if self.passes(scores, i)]
 
 
 @lru_cache(maxsize=2)

@@ -21,6 +21,7 @@ def register(app: typer.Typer) -> None:
         scorer: str = typer.Option("imagenet", help="image encoder: imagenet | clip | none"),
         clip_model: str = typer.Option(None, help="CLIP weights folder (with --scorer clip)"),
         views: int = typer.Option(8, help="rendered views per asset (1-20)"),
+        calibration: str = typer.Option("softmax", help="per-signal calibration over the pool: softmax | zscore | none"),
         per_category: int = typer.Option(2, help="procedural variants per category"),
         objaverse_cache: Path = typer.Option(None, help="objaverse cache folder (default ~/.objaverse)"),
     ) -> None:
@@ -38,7 +39,8 @@ def register(app: typer.Typer) -> None:
             opts = {"cache_dir": objaverse_cache}
         try:
             src = open_source(source, **opts)
-            config = IngestConfig(n_views=views, scoring=ScoringConfig(image_encoder=scorer, clip_model=clip_model))
+            config = IngestConfig(n_views=views, scoring=ScoringConfig(image_encoder=scorer, clip_model=clip_model,
+                                                                       calibration=calibration))
         except (ValueError, FileNotFoundError) as exc:
             raise typer.BadParameter(str(exc)) from None
         report = ingest(src, catalog, config, executor=executor, workers=workers, address=address, limit=limit)
@@ -52,6 +54,7 @@ def register(app: typer.Typer) -> None:
         clip_model: str = typer.Option(None, help="CLIP weights folder (with --scorer clip)"),
         objaverse_cache: Path = typer.Option(None, help="evaluate on this objaverse cache's LVIS labels instead"),
         limit: int = typer.Option(None, help="at most this many assets"),
+        calibration: str = typer.Option("softmax", help="per-signal calibration over the pool: softmax | zscore | none"),
     ) -> None:
         """Retrieval quality (category accuracy, precision@k) on a labelled set."""
         import tempfile
@@ -61,7 +64,11 @@ def register(app: typer.Typer) -> None:
         from retrieval.scoring import ScoringConfig
         from retrieval.sources import open_source
 
-        config = IngestConfig(scoring=ScoringConfig(image_encoder=scorer, clip_model=clip_model))
+        try:
+            config = IngestConfig(scoring=ScoringConfig(image_encoder=scorer, clip_model=clip_model,
+                                                        calibration=calibration))
+        except (ValueError, FileNotFoundError) as exc:
+            raise typer.BadParameter(str(exc)) from None
         with tempfile.TemporaryDirectory() as tmp:
             if objaverse_cache:
                 src = open_source("objaverse", cache_dir=objaverse_cache)

@@ -19,7 +19,7 @@ def _load(model: str, device: str):  # noqa: ANN202 - (CLIPModel, CLIPProcessor)
     try:
         proc = CLIPProcessor.from_pretrained(model)
         net = CLIPModel.from_pretrained(model).to(device).eval()
-    except OSError as exc:
+    except (OSError, ValueError) as exc:  # ValueError: huggingface_hub's HFValidationError on a bad repo id
         raise FileNotFoundError(
             f"CLIP model {model!r} could not be loaded offline ({exc.__class__.__name__}); download the weights "
             f"(e.g. openai/clip-vit-base-patch32) to a folder and pass `--clip-model FOLDER`, or use the "
@@ -36,8 +36,11 @@ class ClipEncoder:
     def __init__(self, model: str, device: str | None = None, batch_size: int = 32) -> None:
         import torch
 
-        if not Path(model).exists() and "/" not in model:
-            raise FileNotFoundError(f"CLIP model {model!r} is neither a folder nor a hub name; pass a weights folder")
+        looks_like_path = "/" not in model or model.startswith(("/", ".", "~")) or model.count("/") > 1
+        if not Path(model).expanduser().exists() and looks_like_path:
+            raise FileNotFoundError(f"CLIP model {model!r} is neither an existing folder nor a hub name "
+                                    f"(owner/name); pass a weights folder with --clip-model")
+        model = str(Path(model).expanduser()) if Path(model).expanduser().exists() else model
         self.device = device or ("cuda" if torch.cuda.is_available() else "cpu")
         self.model_name = model
         self.model, self.processor = _load(str(model), self.device)

@@ -19,7 +19,7 @@ import pyrvo
 
 from curbside.config import ConfigError, merge_strict
 from sim.agents.kinds import AGENT_KINDS, DEFAULT_MIX, KIND_NAMES, agent_kind
-from sim.agents.navgrid import NavGrid, boundary_segments, build_navgrid
+from sim.agents.navgrid import JUMPS, NavGrid, boundary_segments, build_navgrid
 
 AGENT_DTYPE = np.dtype([("x", "f8"), ("y", "f8"), ("vx", "f8"), ("vy", "f8"), ("radius", "f8"), ("kind", "U16")])
 IDLE, WALKING, RUNNING = 0, 1, 2
@@ -113,6 +113,8 @@ class AgentManager:
         self.n = n = len(kinds)
         self.kind_idx = np.array([KIND_NAMES.index(k) for k in kinds], dtype=np.int16)
         self.radius = np.array([AGENT_KINDS[k].radius for k in kinds])
+        self._template = np.zeros(n, dtype=AGENT_DTYPE)
+        self._template["radius"], self._template["kind"] = self.radius, kinds
         ego = _as_ego(ego)
         clear = list(keep_clear) + ([(ego.x, ego.y, ego.radius + 1.0)] if ego else [])
         self.pos = self._spawn_positions(rng, clear)
@@ -179,11 +181,12 @@ class AgentManager:
 
     def _build_orca(self, spec: dict[str, Any], fresh: bool) -> None:
         c = self.config
-        if not fresh:
-            self.sim.clear_agents()  # static obstacles stay: same scene
-        else:
-            self.sim = pyrvo.RVOSimulator(0.1, c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
-                                          c["time_horizon_obst"], 0.3, 2.0)
+        if fresh:
+            self._obstacles = self._orca_obstacles(spec)
+        # A new simulator every episode: RVO2's clearAgents leaves its agent k-d tree pointing at the deleted
+        # agents when the new episode has as many agents (use after free: runs stopped being deterministic).
+        self.sim = pyrvo.RVOSimulator(0.1, c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
+                                      c["time_horizon_obst"], 0.3, 2.0)
         for i in range(self.n):
             kind = AGENT_KINDS[KIND_NAMES[self.kind_idx[i]]]
             top = (kind.run_speed or kind.pref_speed) + 3.0 * kind.speed_std
@@ -192,17 +195,21 @@ class AgentManager:
         # The ego is the last ORCA agent; it starts parked far away so it influences nobody until placed.
         self.ego_id = self.sim.add_agent(self._parked(), c["neighbor_dist"], c["max_neighbors"],
                                          c["time_horizon"], c["time_horizon_obst"], 0.1, 50.0)
-        if not fresh:
-            return
+        for vertices in self._obstacles:
+            self.sim.add_obstacle(vertices)
+        self.sim.process_obstacles()
+
+    def _orca_obstacles(self, spec: dict[str, Any]) -> list[list[tuple[float, float]]]:
+        """ORCA obstacles of a scene: object footprints (counter-clockwise) and walkable-boundary segments."""
+        out = []
         for o in spec.get("objects", []):
             pts = np.asarray(o.get("footprint") or [], dtype=np.float64)
             if len(pts) >= 3:
                 area2 = np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])
-                self.sim.add_obstacle([tuple(p) for p in (pts if area2 > 0 else pts[::-1])])  # RVO2 wants CCW
+                out.append([tuple(p) for p in (pts if area2 > 0 else pts[::-1]).tolist()])  # RVO2 wants CCW
         g = self.grid
-        for a, b in boundary_segments(g.cells > 0, g.origin, g.res):
-            self.sim.add_obstacle([a, b])
-        self.sim.process_obstacles()
+        out += [[a, b] for a, b in boundary_segments(g.cells > 0, g.origin, g.res)]
+        return out
 
     def _parked(self) -> tuple[float, float]:
         g = self.grid
@@ -260,97 +267,113 @@ class AgentManager:
             moving = self.movement != IDLE
             if moving.any():
                 pref[moving] = self._preferred(nodes[moving], np.flatnonzero(moving))
-        self.sim.set_time_step(float(dt))
-        for i in range(self.n):
-            self.sim.set_agent_pref_velocity(i, (float(pref[i, 0]), float(pref[i, 1])))
-        self.sim.do_step()
-        new_pos = np.array([self.sim.get_agent_position(i).to_tuple() for i in range(self.n)]).reshape(self.n, 2)
-        new_vel = np.array([self.sim.get_agent_velocity(i).to_tuple() for i in range(self.n)]).reshape(self.n, 2)
+        sim = self.sim
+        sim.set_time_step(float(dt))
+        set_pref = sim.set_agent_pref_velocity
+        for i, v in enumerate(pref.tolist()):  # pyrvo has no batch setters; one list walk beats n numpy reads
+            set_pref(i, v)
+        sim.do_step()
+        get_pos, get_vel = sim.get_agent_position, sim.get_agent_velocity
+        new_pos = np.array([get_pos(i).to_tuple() for i in range(self.n)]).reshape(self.n, 2)
+        new_vel = np.array([get_vel(i).to_tuple() for i in range(self.n)]).reshape(self.n, 2)
         # ORCA's obstacle handling is not a hard guarantee at concave corners: an agent whose step would leave
         # the walkable area stays put instead.
         bad = ~g.is_walkable(new_pos) if self.n else np.zeros(0, dtype=bool)
         for i in np.flatnonzero(bad):
-            self.sim.set_agent_position(int(i), (float(self.pos[i, 0]), float(self.pos[i, 1])))
-            self.sim.set_agent_velocity(int(i), (0.0, 0.0))
+            sim.set_agent_position(int(i), (float(self.pos[i, 0]), float(self.pos[i, 1])))
+            sim.set_agent_velocity(int(i), (0.0, 0.0))
             new_pos[i], new_vel[i] = self.pos[i], 0.0
         self.pos, self.vel = new_pos, new_vel
-        self.trail = np.roll(self.trail, -1, axis=0)
+        self.trail[:-1] = self.trail[1:]  # oldest first; in place, no new [trail, n, 2] array per step
         self.trail[-1] = self.pos
         return self.states()
 
     def _update_goals(self, dt: float, nodes: np.ndarray) -> None:
-        c = self.config
+        c, g = self.config, self.grid
         idle = self.movement == IDLE
-        self.idle_left[idle] -= dt
-        for i in np.flatnonzero(idle & (self.idle_left <= 0)):
-            self._new_goal(int(i), int(nodes[i]))
-        moving = np.flatnonzero(self.movement != IDLE)
+        if idle.any():
+            self.idle_left[idle] -= dt
+            for i in np.flatnonzero(idle & (self.idle_left <= 0)).tolist():
+                self._new_goal(i, int(nodes[i]))
+            idle = self.movement == IDLE
+        moving = np.flatnonzero(~idle)
         if not len(moving):
             return
-        to_goal = np.linalg.norm(self.pos[moving] - self.goal[moving], axis=1)
-        arrived = (to_goal < c["arrive_radius"]) | (
-            (to_goal < c["crowded_arrive_radius"]) & (self.stall[moving] >= c["stuck_steps"] // 2))
-        dist = self.grid.distance(nodes[moving], self.site[moving])
+        d = self.pos[moving] - self.goal[moving]
+        to_goal = np.sqrt((d * d).sum(1))  # == np.linalg.norm(axis=1), without its dispatch cost
+        stall = self.stall[moving]
+        arrived = (to_goal < c["arrive_radius"]) | ((to_goal < c["crowded_arrive_radius"]) & (stall >= c["stuck_steps"] // 2))
+        dist = g.distance(nodes[moving], self.site[moving], planned=True)  # _new_goal planned every goal's field
         progressed = dist < self.best[moving] - c["stuck_progress"]
-        go = moving[~arrived & progressed]
-        self.best[go], self.stall[go] = dist[~arrived & progressed], 0
+        go = ~arrived & progressed
         held = ~arrived & ~progressed
-        self.stall[moving[held]] += 1
+        stall = np.where(go, 0, stall + held)
+        best = np.where(go, dist, self.best[moving])
         # Progress during the side-step counts from where it began, not from before being pushed back.
-        restart = held & (self.stall[moving] == c["stuck_steps"])
-        self.best[moving[restart]] = dist[restart]
-        for i in moving[arrived]:
-            late = self.time - self.goal_t0[i] > self.budget[i]
-            self.counts["late" if late else "in_time"] += 1
-            if self.rng.random() < c["idle_prob"]:
-                self.movement[i] = IDLE
-                self.idle_left[i] = self.rng.uniform(*c["idle_time"])
-            else:
-                self._new_goal(int(i), int(nodes[i]))
-        for i in moving[held & (self.stall[moving] >= c["regoal_steps"])]:
-            self._new_goal(int(i), int(nodes[i]), abandon=True)
+        restart = held & (stall == c["stuck_steps"])
+        best[restart] = dist[restart]
+        self.stall[moving], self.best[moving] = stall, best
+        if arrived.any():
+            for i in moving[arrived].tolist():
+                late = self.time - self.goal_t0[i] > self.budget[i]
+                self.counts["late" if late else "in_time"] += 1
+                if self.rng.random() < c["idle_prob"]:
+                    self.movement[i] = IDLE
+                    self.idle_left[i] = self.rng.uniform(*c["idle_time"])
+                else:
+                    self._new_goal(i, int(nodes[i]))
+        for i in moving[held & (stall >= c["regoal_steps"])].tolist():
+            self._new_goal(i, int(nodes[i]), abandon=True)
 
     def _preferred(self, nodes: np.ndarray, idx: np.ndarray) -> np.ndarray:
         g, c = self.grid, self.config
         sites = self.site[idx]
+        pos = self.pos[idx]
         steps = c["lookahead_cells"]
-        carrot = g.node_xy(g.lookahead(nodes, sites, steps))
+        carrot = g.node_xy(g.lookahead(nodes, sites, steps, planned=True))
         # Keep right: shortest paths hug the same inner edges in both directions, so opposing flows would meet
         # head-on in one lane (ORCA then herds the weaker side backwards); a right offset forms two lanes.
-        d = carrot - self.pos[idx]
-        norm = np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-6)
+        d = carrot - pos
+        norm = np.maximum(np.sqrt((d * d).sum(1))[:, None], 1e-6)
         shifted = carrot + np.stack([d[:, 1], -d[:, 0]], 1) / norm * c["keep_right"]
-        i_r, j_r = g.cell_of(shifted)
-        ok = g.inside(shifted) & g.free[i_r, j_r]
+        ok = g.is_free(shifted)
         carrot[ok] = shifted[ok]
         # A carrot behind a concave corner (a crosswalk mouth) would press the agent into the curb: fall back
-        # to nearer points of the path until one is in sight.
-        for k, i in enumerate(idx):
-            p, r = (float(self.pos[i, 0]), float(self.pos[i, 1])), float(self.radius[i])
-            s = steps
-            if not self.sim.query_visibility(p, (float(carrot[k, 0]), float(carrot[k, 1])), r):
-                carrot[k] = g.node_xy(g.lookahead(nodes[k:k + 1], sites[k:k + 1], s))[0]
-            while s > 1 and not self.sim.query_visibility(p, (float(carrot[k, 0]), float(carrot[k, 1])), r):
-                s //= 2
-                carrot[k] = g.node_xy(g.lookahead(nodes[k:k + 1], sites[k:k + 1], s))[0]
+        # to nearer points of the path (steps, steps/2, ..., 1 cells; the last without a check) until one is in
+        # sight. The rungs are looked up at once for the few agents that need them.
+        visible = self.sim.query_visibility
+        pos_l, rad_l = pos.tolist(), self.radius[idx].tolist()
+        blocked = [k for k, (p, q, r) in enumerate(zip(pos_l, carrot.tolist(), rad_l)) if not visible(p, q, r)]
+        if blocked:
+            b = np.asarray(blocked)
+            rungs = [g.node_xy(g.lookahead(nodes[b], sites[b], s, planned=True)).tolist()
+                     for s in JUMPS[::-1] if s <= steps]
+            for m, k in enumerate(blocked):
+                for rung in rungs[:-1]:
+                    if visible(pos_l[k], rung[m], rad_l[k]):
+                        carrot[k] = rung[m]
+                        break
+                else:
+                    carrot[k] = rungs[-1][m]
         # Close to the site the field's single target cell would pull everyone to one point: aim at the own goal.
-        near = g.distance(nodes, sites) < 1.5 * c["goal_spread"]
-        carrot[near] = self.goal[idx[near]]
-        d = carrot - self.pos[idx]
-        norm = np.linalg.norm(d, axis=1, keepdims=True)
+        goal = self.goal[idx]
+        near = g.distance(nodes, sites, planned=True) < 1.5 * c["goal_spread"]
+        carrot[near] = goal[near]
+        d = carrot - pos
+        norm = np.sqrt((d * d).sum(1))[:, None]
         direction = np.where(norm > 1e-6, d / np.maximum(norm, 1e-6), 0.0)
-        to_goal = np.linalg.norm(self.goal[idx] - self.pos[idx], axis=1)
-        speed = np.minimum(self.speed[idx], np.maximum(to_goal, 0.3))
-        stuck = self.stall[idx] >= c["stuck_steps"]
+        dg = goal - pos
+        speed = np.minimum(self.speed[idx], np.maximum(np.sqrt((dg * dg).sum(1)), 0.3))
+        stall = self.stall[idx]
+        stuck = stall >= c["stuck_steps"]
         if stuck.any():
             # Side-step (the rotate half of push-and-rotate): to the right when there is room, else to the left,
             # switching sides every `stuck_steps` so an agent pinned against a curb or a wall gets out.
             dx, dy = direction[stuck, 0].copy(), direction[stuck, 1].copy()
             right = np.stack([dy, -dx], 1)
-            probe = self.pos[idx[stuck]] + right * 1.0
-            i_r, j_r = g.cell_of(probe)
-            sign = np.where(g.inside(probe) & g.free[i_r, j_r], 1.0, -1.0)
-            phase = (self.stall[idx[stuck]] - c["stuck_steps"]) // c["stuck_steps"]
+            probe = pos[stuck] + right * 1.0
+            sign = np.where(g.is_free(probe), 1.0, -1.0)
+            phase = (stall[stuck] - c["stuck_steps"]) // c["stuck_steps"]
             sign = np.where(phase % 2 == 1, -sign, sign)
             ang = -1.2 * sign
             cs, sn = np.cos(ang), np.sin(ang)
@@ -360,12 +383,10 @@ class AgentManager:
     # ------------------------------------------------------------------ outputs
     def states(self) -> np.ndarray:
         """Every agent's x, y, vx, vy, radius and kind as a structured array of AGENT_DTYPE."""
-        out = np.zeros(self.n, dtype=AGENT_DTYPE)
+        out = self._template.copy()  # radius and kind never change within an episode
         if self.n:
             out["x"], out["y"] = self.pos[:, 0], self.pos[:, 1]
             out["vx"], out["vy"] = self.vel[:, 0], self.vel[:, 1]
-            out["radius"] = self.radius
-            out["kind"] = np.asarray(KIND_NAMES)[self.kind_idx]
         return out
 
     def goal_stats(self) -> dict[str, float]:

@@ -106,6 +106,7 @@ class NavGrid:
     _dist: np.ndarray | None = None  # [sites, nodes] path length to each site, inf until computed
     _jump: np.ndarray | None = None
     _done: np.ndarray | None = None
+    _centres: np.ndarray | None = None  # node_xy of every node, built on first use (agents look it up each tick)
 
     @property
     def n_nodes(self) -> int:
@@ -114,28 +115,39 @@ class NavGrid:
 
     def node_xy(self, nodes: np.ndarray) -> np.ndarray:
         """World centres [n, 2] of graph nodes."""
-        rc = self.node_rc[nodes]
-        return np.stack([self.origin[0] + (rc[..., 1] + 0.5) * self.res, self.origin[1] + (rc[..., 0] + 0.5) * self.res], -1)
+        if self._centres is None:
+            rc = self.node_rc
+            self._centres = np.stack([self.origin[0] + (rc[:, 1] + 0.5) * self.res,
+                                      self.origin[1] + (rc[:, 0] + 0.5) * self.res], -1)
+        return self._centres[nodes]
+
+    def _frac(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fractional (column, row) grid coordinates of world points [n, 2]."""
+        xy = np.atleast_2d(xy)
+        return (xy[:, 0] - self.origin[0]) / self.res, (xy[:, 1] - self.origin[1]) / self.res
 
     def cell_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(row, col) of the cells holding world points [n, 2], clipped to the grid."""
-        xy = np.atleast_2d(xy)
-        j = np.clip(np.floor((xy[:, 0] - self.origin[0]) / self.res).astype(np.int64), 0, self.cells.shape[1] - 1)
-        i = np.clip(np.floor((xy[:, 1] - self.origin[1]) / self.res).astype(np.int64), 0, self.cells.shape[0] - 1)
+        fx, fy = self._frac(xy)
+        h, w = self.cells.shape
+        # ndarray.clip and astype skip np.clip's Python dispatch: this runs several times per simulator tick.
+        j = np.floor(fx).clip(0, w - 1).astype(np.int64)
+        i = np.floor(fy).clip(0, h - 1).astype(np.int64)
         return i, j
 
     def inside(self, xy: np.ndarray) -> np.ndarray:
         """Whether world points lie inside the grid's extent."""
-        xy = np.atleast_2d(xy)
+        fx, fy = self._frac(xy)
         h, w = self.cells.shape
-        fx = (xy[:, 0] - self.origin[0]) / self.res
-        fy = (xy[:, 1] - self.origin[1]) / self.res
         return (fx >= 0) & (fx < w) & (fy >= 0) & (fy < h)
 
     def is_walkable(self, xy: np.ndarray) -> np.ndarray:
         """Whether world points lie on a walkable cell that no object covers."""
-        i, j = self.cell_of(xy)
-        return self.inside(xy) & self.walkable[i, j]
+        fx, fy = self._frac(xy)
+        h, w = self.cells.shape
+        inside = (fx >= 0) & (fx < w) & (fy >= 0) & (fy < h)
+        return inside & self.walkable[np.floor(fy).clip(0, h - 1).astype(np.int64),
+                                      np.floor(fx).clip(0, w - 1).astype(np.int64)]
 
     def nearest_node(self, xy: np.ndarray) -> np.ndarray:
         """Graph node nearest to each world point (agents pushed off the graph snap back to it)."""
@@ -175,15 +187,24 @@ class NavGrid:
         self.plan_all(np.array([site]))
         return self._dist[site]
 
-    def distance(self, nodes: np.ndarray, sites: np.ndarray) -> np.ndarray:
-        """Path length in metres from each node to its agent's goal site."""
-        self.plan_all(sites)
+    def distance(self, nodes: np.ndarray, sites: np.ndarray, planned: bool = False) -> np.ndarray:
+        """Path length in metres from each node to its agent's goal site (`planned`: caller ran plan_all)."""
+        if not planned:
+            self.plan_all(sites)
         return self._dist[sites, nodes]
 
-    def lookahead(self, nodes: np.ndarray, sites: np.ndarray, steps: int) -> np.ndarray:
+    def lookahead(self, nodes: np.ndarray, sites: np.ndarray, steps: int, planned: bool = False) -> np.ndarray:
         """Node reached by following each agent's field `steps` (a power of two <= 8) cells toward its site."""
-        self.plan_all(sites)
+        if not planned:
+            self.plan_all(sites)
         return self._jump[JUMPS.index(steps), sites, nodes]
+
+    def is_free(self, xy: np.ndarray) -> np.ndarray:
+        """Whether world points lie on a planning cell (inside the grid, on the kept free component)."""
+        fx, fy = self._frac(xy)
+        h, w = self.cells.shape
+        inside = (fx >= 0) & (fx < w) & (fy >= 0) & (fy < h)
+        return inside & self.free[np.floor(fy).clip(0, h - 1).astype(np.int64), np.floor(fx).clip(0, w - 1).astype(np.int64)]
 
 
 JUMPS = [1, 2, 4, 8]

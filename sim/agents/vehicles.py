@@ -107,6 +107,9 @@ class VehicleManager:
         c = self.config
         self.lanes = build_lanes(spec)
         self.crosswalks = [Polygon(cw["polygon"]).buffer(c["crosswalk_margin"]) for cw in spec.get("crosswalks", [])]
+        self._cw_bounds = np.array([cw.bounds for cw in self.crosswalks]).reshape(-1, 4)
+        for cw in self.crosswalks:
+            shapely.prepare(cw)
         self._index_lanes()
         lane_id, s = [], []
         spacing = c["length"] + c["min_gap"] + 2.0
@@ -138,11 +141,15 @@ class VehicleManager:
     def step(self, dt: float, people_xy: np.ndarray | None = None) -> np.ndarray:
         """Advance every vehicle by `dt` s; `people_xy` [n, 2] are agents and the ego (they make vehicles yield)."""
         c = self.config
+        self.occupied = np.zeros(len(self.crosswalks), dtype=bool)
         if people_xy is not None and len(people_xy) and self.crosswalks:
-            pts = shapely.points(np.asarray(people_xy, dtype=np.float64))
-            self.occupied = np.array([bool(shapely.contains(cw, pts).any()) for cw in self.crosswalks])
-        else:
-            self.occupied = np.zeros(len(self.crosswalks), dtype=bool)
+            xy = np.asarray(people_xy, dtype=np.float64)
+            # Bounding boxes first: most ticks nobody is near a crosswalk and no polygon test runs at all.
+            lo, hi = self._cw_bounds[:, None, :2], self._cw_bounds[:, None, 2:]
+            near = np.all((xy[None] >= lo) & (xy[None] <= hi), axis=2)
+            for ci in np.flatnonzero(near.any(axis=1)).tolist():
+                pts = xy[near[ci]]
+                self.occupied[ci] = bool(shapely.contains_xy(self.crosswalks[ci], pts[:, 0], pts[:, 1]).any())
         if self.n:
             order = np.lexsort((self.s, self.lane_id))
             ls, ss, v = self.lane_id[order], self.s[order], self.v[order]

@@ -10,7 +10,7 @@ import numpy as np
 import pybullet as p
 
 from sim.agents.crowd import AGENT_DEFAULTS, AgentManager, EgoState
-from sim.agents.kinds import AGENT_KINDS
+from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
 from sim.agents.render import draw_top_down
 from sim.agents.vehicles import VEHICLE_DEFAULTS, VehicleManager
 from sim.envs.pointnav import PointNavEnv
@@ -38,7 +38,7 @@ class SocialNavEnv(PointNavEnv):
 
     | what | where |
     |---|---|
-    | agents and vehicles | kinematic PyBullet bodies (cylinders per kind colour, boxes), seen by the LiDAR |
+    | agents and vehicles | kinematic PyBullet bodies (capsules per kind colour and height, boxes), seen by the LiDAR |
     | cost | +1 per step in collision, agents (`collisions_agent`) and vehicles (`collisions_vehicle`) included |
     | metrics | `psc`, `stl`, `sns` (docs/metrics.md) beside PointNav's |
     | `agent_states()` | structured array x, y, vx, vy, radius, kind (sim.agents.AGENT_DTYPE) |
@@ -59,6 +59,7 @@ class SocialNavEnv(PointNavEnv):
         self._agent_bodies: list[int] = []
         self._vehicle_bodies: list[int] = []
         self._shapes: dict[Any, tuple[int, int]] = {}
+        self._body_kind_idx = self._body_kind_src = np.zeros(0, dtype=np.int16)
 
     # -- hooks -------------------------------------------------------------------------------------
     def _on_scene(self, spec: Mapping[str, Any]) -> None:
@@ -96,38 +97,59 @@ class SocialNavEnv(PointNavEnv):
 
     def _sync_bodies(self) -> None:
         c = self.client
-        states = self.crowd.states()
+        crowd = self.crowd
         vehicles = self.traffic.states() if self.config["traffic"] else np.zeros(0)
-        self._ensure_bodies(states, vehicles)
-        z = self._agent_base_heights(states)
-        if len(states):
-            half_h = np.array([AGENT_KINDS[k].height / 2 for k in self._body_kinds])
-            for body, x, y, zz in zip(self._agent_bodies, states["x"].tolist(), states["y"].tolist(), (z + half_h).tolist()):
-                p.resetBasePositionAndOrientation(body, [x, y, zz], [0, 0, 0, 1], physicsClientId=c)
+        self._ensure_bodies(vehicles)
+        if crowd.n:
+            xyz = np.empty((crowd.n, 3))
+            xyz[:, :2] = crowd.pos
+            xyz[:, 2] = self._agent_base_heights(crowd.pos) + self._half_heights
+            # Standing agents keep their body where it is: a Bullet reset per body is the cost worth saving.
+            moved = np.flatnonzero(np.any(xyz != self._body_xyz, axis=1))
+            for k, pos in zip(moved.tolist(), xyz[moved].tolist()):
+                p.resetBasePositionAndOrientation(self._agent_bodies[k], pos, (0, 0, 0, 1), physicsClientId=c)
+            self._body_xyz = xyz
         if len(vehicles):
             half_yaw = (0.5 * vehicles["yaw"]).tolist()
             for body, x, y, h in zip(self._vehicle_bodies, vehicles["x"].tolist(), vehicles["y"].tolist(), half_yaw):
                 p.resetBasePositionAndOrientation(body, [x, y, VEHICLE_HEIGHT / 2], [0, 0, math.sin(h), math.cos(h)],
                                                   physicsClientId=c)
 
-    def _ensure_bodies(self, states: np.ndarray, vehicles: np.ndarray) -> None:
+    def _bodies_match(self) -> bool:
+        """Whether the agent bodies still match the crowd's agents (a reset may change their number or kinds)."""
+        idx = self.crowd.kind_idx
+        if len(self._agent_bodies) != self.crowd.n:
+            return False
+        if self._body_kind_src is not idx:  # a new episode: compare by value once, then by identity
+            if not np.array_equal(self._body_kind_idx, idx):
+                return False
+            self._body_kind_src = idx
+        return True
+
+    def _ensure_bodies(self, vehicles: np.ndarray) -> None:
         c = self.client
-        kinds = [str(k) for k in states["kind"]]
-        if len(self._agent_bodies) != len(kinds) or getattr(self, "_body_kinds", None) != kinds:
+        if not self._bodies_match():
+            kinds = [KIND_NAMES[k] for k in self.crowd.kind_idx]
             for b in self._agent_bodies:
                 p.removeBody(b, physicsClientId=c)
                 self._collision_kinds.pop(b, None)
             self._agent_bodies = []
             for k in kinds:
                 kind = AGENT_KINDS[k]
-                col, vis = self._shape(k, lambda kind=kind: (
-                    p.createCollisionShape(p.GEOM_CYLINDER, radius=kind.radius, height=kind.height, physicsClientId=c),
-                    p.createVisualShape(p.GEOM_CYLINDER, radius=kind.radius, length=kind.height,
+                # Capsules, not cylinders: Bullet ray-tests a cylinder about four times slower than a capsule, and
+                # the LiDAR's rays made cylinders the costliest part of a SocialNav step.
+                shaft = max(kind.height - 2.0 * kind.radius, 0.0)
+                col, vis = self._shape(k, lambda kind=kind, shaft=shaft: (
+                    p.createCollisionShape(p.GEOM_CAPSULE, radius=kind.radius, height=shaft, physicsClientId=c),
+                    p.createVisualShape(p.GEOM_CAPSULE, radius=kind.radius, length=shaft,
                                         rgbaColor=[*kind.color, 1.0], physicsClientId=c)))
                 body = p.createMultiBody(0.0, col, vis, [0, 0, -20], physicsClientId=c)
                 self._agent_bodies.append(body)
                 self._collision_kinds[body] = "agent"
             self._body_kinds = kinds
+            self._body_kind_idx = self._body_kind_src = self.crowd.kind_idx
+            self._half_heights = np.array([max(AGENT_KINDS[k].height, 2.0 * AGENT_KINDS[k].radius) / 2 for k in kinds])
+            self._body_xyz = np.full((len(kinds), 3), np.nan)  # nan != anything: every body moves on the first sync
         while len(self._vehicle_bodies) < len(vehicles):
             cfg = self.traffic.config
             half = [cfg["length"] / 2, cfg["width"] / 2, VEHICLE_HEIGHT / 2]
@@ -140,11 +162,11 @@ class SocialNavEnv(PointNavEnv):
         for body in self._vehicle_bodies[len(vehicles):]:
             p.resetBasePositionAndOrientation(body, [0, 0, -20], [0, 0, 0, 1], physicsClientId=c)
 
-    def _agent_base_heights(self, states: np.ndarray) -> np.ndarray:
+    def _agent_base_heights(self, xy: np.ndarray) -> np.ndarray:
         g = self.crowd.grid
-        if not len(states):
+        if not len(xy):
             return np.zeros(0)
-        i, j = g.cell_of(np.stack([states["x"], states["y"]], 1))
+        i, j = g.cell_of(xy)
         curb = float(self.scene_spec.get("curb_height", 0.15))
         # Legend: sidewalk on the curb, crosswalk on the road, ramps half way.
         return np.choose(np.minimum(g.cells[i, j], 3), [curb, curb, 0.0, curb / 2])
@@ -158,11 +180,11 @@ class SocialNavEnv(PointNavEnv):
                         0.5 * math.hypot(s.length, s.width))
 
     def _nearest_agent(self) -> float:
-        st = self.crowd.states()
-        if not len(st):
+        pos = self.crowd.pos
+        if not len(pos):
             return math.inf
         x, y, _ = self.machine.position
-        return float(np.min(np.hypot(st["x"] - x, st["y"] - y)))
+        return float(np.min(np.hypot(pos[:, 0] - x, pos[:, 1] - y)))
 
     def agent_states(self) -> np.ndarray:
         """Every cohabitant's x, y, vx, vy, radius and kind (structured array; vehicles: vehicle_states())."""

@@ -42,6 +42,7 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "curb_height": 0.15,
     "crosswalk_density": 0.5,         # probability that each crosswalk candidate is built
     "crosswalks": None,               # or an explicit list of candidate ids, e.g. ["r0.0:start", "r1.2:end"]
+    "connect_crosswalks": True,       # also build the fewest extra candidates that join every sidewalk group
     "crosswalk_width": 3.0,
     "ramp_depth": 1.5,
     "object_density": 1.0,            # rho_s: scales standard spacing (1/rho) and zoned/clutter counts (rho)
@@ -97,6 +98,8 @@ def resolve_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
     cfg["lanes"] = [int(cfg["lanes"][0]), int(cfg["lanes"][1])]
     if not 0.0 <= float(cfg["crosswalk_density"]) <= 1.0:
         raise ConfigError(f"config.crosswalk_density must lie in [0, 1], got {cfg['crosswalk_density']!r}")
+    if not isinstance(cfg["connect_crosswalks"], bool):
+        raise ConfigError(f"config.connect_crosswalks must be true or false, got {cfg['connect_crosswalks']!r}")
     if cfg["crosswalks"] is not None and not (isinstance(cfg["crosswalks"], list) and all(isinstance(c, str) for c in cfg["crosswalks"])):
         raise ConfigError("config.crosswalks must be null or a list of candidate ids such as 'r0.0:start'")
     for key in ("object_density", "standard_spacing", "non_standard_per_100m", "clutter_per_100m", "min_clear_width", "curb_height", "ramp_depth"):

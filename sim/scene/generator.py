@@ -34,6 +34,12 @@ def _line(ls: Any) -> list[list[float]]:
     return np.asarray(ls.coords).tolist()
 
 
+def _bounds(polys: list[Any]) -> tuple[float, float, float, float]:
+    # The bounds of a union are the extremes of the parts' bounds; no need to build the union.
+    b = shapely.bounds(np.asarray(polys, dtype=object))
+    return float(b[:, 0].min()), float(b[:, 1].min()), float(b[:, 2].max()), float(b[:, 3].max())
+
+
 def generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any = None) -> dict[str, Any]:
     """Generate one scene spec from a strict config, a seed and an optional catalog (reader or path)."""
     cfg = resolve_config(config)
@@ -64,7 +70,7 @@ def generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any = None
     walk_polys = [sw.polygon for sw in sidewalks]
     cw_polys = [c.polygon for c in crosswalks]
     ramp_polys = [r for c in crosswalks for _, r in c.ramps]
-    wb = shapely.union_all(walk_polys + cw_polys).bounds
+    wb = _bounds(walk_polys + cw_polys)
     res = float(cfg["grid_resolution"])
     pad = 2 * res
     mask, origin = rasterize(
@@ -72,7 +78,7 @@ def generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any = None
         (wb[0] - pad, wb[1] - pad, wb[2] + pad, wb[3] + pad), res,
     )
     everything = [b.polygon for b in blocks] + walk_polys + [sw.building.polygon for sw in sidewalks if sw.building]
-    bounds = list(shapely.union_all(everything).bounds)
+    bounds = list(_bounds(everything))
 
     objects = placer.objects
     by_class = Counter(o["object_class"] for o in objects)

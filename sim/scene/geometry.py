@@ -35,11 +35,12 @@ class Centerline:
         # The average of adjacent chord headings is the true tangent for uniformly sampled arcs.
         hv[1:-1] = 0.5 * (h[:-1] + h[1:])
         self.heading = hv
+        # Left normals at the vertices, computed once: every band, zone and building strip offsets along them.
+        self.normals = np.stack([-np.sin(hv), np.cos(hv)], axis=1)
 
     def offset(self, d: float) -> np.ndarray:
         """Vertices shifted sideways by `d` (left positive)."""
-        n = np.stack([-np.sin(self.heading), np.cos(self.heading)], axis=1)
-        return self.pts + d * n
+        return self.pts + d * self.normals
 
     def frame(self, s: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         """Points and headings at arc lengths `s` (linear interpolation between vertices)."""
@@ -105,7 +106,12 @@ def strip(cl: Centerline, d0: float, d1: float, s0: float | None = None, s1: flo
         s = np.concatenate([[s0], inner, [s1]])
         a, _ = cl.to_world(s, np.full(len(s), d0))
         b, _ = cl.to_world(s, np.full(len(s), d1))
-    return orient(Polygon(np.concatenate([a, b[::-1]])), 1.0)
+    ring = np.concatenate([a, b[::-1]])
+    x, y = ring[:, 0], ring[:, 1]
+    # Shoelace sign instead of shapely's orient(): one polygon construction per strip, not two.
+    if float(x[:-1] @ y[1:] - y[:-1] @ x[1:] + x[-1] * y[0] - y[-1] * x[0]) < 0:
+        ring = ring[::-1]
+    return shapely.polygons(ring)
 
 
 def rectangle(center: np.ndarray, yaw: float, depth: float, width: float) -> np.ndarray:

@@ -77,8 +77,50 @@ def grid_frame(bounds: Sequence[float], resolution: float) -> tuple[tuple[float,
     return (round(x0, 4), round(y0, 4)), (rows, cols)
 
 
+def _rings(poly: Polygon) -> list[np.ndarray]:
+    return [np.asarray(poly.exterior.coords)] + [np.asarray(r.coords) for r in poly.interiors]
+
+
 def paint(mask: np.ndarray, origin: tuple[float, float], resolution: float, poly: Polygon, value: int | bool) -> None:
-    """Set the cells of `mask` whose centres lie inside `poly` to `value` (only its bounding box is tested)."""
+    """Set the cells of `mask` whose centres lie inside `poly` to `value` (even-odd scanlines over its rows)."""
+    if poly.is_empty:
+        return
+    if not isinstance(poly, Polygon):
+        for part in getattr(poly, "geoms", []):
+            if isinstance(part, Polygon):
+                paint(mask, origin, resolution, part, value)
+        return
+    _, ymin, _, ymax = poly.bounds
+    i0 = max(math.floor((ymin - origin[1]) / resolution - 0.5), 0)
+    i1 = min(math.ceil((ymax - origin[1]) / resolution - 0.5) + 1, mask.shape[0])
+    if i1 <= i0:
+        return
+    ys = origin[1] + (np.arange(i0, i1) + 0.5) * resolution
+    rings = _rings(poly)
+    a = np.concatenate([r[:-1] for r in rings])
+    b = np.concatenate([r[1:] for r in rings])
+    # Half-open rule (y0 <= y < y1 on either end) counts each vertex once, like a point-in-polygon test.
+    lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
+    cross = (ys[:, None] >= lo[None, :]) & (ys[:, None] < hi[None, :])
+    rows, edges = np.nonzero(cross)
+    if rows.size == 0:
+        return
+    ax, ay, bx, by = a[edges, 0], a[edges, 1], b[edges, 0], b[edges, 1]
+    x = ax + (ys[rows] - ay) * (bx - ax) / (by - ay)
+    order = np.lexsort((x, rows))
+    rows, x = rows[order], x[order]
+    # Consecutive crossings on one row pair up as inside spans; a cell is in when its centre is strictly inside.
+    start = np.ceil((x[0::2] - origin[0]) / resolution - 0.5 + 1e-12).astype(np.int64)
+    stop = np.ceil((x[1::2] - origin[0]) / resolution - 0.5 - 1e-12).astype(np.int64)
+    start = np.clip(start, 0, mask.shape[1])
+    stop = np.clip(stop, 0, mask.shape[1])
+    for r, c0, c1 in zip((rows[0::2] + i0).tolist(), start.tolist(), stop.tolist()):
+        if c1 > c0:
+            mask[r, c0:c1] = value
+
+
+def paint_reference(mask: np.ndarray, origin: tuple[float, float], resolution: float, poly: Polygon, value: int | bool) -> None:
+    """Slow reference of `paint`: `shapely.contains_xy` on every cell centre of the polygon's bounding box."""
     if poly.is_empty:
         return
     xmin, ymin, xmax, ymax = poly.bounds
@@ -91,7 +133,6 @@ def paint(mask: np.ndarray, origin: tuple[float, float], resolution: float, poly
     xs = origin[0] + (np.arange(j0, j1) + 0.5) * resolution
     ys = origin[1] + (np.arange(i0, i1) + 0.5) * resolution
     X, Y = np.meshgrid(xs, ys)
-    shapely.prepare(poly)
     inside = shapely.contains_xy(poly, X, Y)
     mask[i0:i1, j0:j1][inside] = value
 

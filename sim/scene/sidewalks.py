@@ -46,6 +46,7 @@ class Sidewalk:
     clear_path: LineString
     s_range: tuple[float, float]
     building: Zone | None = None
+    outer: float = 0.0  # lateral offset of the sidewalk's outer edge (all zones at their drawn widths)
     ramps: list[Polygon] = field(default_factory=list)
     keep_out: list[Polygon] = field(default_factory=list)
 
@@ -76,10 +77,42 @@ def _band(w: Roadway, side: int, d0: float, d1: float) -> Polygon:
     return strip(w.centerline, side * d0, side * d1)
 
 
+class _Taken:
+    """Polygons already claimed (roads, sidewalks, buildings), clipped against by bounding-box neighbourhood."""
+
+    def __init__(self, polys: list[Polygon]) -> None:
+        self.polys = list(polys)
+        self.bounds = [p.bounds for p in self.polys]
+
+    def add(self, poly: Polygon) -> None:
+        """Claim `poly`."""
+        self.polys.append(poly)
+        self.bounds.append(poly.bounds)
+
+    def clip(self, raw: Polygon) -> Polygon | None:
+        """`raw` minus every claimed polygon whose interior it enters (cleaned), or `raw` itself when none does."""
+        return self.clip_cut(raw)[0]
+
+    def clip_cut(self, raw: Polygon) -> tuple[Polygon | None, shapely.Geometry | None]:
+        """`clip` plus the claimed area that was cut away (None when `raw` came back untouched)."""
+        x0, y0, x1, y1 = raw.bounds
+        near = [p for p, b in zip(self.polys, self.bounds) if b[0] < x1 and b[2] > x0 and b[1] < y1 and b[3] > y0]
+        if near:
+            # Only interior overlaps cut; a band merely touching its own road needs neither difference nor clean-up.
+            hit = shapely.relate_pattern(raw, near, "2********")
+            near = [p for p, h in zip(near, hit) if h]
+        if not near:
+            return raw, None
+        cut = near[0] if len(near) == 1 else shapely.union_all(near)
+        return clean(raw.difference(cut)), cut
+
+
 def build_sidewalks(blocks: list[Block], cfg: dict[str, Any], rng: np.random.Generator) -> list[Sidewalk]:
     """Sidewalks on every roadway side; earlier sidewalks claim shared corners, so no two overlap."""
-    roads = shapely.union_all([b.polygon for b in blocks] + [b.island for b in blocks if b.island is not None])
-    taken = roads
+    from sim.scene.network import join_seams
+
+    roads = [b.polygon for b in blocks] + [b.island for b in blocks if b.island is not None]
+    taken = _Taken(roads)
     out: list[Sidewalk] = []
     raw_buildings: list[tuple[Sidewalk, float, float, Polygon]] = []
     for b in blocks:
@@ -94,13 +127,16 @@ def build_sidewalks(blocks: list[Block], cfg: dict[str, Any], rng: np.random.Gen
                     bands.append((kind, d, d + wd))
                     d += wd
                 raw = _band(w, side, w.half_width, d)
-                poly = clean(raw.difference(taken))
+                poly, cut = taken.clip_cut(raw)
                 bdepth = float(rng.uniform(*cfg["building_depth"]))
                 if poly is None or poly.area < 4.0:
                     continue
                 zones = []
                 for kind, d0, d1 in bands:
-                    zp = clean(_band(w, side, d0, d1).intersection(poly))
+                    zb = _band(w, side, d0, d1)
+                    # A zone band the cut does not enter is already exact; only cut zones need the overlay and clean-up.
+                    hit = cut is not None and bool(shapely.relate_pattern(zb, cut, "2********"))
+                    zp = clean(zb.intersection(poly)) if hit else zb
                     if zp is not None:
                         zones.append(Zone(kind, d0, d1, zp))
                 clear = next((z for z in zones if z.kind == "clear"), None)
@@ -115,19 +151,22 @@ def build_sidewalks(blocks: list[Block], cfg: dict[str, Any], rng: np.random.Gen
                 ends = cl.project(np.asarray(edge.coords)[[0, -1]])
                 sw = Sidewalk(
                     f"{b.id}-s{k}", b.id, w, wi, side, t, poly, zones, edge, cpath,
-                    (float(min(ends)), float(max(ends))),
+                    (float(min(ends)), float(max(ends))), outer=d,
                 )
                 k += 1
                 out.append(sw)
-                taken = taken.union(poly)
+                taken.add(poly)
                 if cfg["buildings"]:
                     raw_buildings.append((sw, d, d + bdepth, _band(w, side, d, d + bdepth)))
+    # Seam patches join sidewalks of neighbouring blocks whose roads differ in width; buildings yield to them.
+    for patch in join_seams(blocks, out, roads):
+        taken.add(patch)
     for sw, d0, d1, raw in raw_buildings:
         # Buildings come last: they yield to every sidewalk and to earlier buildings.
-        bp = clean(raw.difference(taken))
+        bp = taken.clip(raw)
         if bp is not None and bp.area > 4.0:
             sw.building = Zone("building", d0, d1, bp)
-            taken = taken.union(bp)
+            taken.add(bp)
     return out
 
 
@@ -160,6 +199,13 @@ def build_crosswalks(blocks: list[Block], sidewalks: list[Sidewalk], cfg: dict[s
     else:
         draws = rng.random(len(candidates))
         chosen = list(draws < float(cfg["crosswalk_density"]))
+        if cfg["connect_crosswalks"] and candidates:
+            from sim.scene.network import connecting_picks, sidewalk_groups
+
+            # Without these extra crossings, streets whose draws all failed would split the network in two.
+            index = {id(sw): i for i, sw in enumerate(sidewalks)}
+            pairs = [(index[id(c[4])], index[id(c[5])]) for c in candidates]
+            chosen = connecting_picks(pairs, chosen, sidewalk_groups(sidewalks), rng.permutation(len(candidates)))
     out: list[Crosswalk] = []
     ramp_depth = float(cfg["ramp_depth"])
     for (name, b, w, s, left, right), pick in zip(candidates, chosen):

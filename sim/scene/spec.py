@@ -23,6 +23,9 @@ def canonical(obj: Any) -> Any:
     if isinstance(obj, dict):
         return {str(k): canonical(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
+        if len(obj) <= 4 and obj and all(type(v) is float for v in obj):
+            # Positions, sizes and bounds: Python rounding beats a numpy round trip on a handful of numbers.
+            return [0.0 if (r := round(v, DECIMALS)) == 0 else r for v in obj]
         if obj and isinstance(obj[0], (float, list)):
             # Coordinate arrays dominate specs: round them in one numpy call instead of per element.
             try:

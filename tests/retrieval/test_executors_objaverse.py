@@ -47,6 +47,18 @@ def test_ray_executor_gives_the_local_catalog(mesh_folder, tmp_path):
     assert a == b
 
 
+def test_process_executor_gives_the_local_catalog(mesh_folder, tmp_path):
+    config = IngestConfig(n_views=4, n_informative=2)
+    local = tmp_path / "local" / "c.duckdb"
+    procs = tmp_path / "process" / "c.duckdb"
+    ingest(LocalSource(mesh_folder["root"]), local, config, progress=False, limit=3)
+    # Two spawned workers: results arrive from both, and must still be written in input order.
+    ingest(LocalSource(mesh_folder["root"]), procs, config, executor="process", workers=2, progress=False, limit=3)
+    a, b = _dump(local), _dump(procs)
+    assert len(a["assets"]) == 2 and len(a["rejections"]) == 1 and a["matches"]
+    assert a == b
+
+
 def _fake_objaverse_cache(root):
     """Objaverse's cache layout: object-paths, one metadata shard, LVIS annotations and glbs/."""
     base = root / "hf-objaverse-v1"

@@ -59,7 +59,7 @@ def test_templates_are_respected() -> None:
 
 
 def test_explicit_crosswalk_list_and_density() -> None:
-    assert _quiet({"blocks": "S", "crosswalk_density": 0.0}, 0)["crosswalks"] == []
+    assert _quiet({"blocks": "S", "crosswalk_density": 0.0, "connect_crosswalks": False}, 0)["crosswalks"] == []
     assert len(_quiet({"blocks": "S", "crosswalk_density": 1.0}, 0)["crosswalks"]) == 2
     spec = _quiet({"blocks": "S", "crosswalks": ["r0.0:end"]}, 0)
     assert len(spec["crosswalks"]) == 1 and spec["crosswalks"][0]["road_id"] == "r0"

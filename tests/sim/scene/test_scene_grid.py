@@ -34,3 +34,16 @@ def test_obstacle_mask_inflates_footprints() -> None:
     assert bare.sum() == 64  # 2 m x 2 m
     assert grown.sum() > bare.sum() and grown[bare].all()
     assert not grown[grid.world_to_cell([1.0, 1.0])[0], grid.world_to_cell([1.0, 1.0])[1]]
+
+
+def test_scanline_paint_matches_point_in_polygon_reference() -> None:
+    from shapely.geometry import Point
+
+    from sim.scene.grid import paint, paint_reference
+
+    ring = Point(3.1, 2.2).buffer(2.7, quad_segs=7).difference(box(2.0, 1.0, 3.3, 2.9))  # curved, with a hole
+    for poly in (ring, box(0, 0, 4, 2), Point(0.6, 0.6).buffer(0.9).union(box(0.5, 0.5, 6.3, 1.1))):
+        fast, slow = np.zeros((40, 40), dtype=np.uint8), np.zeros((40, 40), dtype=np.uint8)
+        paint(fast, (-1.0, -1.0), 0.25, poly, 2)
+        paint_reference(slow, (-1.0, -1.0), 0.25, poly, 2)
+        assert np.array_equal(fast, slow) and slow.any()
