@@ -4,96 +4,22 @@ static obstacles inflated by the machine's half-width, smoothing, and progress /
 
 from __future__ import annotations
 
-import base64
 import math
-import zlib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import shapely
 from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
-from shapely.geometry import Polygon
+
+from sim.scene.grid import decode_walkable, obstacle_mask
 
 SIDEWALK, CROSSWALK, RAMP = 1, 2, 3
 
 
 class RouteError(RuntimeError):
     """No route of the requested length exists in this scene for this machine."""
-
-
-@dataclass
-class Grid:
-    """The walkable raster of a scene: `labels` (legend values), origin (x0, y0) and cell size."""
-
-    labels: np.ndarray
-    origin: tuple[float, float]
-    resolution: float
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        """(rows, cols)."""
-        return self.labels.shape  # type: ignore[return-value]
-
-    def to_cell(self, x: float, y: float) -> tuple[int, int]:
-        """(row, col) of the cell that contains the world point (x, y)."""
-        return int(math.floor((y - self.origin[1]) / self.resolution)), int(math.floor((x - self.origin[0]) / self.resolution))
-
-    def to_world(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """World (x, y) of cell centres, as an (n, 2) array."""
-        r = self.resolution
-        return np.stack([self.origin[0] + (np.asarray(cols) + 0.5) * r, self.origin[1] + (np.asarray(rows) + 0.5) * r], -1)
-
-    def label_at(self, x: float, y: float) -> int:
-        """Legend value under (x, y); 0 outside the grid."""
-        i, j = self.to_cell(x, y)
-        if 0 <= i < self.labels.shape[0] and 0 <= j < self.labels.shape[1]:
-            return int(self.labels[i, j])
-        return 0
-
-
-def decode_walkable(spec: Mapping[str, Any]) -> Grid:
-    """Decode the spec's `walkable` raster (zlib+base64 uint8, row-major) into a Grid."""
-    w = spec["walkable"]
-    if w.get("encoding") != "zlib+base64:uint8":
-        raise ValueError(f"unsupported walkable encoding {w.get('encoding')!r}; expected 'zlib+base64:uint8'")
-    rows, cols = (int(v) for v in w["shape"])
-    raw = np.frombuffer(zlib.decompress(base64.b64decode(w["cells"])), dtype=np.uint8)
-    if raw.size != rows * cols:
-        raise ValueError(f"walkable cells hold {raw.size} values but shape is {rows}x{cols}; the spec is corrupt")
-    return Grid(raw.reshape(rows, cols).copy(), (float(w["origin"][0]), float(w["origin"][1])), float(w["resolution"]))
-
-
-def encode_walkable(labels: np.ndarray) -> str:
-    """Inverse of the `cells` decoding (for hand-built specs and tests)."""
-    return base64.b64encode(zlib.compress(np.ascontiguousarray(labels, dtype=np.uint8).tobytes())).decode()
-
-
-def object_mask(grid: Grid, objects: Sequence[Mapping[str, Any]]) -> np.ndarray:
-    """Boolean raster of the cells whose centres lie inside an object footprint."""
-    mask = np.zeros(grid.shape, dtype=bool)
-    r = grid.resolution
-    for obj in objects:
-        fp = np.asarray(obj["footprint"], dtype=float)
-        i0, j0 = grid.to_cell(fp[:, 0].min(), fp[:, 1].min())
-        i1, j1 = grid.to_cell(fp[:, 0].max(), fp[:, 1].max())
-        i0, j0 = max(i0, 0), max(j0, 0)
-        i1, j1 = min(i1, grid.shape[0] - 1), min(j1, grid.shape[1] - 1)
-        if i1 < i0 or j1 < j0:
-            continue
-        jj, ii = np.meshgrid(np.arange(j0, j1 + 1), np.arange(i0, i1 + 1))
-        xs, ys = grid.origin[0] + (jj + 0.5) * r, grid.origin[1] + (ii + 0.5) * r
-        inside = shapely.contains_xy(Polygon(fp), xs, ys)
-        # Thin objects (poles) may cover no cell centre: mark the cell under their centre anyway.
-        if not inside.any():
-            ci, cj = grid.to_cell(*fp.mean(0))
-            if 0 <= ci < grid.shape[0] and 0 <= cj < grid.shape[1]:
-                mask[ci, cj] = True
-        mask[i0:i1 + 1, j0:j1 + 1] |= inside
-    return mask
 
 
 class Route:
@@ -178,7 +104,7 @@ class RoutePlanner:
     def __init__(self, spec: Mapping[str, Any], half_width: float, margin: float = 0.25, comfort: float = 0.75) -> None:
         self.grid = decode_walkable(spec)
         g = self.grid
-        blocked = (g.labels == 0) | object_mask(g, spec.get("objects", []))
+        blocked = (g.mask == 0) | obstacle_mask(g, spec.get("objects", []))
         # Distance from each cell centre to the nearest blocked cell's edge, in metres.
         clearance = ndimage.distance_transform_edt(~blocked) * g.resolution - 0.5 * g.resolution
         free = clearance >= half_width + margin
@@ -216,14 +142,14 @@ class RoutePlanner:
         return coo_matrix((np.concatenate([w, w]), (np.concatenate([src, dst]), np.concatenate([dst, src]))), shape=(n, n)).tocsr()
 
     def _nearest_node(self, x: float, y: float) -> int:
-        pts = self.grid.to_world(self.rows, self.cols)
+        pts = self.grid.cell_to_world(np.stack([self.rows, self.cols], -1))
         k = int(np.argmin((pts[:, 0] - x) ** 2 + (pts[:, 1] - y) ** 2))
         if math.hypot(pts[k, 0] - x, pts[k, 1] - y) > 2.0:
             raise RouteError(f"({x:.2f}, {y:.2f}) is more than 2 m from any cell this machine can use; pick a point on a sidewalk")
         return k
 
     def _route(self, chain: list[int], spacing: float) -> Route:
-        cells = self.grid.to_world(self.rows[chain], self.cols[chain])
+        cells = self.grid.cell_to_world(np.stack([self.rows[chain], self.cols[chain]], -1))
         # Keep every 4th cell (1 m at 0.25 m cells) and corner-cut: removes the 8-connected staircase.
         coarse = np.vstack([cells[:-1:4], cells[-1:]])
         return Route(_chaikin(coarse, 3), spacing)
@@ -242,7 +168,7 @@ class RoutePlanner:
     def sample(self, rng: np.random.Generator, min_length: float = 5.0, max_length: float = 60.0,
                tries: int = 20, spacing: float = 0.25) -> Route:
         """Draw a start on a sidewalk cell and a goal whose shortest-path distance is in [min, max]; plan it."""
-        sidewalk = self.grid.labels[self.rows, self.cols] == SIDEWALK
+        sidewalk = self.grid.mask[self.rows, self.cols] == SIDEWALK
         candidates = np.nonzero(sidewalk)[0]
         if len(candidates) == 0:
             candidates = np.arange(len(self.rows))

@@ -59,6 +59,13 @@ class WalkableGrid:
         rc = np.asarray(rc)
         return (rc[..., 0] >= 0) & (rc[..., 0] < self.shape[0]) & (rc[..., 1] >= 0) & (rc[..., 1] < self.shape[1])
 
+    def label_at(self, x: float, y: float) -> int:
+        """Legend code under the world point (x, y); 0 outside the grid."""
+        i, j = (int(v) for v in self.world_to_cell((x, y)))
+        if 0 <= i < self.shape[0] and 0 <= j < self.shape[1]:
+            return int(self.mask[i, j])
+        return 0
+
     def is_walkable(self, xy: np.ndarray | Sequence[float]) -> np.ndarray:
         """Whether world points `xy` (..., 2) fall on walkable cells (False outside the grid)."""
         rc = self.world_to_cell(xy)
@@ -193,5 +200,11 @@ def obstacle_mask(grid: WalkableGrid, objects: Iterable[Any], inflate: float = 0
         poly = _footprint(obj)
         if inflate > 0:
             poly = poly.buffer(inflate, join_style="mitre" if inflate < 0.05 else "round", quad_segs=4)
+        before = int(out.sum())
         paint(out, grid.origin, grid.resolution, poly, True)
+        # A pole thinner than a cell may cover no cell centre: it must still block its cell for planners.
+        if int(out.sum()) == before and not poly.is_empty:
+            i, j = (int(v) for v in grid.world_to_cell((poly.centroid.x, poly.centroid.y)))
+            if 0 <= i < grid.shape[0] and 0 <= j < grid.shape[1]:
+                out[i, j] = True
     return out

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from sim.route import encode_walkable
+from sim.scene.grid import encode_walkable
 
 
 def _rect(x0: float, y0: float, x1: float, y1: float) -> list[list[float]]:
@@ -76,8 +76,6 @@ def straight_street(length: float = 60.0) -> dict:
                         "ramps": [{"sidewalk_id": "r0-s0", "polygon": _rect(28, 4, 31, 5.2)},
                                   {"sidewalk_id": "r0-s1", "polygon": _rect(28, -5.2, 31, -4)}]}],
         "objects": objects,
-        "walkable": {"origin": [0.0, y0], "resolution": res, "shape": [rows, cols], "encoding": "zlib+base64:uint8",
-                     "legend": {"0": "not walkable", "1": "sidewalk", "2": "crosswalk", "3": "curb ramp"},
-                     "cells": encode_walkable(labels)},
+        "walkable": encode_walkable(labels, (0.0, y0), res),
         "stats": {"objects": len(objects)},
     }

@@ -11,7 +11,8 @@ import pytest
 from curbside.config import ConfigError
 from sim.machines import MACHINES, WHEELED, Machine, machine_spec
 from sim.metrics import MEASURES, Measure, make_measures, register_measure
-from sim.route import RoutePlanner, decode_walkable
+from sim.route import RoutePlanner
+from sim.scene.grid import decode_walkable
 from sim.sensors import Lidar
 from sim.world import World
 
