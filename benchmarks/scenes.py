@@ -6,14 +6,9 @@ Usage: python benchmarks/scenes.py [--count 60] [--blocks 3] [--catalog PATH] [-
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
-import sys
 import time
 import warnings
-
-# Run as a script, this folder comes first on sys.path and benchmarks/sim.py would shadow the `sim` package.
-sys.path[:] = [q for q in sys.path if os.path.abspath(q or ".") != os.path.dirname(os.path.abspath(__file__))]
 
 
 def main() -> None:

@@ -1,19 +1,15 @@
 """Simulator benchmark: PointNav steps/s vs the raw PyBullet floor, reset time, RSS growth over resets.
 
-Usage: python benchmarks/sim.py [--quick]   (same as `curbside sim bench`)
+Usage: python benchmarks/sim_steps.py [--quick]   (same as `curbside sim bench`)
 Targets on the 2-core dev machine: >= 600 steps/s, ratio >= 0.7, RSS growth < 50 MB over 1,000 resets.
 """
 
 from __future__ import annotations
 
 import json
-import os
 import sys
 
-# Run as a script, this file's folder comes first on sys.path and its name would shadow the `sim` package.
-sys.path[:] = [q for q in sys.path if os.path.abspath(q or ".") != os.path.dirname(os.path.abspath(__file__))]
-
-from sim.bench import run_bench  # noqa: E402
+from sim.bench import run_bench
 
 if __name__ == "__main__":
     result = run_bench(quick="--quick" in sys.argv)
