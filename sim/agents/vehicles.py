@@ -1,29 +1,36 @@
-"""Vehicles on roads: IDM car following along lane polylines offset from road centerlines, yielding at crosswalks.
+"""Vehicles on roads: IDM car following along lane polylines offset from road centerlines, yielding at crosswalks
+and taking turns at lane crossings.
 
 Lanes: `lanes` per direction (the spec's road half width is lanes * lane_width); right lanes run along the
-centerline's direction, left lanes against it. Each lane is a ring: a vehicle leaving its end re-enters at
-its start and follows the lane's last vehicle (MetaDrive respawns traffic the same way). A crosswalk whose
-polygon (grown by `crosswalk_margin`) holds an agent or the ego becomes a standing leader at its near edge,
-so IDM brakes to a stop before it (Treiber, Hennecke & Helbing 2000).
+centerline's direction, left lanes against it (geometry in sim.agents.lanes). A vehicle whose centre reaches
+its lane's end leaves it: it drives on along the lane that starts where this one ends (same heading, lanes of
+consecutive blocks) when that lane's start is free, else it respawns at the start of a free lane drawn at random
+(MetaDrive respawns traffic the same way); a start is free when the lane's last vehicle is at least the IDM
+gap s0 + v T ahead. With no free start anywhere the vehicle waits at its lane's end. A crosswalk whose polygon
+(grown by `crosswalk_margin`) holds an agent or the ego becomes a standing leader at its near edge, so IDM brakes
+to a stop before it (Treiber, Hennecke & Helbing 2000). Where lanes cross (an intersection whose lanes run
+through it), the crossing is a resource held by one axis at a time: vehicles of other axes stop before it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import shapely
-from shapely.geometry import LineString, Polygon
+from shapely.geometry import Polygon
 
 from curbside.config import merge_strict
+from sim.agents.lanes import ConflictZones, Lane, build_conflict_zones, build_lanes, conflicts
+
+__all__ = ["VEHICLE_DEFAULTS", "VEHICLE_DTYPE", "Lane", "VehicleManager", "build_lanes"]
 
 VEHICLE_DTYPE = np.dtype([("x", "f8"), ("y", "f8"), ("vx", "f8"), ("vy", "f8"), ("yaw", "f8"),
                           ("length", "f8"), ("width", "f8")])
 
 VEHICLE_DEFAULTS: dict[str, Any] = {
-    "traffic_density": 1.0,  # vehicles per 100 m of lane
+    "traffic_density": 1.0,  # vehicles per 100 m of lane (stochastic rounding per lane, so short lanes get some)
     "desired_speed": [8.0, 12.0],  # m/s (29-43 km/h, urban streets), drawn per vehicle
     "time_headway": 1.5,  # IDM T (s)
     "min_gap": 2.0,  # IDM s0 (m)
@@ -35,91 +42,45 @@ VEHICLE_DEFAULTS: dict[str, Any] = {
     "width": 1.8,
     "crosswalk_margin": 1.0,  # agents this close to a crosswalk make vehicles yield
     "stop_gap": 1.5,  # where a yielding vehicle's front stops, before the crosswalk's near edge
+    "max_hold": 10.0,  # s an axis may keep a lane crossing while vehicles of another axis wait
 }
 
 
-@dataclass
-class Lane:
-    """One lane: its polyline, cumulative arc lengths and the crosswalk intervals [s_in, s_out] along it."""
-
-    points: np.ndarray
-    cum: np.ndarray
-    crossings: list[tuple[int, float, float]]  # (crosswalk index, s_in, s_out)
-
-    @property
-    def length(self) -> float:
-        """Lane length in metres."""
-        return float(self.cum[-1])
-
-    def pose(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """World positions [n, 2] and headings [n] at arc lengths `s` (wrapped onto the lane)."""
-        s = np.mod(s, self.length)
-        k = np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, len(self.points) - 2)
-        seg = self.points[k + 1] - self.points[k]
-        seg_len = np.maximum(self.cum[k + 1] - self.cum[k], 1e-9)
-        xy = self.points[k] + seg * ((s - self.cum[k]) / seg_len)[:, None]
-        return xy, np.arctan2(seg[:, 1], seg[:, 0])
-
-
-def build_lanes(spec: dict[str, Any]) -> list[Lane]:
-    """Lane polylines of every road in `spec`, with the crosswalks each one crosses."""
-    crosswalks = [Polygon(c["polygon"]) for c in spec.get("crosswalks", [])]
-    lanes = []
-    for road in spec.get("roads", []):
-        lw, n = float(road["lane_width"]), int(road["lanes"])
-        for line in road.get("centerlines", []):
-            base = LineString(line)
-            for k in range(n):
-                for side in (-1.0, 1.0):  # right lanes follow the centerline, left lanes run against it
-                    off = base.offset_curve(side * (k + 0.5) * lw)
-                    if off.is_empty or off.geom_type != "LineString":
-                        continue
-                    pts = np.asarray(off.coords)
-                    if side > 0:
-                        pts = pts[::-1]
-                    lanes.append(_lane(pts, crosswalks))
-    return [ln for ln in lanes if ln.length > 10.0]
-
-
-def _lane(pts: np.ndarray, crosswalks: list[Polygon]) -> Lane:
-    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-    line = LineString(pts)
-    crossings = []
-    for ci, poly in enumerate(crosswalks):
-        inter = line.intersection(poly)
-        if inter.is_empty:
-            continue
-        coords = np.concatenate([np.asarray(g.coords) for g in getattr(inter, "geoms", [inter])])
-        s = np.array([line.project(shapely.Point(c)) for c in coords])
-        crossings.append((ci, float(s.min()), float(s.max())))
-    return Lane(pts, cum, crossings)
-
-
 class VehicleManager:
-    """Vehicles driving the lanes of one scene with IDM, stopping for agents on crosswalks."""
+    """Vehicles driving the lanes of one scene with IDM, stopping for agents on crosswalks and at busy crossings."""
 
     def __init__(self, config: Mapping[str, Any] | None = None) -> None:
         self.config = merge_strict(VEHICLE_DEFAULTS, config, name="vehicles config")
         self.n = 0
+        self._scene: Any = None
 
     def reset(self, spec: dict[str, Any], rng: np.random.Generator) -> np.ndarray:
         """Spawn `traffic_density` vehicles per 100 m of lane, spaced at least one IDM jam gap apart."""
         c = self.config
-        self.lanes = build_lanes(spec)
-        self.crosswalks = [Polygon(cw["polygon"]).buffer(c["crosswalk_margin"]) for cw in spec.get("crosswalks", [])]
-        self._cw_bounds = np.array([cw.bounds for cw in self.crosswalks]).reshape(-1, 4)
-        for cw in self.crosswalks:
-            shapely.prepare(cw)
-        self._index_lanes()
+        self.rng = rng
+        if spec is not self._scene:  # lanes, crossings and zones are pure functions of the spec: build once
+            self.lanes = build_lanes(spec)
+            self.crosswalks = [Polygon(cw["polygon"]).buffer(c["crosswalk_margin"]) for cw in spec.get("crosswalks", [])]
+            for cw in self.crosswalks:
+                shapely.prepare(cw)
+            self._cw_bounds = np.array([cw.bounds for cw in self.crosswalks]).reshape(-1, 4)
+            self.zones: ConflictZones = build_conflict_zones(self.lanes, c["width"])
+            self._index_lanes()
+            self._scene = spec
         lane_id, s = [], []
         spacing = c["length"] + c["min_gap"] + 2.0
         for li, lane in enumerate(self.lanes):
-            n = min(int(round(c["traffic_density"] * lane.length / 100.0)), int(lane.length // spacing))
+            slots = np.arange(int(lane.length // spacing)) * spacing + 0.5 * c["length"]
+            # No vehicle starts inside a lane crossing: two axes could otherwise begin inside one.
+            z = self.zones.lane == li
+            for lo, hi in zip(self.zones.s_in[z], self.zones.s_out[z]):
+                slots = slots[(slots + c["length"] < lo) | (slots - c["length"] > hi)]
+            want = c["traffic_density"] * lane.length / 100.0
+            n = min(int(want) + int(rng.random() < want - int(want)), len(slots))
             if n <= 0:
                 continue
-            slots = np.sort(rng.choice(int(lane.length // spacing), size=n, replace=False)) * spacing
             lane_id += [li] * n
-            s += list(slots + rng.uniform(0.0, 1.0, n))
+            s += list(np.sort(rng.choice(slots, size=n, replace=False)) + rng.uniform(0.0, 1.0, n))
         self.lane_id = np.asarray(lane_id, dtype=np.int64)
         self.s = np.asarray(s, dtype=np.float64)
         self.n = len(self.s)
@@ -127,6 +88,9 @@ class VehicleManager:
         self.v0 = rng.uniform(lo, hi, self.n)
         self.v = self.v0 * rng.uniform(0.5, 1.0, self.n)
         self.occupied = np.zeros(len(self.crosswalks), dtype=bool)
+        self.holder = np.full(self.zones.n_zones, np.nan)  # axis holding each crossing, nan when free
+        self.held_for = np.zeros(self.zones.n_zones)
+        self.respawns = self.continued = 0
         return self.states()
 
     def _index_lanes(self) -> None:
@@ -137,12 +101,24 @@ class VehicleManager:
         self.all_pts = np.concatenate([ln.points for ln in self.lanes]) if self.lanes else np.zeros((0, 2))
         self.all_cum = np.concatenate([ln.cum + o for ln, o in zip(self.lanes, self.lane_off)]) if self.lanes else np.zeros(0)
         self.crossings = [(li, ci, s_in) for li, ln in enumerate(self.lanes) for ci, s_in, _ in ln.crossings]
+        # The lane continuing each lane (starts within 1 m of its end, heading within 30 degrees), or -1.
+        self.next_lane = np.full(len(self.lanes), -1, dtype=np.int64)
+        if not self.lanes:
+            return
+        starts = np.array([ln.points[0] for ln in self.lanes])
+        head0 = np.array([np.arctan2(*(ln.points[1] - ln.points[0])[::-1]) for ln in self.lanes])
+        for li, ln in enumerate(self.lanes):
+            h1 = np.arctan2(*(ln.points[-1] - ln.points[-2])[::-1])
+            ok = (np.linalg.norm(starts - ln.points[-1], axis=1) < 1.0) & (np.cos(head0 - h1) > np.cos(np.pi / 6))
+            ok[li] = False
+            if ok.any():
+                self.next_lane[li] = int(np.flatnonzero(ok)[0])
 
     def step(self, dt: float, people_xy: np.ndarray | None = None) -> np.ndarray:
         """Advance every vehicle by `dt` s; `people_xy` [n, 2] are agents and the ego (they make vehicles yield)."""
         c = self.config
         self.occupied = np.zeros(len(self.crosswalks), dtype=bool)
-        if people_xy is not None and len(people_xy) and self.crosswalks:
+        if self.n and people_xy is not None and len(people_xy) and self.crosswalks:
             xy = np.asarray(people_xy, dtype=np.float64)
             # Bounding boxes first: most ticks nobody is near a crosswalk and no polygon test runs at all.
             lo, hi = self._cw_bounds[:, None, :2], self._cw_bounds[:, None, 2:]
@@ -153,14 +129,11 @@ class VehicleManager:
         if self.n:
             order = np.lexsort((self.s, self.lane_id))
             ls, ss, v = self.lane_id[order], self.s[order], self.v[order]
-            first = np.searchsorted(ls, ls, side="left")
-            nxt = np.roll(np.arange(self.n), -1)
-            same = ls[nxt] == ls
-            lead = np.where(same, nxt, first)
-            gap = np.where(same, ss[lead] - ss, ss[lead] + self.lane_len[ls] - ss) - c["length"]
-            dv = v - v[lead]
-            alone = lead == np.arange(self.n)
-            gap[alone], dv[alone] = np.inf, 0.0
+            nxt = np.minimum(np.arange(1, self.n + 1), self.n - 1)
+            same = (ls[nxt] == ls) & (np.arange(self.n) < self.n - 1)
+            # A lane's front vehicle drives freely to the lane's end (no ring: it leaves the lane there).
+            gap = np.where(same, ss[nxt] - ss - c["length"], np.inf)
+            dv = np.where(same, v - v[nxt], 0.0)
             front = ss + c["length"] / 2.0
             for li, ci, s_in in self.crossings:
                 if not self.occupied[ci]:
@@ -170,11 +143,78 @@ class VehicleManager:
                 closer = (ls == li) & (ahead > -0.5) & (ahead < gap)
                 gap[closer] = np.maximum(ahead[closer], 0.0)
                 dv[closer] = v[closer]
+            if self.zones.n_zones:
+                self._crossing_leaders(dt, ls, ss, v, gap, dv)
             acc = np.empty(self.n)
             acc[order] = self._idm(v, self.v0[order], gap, dv)
             self.v = np.maximum(self.v + acc * dt, 0.0)
-            self.s = np.mod(self.s + self.v * dt, self.lane_len[self.lane_id])
+            self.s = self.s + self.v * dt
+            for i in np.flatnonzero(self.s >= self.lane_len[self.lane_id]).tolist():
+                self._leave_lane(i)
         return self.states()
+
+    def _crossing_leaders(self, dt: float, ls: np.ndarray, ss: np.ndarray, v: np.ndarray, gap: np.ndarray,
+                          dv: np.ndarray) -> None:
+        """Let one axis hold each lane crossing; vehicles of other axes about to enter it stop before it."""
+        c, z = self.config, self.zones
+        half = c["length"] / 2.0
+        on = ls[None, :] == z.lane[:, None]  # [entries, vehicles], in the sorted order of step()
+        inside = on & (ss + half > z.s_in[:, None]) & (ss - half < z.s_out[:, None])
+        ahead = z.s_in[:, None] - c["stop_gap"] - (ss + half)
+        # Claim a crossing once within comfortable braking distance (plus a margin) of its stop line.
+        reach = v * v / (2.0 * c["comfort_decel"]) + v * dt + 3.0
+        claim = on & ~inside & (ahead > -c["stop_gap"]) & (ahead < reach[None, :])
+        for zi in range(z.n_zones):
+            e = np.flatnonzero(z.zone == zi)
+            axes_in = z.axis[e][inside[e].any(axis=1)]
+            claiming = claim[e].any(axis=1)
+            waiting = claiming & ~np.isnan(self.holder[zi]) & conflicts(z.axis[e], self.holder[zi])
+            if len(axes_in):
+                holder = axes_in[0]
+            elif not claiming.any():
+                holder = np.nan
+            elif (np.isnan(self.holder[zi]) or not (claiming & ~conflicts(z.axis[e], self.holder[zi])).any()
+                  or (waiting.any() and self.held_for[zi] > c["max_hold"])):
+                # Free, or nobody of the holding axis is coming, or it has kept others waiting too long: the
+                # entry whose vehicle is nearest to its stop line takes the crossing.
+                dist = np.where(claim[e], ahead[e], np.inf).min(axis=1)
+                holder = z.axis[e][int(np.argmin(dist))]
+            else:
+                holder = self.holder[zi]
+            self.held_for[zi] = self.held_for[zi] + dt if (holder == self.holder[zi]) else 0.0
+            self.holder[zi] = holder
+            if np.isnan(holder):
+                continue
+            for k in e[conflicts(z.axis[e], holder)].tolist():
+                stop = claim[k] & (ahead[k] < gap)
+                gap[stop] = np.maximum(ahead[k][stop], 0.0)
+                dv[stop] = v[stop]
+
+    def _leave_lane(self, i: int) -> None:
+        """Move vehicle `i`, whose centre passed its lane's end, to the continuing lane or a free lane start."""
+        c = self.config
+        li, over = int(self.lane_id[i]), float(self.s[i] - self.lane_len[self.lane_id[i]])
+        others = np.arange(self.n) != i
+        first = np.full(len(self.lanes), np.inf)  # arc length of each lane's last (rearmost) vehicle
+        np.minimum.at(first, self.lane_id[others], self.s[others])
+        start_gap = first - c["length"]  # bumper gap to a vehicle entering at s = 0
+        free = start_gap >= c["min_gap"] + self.v[i] * c["time_headway"]
+        # Lanes that start inside a crossing another axis holds are not free either.
+        for k in np.flatnonzero(self.zones.s_in < c["length"]).tolist():
+            h = self.holder[self.zones.zone[k]]
+            if not np.isnan(h) and conflicts(self.zones.axis[k], h):
+                free[self.zones.lane[k]] = False
+        nxt = int(self.next_lane[li])
+        if nxt >= 0 and free[nxt]:
+            self.lane_id[i], self.s[i] = nxt, min(over, 0.5 * start_gap[nxt])
+            self.continued += 1
+            return
+        free[li] = free[li] and nxt < 0  # re-entering its own lane's start would be the old ring jump
+        if free.any():
+            self.lane_id[i], self.s[i] = int(self.rng.choice(np.flatnonzero(free))), 0.0
+            self.respawns += 1
+            return
+        self.s[i], self.v[i] = self.lane_len[li] - 1e-6, 0.0  # no free start: wait at the lane's end
 
     def _idm(self, v: np.ndarray, v0: np.ndarray, gap: np.ndarray, dv: np.ndarray) -> np.ndarray:
         c = self.config
@@ -188,7 +228,7 @@ class VehicleManager:
         """Every vehicle's centre, velocity, heading and size as a structured array of VEHICLE_DTYPE."""
         out = np.zeros(self.n, dtype=VEHICLE_DTYPE)
         if self.n:
-            g = self.lane_off[self.lane_id] + self.s
+            g = self.lane_off[self.lane_id] + np.clip(self.s, 0.0, self.lane_len[self.lane_id] - 1e-6)
             k = np.clip(np.searchsorted(self.all_cum, g, side="right") - 1, 0, len(self.all_cum) - 2)
             seg = self.all_pts[k + 1] - self.all_pts[k]
             t = (g - self.all_cum[k]) / np.maximum(self.all_cum[k + 1] - self.all_cum[k], 1e-9)

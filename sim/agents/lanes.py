@@ -1,0 +1,151 @@
+"""Lane geometry for vehicles: lane polylines offset from road centerlines, the crosswalks they cross, and the
+conflict zones where lanes of different directions cross (intersections), which only one axis may hold at a time.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Polygon
+
+
+@dataclass
+class Lane:
+    """One lane: its polyline, cumulative arc lengths and the crosswalk intervals [s_in, s_out] along it."""
+
+    points: np.ndarray
+    cum: np.ndarray
+    crossings: list[tuple[int, float, float]]  # (crosswalk index, s_in, s_out)
+
+    @property
+    def length(self) -> float:
+        """Lane length in metres."""
+        return float(self.cum[-1])
+
+    def pose(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World positions [n, 2] and headings [n] at arc lengths `s` (clipped onto the lane)."""
+        s = np.clip(s, 0.0, self.length)
+        k = np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, len(self.points) - 2)
+        seg = self.points[k + 1] - self.points[k]
+        seg_len = np.maximum(self.cum[k + 1] - self.cum[k], 1e-9)
+        xy = self.points[k] + seg * ((s - self.cum[k]) / seg_len)[:, None]
+        return xy, np.arctan2(seg[:, 1], seg[:, 0])
+
+
+@dataclass
+class ConflictZones:
+    """Entries of lanes into conflict zones: per entry its lane, zone, [s_in, s_out] and the lane's axis there."""
+
+    lane: np.ndarray  # int64 [e]
+    zone: np.ndarray  # int64 [e]
+    s_in: np.ndarray  # arc length where a vehicle's front enters the zone
+    s_out: np.ndarray  # arc length where its rear has left it
+    axis: np.ndarray  # lane heading at the zone, radians; axes within 30 degrees (or opposite) do not conflict
+    n_zones: int
+
+
+def build_lanes(spec: dict[str, Any]) -> list[Lane]:
+    """Lane polylines of every road in `spec`, with the crosswalks each one crosses."""
+    crosswalks = [Polygon(c["polygon"]) for c in spec.get("crosswalks", [])]
+    lanes = []
+    for road in spec.get("roads", []):
+        lw, n = float(road["lane_width"]), int(road["lanes"])
+        for line in road.get("centerlines", []):
+            base = LineString(line)
+            for k in range(n):
+                for side in (-1.0, 1.0):  # right lanes follow the centerline, left lanes run against it
+                    off = base.offset_curve(side * (k + 0.5) * lw)
+                    if off.is_empty or off.geom_type != "LineString":
+                        continue
+                    pts = np.asarray(off.coords)
+                    if side > 0:
+                        pts = pts[::-1]
+                    lanes.append(_lane(pts, crosswalks))
+    return [ln for ln in lanes if ln.length > 10.0]
+
+
+def _lane(pts: np.ndarray, crosswalks: list[Polygon]) -> Lane:
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    line = LineString(pts)
+    crossings = []
+    for ci, poly in enumerate(crosswalks):
+        inter = line.intersection(poly)
+        if inter.is_empty:
+            continue
+        coords = np.concatenate([np.asarray(g.coords) for g in getattr(inter, "geoms", [inter])])
+        s = np.array([line.project(shapely.Point(c)) for c in coords])
+        crossings.append((ci, float(s.min()), float(s.max())))
+    return Lane(pts, cum, crossings)
+
+
+def conflicts(axis_a: np.ndarray | float, axis_b: np.ndarray | float) -> np.ndarray:
+    """Whether lanes heading `axis_a` and `axis_b` cross (more than 30 degrees apart, in either direction)."""
+    return np.abs(np.sin(np.asarray(axis_a) - np.asarray(axis_b))) > 0.5
+
+
+def build_conflict_zones(lanes: list[Lane], width: float, merge: float = 12.0) -> ConflictZones:
+    """Find where lanes cross at more than 30 degrees and group nearby crossings (one intersection) into zones.
+
+    Each lane's interval around a crossing is grown so that a vehicle of `width` outside it cannot touch one
+    inside the crossing lane's interval: half a width across the other lane, stretched by 1/sin of the angle.
+    """
+    lines = [LineString(ln.points) for ln in lanes]
+    tree = shapely.STRtree(lines)
+    pts: list[tuple[int, float, float, float, float]] = []  # lane, s, grow, x, y
+    for a, b in zip(*tree.query(lines, predicate="crosses")):
+        if a >= b:
+            continue
+        inter = lines[a].intersection(lines[b])
+        for g in getattr(inter, "geoms", [inter]):
+            if g.geom_type != "Point":
+                continue
+            sa, sb = lines[a].project(g), lines[b].project(g)
+            ha, hb = _heading(lanes[a], sa), _heading(lanes[b], sb)
+            sin = abs(math.sin(ha - hb))
+            if sin <= 0.5:
+                continue  # a continuation or a merge, not a crossing
+            cos = abs(math.cos(ha - hb))
+            grow = 0.5 * width * (1.0 + cos) / sin + 0.5
+            pts += [(a, sa, grow, g.x, g.y), (b, sb, grow, g.x, g.y)]
+    if not pts:
+        z = np.zeros(0)
+        return ConflictZones(z.astype(np.int64), z.astype(np.int64), z, z, z, 0)
+    arr = np.array(pts)
+    # Crossings closer than `merge` belong to one intersection: union-find over the points.
+    xy = arr[:, 3:5]
+    parent = np.arange(len(arr))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return int(i)
+
+    close = np.argwhere(np.linalg.norm(xy[:, None] - xy[None], axis=2) < merge)
+    for i, j in close.tolist():
+        ri, rj = root(i), root(j)
+        if ri != rj:
+            parent[max(ri, rj)] = min(ri, rj)
+    roots = np.array([root(i) for i in range(len(arr))])
+    zone_of = np.unique(roots, return_inverse=True)[1]
+    lane_ids = arr[:, 0].astype(np.int64)
+    keys = sorted({(int(zone_of[i]), int(lane_ids[i])) for i in range(len(arr))})
+    lane, zone, s_in, s_out, axis = [], [], [], [], []
+    for z, li in keys:
+        m = (zone_of == z) & (lane_ids == li)
+        lo, hi = float(np.min(arr[m, 1] - arr[m, 2])), float(np.max(arr[m, 1] + arr[m, 2]))
+        lane.append(li)
+        zone.append(z)
+        s_in.append(max(lo, 0.0))
+        s_out.append(min(hi, lanes[li].length))
+        axis.append(_heading(lanes[li], 0.5 * (lo + hi)))
+    return ConflictZones(np.array(lane, dtype=np.int64), np.array(zone, dtype=np.int64), np.array(s_in),
+                         np.array(s_out), np.array(axis), int(zone_of.max()) + 1)
+
+
+def _heading(lane: Lane, s: float) -> float:
+    return float(lane.pose(np.array([s]))[1][0])
