@@ -1,6 +1,6 @@
 """Retrieval throughput per core: normalise, render (8 views), score (imagenet / text), and an extrapolation table.
 
-Run: HF_HUB_OFFLINE=1 python benchmarks/retrieval.py [N_ASSETS]
+Run: HF_HUB_OFFLINE=1 python benchmarks/asset_retrieval.py [N_ASSETS]
 """
 
 from __future__ import annotations
@@ -10,9 +10,6 @@ import tempfile
 import time
 from pathlib import Path
 
-# This file is named like the package it measures: drop its own folder from the path so `retrieval` resolves.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def main(n: int = 12) -> None:
