@@ -9,7 +9,6 @@ redoes at most the unfinished asset, and primary-key upserts make the redo repla
 from __future__ import annotations
 
 import dataclasses
-import re
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -22,6 +21,15 @@ from catalogs.records import AssetRecord, MatchRecord, RejectionRecord, ViewReco
 from retrieval.normalize import AssetRejected, QualityLimits
 from retrieval.scoring import DescriptionPool, ScoringConfig
 from retrieval.sources import SourceItem
+from retrieval.steps import (
+    asset_dir_for,
+    asset_id_for,
+    curate_step,
+    normalise_step,
+    render_step,
+    score_step,
+    view_records,
+)
 
 IMAGE_EMBEDDING_KIND = "asset_image"
 TEXT_EMBEDDING_KIND = "asset"
@@ -63,17 +71,6 @@ class ItemResult:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
-def asset_id_for(item: SourceItem) -> str:
-    """Stable catalog id of an item: source and source id."""
-    return f"{item.source}:{item.source_id}"
-
-
-def asset_dir_for(item: SourceItem, root: Path) -> Path:
-    """Folder of an asset's files under the catalog's asset root."""
-    slug = re.sub(r"[^A-Za-z0-9._-]+", "_", item.source_id).strip("_")[:80] or "asset"
-    return root / "retrieval" / item.source / slug
-
-
 def _reject(item: SourceItem, h: str, stage: str, reason: str, detail: str) -> ItemResult:
     # The content hash in the detail lets a re-run skip the same bytes yet retry a fixed file.
     rec = RejectionRecord(item.source, item.source_id, stage, reason, f"{detail} [sha256:{h[:16]}]")
@@ -83,11 +80,6 @@ def _reject(item: SourceItem, h: str, stage: str, reason: str, detail: str) -> I
 def process_item(item: SourceItem, config: IngestConfig, pool: DescriptionPool, asset_root: str,
                  catalog_dir: str) -> ItemResult:
     """Normalise, render, score and curate one item; never raises for a bad asset (returns a rejection)."""
-    from retrieval.curation import load_size_priors, normalize_size
-    from retrieval.normalize import export_collision, export_glb, export_obj, load_canonical, scale_mesh
-    from retrieval.render import contact_sheet, render_obj, select_informative, view_specs
-    from retrieval.scoring import cached_scorer
-
     h = item.content_hash()
     if "rejected" in item.metadata:  # refused by the source's prefilter (licence, annotated size, download)
         reason, detail = item.metadata["rejected"]
@@ -95,74 +87,27 @@ def process_item(item: SourceItem, config: IngestConfig, pool: DescriptionPool, 
     stage = "normalize"
     times: dict[str, float] = {}
     try:
-        t0 = time.perf_counter()
-        canon = load_canonical(item.path, up_axis=item.up_axis, limits=config.limits)
         out = asset_dir_for(item, Path(asset_root))
-        obj, _, _ = export_obj(canon, out, "mesh")
+        t0 = time.perf_counter()
+        norm = normalise_step(item, config, out)
         times["normalize"] = time.perf_counter() - t0
 
         stage = "render"
         t0 = time.perf_counter()
-        specs = view_specs(config.n_views, config.elevations)
-        images = render_obj(obj, specs, size=config.image_size, bounds=canon.mesh.bounds)
-        selected, info = select_informative(images, config.n_informative)
-        if max(info) <= 0.0:
-            raise AssetRejected("degenerate", "every rendered view is empty")
-        from PIL import Image
-
-        (out / "views").mkdir(exist_ok=True)
-        views = []
-        for i, (spec, im) in enumerate(zip(specs, images)):
-            path = out / "views" / f"view_{i:02d}.png"
-            Image.fromarray(im).save(path)
-            views.append(ViewRecord(asset_id_for(item), i, spec.azimuth, spec.elevation,
-                                    path.relative_to(catalog_dir).as_posix(), i in selected, round(info[i], 6)))
-        contact_sheet(images, selected, title=f"{item.source}:{item.source_id}").save(out / "contact_sheet.png")
+        rendered = render_step(item, norm.obj, norm.canon.mesh.bounds, config, out)
+        views = view_records(asset_id_for(item), rendered,
+                             [f.relative_to(catalog_dir).as_posix() for f in rendered.files])
         times["render"] = time.perf_counter() - t0
 
         stage = "score"
         t0 = time.perf_counter()
-        scorer = cached_scorer(config.scoring, pool)
-        scores = scorer.score([images[i] for i in selected], item.metadata_text)
-        top = scorer.top_matches(scores)
+        scores, top = score_step(item, [rendered.images[i] for i in rendered.selected], config, pool)
         times["score"] = time.perf_counter() - t0
 
         stage = "curate"
         t0 = time.perf_counter()
-        priors = load_size_priors()
-        category = item.category or next((pool.categories[i] for i, _ in top if pool.categories[i]), None)
-        if category is None:
-            best = int(np.argmax(scores.fused))
-            raw = scores.raw_fused[best] if scores.raw_fused is not None else scores.fused[best]
-            raise AssetRejected("no_match", f"best {pool.ids[best]}: calibrated {scores.fused[best]:.3f}, raw "
-                                            f"{raw:.3f} (threshold {config.scoring.threshold}, min_lift "
-                                            f"{config.scoring.min_lift})")
-        scale, unit = normalize_size(canon.extents, category, priors)
-        final = scale_mesh(canon, scale)
-        obj, _, _ = export_obj(final, out, "mesh")
-        coll = export_collision(final, out) if config.collision == "convex" else None
-        glb = export_glb(final, out) if config.write_glb else None
-        depth, width, height = (float(x) for x in final.extents)
-        prior = priors.get(category)
-        aid = asset_id_for(item)
-        rel = lambda p: p.relative_to(catalog_dir).as_posix() if p else None  # noqa: E731
-        asset = AssetRecord(
-            asset_id=aid, source=item.source, source_id=item.source_id, category=category,
-            object_class=prior.object_class if prior else "clutter",
-            zones=list(prior.zones) if prior else ["clear"], depth=round(depth, 6), width=round(width, 6),
-            height=round(height, 6),
-            description=item.description or (f"{category.replace('_', ' ')}: {item.name}" if item.name else category),
-            synonyms=list(item.tags), license=item.license, attribution=item.attribution,
-            mesh_path=rel(obj), glb_path=rel(glb), collision=config.collision, collision_path=rel(coll),
-            face_count=int(final.mesh.faces.shape[0]), watertight=bool(final.mesh.is_watertight), content_hash=h,
-            params={**canon.params, "scale": round(scale, 9), "unit_guess": unit, "name": item.name,
-                    "scorer": config.scoring.scorer_name, "informative_views": selected,
-                    **{k: v for k, v in item.metadata.items() if k != "companion_files"}},
-        )
-        matches = [MatchRecord(aid, pool.ids[i], round(s, 6), config.scoring.scorer_name,
-                               None if scores.image is None else round(float(scores.image[i]), 6),
-                               None if scores.text is None else round(float(scores.text[i]), 6), rank)
-                   for rank, (i, s) in enumerate(top, start=1)]
+        asset, matches = curate_step(item, h, norm.canon, scores, top, rendered.selected, config, pool, out,
+                                     catalog_dir)
         times["curate"] = time.perf_counter() - t0
         return ItemResult(item.source, item.source_id, h, asset, views, matches, scores.image_embedding,
                           scores.text_embedding, seconds=times)
@@ -210,7 +155,7 @@ def ingest(source, catalog_path: str | Path, config: IngestConfig | None = None,
     from catalogs.writer import CatalogWriter, asset_root
     from retrieval.curation import load_size_priors
     from retrieval.executors import run_map
-    from retrieval.scoring import cached_scorer, load_pool
+    from retrieval.scoring import load_pool
 
     config = config or IngestConfig()
     catalog_path = Path(catalog_path)
@@ -218,14 +163,7 @@ def ingest(source, catalog_path: str | Path, config: IngestConfig | None = None,
     with CatalogWriter(catalog_path) as writer:
         con = writer.con
         pool = load_pool(con, sorted(load_size_priors()))
-        scorer = cached_scorer(config.scoring, pool)
-        if pool.origin == "category_prompts":
-            from catalogs.records import DescriptionRecord
-
-            writer.upsert_descriptions(DescriptionRecord(i, t, c, sources=["category_prompt"])
-                                       for i, t, c in zip(pool.ids, pool.texts, pool.categories))
-            if scorer.pool_text.shape[1] == writer.embedding_dim:
-                writer.upsert_embeddings("description", list(pool.ids), scorer.pool_text)
+        record_pool(writer, pool, config)
         done = {(s, i): h for s, i, h in con.execute("SELECT source, source_id, content_hash FROM assets").fetchall()}
         refused = {(s, i): d for s, i, d in con.execute("SELECT source, source_id, detail FROM rejections").fetchall()}
         pending = []
@@ -262,6 +200,21 @@ def ingest(source, catalog_path: str | Path, config: IngestConfig | None = None,
 
         report.pruned_matches, report.duplicates = finalize(writer, config)
     return report
+
+
+def record_pool(writer, pool: DescriptionPool, config: IngestConfig) -> None:  # noqa: ANN001 - CatalogWriter
+    """Store the category prompts (and their embeddings) when they are the pool, so matches reference real rows."""
+    from retrieval.scoring import cached_scorer
+
+    if pool.origin != "category_prompts":
+        return
+    from catalogs.records import DescriptionRecord
+
+    scorer = cached_scorer(config.scoring, pool)
+    writer.upsert_descriptions(DescriptionRecord(i, t, c, sources=["category_prompt"])
+                               for i, t, c in zip(pool.ids, pool.texts, pool.categories))
+    if scorer.pool_text.shape[1] == writer.embedding_dim:
+        writer.upsert_embeddings("description", list(pool.ids), scorer.pool_text)
 
 
 def _write_result(writer, res: ItemResult, config: IngestConfig, catalog_path: Path) -> None:  # noqa: ANN001

@@ -91,6 +91,7 @@ class VehicleManager:
         self.holder = np.full(self.zones.n_zones, np.nan)  # axis holding each crossing, nan when free
         self.held_for = np.zeros(self.zones.n_zones)
         self.respawns = self.continued = 0
+        self.jumped = np.zeros(self.n, dtype=bool)
         return self.states()
 
     def _index_lanes(self) -> None:
@@ -149,6 +150,7 @@ class VehicleManager:
             acc[order] = self._idm(v, self.v0[order], gap, dv)
             self.v = np.maximum(self.v + acc * dt, 0.0)
             self.s = self.s + self.v * dt
+            self.jumped = np.zeros(self.n, dtype=bool)  # respawned this step (the only discontinuous moves)
             for i in np.flatnonzero(self.s >= self.lane_len[self.lane_id]).tolist():
                 self._leave_lane(i)
         return self.states()
@@ -168,27 +170,31 @@ class VehicleManager:
             e = np.flatnonzero(z.zone == zi)
             axes_in = z.axis[e][inside[e].any(axis=1)]
             claiming = claim[e].any(axis=1)
-            waiting = claiming & ~np.isnan(self.holder[zi]) & conflicts(z.axis[e], self.holder[zi])
-            if len(axes_in):
-                holder = axes_in[0]
-            elif not claiming.any():
-                holder = np.nan
-            elif (np.isnan(self.holder[zi]) or not (claiming & ~conflicts(z.axis[e], self.holder[zi])).any()
-                  or (waiting.any() and self.held_for[zi] > c["max_hold"])):
-                # Free, or nobody of the holding axis is coming, or it has kept others waiting too long: the
-                # entry whose vehicle is nearest to its stop line takes the crossing.
-                dist = np.where(claim[e], ahead[e], np.inf).min(axis=1)
-                holder = z.axis[e][int(np.argmin(dist))]
+            grant = self.holder[zi]
+            dist = np.where(claim[e], ahead[e], np.inf).min(axis=1)  # nearest claimer's distance per entry
+            if np.isnan(grant):
+                users = claiming
             else:
-                holder = self.holder[zi]
-            self.held_for[zi] = self.held_for[zi] + dt if (holder == self.holder[zi]) else 0.0
-            self.holder[zi] = holder
-            if np.isnan(holder):
+                users = claiming & ~conflicts(z.axis[e], grant)
+                waiting = claiming & ~users
+                if waiting.any() and (self.held_for[zi] > c["max_hold"] or not (users.any() or len(axes_in))):
+                    # The granted axis has kept others waiting too long, or is done: the nearest waiter is next.
+                    users = waiting
+                    grant = np.nan
+            if np.isnan(grant):
+                grant = z.axis[e][int(np.argmin(np.where(users, dist, np.inf)))] if users.any() else np.nan
+            self.held_for[zi] = self.held_for[zi] + dt if grant == self.holder[zi] else 0.0
+            self.holder[zi] = grant
+            if np.isnan(grant) and not len(axes_in):
                 continue
-            for k in e[conflicts(z.axis[e], holder)].tolist():
-                stop = claim[k] & (ahead[k] < gap)
-                gap[stop] = np.maximum(ahead[k][stop], 0.0)
-                dv[stop] = v[stop]
+            # Stop before the crossing when another axis holds the grant, or is still inside it.
+            for k in e.tolist():
+                ax = z.axis[k]
+                blocked = (not np.isnan(grant) and bool(conflicts(ax, grant))) or bool(conflicts(ax, axes_in).any())
+                if blocked:
+                    stop = claim[k] & (ahead[k] < gap)
+                    gap[stop] = np.maximum(ahead[k][stop], 0.0)
+                    dv[stop] = v[stop]
 
     def _leave_lane(self, i: int) -> None:
         """Move vehicle `i`, whose centre passed its lane's end, to the continuing lane or a free lane start."""
@@ -213,6 +219,7 @@ class VehicleManager:
         if free.any():
             self.lane_id[i], self.s[i] = int(self.rng.choice(np.flatnonzero(free))), 0.0
             self.respawns += 1
+            self.jumped[i] = True
             return
         self.s[i], self.v[i] = self.lane_len[li] - 1e-6, 0.0  # no free start: wait at the lane's end
 
@@ -222,14 +229,14 @@ class VehicleManager:
         with np.errstate(divide="ignore"):
             interaction = np.where(np.isfinite(gap), (s_star / np.maximum(gap, 0.1)) ** 2, 0.0)
         a = c["max_accel"] * (1.0 - (v / v0) ** c["delta"] - interaction)
-        return np.clip(a, -c["max_decel"], c["max_accel"])
+        return a.clip(-c["max_decel"], c["max_accel"])
 
     def states(self) -> np.ndarray:
         """Every vehicle's centre, velocity, heading and size as a structured array of VEHICLE_DTYPE."""
         out = np.zeros(self.n, dtype=VEHICLE_DTYPE)
         if self.n:
-            g = self.lane_off[self.lane_id] + np.clip(self.s, 0.0, self.lane_len[self.lane_id] - 1e-6)
-            k = np.clip(np.searchsorted(self.all_cum, g, side="right") - 1, 0, len(self.all_cum) - 2)
+            g = self.lane_off[self.lane_id] + np.minimum(self.s, self.lane_len[self.lane_id] - 1e-6)
+            k = (np.searchsorted(self.all_cum, g, side="right") - 1).clip(0, len(self.all_cum) - 2)
             seg = self.all_pts[k + 1] - self.all_pts[k]
             t = (g - self.all_cum[k]) / np.maximum(self.all_cum[k + 1] - self.all_cum[k], 1e-9)
             xy = self.all_pts[k] + seg * t[:, None]

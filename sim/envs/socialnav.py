@@ -60,11 +60,14 @@ class SocialNavEnv(PointNavEnv):
         self._vehicle_bodies: list[int] = []
         self._shapes: dict[Any, tuple[int, int]] = {}
         self._body_kind_idx = self._body_kind_src = np.zeros(0, dtype=np.int16)
+        self._vehicles_shown = -1
+        self._vehicle_states: np.ndarray | None = None  # the traffic's states of this tick, shared by sync and obs
 
     # -- hooks -------------------------------------------------------------------------------------
     def _on_scene(self, spec: Mapping[str, Any]) -> None:
         # World rebuilt the Bullet scene from scratch: every body and shape id of the old scene is gone.
         self._agent_bodies, self._vehicle_bodies, self._shapes = [], [], {}
+        self._vehicles_shown = -1
         self._collision_kinds = {}
 
     def _on_reset(self, rng: np.random.Generator) -> None:
@@ -82,10 +85,10 @@ class SocialNavEnv(PointNavEnv):
 
     def _on_step(self) -> None:
         ego = self._ego_state()
-        states = self.crowd.step(self.dt, ego)
+        self.crowd.step(self.dt, ego)
         if self.config["traffic"]:
-            people = np.concatenate([np.stack([states["x"], states["y"]], 1), [[ego.x, ego.y]]])
-            self.traffic.step(self.dt, people)
+            people = np.concatenate([self.crowd.pos, [[ego.x, ego.y]]])
+            self._vehicle_states = self.traffic.step(self.dt, people)
         self._sync_bodies()
         self._min_agent_distance = self._nearest_agent()
 
@@ -98,7 +101,8 @@ class SocialNavEnv(PointNavEnv):
     def _sync_bodies(self) -> None:
         c = self.client
         crowd = self.crowd
-        vehicles = self.traffic.states() if self.config["traffic"] else np.zeros(0)
+        vehicles = self._vehicle_states if self._vehicle_states is not None else self.vehicle_states()
+        self._vehicle_states = None
         self._ensure_bodies(vehicles)
         if crowd.n:
             xyz = np.empty((crowd.n, 3))
@@ -159,8 +163,10 @@ class SocialNavEnv(PointNavEnv):
             body = p.createMultiBody(0.0, col, vis, [0, 0, -20], physicsClientId=c)
             self._vehicle_bodies.append(body)
             self._collision_kinds[body] = "vehicle"
-        for body in self._vehicle_bodies[len(vehicles):]:
-            p.resetBasePositionAndOrientation(body, [0, 0, -20], [0, 0, 0, 1], physicsClientId=c)
+        if len(vehicles) != self._vehicles_shown:  # park unused bodies once, not every step
+            for body in self._vehicle_bodies[len(vehicles):]:
+                p.resetBasePositionAndOrientation(body, [0, 0, -20], [0, 0, 0, 1], physicsClientId=c)
+            self._vehicles_shown = len(vehicles)
 
     def _agent_base_heights(self, xy: np.ndarray) -> np.ndarray:
         g = self.crowd.grid
