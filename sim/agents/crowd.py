@@ -257,7 +257,7 @@ class AgentManager:
         """Advance every agent by `dt` seconds around the ego (None: no ego) and return states()."""
         if self.grid is None:
             raise RuntimeError("AgentManager.step called before reset(spec, rng)")
-        c, g = self.config, self.grid
+        g = self.grid
         self._set_ego(_as_ego(ego))
         self.time += dt
         pref = np.zeros((self.n, 2))

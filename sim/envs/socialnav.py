@@ -157,7 +157,7 @@ class SocialNavEnv(PointNavEnv):
         while len(self._vehicle_bodies) < len(vehicles):
             cfg = self.traffic.config
             half = [cfg["length"] / 2, cfg["width"] / 2, VEHICLE_HEIGHT / 2]
-            col, vis = self._shape("vehicle", lambda: (
+            col, vis = self._shape("vehicle", lambda half=half: (
                 p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c),
                 p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[0.25, 0.25, 0.65, 1.0], physicsClientId=c)))
             body = p.createMultiBody(0.0, col, vis, [0, 0, -20], physicsClientId=c)
