@@ -11,18 +11,21 @@ from pipelines.common import load_params, stage_cli, write_metrics
 
 DEFAULTS: dict[str, Any] = {
     "model": "all-MiniLM-L6-v2",
-    "batch_size": 128,
+    "batch_size": 64,
     "descriptions": "data/describe/descriptions.parquet",
     "out_dir": "data/embed",
 }
 
 
-def embed_texts(texts: list[str], model: str | None = None, batch_size: int = 128) -> tuple[np.ndarray, str]:
+def embed_texts(texts: list[str], model: str | None = None, batch_size: int = 64) -> tuple[np.ndarray, str]:
     """Pure function of the stage: (n, d) unit float32 vectors for `texts` and the model's name."""
     from retrieval.encoders.text import TextEncoder
 
     enc = TextEncoder(model, batch_size=batch_size)
-    return enc.encode(list(texts), show_progress=len(texts) > 2000), enc.name
+    # Street descriptions repeat ("a green metal bench"): embed each distinct text once, then scatter back.
+    unique, inverse = np.unique(np.asarray(list(texts), dtype=object), return_inverse=True)
+    vecs = enc.encode(unique.tolist(), show_progress=len(unique) > 2000)
+    return vecs[inverse.reshape(-1)], enc.name
 
 
 def save_embeddings(path: str | Path, texts: list[str], vectors: np.ndarray, model: str) -> Path:
