@@ -11,6 +11,8 @@ from dataclasses import dataclass
 import duckdb
 import numpy as np
 
+from catalogs.schema import ASSET_TEXT_KIND
+
 
 @dataclass
 class QueryFilters:
@@ -70,7 +72,7 @@ def search(
     # query vector is the cosine similarity, without recomputing 100k norms per query.
     vec = vec / norm
     where, params = _asset_filters(filters)
-    params.update({"model": model, "q": vec.tolist(), "limit": int(limit)})
+    params.update({"kind": ASSET_TEXT_KIND, "model": model, "q": vec.tolist(), "limit": int(limit)})
     score = f"array_inner_product(e.vector, $q::FLOAT[{dim}])"
     columns = ", ".join(f"a.{c}" for c in RESULT_COLUMNS if c != "score")
     if where:
@@ -78,7 +80,7 @@ def search(
         sql = f"""
             SELECT {columns}, {score} AS score
             FROM embeddings e JOIN assets a ON a.asset_id = e.owner_id
-            WHERE e.owner_kind = 'asset_text' AND e.model = $model AND {' AND '.join(where)}
+            WHERE e.owner_kind = $kind AND e.model = $model AND {' AND '.join(where)}
             ORDER BY score DESC, a.asset_id
             LIMIT $limit
         """
@@ -87,7 +89,7 @@ def search(
         sql = f"""
             WITH top AS (
                 SELECT e.owner_id, {score} AS score FROM embeddings e
-                WHERE e.owner_kind = 'asset_text' AND e.model = $model
+                WHERE e.owner_kind = $kind AND e.model = $model
                 ORDER BY score DESC, e.owner_id
                 LIMIT $limit
             )

@@ -12,6 +12,11 @@ SCHEMA_VERSION = 1
 DEFAULT_EMBEDDING_DIM = 384  # all-MiniLM-L6-v2, the packaged default text encoder
 
 OBJECT_CLASSES = ("standard", "non_standard", "clutter")
+
+# `embeddings.owner_kind` values: text search ranks ASSET_TEXT vectors, so every writer of assets uses it.
+ASSET_TEXT_KIND = "asset_text"
+ASSET_IMAGE_KIND = "asset_image"
+DESCRIPTION_KIND = "description"
 ZONES = ("near_road_buffer", "furnishing", "clear", "frontage_buffer", "frontage", "building")
 
 

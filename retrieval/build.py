@@ -6,9 +6,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from catalogs.schema import ASSET_TEXT_KIND
 from catalogs.writer import asset_root, build_catalog
 
-ASSET_TEXT = "asset_text"
 MAX_VARIANTS = 1000  # variants per category in one build; keeps the seeds of different build seeds disjoint
 
 
@@ -94,7 +94,7 @@ def build_procedural_catalog(
             writer.transaction(),
         ):
             writer.upsert_assets(records)
-            writer.upsert_embeddings(ASSET_TEXT, [r.asset_id for r in records], vectors)
+            writer.upsert_embeddings(ASSET_TEXT_KIND, [r.asset_id for r in records], vectors)
             writer.set_meta({
                 "built_by": "retrieval.build.build_procedural_catalog",
                 "build_variants": str(variants),

@@ -9,9 +9,10 @@ from __future__ import annotations
 import numpy as np
 
 from catalogs.records import RejectionRecord
+from catalogs.schema import ASSET_IMAGE_KIND as IMAGE_KIND
+from catalogs.schema import ASSET_TEXT_KIND
 from retrieval.curation import near_duplicates
 
-IMAGE_KIND = "asset_image"
 
 
 def rank_matches(writer, top_k: int) -> int:  # noqa: ANN001 - CatalogWriter
@@ -54,7 +55,7 @@ def remove_near_duplicates(writer, threshold: float) -> int:  # noqa: ANN001 - C
             for d in dup:
                 for table in ("matches", "views", "assets"):
                     con.execute(f"DELETE FROM {table} WHERE asset_id = ?", [d])
-                con.execute("DELETE FROM embeddings WHERE owner_id = ? AND owner_kind IN ('asset', ?)", [d, IMAGE_KIND])
+                con.execute("DELETE FROM embeddings WHERE owner_id = ? AND owner_kind IN (?, ?)", [d, ASSET_TEXT_KIND, IMAGE_KIND])
     return len(dup)
 
 

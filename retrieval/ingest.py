@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from catalogs.records import AssetRecord, MatchRecord, RejectionRecord, ViewRecord
+from catalogs.schema import ASSET_IMAGE_KIND, ASSET_TEXT_KIND
 from retrieval.normalize import AssetRejected, QualityLimits
 from retrieval.scoring import DescriptionPool, ScoringConfig
 from retrieval.sources import SourceItem
@@ -31,8 +32,8 @@ from retrieval.steps import (
     view_records,
 )
 
-IMAGE_EMBEDDING_KIND = "asset_image"
-TEXT_EMBEDDING_KIND = "asset"
+IMAGE_EMBEDDING_KIND = ASSET_IMAGE_KIND
+TEXT_EMBEDDING_KIND = ASSET_TEXT_KIND
 
 
 class TooManyRejections(RuntimeError):

@@ -48,6 +48,16 @@ def test_local_folder_fills_catalog_and_rejects_bad_input(mesh_folder, tmp_path)
     assert _rows(cat, "SELECT count(*) FROM embeddings WHERE owner_kind = 'asset_image'")[0][0] == 2
     assert (cat.parent / "c_assets" / "retrieval" / "local" / "a_bench.ply" / "contact_sheet.png").exists()
     assert top  # every kept asset has at least one match
+    # Ingested assets are searchable like built ones: `catalog query` ranks their text embeddings.
+    from catalogs.query import search
+    from retrieval.encoders.text import TextEncoder
+
+    con = duckdb.connect(str(cat), read_only=True)
+    try:
+        hits = search(con, TextEncoder().encode(["traffic cone"])[0], limit=2)
+    finally:
+        con.close()
+    assert [h["asset_id"] for h in hits][0] == "local:b_cone.glb"
 
     again = ingest(LocalSource(mesh_folder["root"]), cat, CONFIG, progress=False)
     assert (again.written, again.rejected, again.skipped) == (0, 0, 8)
