@@ -182,23 +182,9 @@ def scale_mesh(canon: CanonicalMesh, scale: float) -> CanonicalMesh:
     return CanonicalMesh(mesh, canon.face_colors, canon.up_axis, canon.texture_image, canon.uv, dict(canon.params))
 
 
-def _palette(colors: np.ndarray, cell: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bake per-face colours into a small palette texture; returns (image, uv per face, unique colours)."""
-    uniq, inverse = np.unique(colors[:, :3], axis=0, return_inverse=True)
-    side = max(1, math.ceil(math.sqrt(len(uniq))))
-    img = np.full((side * cell, side * cell, 3), 255, dtype=np.uint8)
-    uv = np.zeros((len(uniq), 2))
-    for i, c in enumerate(uniq):
-        r, q = divmod(i, side)
-        img[r * cell:(r + 1) * cell, q * cell:(q + 1) * cell] = c
-        # OBJ v runs bottom-up while image rows run top-down.
-        uv[i] = ((q + 0.5) / side, 1.0 - (r + 0.5) / side)
-    return img, uv[inverse.reshape(-1)], uniq
-
-
 def export_obj(canon: CanonicalMesh, out_dir: str | Path, stem: str = "mesh") -> tuple[Path, Path, Path]:
     """Write OBJ + MTL + PNG texture that PyBullet's TinyRenderer shows with colour (it ignores vertex colours)."""
-    from PIL import Image
+    from retrieval.procedural.export import palette_indices, palette_texture
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -210,8 +196,11 @@ def export_obj(canon: CanonicalMesh, out_dir: str | Path, stem: str = "mesh") ->
         verts, uvs, faces = mesh.vertices, canon.uv, mesh.faces + 1
         face_lines = [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in faces]
     else:
-        img, face_uv, _ = _palette(canon.face_colors)
-        Image.fromarray(img).save(tex_path)
+        # The same palette bake as the procedural library: one flat texture cell per distinct colour.
+        colors, face_idx = palette_indices(canon.face_colors[:, :3])
+        image, cell_uv = palette_texture(colors)
+        image.save(tex_path)
+        face_uv = cell_uv[face_idx]
         # Unmerged vertices: each face carries its own colour cell, so shared vertices cannot share a uv.
         verts = mesh.vertices[mesh.faces].reshape(-1, 3)
         uvs = np.repeat(face_uv, 3, axis=0)

@@ -34,7 +34,7 @@ class ExportedAsset:
     content_hash: str
 
 
-def _palette(face_colors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def palette_indices(face_colors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distinct colours in order of first appearance, and each face's index into them."""
     uniq, first, inverse = np.unique(face_colors, axis=0, return_index=True, return_inverse=True)
     order = np.argsort(first)
@@ -91,7 +91,7 @@ def export_asset(asset: ProceduralAsset, out_dir: Path) -> ExportedAsset:
     """Write model.obj, model.mtl, texture.png and model.glb into `out_dir` (deterministic bytes)."""
     folder = Path(out_dir)
     folder.mkdir(parents=True, exist_ok=True)
-    colors, face_idx = _palette(asset.face_colors)
+    colors, face_idx = palette_indices(asset.face_colors)
     image, uv = palette_texture(colors)
     obj = obj_text(asset.mesh, face_idx, uv, "model.mtl").encode()
     mtl = (b"newmtl palette\nKa 1.000 1.000 1.000\nKd 1.000 1.000 1.000\nKs 0.000 0.000 0.000\n"
