@@ -88,11 +88,10 @@ class CatalogReader:
             zones=[frozenset(r.zones) for r in recs],
             size=np.array([r.size for r in recs], dtype=np.float64).reshape(-1, 3),
         )
-        self._by_category: dict[str, np.ndarray] = {}
-        for i, c in enumerate(self.table.category):
-            self._by_category.setdefault(c, [])  # type: ignore[arg-type]
-            self._by_category[c].append(i)  # type: ignore[union-attr]
-        self._by_category = {c: np.asarray(ix, dtype=np.int64) for c, ix in self._by_category.items()}
+        categories = self.table.category.astype(str)
+        self._by_category: dict[str, np.ndarray] = {
+            c: np.flatnonzero(categories == c) for c in np.unique(categories)
+        }
 
     def __len__(self) -> int:
         return len(self.table)

@@ -47,7 +47,6 @@ def test_local_folder_fills_catalog_and_rejects_bad_input(mesh_folder, tmp_path)
     assert {m[0] for m in matches} == {"local:a_bench.ply", "local:b_cone.glb"}
     assert _rows(cat, "SELECT count(*) FROM embeddings WHERE owner_kind = 'asset_image'")[0][0] == 2
     assert (cat.parent / "c_assets" / "retrieval" / "local" / "a_bench.ply" / "contact_sheet.png").exists()
-    assert top  # every kept asset has at least one match
     # Ingested assets are searchable like built ones: `catalog query` ranks their text embeddings.
     from catalogs.query import search
     from retrieval.encoders.text import TextEncoder
