@@ -78,21 +78,37 @@ class PathLength(Measure):
 
 @register_measure("spl")
 class SPL(Measure):
-    """Success weighted by path length: S * l / max(p, l) (Anderson et al. 2018), l the shortest success path.
+    """Success weighted by path length: S * l / max(p, l) (Anderson et al. 2018).
 
-    Success is declared at `success_completion` (95 %) of the reference route, so l is that fraction of the
-    route's length: with the full length, every successful episode would score 1 whatever its detours.
+    l is the geodesic (the route pulled taut over the cells the machine fits in) from the start to the route
+    point where success is declared (`success_completion`, 95 %): the shortest path that earns success.
+    p is the path driven until the episode ended. Driving the middle of the path round a corner, weaving or
+    detouring all make p > l, so an expert scores below 1 wherever it is not on the shortest path.
     """
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        l_ref = env.route.length * float(env.config["success_completion"])
-        p_len = env.path_length
-        return {"spl": float(env.succeeded) * l_ref / max(p_len, l_ref)}
+        if not env.succeeded:
+            return {"spl": 0.0}
+        l_ref = env.reference_length()
+        return {"spl": l_ref / max(env.path_length, l_ref, 1e-9)}
+
+
+@register_measure("stl")
+class SuccessWeightedTimeLength(Measure):
+    """S * min(1, t_ref / t), t_ref = l / min(stl_cruise_speed, v_max), l the same geodesic as SPL's (Deitke et al. 2022)."""
+
+    def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
+        if not env.succeeded:
+            return {"stl": 0.0}
+        v = min(float(env.config.get("stl_cruise_speed", 2.5)), env.machine.spec.v_max)
+        t_ref = env.reference_length() / v
+        t = max(env.steps * env.dt, 1e-9)
+        return {"stl": min(1.0, t_ref / t)}
 
 
 @register_measure("cost")
 class Cost(Measure):
-    """Steps spent in collision (the safety cost)."""
+    """Steps in contact with a body of the env's `cost_kinds` (the episode's safety cost)."""
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
         return {"cost": float(env.cost_total)}

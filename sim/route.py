@@ -114,6 +114,7 @@ class RoutePlanner:
         sizes = np.bincount(labels.ravel())[1:]
         self.free = labels == (int(np.argmax(sizes)) + 1)  # keep the largest connected component
         self.clearance = clearance
+        self.half_width = half_width
         rows, cols = np.nonzero(self.free)
         self.node = -np.ones(g.shape, dtype=np.int64)
         self.node[rows, cols] = np.arange(len(rows))
@@ -164,6 +165,45 @@ class RoutePlanner:
         while chain[-1] != a:
             chain.append(int(pred[chain[-1]]))
         return self._route(chain[::-1], spacing)
+
+    def geodesic_length(self, route: Route, upto: float | None = None, step: float = 0.1) -> float:
+        """Length of the shortest path from the route's start to its point at arc length `upto` (default: goal).
+
+        The route's polyline is pulled taut (greedy line of sight) over the cells where the machine's centre
+        fits (clearance >= its half-width): the shortest path in the route's homotopy class on the walkable
+        grid, free of the planner's comfort margins. SPL and STL measure against it (docs/metrics.md).
+        """
+        end = route.length if upto is None else min(max(float(upto), 0.0), route.length)
+        k = int(np.searchsorted(route.s, end, side="left"))
+        pts = np.vstack([route.points[:k], route.point_at(end)[None]])
+        if len(pts) < 2:
+            return 0.0
+        fits = self.clearance >= self.half_width - 0.5 * self.grid.resolution
+
+        def visible(a: np.ndarray, b: np.ndarray) -> bool:
+            n = max(int(math.ceil(math.hypot(*(b - a)) / step)), 1)
+            t = np.linspace(0.0, 1.0, n + 1)[:, None]
+            rc = self.grid.world_to_cell(a + t * (b - a))
+            inside = self.grid.inside(rc)
+            return bool(inside.all() and fits[rc[:, 0], rc[:, 1]].all())
+
+        total, i = 0.0, 0
+        while i < len(pts) - 1:
+            # Farthest point still in line of sight: exponential search, then bisection.
+            lo, hi = i + 1, i + 1
+            while hi < len(pts) - 1 and visible(pts[i], pts[min(hi * 2 - i, len(pts) - 1)]):
+                lo = hi = min(hi * 2 - i, len(pts) - 1)
+            if hi < len(pts) - 1:
+                hi = min(hi * 2 - i, len(pts) - 1)
+                while hi - lo > 1:
+                    mid = (lo + hi) // 2
+                    if visible(pts[i], pts[mid]):
+                        lo = mid
+                    else:
+                        hi = mid
+            total += float(math.hypot(*(pts[lo] - pts[i])))
+            i = lo
+        return total
 
     def sample(self, rng: np.random.Generator, min_length: float = 5.0, max_length: float = 60.0,
                tries: int = 20, spacing: float = 0.25) -> Route:

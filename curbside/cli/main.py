@@ -5,7 +5,7 @@ from __future__ import annotations
 import typer
 
 from curbside import __version__
-from curbside.cli import catalog, pool, scenes, sim
+from curbside.cli import catalog, pool, scenes, sim, train
 
 app = typer.Typer(
     name="curbside",
@@ -18,6 +18,8 @@ app.add_typer(catalog.app, name="catalog")
 app.add_typer(scenes.app, name="scenes")
 app.add_typer(sim.app, name="sim")
 app.add_typer(pool.app, name="pool")
+app.add_typer(train.app, name="train")
+app.add_typer(train.demos_app, name="demos")
 
 
 def _version(value: bool) -> None:

@@ -10,16 +10,19 @@ import gymnasium as gym
 import numpy as np
 import pybullet as p
 
-from curbside.config import ConfigError, merge_strict
+from curbside.config import ConfigError, check_choice, merge_strict
+from sim.envs.scenes import SceneCache, SceneSlot, SceneSource
 from sim.machines import Machine, machine_spec
 from sim.metrics import make_measures
 from sim.route import RoutePlanner
-from sim.sensors import Lidar
-from sim.tasks.pointnav import DEFAULT_CONFIG, Reward, load_scene
+from sim.scene.dataset import SPLITS
+from sim.sensors import ENCODINGS, Lidar
+from sim.tasks.pointnav import DEFAULT_CONFIG, make_reward
 from sim.world import SURFACE_KINDS, World, check_spec
 
 WALL_NZ = 0.5  # a contact whose normal is flatter than this is a wall (a curb side), not the ground
 STATIC_COLLISION_KINDS = ("object", "building", "curb")
+GOAL_LOG_SCALE = math.log1p(500.0)  # goal distances up to 500 m span [0, 1] in the observation
 
 
 def _wrap(a: float) -> float:
@@ -35,35 +38,38 @@ class PointNavEnv(gym.Env):
     machines do not reverse). Out-of-range values are clipped to [-1, 1]; NaN or inf raise ValueError.
 
     ## Observation space
-    `Box(float32)` of `B + 7 + 2 W + 3` values (B LiDAR beams, W waypoints; 270 by default), all in [-1, 1]:
+    `Box(float32)` of `B + L + 6 + 2 W + 3` values (B LiDAR beams, L low beams, W waypoints; 329 by default):
 
     | index | name | meaning |
     |---|---|---|
-    | 0 .. B-1 | `lidar_<k>` | beam k distance / range (1 = nothing within range); beam 0 points ahead, counter-clockwise |
-    | B | `speed` | speed / v_max |
-    | B+1 | `steering` | steering angle / steering limit |
-    | B+2 | `yaw_rate` | yaw rate / 2 rad/s, clipped |
-    | B+3 | `heading_error` | (heading - route heading) / pi |
-    | B+4 | `lateral_offset` | signed offset from the route (left +) / out_of_route_distance, clipped |
-    | B+5, B+6 | `last_steering`, `last_throttle` | the previous (clipped) action |
-    | B+7 .. B+6+2W | `wp<i>_x`, `wp<i>_y` | next W route waypoints (spacing `waypoint_spacing`) in the ego frame / (W spacing) |
-    | B+7+2W | `goal_distance` | straight-line distance to the goal / 100 m, clipped |
-    | B+8+2W, B+9+2W | `goal_heading_sin`, `goal_heading_cos` | bearing of the goal in the ego frame |
+    | 0 .. B-1 | `lidar_<k>` | beam k at `lidar.height` (0.4 m): log(1 + d) / log(1 + range) (`encoding` "log") or d / range; 1 = no hit; beam 0 ahead, counter-clockwise |
+    | B .. B+L-1 | `low_<k>` | beam k of the low scan at `low_height` (0.08 m, sees curbs and clutter): d / low_range |
+    | B+L | `speed` | speed / `speed_scale` (5 m/s), clipped to [-1, 1] |
+    | B+L+1 | `yaw_rate` | yaw rate / 2 rad/s, clipped |
+    | B+L+2 | `heading_error` | (heading - route heading) / pi |
+    | B+L+3 | `lateral_offset` | signed offset from the route (left +) / out_of_route_distance, clipped |
+    | B+L+4, B+L+5 | `last_steering`, `last_throttle` | the previous (clipped) action (= the steering state) |
+    | B+L+6 .. B+L+5+2W | `wp<i>_x`, `wp<i>_y` | next W route waypoints (spacing `waypoint_spacing`) in the ego frame / (W spacing) |
+    | B+L+6+2W | `goal_distance` | log(1 + straight-line distance to the goal) / log(1 + 500 m) |
+    | B+L+7+2W, B+L+8+2W | `goal_heading_sin`, `goal_heading_cos` | bearing of the goal in the ego frame |
 
     ## Rewards
-    DESIGN.md: R = R_term + 0.5 R_disp + 1.0 R_lateral + 0.1 R_steering + 1.0 R_crash with R_term = +5 on
-    success and -5 out of route, R_disp the progress along the route (m), R_lateral = -|lateral offset|,
-    R_steering = -|s_t - s_{t-1}| v_t, R_crash = -1 per collision step. Weights: config `reward`.
+    `reward_preset` "learnable" (default) or "paper" (DESIGN.md's R = R_term + 0.5 R_disp + 1.0 R_lateral +
+    0.1 R_steering + 1.0 R_crash), terms overridable in `reward`; see sim.tasks.pointnav.Reward and
+    docs/tasks.md for why the default differs.
 
     ## Episode end
-    Terminated on success (route completion >= 0.95) or out of route (|lateral offset| >
-    `out_of_route_distance`, or the machine's centre off the walkable area); truncated at `horizon` (1,000).
-    `info["cost"]` is 1 on a step in collision. At episode end `info` holds the metrics (`success`, `spl`,
-    `route_completion`, `cost`, `collisions_<kind>`, `path_length`, `time`) and `info["metrics"]` as a dict.
+    Terminated on success (route completion >= 0.95), out of route (|lateral offset| > `out_of_route_distance`,
+    or the machine's centre off the walkable area), or stuck (less than `stuck_distance` of new progress in
+    `stuck_steps` steps, or `collision_steps` consecutive steps in contact). Truncated at the episode's horizon:
+    min(`horizon`, route length / `horizon_min_speed` / dt).
+    `info["cost"]` is 1 on a step in contact with a `cost_kinds` body, else 0, on every step. At episode end
+    `info` also holds the metrics (`success`, `spl`, `route_completion`, `episode_cost`, `collisions_<kind>`,
+    `path_length`, `time`, ...) and `info["metrics"]` as a dict (there `cost` is the episode's total).
 
     ## Subclass hooks
-    `_on_scene(spec)`, `_on_reset(rng)`, `_on_step()`, `_collision_kinds`, `collision_kinds_all`, `_episode_metrics()`:
-    see docs/simulator.md.
+    `_on_scene(spec)`, `_on_reset(rng)`, `_on_step()`, `_scene_state()`, `_load_scene_state(state)`,
+    `_collision_kinds`, `collision_kinds_all`, `_episode_metrics()`: see docs/simulator.md.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -79,36 +85,57 @@ class PointNavEnv(gym.Env):
         lo, hi = (float(v) for v in cfg["route_length"])
         if not 5.0 <= lo <= hi:
             raise ConfigError(f"config.route_length must be [min, max] with 5 <= min <= max, got {cfg['route_length']}")
-        self.reward_fn = Reward(**merge_strict(DEFAULT_CONFIG["reward"], cfg["reward"], name="config.reward"))
+        self.reward_fn = make_reward(cfg["reward_preset"], cfg["reward"])
         self.dt = float(cfg["dt"])
         self.substeps = int(cfg["physics_substeps"])
-        if self.substeps < 1 or self.dt <= 0:
-            raise ConfigError("config.dt must be > 0 and config.physics_substeps >= 1")
+        if self.substeps < 1 or not self.dt > 0 or not math.isfinite(self.dt):
+            raise ConfigError("config.dt must be a finite number > 0 and config.physics_substeps >= 1")
+        for key in ("stuck_steps", "collision_steps", "horizon"):
+            if not isinstance(cfg[key], int) or isinstance(cfg[key], bool) or cfg[key] < (1 if key == "horizon" else 0):
+                raise ConfigError(f"config.{key} must be an integer >= {1 if key == 'horizon' else 0}, got {cfg[key]!r}")
+        hms = cfg["horizon_min_speed"]
+        if hms is not None and not (isinstance(hms, (int, float)) and 0 < hms < math.inf):
+            raise ConfigError(f"config.horizon_min_speed must be a positive number or None, got {hms!r}")
+        if cfg["split"] is not None:
+            check_choice(cfg["split"], tuple(SPLITS), what="config.split")
+        unknown = set(cfg["cost_kinds"]) - {*STATIC_COLLISION_KINDS, "agent", "vehicle"}
+        if unknown:
+            raise ConfigError(f"unknown config.cost_kinds {sorted(unknown)}; valid: {', '.join([*STATIC_COLLISION_KINDS, 'agent', 'vehicle'])}")
+        self.cost_kinds = frozenset(cfg["cost_kinds"])
         if cfg["scene_spec"] is not None:
             check_spec(cfg["scene_spec"])
+        self.scenes = SceneSource(cfg)
         self.measures = make_measures(list(cfg["measures"]))
         lid = cfg["lidar"]
         self.num_beams = int(lid["beams"])
+        self.num_low_beams = int(lid["low_beams"])
+        for key in ("range", "low_range", "height", "low_height"):
+            if not (isinstance(lid[key], (int, float)) and 0 < lid[key] < math.inf):
+                raise ConfigError(f"config.lidar.{key} must be a positive finite number, got {lid[key]!r}")
+        check_choice(lid["encoding"], ENCODINGS, what="config.lidar.encoding")
         W = int(cfg["num_waypoints"])
+        if W < 1 or not float(cfg["waypoint_spacing"]) > 0:
+            raise ConfigError("config.num_waypoints must be >= 1 and config.waypoint_spacing > 0")
         self.num_waypoints = W
         self.observation_names = (
-            [f"lidar_{k}" for k in range(self.num_beams)]
-            + ["speed", "steering", "yaw_rate", "heading_error", "lateral_offset", "last_steering", "last_throttle"]
+            [f"lidar_{k}" for k in range(self.num_beams)] + [f"low_{k}" for k in range(self.num_low_beams)]
+            + ["speed", "yaw_rate", "heading_error", "lateral_offset", "last_steering", "last_throttle"]
             + [f"wp{i}_{a}" for i in range(W) for a in "xy"]
             + ["goal_distance", "goal_heading_sin", "goal_heading_cos"]
         )
         n = len(self.observation_names)
         low = -np.ones(n, dtype=np.float32)
-        low[: self.num_beams] = 0.0
+        low[: self.num_beams + self.num_low_beams] = 0.0
         self.observation_space = gym.spaces.Box(low, np.ones(n, dtype=np.float32), dtype=np.float32)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         self._wp_offsets = np.arange(1, W + 1, dtype=np.float64) * float(cfg["waypoint_spacing"])
         self.client = p.connect(p.GUI if cfg["gui"] else p.DIRECT)
+        self.cache = SceneCache(cfg["scene_cache"], self.client, bool(cfg["gui"]))
+        self.slot: SceneSlot | None = None
         self.world: World | None = None
         self.machine: Machine | None = None
         self.planner: RoutePlanner | None = None
-        self._scene_key: Any = None
-        # Subclass hook: body id -> collision kind for bodies the subclass adds (agents).
+        # Subclass hook: body id -> collision kind for bodies the subclass adds (agents), per world.
         self._collision_kinds: dict[int, str] = {}
         self.collision_kinds_all: list[str] = list(STATIC_COLLISION_KINDS)
         self.route = None
@@ -116,30 +143,50 @@ class PointNavEnv(gym.Env):
 
     # -- scene -------------------------------------------------------------------------------------
     def _ensure_scene(self, rng: np.random.Generator) -> None:
-        cfg = self.config
-        if cfg["scene_spec"] is not None or cfg["scene_path"] is not None:
-            key = ("fixed",)
-            seed = int(cfg["scene_seed"])
-        else:
-            seed = int(cfg["scene_seed"]) + int(rng.integers(max(int(cfg["num_scenes"]), 1)))
-            key = ("generated", seed)
-        if key == self._scene_key:
+        key, load = self.scenes.draw(rng)
+        if self.slot is not None and key == self.slot.key:
             return  # same scene: keep every static body, only the machine moves
-        spec = load_scene(cfg, seed)
+        if self.slot is not None:
+            self.slot.state = self._scene_state()
+        slot = self.cache.get(key)
+        if slot is None:
+            slot = self.cache.new_slot(key)
+            try:
+                self._build_slot(slot, load())
+            except BaseException:
+                self.cache.slots.pop(key, None)
+                self.cache._spare.append(slot.client)
+                self.slot = None
+                raise
+            self._use(slot)
+            self._on_scene(slot.world.spec)
+        else:
+            self._use(slot)
+            self._load_scene_state(slot.state)
+
+    def _build_slot(self, slot: SceneSlot, spec: dict[str, Any]) -> None:
+        cfg = self.config
         catalog = None
         if cfg["catalog"] is not None and (cfg["collision"] == "convex" or cfg["visual_meshes"]):
             from catalogs.reader import CatalogReader
             catalog = CatalogReader(cfg["catalog"])
-        self.world = World(spec, client=self.client, collision=cfg["collision"], catalog=catalog,
+        slot.world = World(spec, client=slot.client, collision=cfg["collision"], catalog=catalog,
                            visual_meshes=bool(cfg["visual_meshes"]), physics_dt=self.dt / self.substeps)
-        self.machine = Machine(self.client, self.spec_machine)
+        slot.machine = Machine(slot.client, self.spec_machine)
         lid = cfg["lidar"]
-        self.lidar = Lidar(self.client, beams=self.num_beams, range_m=float(lid["range"]), height=float(lid["height"]),
-                           start_radius=self.machine.bounding_radius + 0.05)
-        self.planner = RoutePlanner(spec, self.spec_machine.half_width, margin=float(cfg["route_margin"]))
-        self.kinds = dict(self.world.kinds)
-        self._scene_key = key
-        self._on_scene(spec)
+        r0 = slot.machine.bounding_radius + 0.05
+        slot.lidar = Lidar(slot.client, beams=self.num_beams, range_m=float(lid["range"]), height=float(lid["height"]),
+                           start_radius=r0, encoding=lid["encoding"])
+        slot.low_lidar = (Lidar(slot.client, beams=self.num_low_beams, range_m=max(float(lid["low_range"]), r0 + 0.1),
+                                height=float(lid["low_height"]), start_radius=r0) if self.num_low_beams else None)
+        slot.planner = RoutePlanner(spec, self.spec_machine.half_width, margin=float(cfg["route_margin"]))
+        slot.state = {}
+
+    def _use(self, slot: SceneSlot) -> None:
+        self.slot = slot
+        self.client, self.world, self.machine = slot.client, slot.world, slot.machine
+        self.lidar, self.low_lidar, self.planner = slot.lidar, slot.low_lidar, slot.planner
+        self.kinds = dict(slot.world.kinds)
 
     @property
     def scene_spec(self) -> dict[str, Any]:
@@ -150,6 +197,15 @@ class PointNavEnv(gym.Env):
     # -- hooks -------------------------------------------------------------------------------------
     def _on_scene(self, spec: Mapping[str, Any]) -> None:
         """Called after a new scene's world is built (subclasses add their bodies here)."""
+        self._collision_kinds = {}
+
+    def _scene_state(self) -> dict[str, Any]:
+        """What a subclass keeps per cached world (body ids and the like), saved when the env leaves it."""
+        return {"collision_kinds": self._collision_kinds}
+
+    def _load_scene_state(self, state: dict[str, Any]) -> None:
+        """Restore what `_scene_state` saved when the env comes back to a cached world."""
+        self._collision_kinds = state.get("collision_kinds", {})
 
     def _on_reset(self, rng: np.random.Generator) -> None:
         """Called after the machine is placed at the route's start (subclasses place agents here)."""
@@ -163,6 +219,13 @@ class PointNavEnv(gym.Env):
         for m in self.measures:
             metrics.update(m.value(self, metrics))
         return metrics
+
+    def reference_length(self) -> float:
+        """l of SPL and STL: the geodesic from the start to the route point where success is reached (cached)."""
+        if self._reference_length is None:
+            upto = float(self.config["success_completion"]) * self.route.length
+            self._reference_length = self.planner.geodesic_length(self.route, upto)
+        return self._reference_length
 
     # -- gym API -----------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
@@ -190,6 +253,10 @@ class PointNavEnv(gym.Env):
         p.performCollisionDetection(physicsClientId=self.client)
         z = self.world.surface_height(float(start[0]), float(start[1]))
         m.reset(float(start[0]), float(start[1]), z, yaw, rng)
+        cfg = self.config
+        self.horizon = int(cfg["horizon"])
+        if cfg["horizon_min_speed"] is not None:
+            self.horizon = min(self.horizon, max(int(math.ceil(self.route.length / cfg["horizon_min_speed"] / self.dt)), 1))
         self.steps = 0
         self.progress = 0.0
         self.max_progress = 0.0
@@ -199,13 +266,17 @@ class PointNavEnv(gym.Env):
         self.collision_counts: dict[str, int] = {}
         self.succeeded = False
         self.out_of_route = False
+        self.stuck = False
+        self._progress_mark = (0, 0.0)  # (step, max progress) when progress last grew by stuck_distance
+        self._contact_run = 0
+        self._reference_length: float | None = None
         self.last_action = np.zeros(2, dtype=np.float64)
         self.step_collisions: set[str] = set()
         self.trajectory = [(float(start[0]), float(start[1]))]
         self._on_reset(rng)
         for meas in self.measures:
             meas.reset(self)
-        return self._observe(), {"route_length": self.route.length}
+        return self._observe(), {"route_length": self.route.length, "horizon": self.horizon}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         """Advance 0.1 s (config dt): apply the action, step physics, sense, reward."""
@@ -233,10 +304,11 @@ class PointNavEnv(gym.Env):
         self.trajectory.append((x, y))
         s, lat = self.route.project(x, y, self.progress)
         progress = s - self.progress
+        new_progress = max(s - self.max_progress, 0.0)
         self.progress, self.lateral = s, lat
         self.max_progress = max(self.max_progress, s)
         self.steps += 1
-        collided = bool(hits)
+        collided = bool(hits & self.cost_kinds)
         self.step_collisions = hits
         for k in hits:
             self.collision_counts[k] = self.collision_counts.get(k, 0) + 1
@@ -247,20 +319,30 @@ class PointNavEnv(gym.Env):
             abs(lat) > cfg["out_of_route_distance"]
             or (cfg["terminate_off_walkable"] and self.planner.grid.label_at(x, y) == 0)
         )
+        self._contact_run = self._contact_run + 1 if hits else 0
+        if self.max_progress >= self._progress_mark[1] + cfg["stuck_distance"]:
+            self._progress_mark = (self.steps, self.max_progress)
+        self.stuck = not (self.succeeded or self.out_of_route) and (
+            (cfg["stuck_steps"] > 0 and self.steps - self._progress_mark[0] >= cfg["stuck_steps"])
+            or (cfg["collision_steps"] > 0 and self._contact_run >= cfg["collision_steps"]))
         d_steer = steer - self.last_action[0]
-        reward = self.reward_fn(progress, lat, d_steer, m.speed, collided, self.succeeded, self.out_of_route)
+        reward = self.reward_fn(progress, new_progress, lat, d_steer, m.speed, collided, self.succeeded,
+                                self.out_of_route, self.stuck)
         self.last_action = a
-        terminated = self.succeeded or self.out_of_route
-        truncated = (not terminated) and self.steps >= cfg["horizon"]
+        terminated = self.succeeded or self.out_of_route or self.stuck
+        truncated = (not terminated) and self.steps >= self.horizon
         for meas in self.measures:
             meas.update(self)
         obs = self._observe()
         info: dict[str, Any] = {"cost": float(collided), "route_completion": min(self.max_progress / self.route.length, 1.0),
-                                "collision_kinds": sorted(hits), "out_of_route": self.out_of_route}
+                                "collision_kinds": sorted(hits), "out_of_route": self.out_of_route, "stuck": self.stuck}
         if terminated or truncated:
             metrics = self._episode_metrics()
             info.update(metrics)
             info["metrics"] = metrics
+            # The per-step cost stays 0/1 on the last step too; the episode's total has its own key.
+            info["episode_cost"] = metrics.get("cost", float(self.cost_total))
+            info["cost"] = float(collided)
             info["is_success"] = self.succeeded
         return obs, reward, terminated, truncated, info
 
@@ -281,9 +363,10 @@ class PointNavEnv(gym.Env):
         m, route = self.machine, self.route
         x, y, z = m.position
         yaw = m.yaw
-        lidar = self.lidar.scan(x, y, z, yaw)
-        spec = m.spec
-        steer_norm = m.steering / spec.steer_max if spec.kind == "wheeled" and spec.steer_max > 0 else m.steering
+        self.lidar.scan(x, y, z, yaw)
+        parts = [self.lidar.encoded()]
+        if self.low_lidar is not None:
+            parts.append(self.low_lidar.scan(x, y, z, yaw))
         heading_err = _wrap(yaw - route.heading_at(self.progress))
         c, s = math.cos(yaw), math.sin(yaw)
         wp = route.point_at(self.progress + self._wp_offsets)
@@ -293,11 +376,11 @@ class PointNavEnv(gym.Env):
         gx, gy = route.goal[0] - x, route.goal[1] - y
         bearing = math.atan2(gy, gx) - yaw
         state = [
-            m.speed / spec.v_max, steer_norm, m.yaw_rate / 2.0, heading_err / math.pi,
+            m.speed / self.config["speed_scale"], m.yaw_rate / 2.0, heading_err / math.pi,
             self.lateral / self.config["out_of_route_distance"], self.last_action[0], self.last_action[1],
         ]
-        tail = [math.hypot(gx, gy) / 100.0, math.sin(bearing), math.cos(bearing)]
-        obs = np.concatenate([lidar, np.asarray(state), ego, np.asarray(tail)]).astype(np.float32)
+        tail = [math.log1p(math.hypot(gx, gy)) / GOAL_LOG_SCALE, math.sin(bearing), math.cos(bearing)]
+        obs = np.concatenate([*parts, np.asarray(state), ego, np.asarray(tail)]).astype(np.float32)
         np.clip(obs, -1.0, 1.0, out=obs)
         return obs
 
@@ -311,10 +394,8 @@ class PointNavEnv(gym.Env):
                             top_down_height=float(r["top_down_height"]))
 
     def close(self) -> None:
-        """Disconnect from PyBullet."""
-        if getattr(self, "client", None) is not None:
-            try:
-                p.disconnect(physicsClientId=self.client)
-            except p.error:
-                pass
+        """Disconnect every Bullet client of the scene cache."""
+        if getattr(self, "cache", None) is not None:
+            self.cache.close()
+            self.cache = None
             self.client = None

@@ -23,8 +23,9 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "agents": dict(AGENT_DEFAULTS),
     "vehicles": dict(VEHICLE_DEFAULTS),
     "traffic": True,  # vehicles on the roads
-    "personal_space": 0.5,  # PSC radius between the ego's and an agent's centres (iGibson)
-    "stl_cruise_speed": 2.5,  # m/s; t_ref = route length / min(this, v_max); the expert's cruise speed
+    "personal_space": 0.45,  # m between body surfaces (ego footprint to agent body): Hall's intimate distance
+    "stl_cruise_speed": 2.5,  # m/s; t_ref = geodesic / min(this, v_max); the expert's cruise speed
+    "cost_kinds": ["object", "building", "agent", "vehicle"],
     "measures": list(SOCIALNAV_MEASURES),
     "render": {**POINTNAV_CONFIG["render"], "camera": "map", "width": 256, "height": 256},
 }
@@ -64,11 +65,28 @@ class SocialNavEnv(PointNavEnv):
         self._vehicle_states: np.ndarray | None = None  # the traffic's states of this tick, shared by sync and obs
 
     # -- hooks -------------------------------------------------------------------------------------
+    _WORLD_STATE = ("_agent_bodies", "_vehicle_bodies", "_shapes", "_vehicles_shown", "_collision_kinds",
+                    "_body_kind_idx", "_body_kind_src", "_body_kinds", "_half_heights", "_body_xyz")
+
     def _on_scene(self, spec: Mapping[str, Any]) -> None:
-        # World rebuilt the Bullet scene from scratch: every body and shape id of the old scene is gone.
+        # A new world in its client: no agent body or shape exists there yet.
         self._agent_bodies, self._vehicle_bodies, self._shapes = [], [], {}
         self._vehicles_shown = -1
         self._collision_kinds = {}
+        self._body_kind_idx = self._body_kind_src = np.zeros(0, dtype=np.int16)
+
+    def _scene_state(self) -> dict[str, Any]:
+        # The agent bodies live in the world being left: park them so they are out of the way when it returns.
+        for body in self._agent_bodies + self._vehicle_bodies:
+            p.resetBasePositionAndOrientation(body, [0, 0, -20], [0, 0, 0, 1], physicsClientId=self.client)
+        self._vehicles_shown = -1
+        if getattr(self, "_body_xyz", None) is not None:
+            self._body_xyz = np.full_like(self._body_xyz, np.nan)
+        return {k: getattr(self, k, None) for k in self._WORLD_STATE}
+
+    def _load_scene_state(self, state: dict[str, Any]) -> None:
+        for k in self._WORLD_STATE:
+            setattr(self, k, state.get(k))
 
     def _on_reset(self, rng: np.random.Generator) -> None:
         spec = self.scene_spec
@@ -186,11 +204,18 @@ class SocialNavEnv(PointNavEnv):
                         0.5 * math.hypot(s.length, s.width))
 
     def _nearest_agent(self) -> float:
+        """Smallest gap (m) between the ego's footprint rectangle and any agent's body circle."""
         pos = self.crowd.pos
         if not len(pos):
             return math.inf
-        x, y, _ = self.machine.position
-        return float(np.min(np.hypot(pos[:, 0] - x, pos[:, 1] - y)))
+        m = self.machine
+        x, y, _ = m.position
+        c, s = math.cos(m.yaw), math.sin(m.yaw)
+        dx, dy = pos[:, 0] - x, pos[:, 1] - y
+        # Agent centres in the ego frame, then the distance to the footprint box (0 inside it).
+        ex = np.maximum(np.abs(c * dx + s * dy) - 0.5 * m.spec.length, 0.0)
+        ey = np.maximum(np.abs(-s * dx + c * dy) - 0.5 * m.spec.width, 0.0)
+        return float(np.min(np.hypot(ex, ey) - self.crowd.radius))
 
     def agent_states(self) -> np.ndarray:
         """Every cohabitant's x, y, vx, vy, radius and kind (structured array; vehicles: vehicle_states())."""
@@ -217,7 +242,11 @@ class SocialNavEnv(PointNavEnv):
 
 @register_measure("psc")
 class PersonalSpaceCompliance(Measure):
-    """Fraction of steps with every agent's centre farther than `personal_space` from the ego's (iGibson)."""
+    """Fraction of steps with every agent's body farther than `personal_space` from the ego's footprint.
+
+    Measured between body surfaces (ego rectangle to agent circle); 0.45 m is the edge of Hall's intimate
+    distance (Hall 1966). A threshold between centres smaller than two bodies' radii could never fail.
+    """
 
     def reset(self, env: Any) -> None:
         self.ok = self.steps = 0
@@ -228,17 +257,6 @@ class PersonalSpaceCompliance(Measure):
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
         return {"psc": self.ok / self.steps if self.steps else 1.0}
-
-
-@register_measure("stl")
-class SuccessWeightedTimeLength(Measure):
-    """S * min(1, t_ref / t), t_ref = route length / min(stl_cruise_speed, v_max) (Deitke et al. 2022)."""
-
-    def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        v = min(float(env.config["stl_cruise_speed"]), env.machine.spec.v_max)
-        t_ref = env.route.length / v
-        t = max(env.steps * env.dt, 1e-9)
-        return {"stl": float(env.succeeded) * min(1.0, t_ref / t)}
 
 
 @register_measure("sns")

@@ -1,21 +1,34 @@
-"""The PointNav task: its config defaults, scene sources, and DESIGN.md's reward and cost."""
+"""The PointNav task: its config defaults, the reward presets, and where an episode's scene comes from.
+
+Two reward presets (docs/tasks.md explains each choice):
+- `paper`: DESIGN.md's formula R = R_term + 0.5 R_disp + 1.0 R_lateral + 0.1 R_steering + 1.0 R_crash, kept
+  for comparison. With it, standing still (return ~0) and leaving the route early beat honest attempts.
+- `learnable` (default): progress is paid only for new ground (the largest arc length reached, so driving back
+  and forth earns nothing), the lateral term is small and free within `lateral_free` of the route, a collision
+  step costs less than a metre of progress, and an episode that makes no progress or stays pinned against an
+  obstacle ends with the `stuck` penalty (so "stand still" and "stay pinned" are never the best plan).
+"""
 
 from __future__ import annotations
 
 import json
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from curbside.config import ConfigError, merge_strict
 from sim.metrics import POINTNAV_MEASURES
 
 DEFAULT_CONFIG: dict[str, Any] = {
     "machine": "delivery_bot",        # a name from sim.machines.MACHINES or a dict of MachineSpec fields
     "scene": {},                      # generator config passed to sim.scene.generate_scene (partial is fine)
-    "scene_seed": 0,                  # seed of the first generated scene
-    "num_scenes": 1,                  # episodes draw scene_seed + k, k in [0, num_scenes)
+    "split": "train",                 # train | test | unseen | finetune (sim.scene.dataset.SPLITS), or None
+    "scene_dir": None,                # a `curbside scenes dataset` folder: episodes draw its scenes of `split`
+    "scene_seed": 0,                  # first generated scene (within the split's seed range)
+    "num_scenes": 1,                  # episodes draw scene k in [0, num_scenes) (generated or from scene_dir)
+    "scene_cache": 8,                 # built worlds kept (LRU), each in its own Bullet client: a repeat costs no build
     "scene_spec": None,               # an explicit scene spec (dict) instead of the generator
     "scene_path": None,               # or a path to a scene spec JSON file
     "catalog": None,                  # catalog path for the generator and for mesh collision/visuals
@@ -24,16 +37,24 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "gui": False,                     # PyBullet GUI instead of DIRECT
     "dt": 0.1,                        # seconds per env step
     "physics_substeps": 5,            # Bullet substeps per env step (0.02 s each by default)
-    "horizon": 1000,                  # truncation after this many steps
+    "horizon": 1000,                  # truncation after at most this many steps
+    "horizon_min_speed": 0.5,         # m/s: the horizon is also cut to route_length / this (None: fixed horizon)
     "route_length": [10.0, 60.0],     # reference route length range in metres (>= 5 m)
     "route_margin": 0.25,             # extra clearance beyond the machine's half-width when planning
     "success_completion": 0.95,       # route fraction that counts as success
     "out_of_route_distance": 3.0,     # lateral offset (m) that ends the episode as out of route
     "terminate_off_walkable": True,   # leaving the walkable area (road, buildings) is out of route too
-    "lidar": {"beams": 240, "range": 50.0, "height": 0.4},
+    "stuck_steps": 100,               # end the episode when the route progress grew < stuck_distance in this many steps (0: never)
+    "stuck_distance": 0.5,            # metres of new progress that count as moving on
+    "collision_steps": 30,            # end the episode after this many consecutive steps in contact (0: never)
+    "cost_kinds": ["object", "building"],  # contacts that cost (the paper: objects and buildings, not curbs)
+    "lidar": {"beams": 240, "range": 50.0, "height": 0.4, "encoding": "log",
+              "low_beams": 60, "low_range": 5.0, "low_height": 0.08},
+    "speed_scale": 5.0,               # m/s that maps to 1 in the `speed` observation (clipped)
     "num_waypoints": 10,
     "waypoint_spacing": 1.0,          # metres between the observed route waypoints
-    "reward": {"success": 5.0, "out_of_route": -5.0, "disp": 0.5, "lateral": 1.0, "steering": 0.1, "crash": 1.0},
+    "reward_preset": "learnable",     # "learnable" or "paper" (REWARD_PRESETS)
+    "reward": {},                     # overrides of the preset's terms (Reward fields)
     "measures": list(POINTNAV_MEASURES),
     "render": {"camera": "top_down", "width": 128, "height": 128, "top_down_height": 25.0},
 }
@@ -41,26 +62,65 @@ DEFAULT_CONFIG: dict[str, Any] = {
 
 @dataclass(frozen=True)
 class Reward:
-    """R = R_term + w_disp R_disp + w_lat R_lateral + w_steer R_steering + w_crash R_crash (DESIGN.md)."""
+    """R = R_term + w_disp R_disp - w_lat max(0, |lat| - free) - w_steer |ds| v - w_crash [collision], floored or not.
 
-    success: float = 5.0
+    progress "route": R_disp is the change of arc length along the route (negative when going back), as in the
+    paper; "max": only growth of the largest arc length reached is paid (going back costs nothing, returning
+    earns nothing). R_term: `success` on success, `out_of_route` off the route, `stuck` when the episode ends for
+    lack of progress or a lasting collision. floor: the dense part is floored at zero (MetaUrban's released code).
+    """
+
+    success: float = 10.0
     out_of_route: float = -5.0
-    disp: float = 0.5
-    lateral: float = 1.0
-    steering: float = 0.1
-    crash: float = 1.0
+    stuck: float = -5.0
+    disp: float = 1.0
+    progress: str = "max"
+    lateral: float = 0.05
+    lateral_free: float = 0.5
+    steering: float = 0.05
+    crash: float = 0.5
+    floor: bool = False
 
-    def __call__(self, progress: float, lateral: float, d_steer: float, speed: float, collided: bool,
-                 succeeded: bool, out_of_route: bool) -> float:
-        """One step's reward from the displacement along the route, the offset, steering change and events."""
-        r = self.disp * progress - self.lateral * abs(lateral) - self.steering * abs(d_steer) * abs(speed)
+    def __post_init__(self) -> None:
+        if self.progress not in ("route", "max"):
+            raise ConfigError(f"config.reward.progress must be 'route' or 'max', got {self.progress!r}")
+        for k, v in asdict(self).items():
+            if k not in ("progress", "floor") and not (isinstance(v, (int, float)) and abs(v) < float("inf")):
+                raise ConfigError(f"config.reward.{k} must be a finite number, got {v!r}")
+
+    def __call__(self, progress: float, new_progress: float, lateral: float, d_steer: float, speed: float,
+                 collided: bool, succeeded: bool, out_of_route: bool, stuck: bool) -> float:
+        """One step's reward from progress along the route, the offset, steering change and events."""
+        disp = new_progress if self.progress == "max" else progress
+        r = (self.disp * disp - self.lateral * max(0.0, abs(lateral) - self.lateral_free)
+             - self.steering * abs(d_steer) * abs(speed))
         if collided:
             r -= self.crash
+        if self.floor:
+            r = max(r, 0.0)
         if succeeded:
             r += self.success
         elif out_of_route:
             r += self.out_of_route
+        elif stuck:
+            r += self.stuck
         return float(r)
+
+
+REWARD_PRESETS: dict[str, dict[str, Any]] = {
+    # DESIGN.md / the paper: progress along the route, full lateral penalty, no stuck ending (stuck_steps and
+    # collision_steps still end such episodes unless set to 0; their penalty is then 0).
+    "paper": dict(success=5.0, out_of_route=-5.0, stuck=0.0, disp=0.5, progress="route", lateral=1.0,
+                  lateral_free=0.0, steering=0.1, crash=1.0, floor=False),
+    "learnable": asdict(Reward()),
+}
+
+
+def make_reward(preset: str, overrides: Mapping[str, Any] | None) -> Reward:
+    """The Reward of a named preset with some of its terms overridden (unknown terms raise)."""
+    if preset not in REWARD_PRESETS:
+        raise ConfigError(f"unknown reward_preset {preset!r}; valid: {', '.join(REWARD_PRESETS)}")
+    return Reward(**merge_strict(REWARD_PRESETS[preset], overrides, name="config.reward"))
 
 
 def load_scene(config: Mapping[str, Any], seed: int) -> dict[str, Any]:
@@ -68,17 +128,52 @@ def load_scene(config: Mapping[str, Any], seed: int) -> dict[str, Any]:
     if config["scene_spec"] is not None:
         return dict(config["scene_spec"])
     if config["scene_path"] is not None:
-        path = Path(config["scene_path"])
-        if not path.exists():
-            raise FileNotFoundError(f"no scene spec at {path}; write one with `curbside scenes generate`")
-        return json.loads(path.read_text())
+        return read_scene(config["scene_path"])
     try:
         from sim.scene import generate_scene
     except ImportError as e:  # the generator is a sibling subsystem; say what to do without it
         raise RuntimeError(
             f"sim.scene.generate_scene is unavailable ({e}); pass config={{'scene_spec': ...}} or 'scene_path'"
         ) from e
+    scene_cfg = dict(config["scene"])
+    if config.get("split") is not None:
+        from sim.scene.dataset import split_config
+        scene_cfg, _ = split_config(config["split"], scene_cfg)
     with warnings.catch_warnings():
         # Without a catalog the generator warns once per category; the env says it once per process instead.
         warnings.filterwarnings("ignore", message="no catalog was given")
-        return generate_scene(dict(config["scene"]), seed, config["catalog"])
+        return generate_scene(scene_cfg, seed, config["catalog"])
+
+
+def read_scene(path: str | Path) -> dict[str, Any]:
+    """A scene spec from a JSON file, with a clear error when it is missing or not JSON."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no scene spec at {path}; write one with `curbside scenes generate --out {path}`")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise ConfigError(f"{path} is not a scene spec JSON file ({e}); regenerate it with `curbside scenes generate`") from e
+
+
+def split_seed_offset(split: str | None) -> int:
+    """First generator seed of `split` (0 without a split): splits draw from disjoint seed ranges."""
+    if split is None:
+        return 0
+    from sim.scene.dataset import split_config
+    return split_config(split)[1]
+
+
+def dataset_scenes(scene_dir: str | Path, split: str | None) -> list[Path]:
+    """Scene files of `split` in a dataset folder (its index.jsonl), sorted; a clear error when there are none."""
+    from sim.scene.dataset import read_index
+    d = Path(scene_dir)
+    if not d.is_dir():
+        raise ConfigError(f"config.scene_dir {d} is not a folder; create it with `curbside scenes dataset --out {d}`")
+    rows = read_index(d)
+    files = sorted(d / r["file"] for r in rows if split is None or r.get("split") == split)
+    if not files:
+        have = sorted({str(r.get("split")) for r in rows}) or ["none"]
+        raise ConfigError(f"split {split!r} has no scenes in {d} (it holds: {', '.join(have)}); "
+                          f"create them with `curbside scenes dataset --split {split} --out {d}`")
+    return files

@@ -27,8 +27,10 @@ def test_check_env_passes_for_every_machine(spec, machine):
 def test_observation_layout_and_names(spec):
     env = PointNavEnv({"scene_spec": spec})
     obs, info = env.reset(seed=0)
-    assert obs.shape == (270,) and len(env.observation_names) == 270
-    assert env.observation_names[240] == "speed" and env.observation_names[-1] == "goal_heading_cos"
+    assert obs.shape == (329,) and len(env.observation_names) == 329
+    assert env.observation_names[240] == "low_0" and env.observation_names[300] == "speed"
+    assert env.observation_names[-1] == "goal_heading_cos"
+    assert "steering" not in env.observation_names  # it duplicated last_steering
     assert env.observation_space.contains(obs)
     assert info["route_length"] >= 10.0
     # At the start the machine is on the route, facing along it, at rest.
@@ -120,7 +122,7 @@ def test_collision_costs_and_stops_the_machine(spec):
             break
     assert sum(costs) > 0 and "object" in info["collision_kinds"]
     assert m.position[0] < 14.8  # the bin (depth 0.6 at x = 15) was not driven through
-    assert min(rewards) <= -1.0  # R_crash
+    assert min(rewards) <= -env.reward_fn.crash  # R_crash
 
 
 def test_curb_blocks_small_wheels(spec):
@@ -140,7 +142,7 @@ def test_async_vector_env(spec):
     envs = gym.make_vec("curbside/PointNav-v0", num_envs=2, vectorization_mode="async",
                         config={"scene_spec": spec, "lidar": {"beams": 30}})
     obs, _ = envs.reset(seed=[1, 2])
-    assert obs.shape == (2, 30 + 7 + 20 + 3)
+    assert obs.shape == (2, 30 + 60 + 6 + 20 + 3)
     for _ in range(3):
         obs, r, term, trunc, info = envs.step(np.zeros((2, 2), dtype=np.float32))
     assert r.shape == (2,)

@@ -1,0 +1,48 @@
+"""A periodic evaluation on a held-out split during training: the learning curve of SR, SPL and cost."""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+
+def SplitEvalCallback(task: str, env_config: Mapping[str, Any], every: int, episodes: int, split: str,
+                      csv_path: Path) -> Any:
+    """An SB3 callback that evaluates the current policy on `split` every `every` env steps into `csv_path`."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from curbside.train.evaluate import evaluate_policy
+
+    class _SplitEval(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.next_at = every
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= self.next_at:
+                self.next_at += every
+                self.record()
+            return True
+
+        def _on_training_end(self) -> None:
+            self.record()
+
+        def record(self) -> None:
+            policy = self.model
+            summary = evaluate_policy(lambda obs: policy.predict(obs, deterministic=True)[0], task, env_config,
+                                      split=split, episodes=episodes, progress=False)
+            row = {"steps": self.num_timesteps, **{k: summary[k] for k in ("sr", "spl", "cost", "route_completion", "sns")
+                                                  if k in summary}}
+            new = not csv_path.exists()
+            with open(csv_path, "a", newline="") as f:
+                w = csv.DictWriter(f, fieldnames=list(row))
+                if new:
+                    w.writeheader()
+                w.writerow(row)
+            for k, v in row.items():
+                if k != "steps":
+                    self.logger.record(f"eval_{split}/{k}", v)
+
+    return _SplitEval()

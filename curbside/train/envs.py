@@ -1,0 +1,68 @@
+"""Environments for training and evaluation: task names, split configs, and vector envs whose workers each own
+a shard of the training scenes (so every worker's scene cache holds all of its scenes after warm-up)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import gymnasium as gym
+
+from curbside.config import ConfigError
+
+TASKS = {"PointNav": "curbside/PointNav-v0", "SocialNav": "curbside/SocialNav-v0"}
+SPLITS = ("train", "test", "unseen", "finetune")
+
+
+def env_id(task: str) -> str:
+    """The Gymnasium id of a task name (PointNav, SocialNav); unknown names raise listing the valid ones."""
+    if task not in TASKS:
+        raise ConfigError(f"unknown task {task!r}; valid: {', '.join(TASKS)}")
+    return TASKS[task]
+
+
+def split_config(base: Mapping[str, Any] | None, split: str, num_scenes: int, scene_seed: int = 0) -> dict[str, Any]:
+    """An env config drawing episodes from `num_scenes` scenes of `split` starting at `scene_seed`."""
+    if split not in SPLITS:
+        raise ConfigError(f"unknown split {split!r}; valid: {', '.join(SPLITS)}")
+    cfg = dict(base or {})
+    cfg.update(split=split, scene_seed=scene_seed)
+    if cfg.get("scene_dir") is None:
+        cfg["num_scenes"] = num_scenes
+    return cfg
+
+
+def env_fns(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, split: str = "train",
+            wrappers: tuple[Callable[[gym.Env], gym.Env], ...] = ()) -> list[Callable[[], gym.Env]]:
+    """`n_envs` env constructors; worker k gets scenes [k * num_scenes / n_envs, (k + 1) * num_scenes / n_envs)."""
+    import sim  # noqa: F401  (registers the ids in this process and in spawned workers)
+
+    eid = env_id(task)
+    per = max(num_scenes // n_envs, 1)
+
+    def make(k: int) -> Callable[[], gym.Env]:
+        def thunk() -> gym.Env:
+            import sim  # noqa: F401
+            from stable_baselines3.common.monitor import Monitor
+
+            cfg = split_config(config, split, per, scene_seed=(k * per) % max(num_scenes, 1))
+            cfg.setdefault("scene_cache", per)
+            env: gym.Env = gym.make(eid, config=cfg)
+            for w in wrappers:
+                env = w(env)
+            return Monitor(env, info_keywords=("is_success", "episode_cost", "route_completion", "spl"))
+        return thunk
+
+    return [make(k) for k in range(n_envs)]
+
+
+def make_vec_env(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, *, split: str = "train",
+                 subprocess: bool = True, seed: int = 0,
+                 wrappers: tuple[Callable[[gym.Env], gym.Env], ...] = ()) -> Any:
+    """An SB3 VecEnv (SubprocVecEnv unless `subprocess` is False) over `n_envs` sharded workers."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    fns = env_fns(task, config, n_envs, num_scenes, split, wrappers)
+    vec = SubprocVecEnv(fns, start_method="forkserver") if subprocess and n_envs > 1 else DummyVecEnv(fns)
+    vec.seed(seed)
+    return vec

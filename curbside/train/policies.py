@@ -1,0 +1,56 @@
+"""Load a trained run folder (`run.json` + its policy file) as a callable obs -> action, whatever the algorithm."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from curbside.config import ConfigError
+
+ALGOS = ("ppo", "ppo_lag", "ppo_et", "iql", "td3bc", "bc", "gail")
+POLICY_FILES = {"ppo": "policy.zip", "ppo_lag": "policy.zip", "ppo_et": "policy.zip", "gail": "policy.zip",
+                "bc": "policy.zip", "iql": "policy.d3", "td3bc": "policy.d3"}
+
+
+def check_algo(algo: str) -> str:
+    """`algo` if it is a known algorithm; otherwise a ConfigError naming the valid ones."""
+    if algo not in ALGOS:
+        raise ConfigError(f"unknown algorithm {algo!r}; valid: {', '.join(ALGOS)}")
+    return algo
+
+
+def read_run(run_dir: Path) -> dict[str, Any]:
+    """The run.json of a training output folder (clear errors when it is not one)."""
+    f = Path(run_dir) / "run.json"
+    if not f.is_file():
+        raise ConfigError(f"{run_dir} is not a training run (no run.json); train one with `curbside train run --out {run_dir}`")
+    run = json.loads(f.read_text())
+    check_algo(run.get("algo", "?"))
+    return run
+
+
+def load_policy(run_dir: Path) -> tuple[Callable[[np.ndarray], np.ndarray], dict[str, Any]]:
+    """(act, run) for a run folder: act(obs) returns the deterministic action of the saved policy."""
+    run = read_run(run_dir)
+    algo = run["algo"]
+    path = Path(run_dir) / POLICY_FILES[algo]
+    if not path.is_file():
+        raise ConfigError(f"{path} is missing; the run did not finish: resume it with `curbside train run --resume --out {run_dir}`")
+    if algo in ("iql", "td3bc"):
+        import d3rlpy
+
+        algo_obj = d3rlpy.load_learnable(str(path), device=False)
+        return (lambda obs: algo_obj.predict(np.asarray(obs, dtype=np.float32)[None])[0]), run
+    if algo == "bc":
+        from stable_baselines3.common.policies import ActorCriticPolicy
+
+        policy = ActorCriticPolicy.load(str(path), device="cpu")
+        return (lambda obs: policy.predict(obs, deterministic=True)[0]), run
+    from stable_baselines3 import PPO
+
+    model = PPO.load(str(path), device="cpu")
+    return (lambda obs: model.predict(obs, deterministic=True)[0]), run

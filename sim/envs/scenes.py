@@ -1,0 +1,131 @@
+"""Where an env's episodes happen: which scene an episode draws, and a bounded cache of built worlds.
+
+Each cached scene lives in its own Bullet client (world, machine body, LiDARs, route planner), so going back
+to a scene costs no build: training over thousands of scenes pays one build per new scene and milliseconds
+per repeat. The least recently used scene's client is reused for the next new scene.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pybullet as p
+
+from curbside.config import ConfigError
+from sim.tasks.pointnav import dataset_scenes, load_scene, read_scene, split_seed_offset
+
+MAX_SEED = 1_000_000  # splits start 1,000,000 seeds apart: scene_seed + num_scenes stays below that
+
+
+@dataclass
+class SceneSlot:
+    """One built scene: its Bullet client and the objects that live in it, plus per-subclass state."""
+
+    key: Any
+    client: int
+    world: Any = None
+    machine: Any = None
+    lidar: Any = None
+    low_lidar: Any = None
+    planner: Any = None
+    state: dict[str, Any] = field(default_factory=dict)
+
+
+class SceneSource:
+    """Which scene an episode runs in: a fixed spec or file, a dataset folder's split, or generated seeds."""
+
+    def __init__(self, config: Mapping[str, Any]) -> None:
+        self.config = config
+        n = config["num_scenes"]
+        if n is not None and (not isinstance(n, int) or isinstance(n, bool) or n < 1):
+            raise ConfigError(f"config.num_scenes must be an integer >= 1 (or None), got {n!r}")
+        seed = config["scene_seed"]
+        if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < MAX_SEED:
+            raise ConfigError(f"config.scene_seed must be an integer in [0, {MAX_SEED}), got {seed!r}")
+        self.files: list[Path] = []
+        if config["scene_spec"] is not None or config["scene_path"] is not None:
+            self.kind = "fixed"
+            if config["scene_path"] is not None:
+                read_scene(config["scene_path"])  # fail at construction, not at the first reset
+        elif config["scene_dir"] is not None:
+            self.kind = "dir"
+            self.files = dataset_scenes(config["scene_dir"], config["split"])
+            if n is not None:
+                self.files = self.files[seed: seed + n]
+                if not self.files:
+                    raise ConfigError(f"config.scene_seed {seed} is past the {config['scene_dir']} split's scenes")
+        else:
+            self.kind = "generated"
+            if n is None:
+                raise ConfigError("config.num_scenes must be an integer for generated scenes (None means all of scene_dir)")
+            if seed + n > MAX_SEED:
+                raise ConfigError(f"config.scene_seed + num_scenes must stay <= {MAX_SEED} so splits never share a scene")
+            self.offset = split_seed_offset(config["split"])
+
+    @property
+    def count(self) -> int:
+        """How many distinct scenes episodes draw from."""
+        return {"fixed": 1, "dir": len(self.files)}.get(self.kind, int(self.config["num_scenes"] or 1))
+
+    def draw(self, rng: np.random.Generator) -> tuple[Any, Callable[[], dict[str, Any]]]:
+        """(cache key, spec loader) of the next episode's scene; uses `rng` only when there is a choice."""
+        cfg = self.config
+        if self.kind == "fixed":
+            return ("fixed",), lambda: load_scene(cfg, 0)
+        k = int(rng.integers(self.count)) if self.count > 1 else 0
+        if self.kind == "dir":
+            path = self.files[k]
+            return ("file", str(path)), lambda: read_scene(path)
+        seed = self.offset + int(cfg["scene_seed"]) + k
+        return ("generated", cfg["split"], seed), lambda: load_scene(cfg, seed)
+
+
+class SceneCache:
+    """Least-recently-used built scenes, at most `size`, each in its own Bullet client."""
+
+    def __init__(self, size: int, first_client: int, gui: bool) -> None:
+        if not isinstance(size, int) or isinstance(size, bool) or size < 1:
+            raise ConfigError(f"config.scene_cache must be an integer >= 1, got {size!r}")
+        self.size = 1 if gui else size  # Bullet allows one GUI client
+        self.gui = gui
+        self.slots: OrderedDict[Any, SceneSlot] = OrderedDict()
+        self._spare = [first_client]
+
+    def get(self, key: Any) -> SceneSlot | None:
+        """The cached slot of `key` (now the most recently used), or None."""
+        slot = self.slots.get(key)
+        if slot is not None:
+            self.slots.move_to_end(key)
+        return slot
+
+    def new_slot(self, key: Any) -> SceneSlot:
+        """An empty slot for `key` in a fresh client, or in the least recently used slot's client."""
+        if self._spare:
+            client = self._spare.pop()
+        elif len(self.slots) < self.size:
+            client = p.connect(p.DIRECT)
+        else:
+            _, old = self.slots.popitem(last=False)
+            client = old.client
+        slot = SceneSlot(key=key, client=client)
+        self.slots[key] = slot
+        return slot
+
+    def clients(self) -> list[int]:
+        """Every Bullet client the cache holds."""
+        return [s.client for s in self.slots.values()] + list(self._spare)
+
+    def close(self) -> None:
+        """Disconnect every client."""
+        for c in self.clients():
+            try:
+                p.disconnect(physicsClientId=c)
+            except p.error:
+                pass
+        self.slots.clear()
+        self._spare = []
