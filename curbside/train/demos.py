@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -98,10 +99,13 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
             if bar:
                 bar.update(job, completed=min(total, steps))
         # Built from buffers, not minari.DataCollector: the collector needs jax for nothing more than list appends.
-        ds = minari.create_dataset_from_buffers(
-            dataset_id=did, buffer=buffers, env=env, algorithm_name=f"PurePursuitExpert(noise={noise}, random_prob={random_prob})",
-            author="curbside", description=f"{task} demonstrations on the train split: the pure-pursuit expert with "
-            "Gaussian action noise (curbside demos collect).", data_format="arrow")
+        with warnings.catch_warnings():
+            # Minari asks for a code permalink, an e-mail and an eval env; the env spec it records is the eval env.
+            warnings.filterwarnings("ignore", category=UserWarning, module="minari")
+            ds = minari.create_dataset_from_buffers(
+                dataset_id=did, buffer=buffers, env=env, algorithm_name=f"PurePursuitExpert(noise={noise}, random_prob={random_prob})",
+                author="curbside", description=f"{task} demonstrations on the train split: the pure-pursuit expert with "
+                "Gaussian action noise (curbside demos collect).", data_format="arrow")
     finally:
         if bar:
             bar.stop()

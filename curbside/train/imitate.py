@@ -3,6 +3,7 @@ reward from a discriminator, PPO generator on the train split)."""
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -34,7 +35,10 @@ def train_bc(demos: Transitions, out: Path, *, steps: int, observation_space: An
     trainer = bc.BC(observation_space=observation_space, action_space=action_space, demonstrations=_transitions(demos),
                     policy=policy, rng=np.random.default_rng(seed), batch_size=batch_size, device="cpu",
                     custom_logger=log)
-    trainer.train(n_batches=steps, log_interval=max(steps // 10, 1), progress_bar=progress)
+    with warnings.catch_warnings():
+        # imitation logs a loss tensor through float(): harmless, and not the user's to fix.
+        warnings.filterwarnings("ignore", message="Converting a tensor with requires_grad")
+        trainer.train(n_batches=steps, log_interval=max(steps // 10, 1), progress_bar=progress)
     path = out / "policy.zip"
     trainer.policy.save(str(path))
     return path
@@ -55,7 +59,8 @@ def train_gail(demos: Transitions, out: Path, *, steps: int, venv: Any, hparams:
     log = imit_logger.configure(str(out / "logs"), format_strs=["csv"])
     learner = PPO("MlpPolicy", venv, seed=seed, device="cpu", **ppo_kwargs(hparams))
     reward_net = BasicRewardNet(venv.observation_space, venv.action_space, normalize_input_layer=RunningNorm)
-    gail = GAIL(demonstrations=_transitions(demos), demo_batch_size=512, gen_replay_buffer_capacity=4096,
+    batch = min(512, len(demos))
+    gail = GAIL(demonstrations=_transitions(demos), demo_batch_size=batch, gen_replay_buffer_capacity=max(4096, batch),
                 n_disc_updates_per_round=4, venv=venv, gen_algo=learner, reward_net=reward_net,
                 allow_variable_horizon=True, custom_logger=log)
     gail.train(total_timesteps=steps)

@@ -65,11 +65,14 @@ class SocialNavEnv(PointNavEnv):
         self._vehicle_states: np.ndarray | None = None  # the traffic's states of this tick, shared by sync and obs
 
     # -- hooks -------------------------------------------------------------------------------------
-    _WORLD_STATE = ("_agent_bodies", "_vehicle_bodies", "_shapes", "_vehicles_shown", "_collision_kinds",
+    _WORLD_STATE = ("crowd", "traffic", "_agent_bodies", "_vehicle_bodies", "_shapes", "_vehicles_shown", "_collision_kinds",
                     "_body_kind_idx", "_body_kind_src", "_body_kinds", "_half_heights", "_body_xyz")
 
     def _on_scene(self, spec: Mapping[str, Any]) -> None:
-        # A new world in its client: no agent body or shape exists there yet.
+        # A new world in its client: no agent body or shape exists there yet. Crowd and traffic keep planners
+        # built for one scene (navigation grid, lanes), so each cached world has its own.
+        self.crowd = AgentManager(self.config["agents"])
+        self.traffic = VehicleManager(self.config["vehicles"])
         self._agent_bodies, self._vehicle_bodies, self._shapes = [], [], {}
         self._vehicles_shown = -1
         self._collision_kinds = {}

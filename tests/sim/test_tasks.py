@@ -1,0 +1,199 @@
+"""Task design that learns: per-step cost, stuck endings, reward presets, geodesic SPL, surface PSC, splits, cache."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from curbside.config import ConfigError
+from sim.envs.pointnav import PointNavEnv
+from sim.envs.socialnav import SocialNavEnv
+from sim.expert import PurePursuitExpert
+
+
+def _drive(env, policy, seed=0, options=None):
+    obs, _ = env.reset(seed=seed, options=options)
+    infos = []
+    while True:
+        obs, r, term, trunc, info = env.step(policy(env))
+        infos.append(info)
+        if term or trunc:
+            return infos
+
+
+def test_per_step_cost_is_0_or_1_on_every_step_including_the_last(spec):
+    # Straight into the trash bin at x = 15 and stay there: many cost steps, the last one among them.
+    env = PointNavEnv({"scene_spec": spec, "out_of_route_distance": 50.0, "terminate_off_walkable": False,
+                       "stuck_steps": 0, "collision_steps": 0, "horizon": 60})
+    infos = _drive(env, lambda e: [0.0, 1.0], options={"start": [10.0, 7.0], "goal": [25.0, 7.0]})
+    costs = [i["cost"] for i in infos]
+    assert set(costs) <= {0.0, 1.0} and costs[-1] == 1.0
+    assert infos[-1]["episode_cost"] == sum(costs) > 1  # the total has its own key
+    assert infos[-1]["metrics"]["cost"] == sum(costs)
+
+
+def test_curb_contact_is_not_a_cost_but_is_counted(spec):
+    env = PointNavEnv({"scene_spec": spec, "out_of_route_distance": 50.0, "terminate_off_walkable": False,
+                       "horizon": 30})
+    env.reset(seed=0, options={"start": [12.0, 7.0], "goal": [25.0, 7.0]})
+    env.machine.reset(10.0, 2.0, 0.0, math.pi / 2, env.np_random)
+    infos = [env.step([0.0, 0.6])[4] for _ in range(20)]
+    assert any("curb" in i["collision_kinds"] for i in infos)
+    assert all(i["cost"] == 0.0 for i in infos)  # the paper's cost: objects and buildings
+
+
+def test_a_machine_pinned_against_an_object_ends_its_episode_as_stuck(spec):
+    env = PointNavEnv({"scene_spec": spec, "out_of_route_distance": 50.0, "terminate_off_walkable": False,
+                       "collision_steps": 25, "stuck_steps": 0})
+    infos = _drive(env, lambda e: [0.0, 1.0], options={"start": [10.0, 7.0], "goal": [25.0, 7.0]})
+    assert infos[-1]["stuck"] and not infos[-1]["is_success"] and len(infos) < 100
+
+
+def test_standing_still_ends_the_episode_and_costs_more_than_driving(spec):
+    env = PointNavEnv({"scene_spec": spec, "stuck_steps": 50})
+    still = _drive(env, lambda e: [0.0, 0.0], seed=3)
+    assert still[-1]["stuck"] and len(still) == 50
+    env.reset(seed=3)
+    total_still = 0.0
+    for _ in range(50):
+        total_still += env.step([0.0, 0.0])[1]
+    env.reset(seed=3)
+    expert, total_expert, done = PurePursuitExpert(), 0.0, False
+    while not done:
+        _, r, term, trunc, _ = env.step(expert.act(env))
+        total_expert += r
+        done = term or trunc
+    assert total_still < 0.0 < total_expert
+
+
+def test_going_back_and_forth_earns_nothing_with_the_learnable_reward(spec):
+    env = PointNavEnv({"scene_spec": spec})
+    env.reset(seed=0)
+    s0 = env.max_progress
+    gain = env.reward_fn(progress=1.0, new_progress=0.0, lateral=0.0, d_steer=0.0, speed=1.0, collided=False,
+                         succeeded=False, out_of_route=False, stuck=False)
+    assert gain == 0.0 and s0 == 0.0
+    paper = PointNavEnv({"scene_spec": spec, "reward_preset": "paper"})
+    assert paper.reward_fn.progress == "route" and paper.reward_fn.lateral == 1.0 and paper.reward_fn.disp == 0.5
+    with pytest.raises(ConfigError, match="valid: paper, learnable"):
+        PointNavEnv({"scene_spec": spec, "reward_preset": "easy"})
+    with pytest.raises(ConfigError, match="valid keys"):
+        PointNavEnv({"scene_spec": spec, "reward": {"bonus": 1.0}})
+
+
+def test_horizon_follows_the_route_length(spec):
+    env = PointNavEnv({"scene_spec": spec, "route_length": [10.0, 20.0], "horizon_min_speed": 0.5})
+    _, info = env.reset(seed=0)
+    assert info["horizon"] == math.ceil(info["route_length"] / 0.5 / 0.1) < 1000
+
+
+def test_expert_cutting_no_corner_scores_spl_below_one_on_a_turning_route(spec):
+    # From the left sidewalk across the crosswalk (x 28..31) to the right sidewalk: two 90-degree turns.
+    env = PointNavEnv({"scene_spec": spec})
+    infos = _drive(env, PurePursuitExpert().act, options={"start": [20.0, 6.5], "goal": [40.0, -6.5]})
+    m = infos[-1]["metrics"]
+    assert m["success"] == 1.0
+    geodesic = env.reference_length()
+    assert geodesic < 0.95 * env.route.length  # the taut path cuts the route's corners
+    assert m["spl"] < 0.99 and m["spl"] == pytest.approx(geodesic / m["path_length"])
+
+
+def test_geodesic_of_a_straight_route_is_its_length(spec):
+    env = PointNavEnv({"scene_spec": spec})
+    env.reset(seed=0, options={"start": [2.0, 6.5], "goal": [12.0, 6.5]})
+    assert env.reference_length() == pytest.approx(0.95 * env.route.length, rel=0.02)
+
+
+def test_psc_falls_below_one_when_an_agent_enters_the_personal_space(spec):
+    cfg = {"scene_spec": spec, "traffic": False, "agents": {"counts": {"pedestrian": 1}}, "horizon": 4}
+    env = SocialNavEnv(cfg)
+    env.reset(seed=0)
+    m = env.machine
+    x, y, _ = m.position
+    # An agent 0.2 m in front of the ego's bumper: inside the 0.45 m personal space between body surfaces.
+    ax, ay = x + math.cos(m.yaw) * (0.5 * m.spec.length + 0.2 + 0.3), y + math.sin(m.yaw) * (0.5 * m.spec.length + 0.2 + 0.3)
+    env.crowd.pos[0] = (ax, ay)
+    env.crowd.sim.set_agent_position(0, (ax, ay))
+    infos = [env.step([0.0, -1.0])[4] for _ in range(4)]
+    assert infos[-1]["psc"] < 1.0 and infos[-1]["sns"] < 1.0
+    # Without agents PSC is 1 and the metric does not fire.
+    env2 = SocialNavEnv({**cfg, "agents": {"counts": {}, "dynamic_density": 0.0}})
+    env2.reset(seed=0)
+    infos2 = [env2.step([0.0, -1.0])[4] for _ in range(4)]
+    assert infos2[-1]["psc"] == 1.0
+
+
+def test_split_configs_draw_disjoint_scenes():
+    seeds = {}
+    for split in ("train", "test", "unseen", "finetune"):
+        env = PointNavEnv({"split": split, "num_scenes": 3, "scene_cache": 3, "route_length": [5.0, 30.0]})
+        drawn = set()
+        for s in range(8):
+            env.reset(seed=s)
+            drawn.add(env.slot.key)
+        seeds[split] = {k[2] for k in drawn}
+        templates = {sw["template"] for sw in env.scene_spec["sidewalks"] if "template" in sw}
+        if split in ("unseen", "finetune") and templates:
+            assert templates == {"g"}
+        env.close()
+    splits = list(seeds)
+    for i, a in enumerate(splits):
+        for b in splits[i + 1:]:
+            assert not seeds[a] & seeds[b], (a, b)
+    with pytest.raises(ConfigError, match="valid: train, test, unseen, finetune"):
+        PointNavEnv({"split": "validation"})
+
+
+def test_scene_cache_reuses_worlds_and_episodes_do_not_depend_on_it():
+    def trace(env, seed):
+        obs, _ = env.reset(seed=seed)
+        out = [obs]
+        rng = np.random.default_rng(seed)
+        for _ in range(15):
+            obs, r, term, trunc, _ = env.step(rng.uniform(-1, 1, 2))
+            out.append(np.append(obs, r))
+            if term or trunc:
+                break
+        return out
+
+    cfg = {"num_scenes": 3, "route_length": [5.0, 30.0]}
+    cached = PointNavEnv({**cfg, "scene_cache": 3})
+    fresh = PointNavEnv({**cfg, "scene_cache": 1})
+    worlds = {}
+    for s in range(6):
+        cached.reset(seed=s)
+        worlds.setdefault(cached.slot.key, set()).add(id(cached.world))
+    assert all(len(v) == 1 for v in worlds.values())  # a repeated scene is not rebuilt
+    assert len(cached.cache.slots) <= 3
+    for s in (4, 1, 5):
+        a, b = trace(cached, s), trace(fresh, s)
+        assert len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))
+    cached.close()
+    fresh.close()
+
+
+def test_socialnav_cache_keeps_each_worlds_agents():
+    env = SocialNavEnv({"num_scenes": 2, "scene_cache": 2, "route_length": [5.0, 30.0], "traffic": False})
+    keys = []
+    for s in range(5):
+        env.reset(seed=s)
+        for _ in range(3):
+            env.step([0.0, 0.5])
+        keys.append(env.slot.key)
+        assert len(env._agent_bodies) == env.crowd.n
+    assert len(set(keys)) == 2
+    env.close()
+
+
+def test_dataset_folder_split_with_no_scenes_is_a_clear_error(tmp_path):
+    from sim.scene.dataset import build_dataset
+
+    build_dataset("test", 2, tmp_path, base={"blocks": 1})
+    env = PointNavEnv({"scene_dir": str(tmp_path), "split": "test", "num_scenes": None, "route_length": [5.0, 20.0]})
+    env.reset(seed=0)
+    assert env.slot.key[0] == "file"
+    env.close()
+    with pytest.raises(ConfigError, match="split 'train' has no scenes .*`curbside scenes dataset --split train"):
+        PointNavEnv({"scene_dir": str(tmp_path), "split": "train"})

@@ -1,0 +1,139 @@
+"""Training harness: every baseline trains on tiny budgets, its saved policy reloads and evaluates; demos are
+Minari datasets; bad input gets one line and exit code 2 (real SB3, d3rlpy, imitation, Minari, PyBullet)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from curbside.cli.main import app
+from curbside.train.demos import collect_demos, load_demos
+from curbside.train.evaluate import evaluate_policy
+from curbside.train.policies import ALGOS, load_policy
+from curbside.train.run import train
+
+runner = CliRunner()
+CFG = {"lidar": {"beams": 24, "low_beams": 8}, "route_length": [5.0, 25.0], "scene": {"blocks": 1}}
+TINY_PPO = {"n_steps": 64, "batch_size": 64, "n_epochs": 1, "net_arch": [32, 32]}
+
+
+@pytest.fixture(scope="module")
+def demos(tmp_path_factory) -> dict:
+    """A small demonstration set on the train split, written as a Minari dataset."""
+    return collect_demos("PointNav", tmp_path_factory.mktemp("demos"), steps=300, noise=0.3, env_config=CFG,
+                         num_scenes=2, progress=False)
+
+
+def test_demos_are_a_minari_dataset_with_a_success_rate(demos) -> None:
+    import minari
+
+    path = Path(demos["path"])
+    ds = minari.MinariDataset(path / "data")
+    assert ds.total_steps == demos["steps"] >= 300 and ds.total_episodes == demos["episodes"]
+    assert 0.0 <= demos["success_rate"] <= 1.0
+    assert ds.spec.env_spec.id == "curbside/PointNav-v0"  # offline libraries can recover the env
+    tr, meta = load_demos(path)
+    assert len(tr) == demos["steps"] and tr.obs.shape == (len(tr), 24 + 8 + 6 + 20 + 3)
+    assert np.array_equal(tr.obs[1:], tr.next_obs[:-1]) or (tr.terminals | tr.timeouts).any()
+    assert (tr.terminals | tr.timeouts).sum() == demos["episodes"]  # every episode ends exactly once
+    assert meta["success_rate"] == demos["success_rate"]
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_each_algorithm_trains_saves_reloads_and_evaluates(algo, demos, tmp_path) -> None:
+    steps = 128 if algo in ("ppo", "ppo_lag", "ppo_et", "gail") else 40
+    out = tmp_path / algo
+    path = train(algo, "PointNav", out, steps=steps, env_config=CFG, n_envs=2, num_scenes=2, demos=Path(demos["path"]),
+                 hparams=TINY_PPO, progress=False, subprocess=False)
+    assert path.is_file() and (out / "run.json").is_file()
+    act, run = load_policy(out)
+    assert run["algo"] == algo
+    obs = np.zeros(24 + 8 + 6 + 20 + 3, dtype=np.float32)
+    a = np.asarray(act(obs))
+    assert a.shape == (2,) and np.isfinite(a).all()
+    summary = evaluate_policy(act, "PointNav", CFG, split="test", episodes=1, num_scenes=1, progress=False)
+    assert summary["episodes"] == 1 and 0.0 <= summary["sr"] <= 1.0 and "spl" in summary
+
+
+def test_ppo_lag_raises_lambda_when_cost_exceeds_the_limit(tmp_path) -> None:
+    # cost_limit -1 can never be met: lambda must grow from its start after every rollout with an episode end.
+    h = {**TINY_PPO, "cost_limit": -1.0, "lag_lr": 0.5, "lag_init": 0.0}
+    train("ppo_lag", "PointNav", tmp_path, steps=256, env_config=CFG, n_envs=2, num_scenes=2, hparams=h,
+          progress=False, subprocess=False)
+    rows = (tmp_path / "logs" / "progress.csv").read_text().splitlines()
+    header = rows[0].split(",")
+    lam = [float(r.split(",")[header.index("lagrange/lambda")]) for r in rows[1:] if r.split(",")[header.index("lagrange/lambda")]]
+    assert lam[-1] > 0.0
+
+
+def test_ppo_et_ends_the_episode_on_the_first_cost_step(spec) -> None:
+    import gymnasium as gym
+
+    from curbside.train.online import EarlyTermination
+
+    env = EarlyTermination(gym.make("curbside/PointNav-v0", config={"scene_spec": spec, "terminate_off_walkable": False,
+                                                                   "out_of_route_distance": 50.0}), penalty=-5.0)
+    env.reset(seed=0, options={"start": [10.0, 7.0], "goal": [25.0, 7.0]})
+    for k in range(100):
+        _, r, term, trunc, info = env.step([0.0, 1.0])
+        if term:
+            break
+    assert info["early_terminated"] and info["cost"] == 1.0 and info["episode_cost"] == 1.0 and r < -4.0
+
+
+def test_resume_continues_from_the_latest_checkpoint(tmp_path) -> None:
+    train("ppo", "PointNav", tmp_path, steps=128, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY_PPO,
+          progress=False, subprocess=False)
+    ckpt = tmp_path / "checkpoints"
+    ckpt.mkdir(exist_ok=True)
+    (tmp_path / "policy.zip").rename(ckpt / "policy_128_steps.zip")
+    train("ppo", "PointNav", tmp_path, steps=256, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY_PPO,
+          progress=False, subprocess=False, resume=True)
+    from stable_baselines3 import PPO
+
+    assert PPO.load(tmp_path / "policy.zip").num_timesteps == 256
+
+
+def _one_error_line(res) -> str:
+    assert res.exit_code == 2, res.output
+    lines = [ln for ln in res.output.strip().splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in res.output, res.output
+    return lines[0]
+
+
+def test_unknown_algorithm_is_one_line_exit_2(tmp_path) -> None:
+    line = _one_error_line(runner.invoke(app, ["train", "run", "--algo", "dqn", "--out", str(tmp_path)]))
+    assert "unknown algorithm 'dqn'" in line and "ppo, ppo_lag" in line
+
+
+def test_missing_demo_file_is_one_line_exit_2(tmp_path) -> None:
+    line = _one_error_line(runner.invoke(app, ["train", "run", "--algo", "bc", "--demos", str(tmp_path / "nope"),
+                                               "--out", str(tmp_path / "run")]))
+    assert "no demonstration dataset" in line and "curbside demos collect" in line
+    line = _one_error_line(runner.invoke(app, ["train", "run", "--algo", "iql", "--out", str(tmp_path / "run")]))
+    assert "--demos" in line
+
+
+def test_a_split_with_no_scenes_is_one_line_exit_2(tmp_path) -> None:
+    from sim.scene.dataset import build_dataset
+
+    build_dataset("test", 1, tmp_path / "scenes", base={"blocks": 1})
+    cfg = json.dumps({"scene_dir": str(tmp_path / "scenes"), "num_scenes": None})
+    line = _one_error_line(runner.invoke(app, ["train", "run", "--config", cfg, "--out", str(tmp_path / "run")]))
+    assert "split 'train' has no scenes" in line and "curbside scenes dataset --split train" in line
+
+
+def test_eval_of_a_folder_that_is_not_a_run_is_one_line_exit_2(tmp_path) -> None:
+    line = _one_error_line(runner.invoke(app, ["train", "eval", str(tmp_path)]))
+    assert "not a training run" in line and "curbside train run" in line
+
+
+def test_bad_config_json_is_one_line_exit_2(tmp_path) -> None:
+    line = _one_error_line(runner.invoke(app, ["train", "run", "--config", "{bad", "--out", str(tmp_path)]))
+    assert "--config is not valid JSON" in line
+    line = _one_error_line(runner.invoke(app, ["demos", "collect", "--config", '{"bogus": 1}', "--out", str(tmp_path)]))
+    assert "unknown key 'bogus'" in line
