@@ -114,7 +114,7 @@ def collect_cmd(
     task: str = typer.Option("PointNav", help="PointNav or SocialNav."),
     out: Path = typer.Option(Path("outputs/demos"), help="Minari datasets root; the dataset goes to OUT/curbside/<task>-expert-v0."),
     steps: int = typer.Option(30_000, min=1, max=10_000_000, help="Steps to record (whole episodes)."),
-    noise: float = typer.Option(0.6, min=0.0, max=5.0, help="Std of the Gaussian noise added to the expert's actions."),
+    noise: float = typer.Option(0.7, min=0.0, max=5.0, help="Std of the Gaussian noise added to the expert's actions."),
     random_prob: float = typer.Option(0.0, min=0.0, max=1.0, help="Fraction of fully random episodes."),
     scenes: int = typer.Option(64, min=1, help="Train-split scenes to draw episodes from."),
     seed: int = typer.Option(0, min=0, help="Seed of the first episode."),

@@ -46,9 +46,21 @@ def train_offline(algo: str, demos: Transitions, out: Path, *, steps: int, seed:
     ds = mdp_dataset(demos)
     per_epoch = max(min(1000, steps), 1)
     log = []
-    for epoch, metrics in learner.fitter(ds, n_steps=steps, n_steps_per_epoch=per_epoch, show_progress=progress,
-                                          logger_adapter=d3rlpy.logging.NoopAdapterFactory()):
-        log.append({"epoch": epoch, "gradient_steps": epoch * per_epoch, **{k: float(v) for k, v in metrics.items()}})
+    bar = None
+    if progress:
+        from rich.progress import Progress
+        bar = Progress(transient=True)
+        bar.start()
+        job = bar.add_task(f"{algo} gradient steps", total=steps)
+    try:
+        for epoch, metrics in learner.fitter(ds, n_steps=steps, n_steps_per_epoch=per_epoch, show_progress=False,
+                                              logger_adapter=d3rlpy.logging.NoopAdapterFactory()):
+            log.append({"epoch": epoch, "gradient_steps": epoch * per_epoch, **{k: float(v) for k, v in metrics.items()}})
+            if bar:
+                bar.update(job, completed=min(epoch * per_epoch, steps))
+    finally:
+        if bar:
+            bar.stop()
     out.mkdir(parents=True, exist_ok=True)
     (out / "train_log.json").write_text(json.dumps(log, indent=1))
     path = out / "policy.d3"
