@@ -3,7 +3,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 mkdir -p outputs
-for part in pipelines catalog scenes sim socialnav retrieval; do
+for part in pipelines catalog scenes sim socialnav train retrieval; do
   script="scripts/demo_${part}.sh"
   if [ -f "$script" ]; then
     echo "== demo: $part"

@@ -10,18 +10,17 @@ import gymnasium as gym
 import numpy as np
 import pybullet as p
 
-from curbside.config import ConfigError, check_choice, merge_strict
+from curbside.config import ConfigError, merge_strict
 from sim.envs.scenes import SceneCache, SceneSlot, SceneSource
 from sim.machines import Machine, machine_spec
 from sim.metrics import make_measures
 from sim.route import RoutePlanner
-from sim.scene.dataset import SPLITS
-from sim.sensors import ENCODINGS, Lidar
-from sim.tasks.pointnav import DEFAULT_CONFIG, make_reward
+from sim.sensors import Lidar
+from sim.tasks.pointnav import DEFAULT_CONFIG, check_config, make_reward
 from sim.world import SURFACE_KINDS, World, check_spec
 
 WALL_NZ = 0.5  # a contact whose normal is flatter than this is a wall (a curb side), not the ground
-STATIC_COLLISION_KINDS = ("object", "building", "curb")
+STATIC_COLLISION_KINDS = ("object", "building", "curb")  # with "agent" and "vehicle": sim.tasks.pointnav.COLLISION_KINDS
 GOAL_LOG_SCALE = math.log1p(500.0)  # goal distances up to 500 m span [0, 1] in the observation
 
 
@@ -54,7 +53,7 @@ class PointNavEnv(gym.Env):
     | B+L+7+2W, B+L+8+2W | `goal_heading_sin`, `goal_heading_cos` | bearing of the goal in the ego frame |
 
     ## Rewards
-    `reward_preset` "learnable" (default) or "paper" (DESIGN.md's R = R_term + 0.5 R_disp + 1.0 R_lateral +
+    `reward_preset` "learnable" (default) or "paper" (the MetaUrban paper's R = R_term + 0.5 R_disp + 1.0 R_lateral +
     0.1 R_steering + 1.0 R_crash), terms overridable in `reward`; see sim.tasks.pointnav.Reward and
     docs/tasks.md for why the default differs.
 
@@ -82,25 +81,10 @@ class PointNavEnv(gym.Env):
             raise ConfigError(f"unknown render_mode {render_mode!r}; valid: rgb_array (or None)")
         self.render_mode = render_mode
         self.spec_machine = machine_spec(cfg["machine"])
-        lo, hi = (float(v) for v in cfg["route_length"])
-        if not 5.0 <= lo <= hi:
-            raise ConfigError(f"config.route_length must be [min, max] with 5 <= min <= max, got {cfg['route_length']}")
+        check_config(cfg)
         self.reward_fn = make_reward(cfg["reward_preset"], cfg["reward"])
         self.dt = float(cfg["dt"])
         self.substeps = int(cfg["physics_substeps"])
-        if self.substeps < 1 or not self.dt > 0 or not math.isfinite(self.dt):
-            raise ConfigError("config.dt must be a finite number > 0 and config.physics_substeps >= 1")
-        for key in ("stuck_steps", "collision_steps", "horizon"):
-            if not isinstance(cfg[key], int) or isinstance(cfg[key], bool) or cfg[key] < (1 if key == "horizon" else 0):
-                raise ConfigError(f"config.{key} must be an integer >= {1 if key == 'horizon' else 0}, got {cfg[key]!r}")
-        hms = cfg["horizon_min_speed"]
-        if hms is not None and not (isinstance(hms, (int, float)) and 0 < hms < math.inf):
-            raise ConfigError(f"config.horizon_min_speed must be a positive number or None, got {hms!r}")
-        if cfg["split"] is not None:
-            check_choice(cfg["split"], tuple(SPLITS), what="config.split")
-        unknown = set(cfg["cost_kinds"]) - {*STATIC_COLLISION_KINDS, "agent", "vehicle"}
-        if unknown:
-            raise ConfigError(f"unknown config.cost_kinds {sorted(unknown)}; valid: {', '.join([*STATIC_COLLISION_KINDS, 'agent', 'vehicle'])}")
         self.cost_kinds = frozenset(cfg["cost_kinds"])
         if cfg["scene_spec"] is not None:
             check_spec(cfg["scene_spec"])
@@ -109,13 +93,7 @@ class PointNavEnv(gym.Env):
         lid = cfg["lidar"]
         self.num_beams = int(lid["beams"])
         self.num_low_beams = int(lid["low_beams"])
-        for key in ("range", "low_range", "height", "low_height"):
-            if not (isinstance(lid[key], (int, float)) and 0 < lid[key] < math.inf):
-                raise ConfigError(f"config.lidar.{key} must be a positive finite number, got {lid[key]!r}")
-        check_choice(lid["encoding"], ENCODINGS, what="config.lidar.encoding")
         W = int(cfg["num_waypoints"])
-        if W < 1 or not float(cfg["waypoint_spacing"]) > 0:
-            raise ConfigError("config.num_waypoints must be >= 1 and config.waypoint_spacing > 0")
         self.num_waypoints = W
         self.observation_names = (
             [f"lidar_{k}" for k in range(self.num_beams)] + [f"low_{k}" for k in range(self.num_low_beams)]

@@ -1,7 +1,7 @@
 """The PointNav task: its config defaults, the reward presets, and where an episode's scene comes from.
 
 Two reward presets (docs/tasks.md explains each choice):
-- `paper`: DESIGN.md's formula R = R_term + 0.5 R_disp + 1.0 R_lateral + 0.1 R_steering + 1.0 R_crash, kept
+- `paper`: the MetaUrban paper's formula R = R_term + 0.5 R_disp + 1.0 R_lateral + 0.1 R_steering + 1.0 R_crash, kept
   for comparison. With it, standing still (return ~0) and leaving the route early beat honest attempts.
 - `learnable` (default): progress is paid only for new ground (the largest arc length reached, so driving back
   and forth earns nothing), the lateral term is small and free within `lateral_free` of the route, a collision
@@ -12,13 +12,14 @@ Two reward presets (docs/tasks.md explains each choice):
 from __future__ import annotations
 
 import json
+import math
 import warnings
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from curbside.config import ConfigError, merge_strict
+from curbside.config import ConfigError, check_choice, merge_strict
 from sim.metrics import POINTNAV_MEASURES
 
 DEFAULT_CONFIG: dict[str, Any] = {
@@ -108,12 +109,55 @@ class Reward:
 
 
 REWARD_PRESETS: dict[str, dict[str, Any]] = {
-    # DESIGN.md / the paper: progress along the route, full lateral penalty, no stuck ending (stuck_steps and
+    # The MetaUrban paper: progress along the route, full lateral penalty, no stuck ending (stuck_steps and
     # collision_steps still end such episodes unless set to 0; their penalty is then 0).
     "paper": dict(success=5.0, out_of_route=-5.0, stuck=0.0, disp=0.5, progress="route", lateral=1.0,
                   lateral_free=0.0, steering=0.1, crash=1.0, floor=False),
     "learnable": asdict(Reward()),
 }
+
+
+COLLISION_KINDS = ("object", "building", "curb", "agent", "vehicle")
+
+
+def _is_int(v: Any, lo: int) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool) and v >= lo
+
+
+def _is_pos(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < math.inf
+
+
+def check_config(cfg: Mapping[str, Any]) -> None:
+    """Validate the task config's values (types, ranges, finiteness); ConfigError names the key and the range."""
+    lo, hi = (float(v) for v in cfg["route_length"])
+    if not 5.0 <= lo <= hi < math.inf:
+        raise ConfigError(f"config.route_length must be [min, max] with 5 <= min <= max, got {cfg['route_length']}")
+    if not _is_pos(cfg["dt"]) or not _is_int(cfg["physics_substeps"], 1):
+        raise ConfigError("config.dt must be a finite number > 0 and config.physics_substeps an integer >= 1")
+    for key, low in (("stuck_steps", 0), ("collision_steps", 0), ("horizon", 1), ("num_waypoints", 1)):
+        if not _is_int(cfg[key], low):
+            raise ConfigError(f"config.{key} must be an integer >= {low}, got {cfg[key]!r}")
+    for key in ("stuck_distance", "waypoint_spacing", "speed_scale", "out_of_route_distance"):
+        if not _is_pos(cfg[key]):
+            raise ConfigError(f"config.{key} must be a positive finite number, got {cfg[key]!r}")
+    if cfg["horizon_min_speed"] is not None and not _is_pos(cfg["horizon_min_speed"]):
+        raise ConfigError(f"config.horizon_min_speed must be a positive number or None, got {cfg['horizon_min_speed']!r}")
+    if cfg["split"] is not None:
+        from sim.scene.dataset import SPLITS
+        check_choice(cfg["split"], tuple(SPLITS), what="config.split")
+    unknown = set(cfg["cost_kinds"]) - set(COLLISION_KINDS)
+    if unknown:
+        raise ConfigError(f"unknown config.cost_kinds {sorted(unknown)}; valid: {', '.join(COLLISION_KINDS)}")
+    lid = cfg["lidar"]
+    for key in ("range", "low_range", "height", "low_height"):
+        if not _is_pos(lid[key]):
+            raise ConfigError(f"config.lidar.{key} must be a positive finite number, got {lid[key]!r}")
+    for key in ("beams", "low_beams"):
+        if not _is_int(lid[key], 1 if key == "beams" else 0):
+            raise ConfigError(f"config.lidar.{key} must be an integer >= {1 if key == 'beams' else 0}, got {lid[key]!r}")
+    from sim.sensors import ENCODINGS
+    check_choice(lid["encoding"], ENCODINGS, what="config.lidar.encoding")
 
 
 def make_reward(preset: str, overrides: Mapping[str, Any] | None) -> Reward:
