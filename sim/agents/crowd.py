@@ -183,21 +183,40 @@ class AgentManager:
         c = self.config
         if fresh:
             self._obstacles = self._orca_obstacles(spec)
-        # A new simulator every episode: RVO2's clearAgents leaves its agent k-d tree pointing at the deleted
-        # agents when the new episode has as many agents (use after free: runs stopped being deterministic).
-        self.sim = pyrvo.RVOSimulator(0.1, c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
-                                      c["time_horizon_obst"], 0.3, 2.0)
-        for i in range(self.n):
-            kind = AGENT_KINDS[KIND_NAMES[self.kind_idx[i]]]
-            top = (kind.run_speed or kind.pref_speed) + 3.0 * kind.speed_std
-            self.sim.add_agent(tuple(self.pos[i]), c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
-                               c["time_horizon_obst"], float(self.radius[i] + c["safety_margin"]), float(top))
-        # The ego is the last ORCA agent; it starts parked far away so it influences nobody until placed.
-        self.ego_id = self.sim.add_agent(self._parked(), c["neighbor_dist"], c["max_neighbors"],
-                                         c["time_horizon"], c["time_horizon_obst"], 0.1, 50.0)
-        for vertices in self._obstacles:
-            self.sim.add_obstacle(vertices)
-        self.sim.process_obstacles()
+            self._sims: dict[int, Any] = {}
+        # Processing the scene's obstacles (object footprints, walkable boundary) costs ~0.2 s, more than a short
+        # episode: each scene keeps one simulator per agent capacity (a power of two) and reuses it. RVO2's
+        # clearAgents is never called (it left the agent k-d tree pointing at deleted agents): every slot is
+        # rewritten each episode (position, velocity, preference, radius, speed) and unused slots are parked far
+        # apart, so an episode's state does not depend on the episodes before it.
+        cap = 1 << max(self.n - 1, 0).bit_length()
+        sim = self._sims.get(cap)
+        if sim is None:
+            sim = pyrvo.RVOSimulator(0.1, c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
+                                     c["time_horizon_obst"], 0.3, 2.0)
+            for i in range(cap):
+                sim.add_agent(self._parked(i), c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
+                              c["time_horizon_obst"], 0.1, 0.0)
+            # The ego is the last ORCA agent; it starts parked far away so it influences nobody until placed.
+            sim.add_agent(self._parked(cap), c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
+                          c["time_horizon_obst"], 0.1, 50.0)
+            for vertices in self._obstacles:
+                sim.add_obstacle(vertices)
+            sim.process_obstacles()
+            self._sims[cap] = sim
+        self.sim, self.ego_id = sim, cap
+        for i in range(cap + 1):
+            if i < self.n:
+                kind = AGENT_KINDS[KIND_NAMES[self.kind_idx[i]]]
+                top = (kind.run_speed or kind.pref_speed) + 3.0 * kind.speed_std
+                pos, radius = (float(self.pos[i, 0]), float(self.pos[i, 1])), float(self.radius[i] + c["safety_margin"])
+            else:
+                pos, radius, top = self._parked(i), 0.1, 0.0 if i < cap else 50.0
+            sim.set_agent_position(i, pos)
+            sim.set_agent_velocity(i, (0.0, 0.0))
+            sim.set_agent_pref_velocity(i, (0.0, 0.0))
+            sim.set_agent_radius(i, radius)
+            sim.set_agent_max_speed(i, top)
 
     def _orca_obstacles(self, spec: dict[str, Any]) -> list[list[tuple[float, float]]]:
         """ORCA obstacles of a scene: object footprints (counter-clockwise) and walkable-boundary segments."""
@@ -211,9 +230,10 @@ class AgentManager:
         out += [[a, b] for a, b in boundary_segments(g.cells > 0, g.origin, g.res)]
         return out
 
-    def _parked(self) -> tuple[float, float]:
+    def _parked(self, slot: int = 0) -> tuple[float, float]:
+        """A far-away spot for an unused ORCA slot: 20 m apart, beyond any neighbour distance."""
         g = self.grid
-        return (float(g.origin[0]) - 1e4, float(g.origin[1]) - 1e4)
+        return (float(g.origin[0]) - 1e4 - 20.0 * slot, float(g.origin[1]) - 1e4)
 
     # ------------------------------------------------------------------ goals
     def _new_goal(self, i: int, node: int, abandon: bool = False) -> None:
@@ -244,7 +264,7 @@ class AgentManager:
     # ------------------------------------------------------------------ step
     def _set_ego(self, ego: EgoState | None) -> None:
         if ego is None:
-            self.sim.set_agent_position(self.ego_id, self._parked())
+            self.sim.set_agent_position(self.ego_id, self._parked(self.ego_id))
             self.sim.set_agent_velocity(self.ego_id, (0.0, 0.0))
             self.sim.set_agent_pref_velocity(self.ego_id, (0.0, 0.0))
             return

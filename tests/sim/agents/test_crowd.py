@@ -69,6 +69,25 @@ def test_deterministic_per_seed(toy: dict) -> None:
     assert not (len(a) == len(c) and np.allclose(a["x"], c["x"]))
 
 
+def test_reused_orca_simulator_gives_the_fresh_episode(toy: dict) -> None:
+    # One manager runs episodes with other agent counts first (its ORCA simulators and obstacles are reused);
+    # the episode of seed 7 must be the one a fresh manager runs.
+    def episode(m: AgentManager, seed: int, density: float) -> np.ndarray:
+        m.config["dynamic_density"] = density
+        m.reset(toy, np.random.default_rng(seed))
+        for _ in range(60):
+            s = m.step(0.1)
+        return s
+
+    used = AgentManager({"dynamic_density": 16})
+    for seed, density in ((1, 30.0), (2, 5.0), (3, 16.0)):
+        episode(used, seed, density)
+    fresh = episode(AgentManager({"dynamic_density": 16}), 7, 16.0)
+    again = episode(used, 7, 16.0)
+    assert len(used._sims) >= 2  # several capacities were built and kept
+    assert np.array_equal(fresh, again)
+
+
 def test_agents_make_room_for_the_ego(toy: dict) -> None:
     # The ego walks the right sidewalk's clear path at 1.2 m/s; ORCA does not move it, agents must.
     def ego(k: int) -> EgoState:
