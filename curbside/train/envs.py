@@ -26,31 +26,33 @@ def split_config(base: Mapping[str, Any] | None, split: str, num_scenes: int, sc
     if split not in SPLITS:
         raise ConfigError(f"unknown split {split!r}; valid: {', '.join(SPLITS)}")
     cfg = dict(base or {})
-    cfg.update(split=split, scene_seed=scene_seed)
-    if cfg.get("scene_dir") is None:
-        cfg["num_scenes"] = num_scenes
+    cfg.update(split=split, scene_seed=scene_seed, num_scenes=num_scenes)
     return cfg
 
 
 def env_fns(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, split: str = "train",
             wrappers: tuple[Callable[[gym.Env], gym.Env], ...] = ()) -> list[Callable[[], gym.Env]]:
-    """`n_envs` env constructors; worker k gets scenes [k * num_scenes / n_envs, (k + 1) * num_scenes / n_envs)."""
+    """`n_envs` env constructors; worker k gets scenes [k n / N, (k + 1) n / N) of the split (n = num_scenes,
+    N = n_envs; with fewer scenes than workers, worker k gets scene k mod n), all held in its scene cache."""
     import sim  # noqa: F401  (registers the ids in this process and in spawned workers)
 
     eid = env_id(task)
-    per = max(num_scenes // n_envs, 1)
 
     def make(k: int) -> Callable[[], gym.Env]:
+        lo, hi = k * num_scenes // n_envs, (k + 1) * num_scenes // n_envs
+        if hi <= lo:
+            lo, hi = k % num_scenes, k % num_scenes + 1
+
         def thunk() -> gym.Env:
             import sim  # noqa: F401
             from stable_baselines3.common.monitor import Monitor
 
-            cfg = split_config(config, split, per, scene_seed=(k * per) % max(num_scenes, 1))
-            cfg.setdefault("scene_cache", per)
+            cfg = split_config(config, split, hi - lo, scene_seed=lo)
+            cfg.setdefault("scene_cache", hi - lo)
             env: gym.Env = gym.make(eid, config=cfg)
             for w in wrappers:
                 env = w(env)
-            return Monitor(env, info_keywords=("is_success", "episode_cost", "route_completion", "spl"))
+            return Monitor(env, info_keywords=("is_success", "episode_cost", "route_completion"))
         return thunk
 
     return [make(k) for k in range(n_envs)]

@@ -11,8 +11,6 @@ import numpy as np
 
 from curbside.train.demos import Transitions
 
-OFFLINE_DEFAULTS: dict[str, Any] = {"batch_size": 256, "steps_per_epoch": 1000}
-
 
 def _quiet_d3rlpy() -> None:
     import structlog
@@ -44,7 +42,8 @@ def train_offline(algo: str, demos: Transitions, out: Path, *, steps: int, seed:
     configs = {"iql": d3rlpy.algos.IQLConfig, "td3bc": d3rlpy.algos.TD3PlusBCConfig}
     learner = configs[algo](batch_size=batch_size).create(device="cpu")
     ds = mdp_dataset(demos)
-    per_epoch = max(min(1000, steps), 1)
+    # d3rlpy runs steps // per_epoch epochs: an epoch length that divides `steps` trains exactly `steps`.
+    per_epoch = next(d for d in range(min(1000, steps), 0, -1) if steps % d == 0)
     log = []
     bar = None
     if progress:

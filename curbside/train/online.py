@@ -45,15 +45,19 @@ class EarlyTermination(gym.Wrapper):
         return obs, r, term, trunc, info
 
 
-def _lagrange_callback(lag_lr: float, cost_limit: float, lam0: float) -> Any:
+def _lagrange_callback(lag_lr: float, cost_limit: float, lam0: float, state: Path) -> Any:
     from stable_baselines3.common.callbacks import BaseCallback
 
     class LagrangeCallback(BaseCallback):
-        """PPO-Lag: subtract lambda * cost from every reward; update lambda from the rollout's episode costs."""
+        """PPO-Lag: subtract lambda * cost from every reward; update lambda from the rollout's episode costs.
+
+        lambda is not part of SB3's checkpoint: it is kept in `state` (lagrange.json) so a resumed run goes on
+        with the multiplier it had.
+        """
 
         def __init__(self) -> None:
             super().__init__()
-            self.lam = lam0
+            self.lam = float(json.loads(state.read_text())["lambda"]) if state.is_file() else lam0
             self.episode_costs: list[float] = []
 
         def _on_step(self) -> bool:
@@ -72,6 +76,7 @@ def _lagrange_callback(lag_lr: float, cost_limit: float, lam0: float) -> Any:
                 self.logger.record("lagrange/episode_cost", jc)
                 self.episode_costs = []
             self.logger.record("lagrange/lambda", self.lam)
+            state.write_text(json.dumps({"lambda": self.lam, "steps": self.num_timesteps}))
 
     return LagrangeCallback()
 
@@ -115,7 +120,11 @@ def train_online(algo: str, task: str, out: Path, *, steps: int, env_config: Map
     model.set_logger(configure(str(out / "logs"), ["csv", "tensorboard"]))
     callbacks: list = [CheckpointCallback(max(100_000 // n_envs, 1), str(ckpt_dir), name_prefix="policy")]
     if algo == "ppo_lag":
-        callbacks.append(_lagrange_callback(float(hparams["lag_lr"]), float(hparams["cost_limit"]), float(hparams["lag_init"])))
+        state = out / "lagrange.json"
+        if latest is None and state.exists():
+            state.unlink()  # a fresh run starts from lag_init
+        callbacks.append(_lagrange_callback(float(hparams["lag_lr"]), float(hparams["cost_limit"]),
+                                            float(hparams["lag_init"]), state))
     if eval_every > 0:
         callbacks.append(SplitEvalCallback(task, env_config, eval_every, eval_episodes, eval_split, out / "eval_curve.csv"))
     (out / "run.json").write_text(json.dumps({"algo": algo, "task": task, "steps": steps, "n_envs": n_envs,

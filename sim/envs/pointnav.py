@@ -131,13 +131,13 @@ class PointNavEnv(gym.Env):
             slot = self.cache.new_slot(key)
             try:
                 self._build_slot(slot, load())
+                self._use(slot)
+                self._on_scene(slot.world.spec)
             except BaseException:
                 self.cache.slots.pop(key, None)
                 self.cache._spare.append(slot.client)
-                self.slot = None
+                self.slot = self.route = None
                 raise
-            self._use(slot)
-            self._on_scene(slot.world.spec)
         else:
             self._use(slot)
             self._load_scene_state(slot.state)
@@ -185,6 +185,9 @@ class PointNavEnv(gym.Env):
         """Restore what `_scene_state` saved when the env comes back to a cached world."""
         self._collision_kinds = state.get("collision_kinds", {})
 
+    def _park_bodies(self) -> None:
+        """Called at reset before the start's height is probed: move bodies the subclass added out of the way."""
+
     def _on_reset(self, rng: np.random.Generator) -> None:
         """Called after the machine is placed at the route's start (subclasses place agents here)."""
 
@@ -224,8 +227,9 @@ class PointNavEnv(gym.Env):
         start = self.route.start
         yaw = self.route.heading_at(0.0)
         m = self.machine
-        # Park the machine far away so the height probe sees the surface, not the machine itself.
+        # Park the machine (and the subclass's bodies) far away so the height probe sees the surface only.
         p.resetBasePositionAndOrientation(m.body, [0, 0, -50], [0, 0, 0, 1], physicsClientId=self.client)
+        self._park_bodies()
         # With the machine away from everything, Bullet drops its cached contacts (warm-start impulses):
         # an episode then does not depend on the episodes before it.
         p.performCollisionDetection(physicsClientId=self.client)

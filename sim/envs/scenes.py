@@ -89,8 +89,6 @@ class SceneCache:
     """Least-recently-used built scenes, at most `size`, each in its own Bullet client."""
 
     def __init__(self, size: int, first_client: int, gui: bool) -> None:
-        if not isinstance(size, int) or isinstance(size, bool) or size < 1:
-            raise ConfigError(f"config.scene_cache must be an integer >= 1, got {size!r}")
         self.size = 1 if gui else size  # Bullet allows one GUI client
         self.gui = gui
         self.slots: OrderedDict[Any, SceneSlot] = OrderedDict()

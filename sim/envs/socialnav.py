@@ -78,13 +78,17 @@ class SocialNavEnv(PointNavEnv):
         self._collision_kinds = {}
         self._body_kind_idx = self._body_kind_src = np.zeros(0, dtype=np.int16)
 
-    def _scene_state(self) -> dict[str, Any]:
-        # The agent bodies live in the world being left: park them so they are out of the way when it returns.
+    def _park_bodies(self) -> None:
+        # Last episode's agents and vehicles must not stand where the next start's surface height is probed.
         for body in self._agent_bodies + self._vehicle_bodies:
             p.resetBasePositionAndOrientation(body, [0, 0, -20], [0, 0, 0, 1], physicsClientId=self.client)
         self._vehicles_shown = -1
         if getattr(self, "_body_xyz", None) is not None:
             self._body_xyz = np.full_like(self._body_xyz, np.nan)
+
+    def _scene_state(self) -> dict[str, Any]:
+        # The agent bodies live in the world being left: park them so they are out of the way when it returns.
+        self._park_bodies()
         return {k: getattr(self, k, None) for k in self._WORLD_STATE}
 
     def _load_scene_state(self, state: dict[str, Any]) -> None:

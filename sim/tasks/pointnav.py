@@ -135,7 +135,7 @@ def check_config(cfg: Mapping[str, Any]) -> None:
         raise ConfigError(f"config.route_length must be [min, max] with 5 <= min <= max, got {cfg['route_length']}")
     if not _is_pos(cfg["dt"]) or not _is_int(cfg["physics_substeps"], 1):
         raise ConfigError("config.dt must be a finite number > 0 and config.physics_substeps an integer >= 1")
-    for key, low in (("stuck_steps", 0), ("collision_steps", 0), ("horizon", 1), ("num_waypoints", 1)):
+    for key, low in (("stuck_steps", 0), ("collision_steps", 0), ("horizon", 1), ("num_waypoints", 1), ("scene_cache", 1)):
         if not _is_int(cfg[key], low):
             raise ConfigError(f"config.{key} must be an integer >= {low}, got {cfg[key]!r}")
     for key in ("stuck_distance", "waypoint_spacing", "speed_scale", "out_of_route_distance"):

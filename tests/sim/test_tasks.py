@@ -197,3 +197,20 @@ def test_dataset_folder_split_with_no_scenes_is_a_clear_error(tmp_path):
     env.close()
     with pytest.raises(ConfigError, match="split 'train' has no scenes .*`curbside scenes dataset --split train"):
         PointNavEnv({"scene_dir": str(tmp_path), "split": "train"})
+
+
+def test_socialnav_start_height_ignores_the_last_episodes_agents(spec):
+    cfg = {"scene_spec": spec, "traffic": False, "agents": {"counts": {"pedestrian": 6}}}
+    used = SocialNavEnv(cfg)
+    used.reset(seed=0)
+    for _ in range(5):
+        used.step([0.0, 0.5])
+    x, y = (float(v) for v in used.crowd.pos[0])
+    options = {"start": [x, y], "goal": [x + 15.0 if x < 40 else x - 15.0, y]}
+    used.reset(seed=1, options=options)
+    fresh = SocialNavEnv(cfg)
+    fresh.reset(seed=1, options=options)
+    assert used.machine.position[2] == pytest.approx(fresh.machine.position[2], abs=1e-6)
+    assert fresh.machine.position[2] < 0.5  # on the sidewalk, not on a pedestrian's head
+    used.close()
+    fresh.close()

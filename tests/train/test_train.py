@@ -137,3 +137,36 @@ def test_bad_config_json_is_one_line_exit_2(tmp_path) -> None:
     assert "--config is not valid JSON" in line
     line = _one_error_line(runner.invoke(app, ["demos", "collect", "--config", '{"bogus": 1}', "--out", str(tmp_path)]))
     assert "unknown key 'bogus'" in line
+
+
+def test_offline_trains_exactly_the_steps_asked(demos, tmp_path) -> None:
+    train("td3bc", "PointNav", tmp_path, steps=30, env_config=CFG, demos=Path(demos["path"]), progress=False)
+    log = json.loads((tmp_path / "train_log.json").read_text())
+    assert log[-1]["gradient_steps"] == 30
+
+
+def test_ppo_lag_keeps_lambda_across_resume(tmp_path) -> None:
+    h = {**TINY_PPO, "cost_limit": -1.0, "lag_lr": 0.5, "lag_init": 0.0}
+    train("ppo_lag", "PointNav", tmp_path, steps=256, env_config=CFG, n_envs=2, num_scenes=2, hparams=h,
+          progress=False, subprocess=False)
+    lam = json.loads((tmp_path / "lagrange.json").read_text())["lambda"]
+    ckpt = tmp_path / "checkpoints"
+    ckpt.mkdir(exist_ok=True)
+    (tmp_path / "policy.zip").rename(ckpt / "policy_256_steps.zip")
+    train("ppo_lag", "PointNav", tmp_path, steps=384, env_config=CFG, n_envs=2, num_scenes=2,
+          hparams={**h, "lag_lr": 0.0}, progress=False, subprocess=False, resume=True)
+    assert lam > 0.0 and json.loads((tmp_path / "lagrange.json").read_text())["lambda"] == lam
+
+
+def test_workers_shard_the_scenes_of_a_dataset_folder(tmp_path) -> None:
+    from curbside.train.envs import env_fns
+    from sim.scene.dataset import build_dataset
+
+    build_dataset("train", 4, tmp_path, base={"blocks": 1})
+    fns = env_fns("PointNav", {"scene_dir": str(tmp_path), "route_length": [5.0, 20.0]}, 2, 4)
+    shards = []
+    for fn in fns:
+        env = fn()
+        shards.append({str(f) for f in env.unwrapped.scenes.files})
+        env.close()
+    assert len(shards[0]) == len(shards[1]) == 2 and not shards[0] & shards[1]
