@@ -121,7 +121,11 @@ def dataset(
 
 
 @app.command()
-def stats(directory: Path = typer.Argument(..., help="Dataset folder written by `curbside scenes dataset`.")) -> None:
+def stats(
+    directory: Path = typer.Argument(..., help="Dataset folder written by `curbside scenes dataset`."),
+    vs_paper: bool = typer.Option(False, "--vs-paper", help="Print each MetaUrban-12K statistic beside ours (+ PNG)."),
+    seed: int = typer.Option(0, min=0, help="Seed of the route draws (--vs-paper)."),
+) -> None:
     """Write a dataset's statistics (objects per scene, object area, route length) as PNG and JSON."""
     from sim.scene.dataset import dataset_stats
 
@@ -132,3 +136,22 @@ def stats(directory: Path = typer.Argument(..., help="Dataset folder written by 
     typer.echo(f"{st['scenes']} scenes: objects {st['objects']['mean']:.1f}±{st['objects']['std']:.1f}, "
                f"object area {st['object_area_m2']['mean']:.1f} m², route {st['route_length_m']['mean']:.0f} m")
     typer.echo(f"{png}\n{js}")
+    if not vs_paper:
+        return
+    from rich.console import Console
+    from rich.progress import track
+    from rich.table import Table
+
+    from sim.scene.paper_stats import LABELS, dataset_vs_paper, write_vs_paper
+
+    bar = iter(track(range(st["scenes"]), description="scenes vs paper", transient=True))
+    result = dataset_vs_paper(directory, seed=seed, progress=lambda n: next(bar, None))
+    table = Table(title=f"{result['scenes']} scenes vs MetaUrban-12K (routes drawn in {result['route_length']} m)")
+    for col in ("statistic", "curbside", "paper", "ratio", "within 25 %"):
+        table.add_column(col, justify="left" if col == "statistic" else "right")
+    for k, row in result["table"].items():
+        table.add_row(LABELS[k], f"{row['ours']:.3g}", row["paper_text"], f"{row['ratio']:.2f}",
+                      "yes" if row["within_25pct"] else "no")
+    Console().print(table)
+    js2, png2 = write_vs_paper(result, directory)
+    typer.echo(f"{png2}\n{js2}")
