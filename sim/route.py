@@ -10,12 +10,13 @@ from typing import Any
 
 import numpy as np
 from scipy import ndimage
-from scipy.sparse import coo_matrix
+from scipy.sparse import coo_matrix, diags
 from scipy.sparse.csgraph import dijkstra
 
 from sim.scene.grid import decode_walkable, obstacle_mask
 
 SIDEWALK, CROSSWALK, RAMP = 1, 2, 3
+LONG_ROUTE = 120.0  # metres: longer routes are drawn as chained legs
 
 
 class RouteError(RuntimeError):
@@ -207,11 +208,17 @@ class RoutePlanner:
 
     def sample(self, rng: np.random.Generator, min_length: float = 5.0, max_length: float = 60.0,
                tries: int = 20, spacing: float = 0.25) -> Route:
-        """Draw a start on a sidewalk cell and a goal whose shortest-path distance is in [min, max]; plan it."""
+        """Draw a start on a sidewalk cell and a goal whose shortest-path distance is in [min, max]; plan it.
+
+        Routes longer than LONG_ROUTE (120 m) are chained legs (`_sample_legs`): in a 1-3 block scene no two
+        points are 400 m apart, but a delivery round along both sides of the streets is.
+        """
         sidewalk = self.grid.mask[self.rows, self.cols] == SIDEWALK
         candidates = np.nonzero(sidewalk)[0]
         if len(candidates) == 0:
             candidates = np.arange(len(self.rows))
+        if min_length > LONG_ROUTE:
+            return self._sample_legs(rng, min_length, max_length, candidates, sidewalk, spacing)
         for _ in range(tries):
             start = int(candidates[rng.integers(len(candidates))])
             dist, pred = dijkstra(self.graph, indices=start, limit=1.5 * max_length, return_predecessors=True)
@@ -223,6 +230,82 @@ class RoutePlanner:
             while chain[-1] != start:
                 chain.append(int(pred[chain[-1]]))
             chain.reverse()
+            route = self._route(chain, spacing)
+            if min_length <= route.length <= max_length:
+                return route
+        raise RouteError(
+            f"found no route between {min_length} and {max_length} m in {tries} tries; use a larger scene "
+            "(more blocks) or a shorter `route_length`"
+        )
+
+    def _without_recent(self, chain: list[int], cur: int, radius_m: float = 8.0) -> Any:
+        """The graph without the half disc of `radius_m` behind the chain's end (its last 3 m give the heading).
+
+        A leg drawn on it cannot start by turning back: a wheeled machine without reverse cannot U-turn beside
+        obstacles. Cells just beside the end (within 0.5 m behind it) stay, so the end keeps its neighbours.
+        """
+        k = min(len(chain) - 1, int(3.0 / self.grid.resolution))
+        a, b = chain[-1 - k], chain[-1]
+        heading = np.array([self.cols[b] - self.cols[a], self.rows[b] - self.rows[a]], dtype=float)
+        heading /= max(float(np.hypot(*heading)), 1e-9)
+        r = int(round(radius_m / self.grid.resolution))
+        i0, j0 = int(self.rows[cur]), int(self.cols[cur])
+        n_i, n_j = self.node.shape
+        sl = (slice(max(i0 - r, 0), min(i0 + r + 1, n_i)), slice(max(j0 - r, 0), min(j0 + r + 1, n_j)))
+        ii, jj = np.mgrid[sl]
+        behind = ((ii - i0) ** 2 + (jj - j0) ** 2 <= r * r) & (
+            (jj - j0) * heading[0] + (ii - i0) * heading[1] < -0.5 / self.grid.resolution)
+        nodes = self.node[sl][behind]
+        keep = np.ones(self.graph.shape[0])
+        keep[nodes[nodes >= 0]] = 0.0
+        d = diags(keep)
+        graph = (d @ self.graph @ d).tocsr()
+        graph.eliminate_zeros()
+        return graph
+
+    def _goes_on(self, chain: list[int], cur: int, ahead_m: float = 20.0) -> bool:
+        """Whether open space lies `ahead_m` onwards from the chain's end without turning back."""
+        dist = dijkstra(self._without_recent(chain, cur), indices=cur, limit=2.0 * ahead_m)
+        return bool((np.isfinite(dist) & (dist >= ahead_m)).any())
+
+    def _sample_legs(self, rng: np.random.Generator, min_length: float, max_length: float, candidates: np.ndarray,
+                     sidewalk: np.ndarray, spacing: float, tries: int = 12) -> Route:
+        """A long route as legs between sidewalk points, each leading away from where the last one began."""
+        open_sidewalk = sidewalk & (self.penalty[self.rows, self.cols] <= 1.0)
+        for _ in range(tries):
+            target = float(rng.uniform(min_length, max_length))
+            cur = int(candidates[rng.integers(len(candidates))])
+            chain, total, prev = [cur], 0.0, None
+            for _leg in range(16):
+                remaining = target - total
+                if remaining < 10.0:
+                    break
+                # A leg never starts back the way it came, and ends where the route can go on forwards (a dead end
+                # would need a U-turn, which a wheeled machine without reverse cannot make beside obstacles).
+                graph = self._without_recent(chain, cur) if len(chain) > 1 else self.graph
+                dist, pred = dijkstra(graph, indices=cur, return_predecessors=True)
+                # Costs grow up to 3x near obstacles: a leg's cost overstates its length, so aim a bit long.
+                hi = 1.3 * remaining
+                ok = np.isfinite(dist) & open_sidewalk & (dist >= min(0.5 * hi, 40.0)) & (dist <= hi)
+                if prev is not None:
+                    ok &= prev > dist  # leads away from the previous leg's start
+                pick = np.nonzero(ok)[0]
+                leg: list[int] = []
+                for nxt in (pick[rng.permutation(len(pick))[:4]] if len(pick) else []):
+                    cand = [int(nxt)]
+                    while cand[-1] != cur:
+                        cand.append(int(pred[cand[-1]]))
+                    if remaining - float(dist[nxt]) < 10.0 or self._goes_on(chain + cand[::-1][1:], int(nxt)):
+                        leg = cand
+                        break
+                if not leg:
+                    break
+                nxt = leg[0]
+                chain += leg[::-1][1:]
+                total += float(np.hypot(np.diff(self.rows[leg]), np.diff(self.cols[leg])).sum()) * self.grid.resolution
+                prev, cur = dist, nxt
+            if total < 0.8 * min_length:
+                continue
             route = self._route(chain, spacing)
             if min_length <= route.length <= max_length:
                 return route

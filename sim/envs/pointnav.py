@@ -10,13 +10,13 @@ import gymnasium as gym
 import numpy as np
 import pybullet as p
 
-from curbside.config import ConfigError, merge_strict
+from curbside.config import ConfigError
 from sim.envs.scenes import SceneCache, SceneSlot, SceneSource
 from sim.machines import Machine, machine_spec
 from sim.metrics import make_measures
 from sim.route import RoutePlanner
 from sim.sensors import Lidar
-from sim.tasks.pointnav import DEFAULT_CONFIG, check_config, make_reward
+from sim.tasks.pointnav import DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward, resolve_task_config
 from sim.world import SURFACE_KINDS, World, check_spec
 
 WALL_NZ = 0.5  # a contact whose normal is flatter than this is a wall (a curb side), not the ground
@@ -73,9 +73,10 @@ class PointNavEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
     default_config: dict[str, Any] = DEFAULT_CONFIG
+    presets: dict[str, dict[str, Any]] = TASK_PRESETS
 
     def __init__(self, config: Mapping[str, Any] | None = None, render_mode: str | None = None) -> None:
-        self.config = merge_strict(self.default_config, config, name="config")
+        self.config = resolve_task_config(self.default_config, config, self.presets)
         cfg = self.config
         if render_mode not in (None, "rgb_array"):
             raise ConfigError(f"unknown render_mode {render_mode!r}; valid: rgb_array (or None)")

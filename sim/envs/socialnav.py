@@ -16,6 +16,7 @@ from sim.agents.vehicles import VEHICLE_DEFAULTS, VehicleManager
 from sim.envs.pointnav import PointNavEnv
 from sim.metrics import POINTNAV_MEASURES, Measure, register_measure
 from sim.tasks.pointnav import DEFAULT_CONFIG as POINTNAV_CONFIG
+from sim.tasks.pointnav import TASK_PRESETS
 
 SOCIALNAV_MEASURES = [*POINTNAV_MEASURES, "psc", "stl", "sns"]
 DEFAULT_CONFIG: dict[str, Any] = {
@@ -28,6 +29,11 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "cost_kinds": ["object", "building", "agent", "vehicle"],
     "measures": list(SOCIALNAV_MEASURES),
     "render": {**POINTNAV_CONFIG["render"], "camera": "map", "width": 256, "height": 256},
+}
+# SocialNav's presets: PointNav's plus the paper's 10 dynamic agents per block (7.2 per 100 m of sidewalk on the
+# metaurban12k scenes, which have ~139 m of sidewalk per block).
+PRESETS: dict[str, dict[str, Any]] = {
+    name: {**preset, "agents": {"dynamic_density": 7.2}} for name, preset in TASK_PRESETS.items()
 }
 VEHICLE_HEIGHT = 1.5
 
@@ -51,6 +57,7 @@ class SocialNavEnv(PointNavEnv):
     """
 
     default_config: dict[str, Any] = DEFAULT_CONFIG
+    presets: dict[str, dict[str, Any]] = PRESETS
 
     def __init__(self, config: Mapping[str, Any] | None = None, render_mode: str | None = None) -> None:
         super().__init__(config, render_mode)

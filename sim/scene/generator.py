@@ -60,12 +60,24 @@ def generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any = None
     skipped = 0
     for sw in sidewalks:
         placer.standard(sw)
-    for sw in sidewalks:
-        placer.non_standard(sw)
-    for sw in sidewalks:
-        placer.clutter(sw)
+    if cfg["density_model"] == "paper":
+        for sw in sidewalks:
+            placer.fill(sw)
+    else:
+        for sw in sidewalks:
+            placer.non_standard(sw)
+        for sw in sidewalks:
+            placer.clutter(sw)
     for sw in sidewalks:
         skipped += placer.buildings(sw)
+    if cfg["density_model"] == "paper":
+        # Small scenes (one short block) fall below the paper's minimum count: fill the gaps left, with ever
+        # smaller gaps, until the scene holds min_objects.
+        for round_ in range(6):
+            if len(placer.objects) >= int(cfg["min_objects"]):
+                break
+            for sw in sidewalks:
+                placer.fill(sw, gap_scale=0.75 ** (round_ + 1))
 
     walk_polys = [sw.polygon for sw in sidewalks]
     cw_polys = [c.polygon for c in crosswalks]

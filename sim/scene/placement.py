@@ -16,6 +16,7 @@ from sim.scene.categories import CATEGORIES, CLUTTER_ZONES, CategorySampler
 from sim.scene.geometry import rectangle
 from sim.scene.sidewalks import Sidewalk, Zone
 
+FILL_ZONES = ("near_road_buffer", "furnishing", "frontage_buffer", "frontage")
 CELL = 5.0  # spatial-hash cell size (m) for the incremental overlap test
 GAP = 0.02  # clearance kept between footprints so rounding to 0.1 mm never makes them touch
 
@@ -204,6 +205,67 @@ class Placer:
             if a is None or not self._random_in(sw, zone, cat, a, "random"):
                 self.refused[cat] += 1
 
+    def fill(self, sw: Sidewalk, gap_scale: float = 1.0) -> None:
+        """The `paper` density model: rows of objects along every furniture zone, gaps drawn around `fill_gap`.
+
+        MetaUrban-12K's sidewalks are lined with furniture 0.7 m apart on average (the paper's appendix). Each
+        zone beside the clear path (near-road buffer, furnishing, frontage buffer, frontage) is walked from one
+        end to the other: at each step one object of a category designated for the zone (or, with probability
+        `fill_clutter`, a clutter item) is placed at a random lateral offset, then the walk skips its width plus a
+        gap ~ Gamma(2, fill_gap / 2 / rho). Objects that do not fit are skipped, so the clear-path corridor and
+        the ramp approaches stay free (the keep-outs hold as for every other pass).
+        """
+        rho = float(self.cfg["object_density"])
+        if rho <= 0:
+            return
+        gap_mean = float(self.cfg["fill_gap"]) * gap_scale / rho
+        p_clutter = float(self.cfg["fill_clutter"])
+        for zone in sw.zones:
+            if zone.kind == "clear":
+                # Parked scooters, bicycles and bags along the edges of the walkway, outside the kept corridor.
+                margin = 0.5 * (zone.width - float(self.cfg["min_clear_width"]))
+                if margin >= 0.45:
+                    self._fill_row(sw, zone, zone.d0, zone.d0 + margin, 2.0 * gap_mean, 1.0)
+                    self._fill_row(sw, zone, zone.d1 - margin, zone.d1, 2.0 * gap_mean, 1.0)
+                continue
+            if zone.kind not in FILL_ZONES:
+                continue
+            # Wide zones (frontage of commercial templates) hold several rows, as cafe seating and displays do.
+            rows = max(1, int(zone.width // float(self.cfg["fill_row_width"])))
+            band = zone.width / rows
+            for r in range(rows):
+                self._fill_row(sw, zone, zone.d0 + r * band, zone.d0 + (r + 1) * band, gap_mean, p_clutter)
+
+    def _fill_row(self, sw: Sidewalk, zone: Zone, d0: float, d1: float, gap_mean: float, p_clutter: float) -> None:
+        cl, side = sw.roadway.centerline, sw.side
+        zkind = "furnishing" if zone.kind == "near_road_buffer" else zone.kind
+        width = d1 - d0
+        allowed = [c for c, (k, zs, _) in CATEGORIES.items() if k != "clutter" and zkind in zs
+                   and c != "building_facade" and self.min_depth[c] <= width - 0.05]
+        s, s1 = sw.s_range[0] + float(self.rng.uniform(0.0, gap_mean)), sw.s_range[1]
+        while s < s1:
+            clutter = not allowed or self.rng.random() < p_clutter
+            if clutter:
+                cat = self.sampler.draw(self.rng, "clutter")
+            else:
+                ns = [c for c in allowed if CATEGORIES[c][0] == "non_standard"]
+                cat = self.sampler.draw(self.rng, "non_standard" if ns else "standard", ns or allowed)
+            a = self.asset(cat, zone.kind, width - 0.05) if cat is not None else None
+            if a is None:
+                s += gap_mean
+                continue
+            depth, wid = a[1][0], a[1][1]
+            along = wid if not clutter else max(depth, wid)
+            half = (max(depth, wid) if clutter else depth) / 2
+            lo, hi = d0 + half + 0.02, d1 - half - 0.02
+            if hi >= lo:
+                p, h = cl.point(s + along / 2, side * float(self.rng.uniform(lo, hi)))
+                yaw = float(self.rng.uniform(-math.pi, math.pi)) if clutter else (
+                    h + side * math.pi / 2 * (1 if zkind == "furnishing" else -1))
+                if not self.try_place(sw, zone, cat, a, p, yaw):
+                    self.refused[cat] += 1
+            s += along + float(self.rng.gamma(2.0, gap_mean / 2.0))
+
     def buildings(self, sw: Sidewalk) -> int:
         """Building facades side by side along the building zone; returns how many spots were skipped."""
         zone = sw.building
@@ -213,19 +275,25 @@ class Placer:
         ends = cl.project(np.asarray(zone.polygon.exterior.coords))
         s, s_end = float(ends.min()), float(ends.max())
         skipped = 0
+        # The paper model lines the street with buildings: boxes sized to the zone (no catalog facade needed) and,
+        # on curves, shallower and narrower ones until they fit the bent zone.
+        fill = self.cfg["density_model"] == "paper"
         while s < s_end - 4.0:
             want = float(self.rng.uniform(8.0, 20.0))
-            a = self.asset("building_facade", "building", zone.width, want)
-            if a is None:
+            a = None if fill and not self._in_catalog("building_facade") else self.asset("building_facade", "building", zone.width, want)
+            if a is None and not fill:
                 skipped += 1
                 s += 3.0
                 continue
-            if a[0] is None:
+            if a is None or a[0] is None:
                 a = (None, [zone.width, want, float(self.rng.uniform(6.0, 30.0))])
             placed = False
             # Only fallback boxes may be narrowed; a catalog mesh keeps its real size.
-            for shrink in (1.0, 0.6, 0.35) if a[0] is None else (1.0,):
-                size = [a[1][0], max(a[1][1] * shrink, 3.0), a[1][2]]
+            shapes = [(1.0, 1.0), (1.0, 0.6), (1.0, 0.35)] if a[0] is None else [(1.0, 1.0)]
+            if fill and a[0] is None:
+                shapes += [(0.8, 0.6), (0.8, 0.35), (0.6, 0.35), (0.6, 0.2)]
+            for deep, shrink in shapes:
+                size = [a[1][0] * deep, max(a[1][1] * shrink, 3.0), a[1][2]]
                 sc = s + size[1] / 2 + 0.1
                 p, h = cl.point(sc, side * (zone.d0 + size[0] / 2))
                 if self.try_place(sw, zone, "building_facade", (a[0], size), p, h - side * math.pi / 2, keep_out=False):

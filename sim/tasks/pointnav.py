@@ -23,6 +23,7 @@ from curbside.config import ConfigError, check_choice, merge_strict
 from sim.metrics import POINTNAV_MEASURES
 
 DEFAULT_CONFIG: dict[str, Any] = {
+    "preset": None,                   # a TASK_PRESETS name (e.g. "metaurban12k"): its values replace these defaults
     "machine": "delivery_bot",        # a name from sim.machines.MACHINES or a dict of MachineSpec fields
     "scene": {},                      # generator config passed to sim.scene.generate_scene (partial is fine)
     "split": "train",                 # train | test | unseen | finetune (sim.scene.dataset.SPLITS), or None
@@ -59,6 +60,39 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "measures": list(POINTNAV_MEASURES),
     "render": {"camera": "top_down", "width": 128, "height": 128, "top_down_height": 25.0},
 }
+
+
+# Named route-length ranges (metres). "metaurban12k": the paper's mean episode of ~410 m (chained legs, see
+# sim.route.RoutePlanner.sample).
+ROUTE_LENGTHS: dict[str, list[float]] = {"short": [10.0, 60.0], "metaurban12k": [250.0, 650.0]}
+# Task presets: values that replace the defaults (explicit config keys still win). "metaurban12k": the paper's
+# scenes (scene preset), routes and a horizon that fits them (route length / 1 m/s; the expert needs 4 s per 10 m).
+TASK_PRESETS: dict[str, dict[str, Any]] = {
+    "metaurban12k": {"scene": {"preset": "metaurban12k"}, "route_length": ROUTE_LENGTHS["metaurban12k"],
+                     "horizon": 6500, "horizon_min_speed": 1.0},
+}
+
+
+def resolve_task_config(defaults: Mapping[str, Any], config: Mapping[str, Any] | None,
+                        presets: Mapping[str, Mapping[str, Any]] = TASK_PRESETS) -> dict[str, Any]:
+    """`config` merged strictly over `defaults`, after the values of the preset it names (config["preset"]).
+
+    `scene` is a partial generator config (validated by the generator): a preset's scene keys and the caller's
+    are combined key by key.
+    """
+    if config is not None and not isinstance(config, Mapping):
+        raise ConfigError(f"config must be a mapping, got {type(config).__name__}")
+    cfg = dict(config or {})
+    base = dict(defaults)
+    name = cfg.get("preset")
+    if name is not None:
+        if name not in presets:
+            raise ConfigError(f"unknown config.preset {name!r}; valid: {', '.join(presets)} (or None)")
+        base = merge_strict(base, presets[name], name=f"preset {name}")
+    if isinstance(cfg.get("scene"), Mapping):
+        cfg["scene"] = {**base.get("scene", {}), **cfg["scene"]}
+        base["scene"] = {}
+    return merge_strict(base, cfg, name="config")
 
 
 @dataclass(frozen=True)

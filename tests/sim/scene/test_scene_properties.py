@@ -15,7 +15,9 @@ from sim.scene import decode_walkable, generate_scene, obstacle_mask
 from sim.scene.grid import rasterize
 
 SEEDS = range(12)
-CONFIGS = [{"blocks": 3}, {"blocks": "SXT", "templates": "g"}, {"blocks": "OC", "templates": "ad", "object_density": 2.0}]
+CONFIGS = [{"blocks": 3}, {"blocks": "SXT", "templates": "g"}, {"blocks": "OC", "templates": "ad", "object_density": 2.0},
+           # The densest: the MetaUrban-12K preset at twice its object density (rows of furniture 0.55 m apart).
+           {"blocks": 3, "preset": "metaurban12k", "object_density": 2.0}]
 
 
 @pytest.fixture(scope="module")
