@@ -51,6 +51,9 @@ AGENT_DEFAULTS: dict[str, Any] = {
     "budget_factor": 2.0,  # goal time budget = factor * path length / speed + slack
     "budget_slack": 10.0,
     "spawn_clearance": 0.3,
+    "spawn_area": "sidewalks",  # sidewalks | intersections (within intersection_margin of X/T/O blocks) | route
+    "intersection_margin": 10.0,  # metres around an intersection/junction/roundabout road polygon
+    "route_band": 5.0,  # metres either side of the ego's route ("route": dynamic_density per 100 m of route)
     "trail_length": 15,
 }
 
@@ -74,6 +77,25 @@ def _as_ego(ego: EgoState | Mapping[str, float] | Sequence[float] | None) -> Ego
     return EgoState(*(float(v) for v in ego))
 
 
+SPAWN_AREAS = ("sidewalks", "intersections", "route")
+
+
+def spawn_region(spec: dict[str, Any], config: Mapping[str, Any], route: np.ndarray | None) -> Any:
+    """The polygon agents spawn in (None: every sidewalk): around intersections, or along the ego's route."""
+    from shapely.geometry import LineString, Polygon
+    from shapely.ops import unary_union
+
+    area = config["spawn_area"]
+    if area == "sidewalks":
+        return None
+    if area == "intersections":
+        roads = [Polygon(r["polygon"]) for r in spec.get("roads", []) if r.get("block") in ("X", "T", "O")]
+        return unary_union(roads).buffer(float(config["intersection_margin"])) if roads else Polygon()
+    if route is None or len(route) < 2:
+        raise ConfigError("agents spawn_area 'route' needs the ego's route (SocialNav passes it at reset)")
+    return LineString(np.asarray(route)[:, :2]).buffer(float(config["route_band"]))
+
+
 def sidewalk_length(spec: dict[str, Any]) -> float:
     """Total sidewalk length in metres (clear-path polylines, else curb edges) used by dynamic_density."""
     total = 0.0
@@ -89,6 +111,10 @@ class AgentManager:
 
     def __init__(self, config: Mapping[str, Any] | None = None) -> None:
         self.config = merge_strict(AGENT_DEFAULTS, config, name="agents config")
+        if self.config["spawn_area"] not in SPAWN_AREAS:
+            raise ConfigError(f"unknown agents spawn_area {self.config['spawn_area']!r}; valid: {', '.join(SPAWN_AREAS)}")
+        self._area: Any = None
+        self._route_length = 0.0
         for kind in self.config["counts"]:
             agent_kind(kind)
         if any(v < 0 for v in self.config["mix"].values()) or sum(self.config["mix"].values()) <= 0:
@@ -102,13 +128,19 @@ class AgentManager:
 
     # ------------------------------------------------------------------ reset
     def reset(self, spec: dict[str, Any], rng: np.random.Generator, ego: EgoState | None = None,
-              keep_clear: Sequence[tuple[float, float, float]] = ()) -> np.ndarray:
-        """Build the planner for `spec`, spawn agents away from `keep_clear` discs (x, y, r) and return states()."""
+              keep_clear: Sequence[tuple[float, float, float]] = (), route: np.ndarray | None = None) -> np.ndarray:
+        """Build the planner for `spec`, spawn agents away from `keep_clear` discs (x, y, r) and return states().
+
+        `route` (N, 2): the ego's route, for `spawn_area: "route"` (agents per 100 m of route, along it).
+        """
         c = self.config
         self.rng = rng
         fresh = spec is not self._scene
         if fresh:
             self.grid = build_navgrid(spec, plan_radius=c["plan_radius"], n_sites=c["n_goal_sites"])
+        self._area = spawn_region(spec, c, route)
+        if route is not None and len(route) >= 2:
+            self._route_length = float(np.linalg.norm(np.diff(np.asarray(route)[:, :2], axis=0), axis=1).sum())
         kinds = self._draw_kinds(spec, rng)
         self.n = n = len(kinds)
         self.kind_idx = np.array([KIND_NAMES.index(k) for k in kinds], dtype=np.int16)
@@ -148,7 +180,7 @@ class AgentManager:
         if c["counts"]:
             kinds = [k for k in KIND_NAMES for _ in range(int(c["counts"].get(k, 0)))]
         else:
-            n = int(round(c["dynamic_density"] * sidewalk_length(spec) / 100.0))
+            n = int(round(c["dynamic_density"] * self._area_length(spec) / 100.0))
             names = list(c["mix"])
             p = np.array([c["mix"][k] for k in names], dtype=np.float64)
             kinds = list(rng.choice(names, size=n, p=p / p.sum())) if n else []
@@ -157,9 +189,28 @@ class AgentManager:
                               "lower dynamic_density/counts or raise max_agents")
         return [str(k) for k in kinds]
 
+    def _area_length(self, spec: dict[str, Any]) -> float:
+        """Metres of sidewalk (or route) the spawn count scales with: dynamic_density agents per 100 m of it."""
+        if self._area is None:
+            return sidewalk_length(spec)
+        if self.config["spawn_area"] == "route":
+            return float(self._route_length)
+        from shapely.geometry import LineString
+
+        total = 0.0
+        for sw in spec.get("sidewalks", []):
+            line = sw.get("clear_path") or sw.get("edge") or []
+            if len(line) >= 2:
+                total += LineString(line).intersection(self._area).length
+        return total
+
     def _spawn_positions(self, rng: np.random.Generator, clear: list[tuple[float, float, float]]) -> np.ndarray:
         g = self.grid
         cand = g.node_xy(rng.permutation(g.n_nodes))
+        if self._area is not None:
+            import shapely
+
+            cand = cand[shapely.contains_xy(self._area, cand[:, 0], cand[:, 1])]
         for x, y, r in clear:
             cand = cand[np.hypot(cand[:, 0] - x, cand[:, 1] - y) > r]
         cand = cand + rng.uniform(-0.3, 0.3, cand.shape) * g.res  # off the cell centres, still in the cell

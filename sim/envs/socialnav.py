@@ -107,7 +107,8 @@ class SocialNavEnv(PointNavEnv):
         start = self.route.start
         goal = self.route.goal
         self.crowd.reset(spec, rng, ego=self._ego_state(), keep_clear=[(float(goal[0]), float(goal[1]), 1.0),
-                                                                   (float(start[0]), float(start[1]), 2.0)])
+                                                                   (float(start[0]), float(start[1]), 2.0)],
+                        route=self.route.points)
         if self.config["traffic"]:
             self.traffic.reset(spec, rng)
         else:
