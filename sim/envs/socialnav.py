@@ -35,6 +35,15 @@ DEFAULT_CONFIG: dict[str, Any] = {
 PRESETS: dict[str, dict[str, Any]] = {
     name: {**preset, "agents": {"dynamic_density": 7.2}} for name, preset in TASK_PRESETS.items()
 }
+# Unseen agent behaviour (the paper's "unseen" split has unseen agent behaviour too): in unseen and finetune,
+# more people run and fewer stand, lanes do not form (no keep-right offset), wheeled VRUs are twice as common,
+# and agents react later to each other. Keys the caller sets in `agents` still win.
+SPLIT_AGENT_BEHAVIOUR: dict[str, dict[str, Any]] = {
+    split: {"run_prob": 0.3, "idle_prob": 0.1, "keep_right": 0.0, "time_horizon": 1.0,
+            "mix": {"pedestrian": 0.40, "wheelchair_user": 0.08, "cyclist": 0.14, "skateboarder": 0.10,
+                    "scooter_rider": 0.14, "delivery_robot": 0.09, "robot_dog": 0.05}}
+    for split in ("unseen", "finetune")
+}
 VEHICLE_HEIGHT = 1.5
 
 
@@ -60,6 +69,10 @@ class SocialNavEnv(PointNavEnv):
     presets: dict[str, dict[str, Any]] = PRESETS
 
     def __init__(self, config: Mapping[str, Any] | None = None, render_mode: str | None = None) -> None:
+        split = (config or {}).get("split", DEFAULT_CONFIG["split"]) if isinstance(config, Mapping) else None
+        if split in SPLIT_AGENT_BEHAVIOUR:
+            agents = (config or {}).get("agents") or {}
+            config = {**(config or {}), "agents": {**SPLIT_AGENT_BEHAVIOUR[split], **agents}}
         super().__init__(config, render_mode)
         self.crowd = AgentManager(self.config["agents"])
         self.traffic = VehicleManager(self.config["vehicles"])

@@ -99,3 +99,14 @@ def test_agents_spawn_only_around_intersections() -> None:
     env.close()
     with pytest.raises(ConfigError, match="valid: sidewalks, intersections, route"):
         SocialNavEnv({"agents": {"spawn_area": "everywhere"}})
+
+
+def test_unseen_split_agents_behave_differently_unless_told_otherwise() -> None:
+    train = SocialNavEnv({"split": "train", "traffic": False})
+    unseen = SocialNavEnv({"split": "unseen", "traffic": False})
+    mine = SocialNavEnv({"split": "unseen", "traffic": False, "agents": {"run_prob": 0.0}})
+    assert train.config["agents"]["run_prob"] == 0.1 and unseen.config["agents"]["run_prob"] == 0.3
+    assert unseen.config["agents"]["mix"]["pedestrian"] < train.config["agents"]["mix"]["pedestrian"]
+    assert mine.config["agents"]["run_prob"] == 0.0 and mine.config["agents"]["idle_prob"] == 0.1
+    for env in (train, unseen, mine):
+        env.close()
