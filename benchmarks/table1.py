@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from curbside.train.paper import PAPER_TABLE1  # noqa: E402
+from curbside.train.paper import PAPER_TABLE1
 
 BUDGETS: dict[str, dict[str, Any]] = {
     "smoke": {"online": {"PointNav": 2_048, "SocialNav": 2_048}, "gail": 2_048, "offline": 200, "bc": 200,
@@ -126,7 +126,8 @@ def plot(rows: list[dict[str, Any]], out: Path) -> None:
     if curves:
         fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
         for f in curves:
-            data = list(csv.DictReader(open(f)))
+            with open(f, newline="") as fh:
+                data = list(csv.DictReader(fh))
             steps = [int(d["steps"]) for d in data]
             label = f"{f.parent.parent.name} {NAMES[f.parent.name]}"
             axes[0].plot(steps, [float(d["sr"]) for d in data], marker="o", label=label)

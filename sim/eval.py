@@ -51,9 +51,15 @@ def evaluate(env_id: str, policy: str, episodes: int, config: Mapping[str, Any] 
             rows.append(run_episode(env, act, s))
     finally:
         env.close()
+    summary = summarize(rows)
+    summary["per_episode"] = rows
+    return summary
+
+
+def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Mean of every numeric metric over episodes; `success` becomes `sr`; `episodes` is the count."""
     keys = sorted({k for r in rows for k, v in r.items() if isinstance(v, (int, float))})
     summary: dict[str, Any] = {k: float(np.mean([r.get(k, 0.0) for r in rows])) for k in keys}
     summary["sr"] = summary.pop("success")
-    summary["episodes"] = episodes
-    summary["per_episode"] = rows
+    summary["episodes"] = len(rows)
     return summary

@@ -23,6 +23,11 @@ class RouteError(RuntimeError):
     """No route of the requested length exists in this scene for this machine."""
 
 
+def _no_route(min_length: float, max_length: float, tries: int) -> RouteError:
+    return RouteError(f"found no route between {min_length} and {max_length} m in {tries} tries; use a larger scene "
+                      "(more blocks) or a shorter `route_length`")
+
+
 class Route:
     """A smoothed reference polyline with arc length, projection and look-ahead queries."""
 
@@ -233,10 +238,7 @@ class RoutePlanner:
             route = self._route(chain, spacing)
             if min_length <= route.length <= max_length:
                 return route
-        raise RouteError(
-            f"found no route between {min_length} and {max_length} m in {tries} tries; use a larger scene "
-            "(more blocks) or a shorter `route_length`"
-        )
+        raise _no_route(min_length, max_length, tries)
 
     def _without_recent(self, chain: list[int], cur: int, radius_m: float = 8.0) -> Any:
         """The graph without the half disc of `radius_m` behind the chain's end (its last 3 m give the heading).
@@ -309,7 +311,4 @@ class RoutePlanner:
             route = self._route(chain, spacing)
             if min_length <= route.length <= max_length:
                 return route
-        raise RouteError(
-            f"found no route between {min_length} and {max_length} m in {tries} tries; use a larger scene "
-            "(more blocks) or a shorter `route_length`"
-        )
+        raise _no_route(min_length, max_length, tries)

@@ -20,6 +20,7 @@ import numpy as np
 
 from curbside.config import ConfigError
 from curbside.train.envs import env_id, split_config
+from curbside.train.progress import progress_bar
 
 
 @dataclass(frozen=True)
@@ -71,33 +72,27 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
     env.action_space.seed(seed)
     total, successes = 0, 0
     buffers: list[EpisodeBuffer] = []
-    bar = None
-    if progress:
-        from rich.progress import Progress
-        bar = Progress(transient=True)
-        bar.start()
-        job = bar.add_task(f"demos {task}", total=steps)
     try:
-        while total < steps:
-            ep_seed = seed + len(buffers)
-            obs, _ = env.reset(seed=ep_seed)
-            random_episode = rng.random() < random_prob
-            ep: dict[str, list] = {"observations": [obs], "actions": [], "rewards": [], "terminations": [], "truncations": []}
-            done = False
-            while not done:
-                a = env.action_space.sample() if random_episode else expert.act(env) + rng.normal(0.0, noise, 2)
-                a = np.clip(a, -1, 1).astype(np.float32)
-                obs, r, term, trunc, info = env.step(a)
-                for k, v in zip(("observations", "actions", "rewards", "terminations", "truncations"), (obs, a, r, term, trunc)):
-                    ep[k].append(v)
-                done = term or trunc
-                total += 1
-            successes += int(info["is_success"])
-            buffers.append(EpisodeBuffer(id=len(buffers), seed=ep_seed, observations=np.asarray(ep["observations"]),
-                                         actions=np.asarray(ep["actions"]), rewards=ep["rewards"],
-                                         terminations=ep["terminations"], truncations=ep["truncations"]))
-            if bar:
-                bar.update(job, completed=min(total, steps))
+        with progress_bar(f"demos {task}", steps, progress) as update:
+            while total < steps:
+                ep_seed = seed + len(buffers)
+                obs, _ = env.reset(seed=ep_seed)
+                random_episode = rng.random() < random_prob
+                ep: dict[str, list] = {"observations": [obs], "actions": [], "rewards": [], "terminations": [], "truncations": []}
+                done = False
+                while not done:
+                    a = env.action_space.sample() if random_episode else expert.act(env) + rng.normal(0.0, noise, 2)
+                    a = np.clip(a, -1, 1).astype(np.float32)
+                    obs, r, term, trunc, info = env.step(a)
+                    for k, v in zip(("observations", "actions", "rewards", "terminations", "truncations"), (obs, a, r, term, trunc)):
+                        ep[k].append(v)
+                    done = term or trunc
+                    total += 1
+                successes += int(info["is_success"])
+                buffers.append(EpisodeBuffer(id=len(buffers), seed=ep_seed, observations=np.asarray(ep["observations"]),
+                                             actions=np.asarray(ep["actions"]), rewards=ep["rewards"],
+                                             terminations=ep["terminations"], truncations=ep["truncations"]))
+                update(total)
         # Built from buffers, not minari.DataCollector: the collector needs jax for nothing more than list appends.
         with warnings.catch_warnings():
             # Minari asks for a code permalink, an e-mail and an eval env; the env spec it records is the eval env.
@@ -107,8 +102,6 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
                 author="curbside", description=f"{task} demonstrations on the train split: the pure-pursuit expert with "
                 "Gaussian action noise (curbside demos collect).", data_format="arrow")
     finally:
-        if bar:
-            bar.stop()
         env.close()
     episodes = len(buffers)
     summary = {"dataset_id": did, "path": str(target), "episodes": episodes, "steps": total,

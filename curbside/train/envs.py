@@ -44,7 +44,6 @@ def env_fns(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, 
             lo, hi = k % num_scenes, k % num_scenes + 1
 
         def thunk() -> gym.Env:
-            import sim  # noqa: F401
             from stable_baselines3.common.monitor import Monitor
 
             cfg = split_config(config, split, hi - lo, scene_seed=lo)

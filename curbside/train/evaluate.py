@@ -19,6 +19,7 @@ def evaluate_policy(act: Callable[[np.ndarray], np.ndarray], task: str, env_conf
     import gymnasium as gym
 
     import sim  # noqa: F401
+    from sim.eval import summarize
 
     cfg = split_config(env_config, split, num_scenes)
     cfg["scene_cache"] = 1  # evaluation visits each scene about once: no point keeping worlds
@@ -38,9 +39,6 @@ def evaluate_policy(act: Callable[[np.ndarray], np.ndarray], task: str, env_conf
             rows.append(dict(info["metrics"]))
     finally:
         env.close()
-    keys = sorted({k for r in rows for k, v in r.items() if isinstance(v, (int, float))})
-    summary: dict[str, Any] = {k: float(np.mean([r.get(k, 0.0) for r in rows])) for k in keys}
-    summary["sr"] = summary.pop("success")
-    summary["episodes"] = episodes
+    summary = summarize(rows)
     summary["split"] = split
     return summary

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from curbside.train.demos import Transitions
+from curbside.train.progress import progress_bar
 
 
 def _quiet_d3rlpy() -> None:
@@ -45,21 +46,11 @@ def train_offline(algo: str, demos: Transitions, out: Path, *, steps: int, seed:
     # d3rlpy runs steps // per_epoch epochs: an epoch length that divides `steps` trains exactly `steps`.
     per_epoch = next(d for d in range(min(1000, steps), 0, -1) if steps % d == 0)
     log = []
-    bar = None
-    if progress:
-        from rich.progress import Progress
-        bar = Progress(transient=True)
-        bar.start()
-        job = bar.add_task(f"{algo} gradient steps", total=steps)
-    try:
+    with progress_bar(f"{algo} gradient steps", steps, progress) as update:
         for epoch, metrics in learner.fitter(ds, n_steps=steps, n_steps_per_epoch=per_epoch, show_progress=False,
                                               logger_adapter=d3rlpy.logging.NoopAdapterFactory()):
             log.append({"epoch": epoch, "gradient_steps": epoch * per_epoch, **{k: float(v) for k, v in metrics.items()}})
-            if bar:
-                bar.update(job, completed=min(epoch * per_epoch, steps))
-    finally:
-        if bar:
-            bar.stop()
+            update(epoch * per_epoch)
     out.mkdir(parents=True, exist_ok=True)
     (out / "train_log.json").write_text(json.dumps(log, indent=1))
     path = out / "policy.d3"
