@@ -34,8 +34,6 @@ def env_fns(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, 
             wrappers: tuple[Callable[[gym.Env], gym.Env], ...] = ()) -> list[Callable[[], gym.Env]]:
     """`n_envs` env constructors; worker k gets scenes [k n / N, (k + 1) n / N) of the split (n = num_scenes,
     N = n_envs; with fewer scenes than workers, worker k gets scene k mod n), all held in its scene cache."""
-    import sim  # noqa: F401  (registers the ids in this process and in spawned workers)
-
     eid = env_id(task)
 
     def make(k: int) -> Callable[[], gym.Env]:
@@ -45,6 +43,8 @@ def env_fns(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, 
 
         def thunk() -> gym.Env:
             from stable_baselines3.common.monitor import Monitor
+
+            import sim  # noqa: F401  (registers the env ids, in this process or a spawned worker)
 
             cfg = split_config(config, split, hi - lo, scene_seed=lo)
             cfg.setdefault("scene_cache", hi - lo)
