@@ -170,3 +170,15 @@ def test_workers_shard_the_scenes_of_a_dataset_folder(tmp_path) -> None:
         shards.append({str(f) for f in env.unwrapped.scenes.files})
         env.close()
     assert len(shards[0]) == len(shards[1]) == 2 and not shards[0] & shards[1]
+
+
+def test_subprocess_workers_build_their_envs() -> None:
+    from curbside.train.envs import make_vec_env
+
+    vec = make_vec_env("PointNav", CFG, 2, 2, subprocess=True)
+    try:
+        obs = vec.reset()
+        obs, rewards, dones, infos = vec.step(np.zeros((2, 2), dtype=np.float32))
+        assert obs.shape == (2, 24 + 8 + 6 + 20 + 3) and rewards.shape == (2,)
+    finally:
+        vec.close()
