@@ -1,6 +1,6 @@
 """Benchmark the scene generator: scenes/s and ms per 3-block scene, and the projected time for 12,800 scenes.
 
-Usage: python benchmarks/scenes.py [--count 60] [--blocks 3] [--catalog PATH] [--profile]
+Usage: python benchmarks/scenes.py [--count 60] [--blocks 3] [--preset metaurban12k] [--catalog PATH] [--profile]
 """
 
 from __future__ import annotations
@@ -17,13 +17,14 @@ def main() -> None:
     ap.add_argument("--count", type=int, default=60)
     ap.add_argument("--blocks", default="3")
     ap.add_argument("--catalog", default=None)
+    ap.add_argument("--preset", default=None, help="scene preset, e.g. metaurban12k (the paper's density)")
     ap.add_argument("--profile", action="store_true", help="print the top functions by cumulative time")
     args = ap.parse_args()
     from sim.scene import dumps, generate_scene
     from sim.scene.dataset import split_config
 
     blocks = int(args.blocks) if args.blocks.isdigit() else args.blocks
-    cfg, _ = split_config("train", {"blocks": blocks})
+    cfg, _ = split_config("train", {"blocks": blocks, **({"preset": args.preset} if args.preset else {})})
     reader = None
     if args.catalog:
         from catalogs.reader import CatalogReader
