@@ -106,6 +106,7 @@ def plot(rows: list[dict[str, Any]], out: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
     import numpy as np
 
     panels = sorted({(r["task"], r["split"]) for r in rows})
@@ -133,6 +134,7 @@ def plot(rows: list[dict[str, Any]], out: Path) -> None:
             axes[0].plot(steps, [float(d["sr"]) for d in data], marker="o", label=label)
             axes[1].plot(steps, [float(d.get("spl") or d.get("sns") or 0) for d in data], marker="o", label=label)
         for ax, name in zip(axes, ("test-split SR", "test-split SPL")):
+            ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda x, _: f"{x / 1000:.0f}k"))
             ax.set_xlabel("env steps")
             ax.set_ylabel(name)
             ax.set_ylim(0, 1)
