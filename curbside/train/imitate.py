@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from curbside.train.demos import Transitions
+from curbside.train.progress import progress_bar
 
 
 def _transitions(tr: Transitions) -> Any:
@@ -38,7 +39,15 @@ def train_bc(demos: Transitions, out: Path, *, steps: int, observation_space: An
     with warnings.catch_warnings():
         # imitation logs a loss tensor through float(): harmless, and not the user's to fix.
         warnings.filterwarnings("ignore", message="Converting a tensor with requires_grad")
-        trainer.train(n_batches=steps, log_interval=max(steps // 10, 1), progress_bar=progress)
+        # imitation's own bars are nested tqdm lines per epoch: one rich bar over the minibatches instead.
+        with progress_bar("bc minibatches", steps, progress) as update:
+            done = [0]
+
+            def tick() -> None:
+                done[0] += 1
+                update(done[0])
+
+            trainer.train(n_batches=steps, log_interval=max(steps // 10, 1), progress_bar=False, on_batch_end=tick)
     path = out / "policy.zip"
     trainer.policy.save(str(path))
     return path
