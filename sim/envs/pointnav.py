@@ -135,8 +135,7 @@ class PointNavEnv(gym.Env):
                 self._use(slot)
                 self._on_scene(slot.world.spec)
             except BaseException:
-                self.cache.slots.pop(key, None)
-                self.cache._spare.append(slot.client)
+                self.cache.discard(key)
                 self.slot = self.route = None
                 raise
         else:

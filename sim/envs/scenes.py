@@ -114,6 +114,12 @@ class SceneCache:
         self.slots[key] = slot
         return slot
 
+    def discard(self, key: Any) -> None:
+        """Forget the slot of `key` (its build failed); its client is kept for the next new scene."""
+        slot = self.slots.pop(key, None)
+        if slot is not None:
+            self._spare.append(slot.client)
+
     def clients(self) -> list[int]:
         """Every Bullet client the cache holds."""
         return [s.client for s in self.slots.values()] + list(self._spare)

@@ -41,17 +41,9 @@ def test_observation_layout_and_names(spec):
     env.close()
 
 
-def test_same_seed_same_episode_even_after_other_episodes(spec):
+def test_same_seed_same_episode_even_after_other_episodes(spec, random_trace):
     def run(env, seed):
-        obs, _ = env.reset(seed=seed)
-        rng = np.random.default_rng(seed)
-        trace = [obs]
-        for _ in range(40):
-            obs, r, term, trunc, _ = env.step(rng.uniform(-1, 1, 2))
-            trace.append(np.append(obs, r))
-            if term or trunc:
-                break
-        return trace
+        return random_trace(env, seed, 40)
 
     a = PointNavEnv({"scene_spec": spec})
     b = PointNavEnv({"scene_spec": spec})

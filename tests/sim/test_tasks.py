@@ -146,18 +146,7 @@ def test_split_configs_draw_disjoint_scenes():
         PointNavEnv({"split": "validation"})
 
 
-def test_scene_cache_reuses_worlds_and_episodes_do_not_depend_on_it():
-    def trace(env, seed):
-        obs, _ = env.reset(seed=seed)
-        out = [obs]
-        rng = np.random.default_rng(seed)
-        for _ in range(15):
-            obs, r, term, trunc, _ = env.step(rng.uniform(-1, 1, 2))
-            out.append(np.append(obs, r))
-            if term or trunc:
-                break
-        return out
-
+def test_scene_cache_reuses_worlds_and_episodes_do_not_depend_on_it(random_trace):
     cfg = {"num_scenes": 3, "route_length": [5.0, 30.0]}
     cached = PointNavEnv({**cfg, "scene_cache": 3})
     fresh = PointNavEnv({**cfg, "scene_cache": 1})
@@ -168,7 +157,7 @@ def test_scene_cache_reuses_worlds_and_episodes_do_not_depend_on_it():
     assert all(len(v) == 1 for v in worlds.values())  # a repeated scene is not rebuilt
     assert len(cached.cache.slots) <= 3
     for s in (4, 1, 5):
-        a, b = trace(cached, s), trace(fresh, s)
+        a, b = random_trace(cached, s, 15), random_trace(fresh, s, 15)
         assert len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))
     cached.close()
     fresh.close()
