@@ -6,6 +6,7 @@ import typer
 
 from curbside import __version__
 from curbside.cli import catalog, pool, scenes, sim, train
+from curbside.cli.errors import run
 
 app = typer.Typer(
     name="curbside",
@@ -31,9 +32,15 @@ def _version(value: bool) -> None:
 @app.callback()
 def main(
     version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version and exit."),
+    debug: bool = typer.Option(False, "--debug", help="Show the full traceback of an error (also CURBSIDE_DEBUG=1)."),
 ) -> None:
     """curbside: urban micromobility research platform."""
 
 
+def cli() -> None:
+    """The `curbside` console script: the app with one error line per failure (curbside.cli.errors)."""
+    raise SystemExit(run(typer.main.get_command(app)))
+
+
 if __name__ == "__main__":
-    app()
+    cli()

@@ -1,0 +1,109 @@
+"""One error style for the whole `curbside` command: one line naming the problem and the fix, on stderr.
+
+Exit codes: 2 for bad usage or input (an unknown option value, a config key, a missing or corrupt file the user
+named), 1 for a run that failed on good input. `--debug` (anywhere on the command line) or `CURBSIDE_DEBUG=1`
+shows the full traceback instead. Commands raise the exceptions below (or ConfigError / ValueError for bad
+values); `run` maps every exception to its line and code, so no command needs its own try/except.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from collections.abc import Sequence
+
+import click
+import typer
+
+DEBUG_ENV = "CURBSIDE_DEBUG"
+
+
+class UsageError(Exception):
+    """Bad input from the user: the message names the problem and the fix (exit code 2)."""
+
+    exit_code = 2
+
+
+class RunError(Exception):
+    """A run that failed on valid input: the message says what failed and what to try (exit code 1)."""
+
+    exit_code = 1
+
+
+def fail(message: str, code: int = 2) -> typer.Exit:
+    """Print `message` as the one error line and return the Exit to raise (code 2: bad input, 1: failed run)."""
+    echo_error(message)
+    return typer.Exit(code)
+
+
+def echo_error(message: str) -> None:
+    """Write `error: message` to stderr as one line (no rich markup interpretation of the message)."""
+    from rich.console import Console
+    from rich.text import Text
+
+    line = " ".join(str(message).split())  # one line, whatever the exception's text held
+    Console(stderr=True, soft_wrap=True).print(Text.assemble(("error: ", "bold red"), line), highlight=False)
+
+
+def debug_enabled(argv: Sequence[str] | None = None) -> bool:
+    """Whether tracebacks were asked for (`--debug` in argv or CURBSIDE_DEBUG set to a true value)."""
+    argv = sys.argv[1:] if argv is None else argv
+    return "--debug" in argv or os.environ.get(DEBUG_ENV, "").lower() in ("1", "true", "yes")
+
+
+def classify(exc: BaseException) -> tuple[str, int]:
+    """The one line and exit code for an exception raised by a command."""
+    from curbside.config import ConfigError
+
+    name = type(exc).__name__
+    text = str(exc) or name
+    if isinstance(exc, (UsageError, RunError)):
+        return text, exc.exit_code
+    if isinstance(exc, ConfigError):
+        return text, 2
+    if isinstance(exc, json.JSONDecodeError):
+        return f"invalid JSON ({exc.msg} at line {exc.lineno} column {exc.colno}); pass a JSON object such as '{{\"key\": 1}}'", 2
+    if isinstance(exc, FileNotFoundError):
+        return f"{exc.filename or text}: no such file or directory; check the path", 2
+    if isinstance(exc, IsADirectoryError):
+        return f"{exc.filename or text} is a directory; give a file path", 2
+    if isinstance(exc, PermissionError):
+        return f"{exc.filename or text}: permission denied; choose a writable path", 2
+    if isinstance(exc, (ValueError, TypeError, KeyError)):
+        return f"{text}", 2
+    if isinstance(exc, MemoryError):
+        return "out of memory; use a smaller input (fewer blocks, scenes or assets)", 1
+    return f"{name}: {text} (rerun with --debug for the traceback)", 1
+
+
+def run(command: click.Command, argv: Sequence[str] | None = None, prog_name: str = "curbside") -> int:
+    """Run a click/typer command with the project's error style and return its exit code."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    debug = debug_enabled(args)
+    args = [a for a in args if a != "--debug"]
+    if debug:
+        os.environ[DEBUG_ENV] = "1"
+    try:
+        rv = command.main(args=args, prog_name=prog_name, standalone_mode=False)
+    except click.exceptions.Exit as e:  # typer.Exit raised outside click's own handling
+        return int(e.exit_code or 0)
+    except click.ClickException as e:
+        e.show()
+        return int(e.exit_code)
+    except click.Abort:
+        echo_error("aborted")
+        return 1
+    except KeyboardInterrupt:
+        echo_error("interrupted")
+        return 130
+    except BrokenPipeError:
+        return 0
+    except Exception as e:
+        if debug:
+            raise
+        line, code = classify(e)
+        echo_error(line)
+        return code
+    return int(rv) if isinstance(rv, int) else 0
+
