@@ -18,6 +18,13 @@ import typer
 
 DEBUG_ENV = "CURBSIDE_DEBUG"
 
+try:  # typer >= 0.20 parses with its own vendored copy of click: its BadParameter is not a click.ClickException
+    from typer._click.exceptions import ClickException as _TyperClickException
+
+    _CLICK_ERRORS: tuple[type[Exception], ...] = (click.ClickException, _TyperClickException)
+except ImportError:
+    _CLICK_ERRORS = (click.ClickException,)
+
 
 class UsageError(Exception):
     """Bad input from the user: the message names the problem and the fix (exit code 2)."""
@@ -88,7 +95,7 @@ def run(command: click.Command, argv: Sequence[str] | None = None, prog_name: st
         rv = command.main(args=args, prog_name=prog_name, standalone_mode=False)
     except click.exceptions.Exit as e:  # typer.Exit raised outside click's own handling
         return int(e.exit_code or 0)
-    except click.ClickException as e:
+    except _CLICK_ERRORS as e:
         e.show()
         return int(e.exit_code)
     except click.Abort:
