@@ -11,12 +11,48 @@ from typing import Any
 from curbside.config import check_choice
 
 EXECUTORS = ("local", "process", "ray")
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def check_executor(executor: str) -> None:
+    """Raise ConfigError naming the valid executors when `executor` is not one of them."""
+    check_choice(executor, EXECUTORS, what="executor")
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Worker initializer: end this process when `parent_pid` dies, even by SIGKILL (no orphaned workers)."""
+    import os
+    import signal
+    import sys
+    import threading
+    import time
+
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            # The kernel sends SIGKILL to this worker when the thread that forked it exits.
+            libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent_pid:  # the parent died before prctl took effect
+        os._exit(1)
+
+    def watch() -> None:
+        # Portable fallback (and covers a parent thread other than the one that spawned us): poll the parent.
+        while True:
+            time.sleep(1.0)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
 
 
 def run_map(fn: Callable[..., Any], items: Iterable[Any], *, executor: str = "local", workers: int | None = None,
             address: str | None = None, args: tuple = ()) -> Iterator[Any]:
     """Yield fn(item, *args) for each item, in order, computed by the chosen executor."""
-    check_choice(executor, EXECUTORS, what="executor")
+    check_executor(executor)
     if executor == "local":
         for item in items:
             yield fn(item, *args)
@@ -34,7 +70,9 @@ def _process_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | No
 
     workers = workers or os.cpu_count() or 1
     # spawn: torch and pybullet state must not be forked from a parent that already loaded them.
-    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+    # die_with_parent: a SIGKILLed ingest must not leave its workers rendering for nobody.
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"), initializer=die_with_parent,
+                             initargs=(os.getpid(),)) as pool:
         window: deque = deque()
         for item in items:
             window.append(pool.submit(fn, item, *args))
