@@ -1,5 +1,6 @@
-"""Lane geometry for vehicles: lane polylines offset from road centerlines, the crosswalks they cross, and the
-conflict zones where lanes of different directions cross (intersections), which only one axis may hold at a time.
+"""Lane geometry for vehicles: lane polylines offset from road centerlines, the crosswalks they cross, the
+conflict zones where lanes of different directions cross, which only one axis may hold at a time, and the
+connectors that carry vehicles through intersections (straight on, left and right turns).
 """
 
 from __future__ import annotations
@@ -20,6 +21,15 @@ class Lane:
     points: np.ndarray
     cum: np.ndarray
     crossings: list[tuple[int, float, float]]  # (crosswalk index, s_in, s_out)
+    road: int = -1  # index of the spec road the lane belongs to
+    rank: int = 0  # 0 for the lane next to the centerline, 1 for the next one out, ...
+    src: int = -1  # connectors only: the lane it leaves ...
+    dst: int = -1  # ... and the lane it joins
+
+    @property
+    def is_connector(self) -> bool:
+        """Whether this lane is a path through an intersection between two road lanes."""
+        return self.src >= 0
 
     @property
     def length(self) -> float:
@@ -52,7 +62,7 @@ def build_lanes(spec: dict[str, Any]) -> list[Lane]:
     """Lane polylines of every road in `spec`, with the crosswalks each one crosses."""
     crosswalks = [Polygon(c["polygon"]) for c in spec.get("crosswalks", [])]
     lanes = []
-    for road in spec.get("roads", []):
+    for ri, road in enumerate(spec.get("roads", [])):
         lw, n = float(road["lane_width"]), int(road["lanes"])
         for line in road.get("centerlines", []):
             base = LineString(line)
@@ -64,8 +74,79 @@ def build_lanes(spec: dict[str, Any]) -> list[Lane]:
                     pts = np.asarray(off.coords)
                     if side > 0:
                         pts = pts[::-1]
-                    lanes.append(_lane(pts, crosswalks))
+                    lane = _lane(pts, crosswalks)
+                    lane.road, lane.rank = ri, k
+                    lanes.append(lane)
     return [ln for ln in lanes if ln.length > 10.0]
+
+
+JUNCTIONS = ("X", "T")
+
+
+def build_connectors(spec: dict[str, Any], lanes: list[Lane], max_turn: float = math.radians(100.0)) -> list[Lane]:
+    """Paths through every intersection and T-junction: from each lane ending at the junction's box to each lane
+    of another arm starting there (straight on, left, right; no U-turns), as cubic Bezier curves tangent to both.
+
+    A lane end and a lane start belong to the junction when both lie within a metre of the box's circumscribed
+    circle and the start lies ahead of the end; lane k (counted from the centerline) joins lane k.
+    """
+    crosswalks = [Polygon(c["polygon"]) for c in spec.get("crosswalks", [])]
+    roads = spec.get("roads", [])
+    out: list[Lane] = []
+    for ri, road in enumerate(roads):
+        if road.get("block") not in JUNCTIONS:
+            continue
+        hw = int(road["lanes"]) * float(road["lane_width"])
+        # The box centre lies half a road width beyond the end of the first arm (the block's entry arm).
+        arm = np.asarray(road["centerlines"][0], dtype=np.float64)
+        d = arm[-1] - arm[-2]
+        centre = arm[-1] + hw * d / np.hypot(*d)
+        near = math.sqrt(2.0) * hw + 1.0  # the box's circumscribed circle plus a metre
+        ids = [i for i, ln in enumerate(lanes) if ln.road == ri]
+        ends = [i for i in ids if np.hypot(*(lanes[i].points[-1] - centre)) <= near]
+        starts = [i for i in ids if np.hypot(*(lanes[i].points[0] - centre)) <= near]
+        for a in ends:
+            end, h_end = lanes[a].points[-1], _heading(lanes[a], lanes[a].length)
+            for b in starts:
+                start, h_start = lanes[b].points[0], _heading(lanes[b], 0.0)
+                gap = start - end
+                dist = float(np.hypot(*gap))
+                turn = math.atan2(math.sin(h_start - h_end), math.cos(h_start - h_end))
+                ahead = float(gap @ np.array([math.cos(h_end), math.sin(h_end)]))
+                # Lane k feeds lane k of the other arm (no lane changes inside the box).
+                if a == b or lanes[a].rank != lanes[b].rank or dist <= 1.0 or abs(turn) > max_turn or ahead <= 0.5:
+                    continue
+                lane = _lane(_bezier(end, h_end, start, h_start), crosswalks)
+                lane.road, lane.src, lane.dst = ri, a, b
+                out.append(lane)
+    return out
+
+
+def _bezier(p0: np.ndarray, h0: float, p3: np.ndarray, h3: float, n: int = 17) -> np.ndarray:
+    """Points of the cubic Bezier from p0 (heading h0) to p3 (heading h3), control arms 0.4 x the chord."""
+    k = 0.4 * float(np.hypot(*(p3 - p0)))
+    p1 = p0 + k * np.array([math.cos(h0), math.sin(h0)])
+    p2 = p3 - k * np.array([math.cos(h3), math.sin(h3)])
+    t = np.linspace(0.0, 1.0, n)[:, None]
+    return (1 - t) ** 3 * p0 + 3 * (1 - t) ** 2 * t * p1 + 3 * (1 - t) * t * t * p2 + t ** 3 * p3
+
+
+def connector_compatibility(lanes: list[Lane], width: float, margin: float = 0.3) -> np.ndarray:
+    """[n, n] bool: whether vehicles may be on connectors i and j at once (same junction, disjoint swept paths,
+    different source and target lanes); always True between lanes of different junctions or for i == j.
+    """
+    n = len(lanes)
+    ok = np.ones((n, n), dtype=bool)
+    conn = [i for i, ln in enumerate(lanes) if ln.is_connector]
+    swept = {i: LineString(lanes[i].points).buffer(0.5 * width + margin) for i in conn}
+    for i in conn:
+        for j in conn:
+            a, b = lanes[i], lanes[j]
+            if i >= j or a.road != b.road:
+                continue
+            clash = a.src == b.src or a.dst == b.dst or swept[i].intersects(swept[j])
+            ok[i, j] = ok[j, i] = not clash
+    return ok
 
 
 def _lane(pts: np.ndarray, crosswalks: list[Polygon]) -> Lane:

@@ -112,3 +112,83 @@ def test_vehicles_continue_onto_the_next_block_without_jumping() -> None:
         assert np.all(moved[same] <= 0.1 * vm.config["desired_speed"][1] + 1e-6)
         prev, lane = st, vm.lane_id.copy()
     assert vm.continued > 0
+
+
+@pytest.fixture(scope="module")
+def junction() -> dict:
+    import warnings
+
+    from sim.scene import generate_scene
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # default-size boxes without a catalog
+        return generate_scene({"blocks": "SXS", "crosswalk_density": 1.0}, 0)
+
+
+def _right_turn(vm: VehicleManager) -> tuple[int, int, int, float]:
+    """(source lane, connector, target lane, crosswalk index on the target) of a right turn into a crosswalk."""
+    for ci in np.flatnonzero(vm.is_connector & vm.turn).tolist():
+        ln = vm.lanes[ci]
+        d0, d1 = ln.points[1] - ln.points[0], ln.points[-1] - ln.points[-2]
+        if d0[0] * d1[1] - d0[1] * d1[0] < 0 and vm.lanes[ln.dst].crossings:  # clockwise: a right turn
+            return ln.src, ci, ln.dst, vm.lanes[ln.dst].crossings[0][0]
+    raise AssertionError("the X block has no right turn onto a lane with a crosswalk")
+
+
+def test_a_vehicle_turns_at_an_intersection_and_stops_for_a_pedestrian_on_the_crosswalk(junction: dict) -> None:
+    def drive(person: np.ndarray | None) -> tuple[VehicleManager, list[tuple[int, float, float]]]:
+        vm = VehicleManager({"traffic_density": 0.0})
+        vm.reset(junction, np.random.default_rng(0))
+        src, conn, dst, _ = _right_turn(vm)
+        i = vm.add(src, vm.lanes[src].length - 40.0, speed=8.0, next_lane=conn)
+        trace = []
+        for _ in range(250):
+            st = vm.step(0.1, person)
+            trace.append((int(vm.lane_id[i]), float(vm.s[i]), float(st["yaw"][i])))
+        return vm, trace
+
+    vm, trace = drive(None)
+    src, conn, dst, cw = _right_turn(vm)
+    lanes = [t[0] for t in trace]
+    assert conn in lanes and dst in lanes, "the vehicle should drive through the connector onto the target lane"
+    turned = np.angle(np.exp(1j * (trace[-1][2] - trace[0][2])))
+    assert turned < -np.radians(60), f"a right turn should change the heading by about -90 degrees, got {np.degrees(turned):.0f}"
+    assert vm.turns >= 1
+
+    poly = vm.crosswalks[cw]
+    person = np.array([[poly.centroid.x, poly.centroid.y]])  # someone standing on the target lane's crosswalk
+    vm, trace = drive(person)
+    s_in = [s for c, s, _ in vm.lanes[dst].crossings if c == cw][0]
+    half = vm.config["length"] / 2.0
+    # Never past the crosswalk's near edge, and stopped there, after turning into the box.
+    assert all(lane != dst or s + half < s_in for lane, s, _ in trace), "the vehicle drove onto the occupied crosswalk"
+    assert trace[-1][0] in (conn, dst) and vm.v[-1] < 0.05
+    passed = False
+    for _ in range(100):
+        vm.step(0.1, None)
+        passed |= bool(vm.lane_id[-1] == dst and vm.s[-1] - half > s_in)
+    assert passed, "with the crosswalk clear the vehicle drives on over it"
+
+
+@pytest.mark.parametrize("blocks", ["SXS", "STS"])
+def test_junction_traffic_turns_and_never_overlaps(blocks: str) -> None:
+    import warnings
+
+    from sim.scene import generate_scene
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        spec = generate_scene({"blocks": blocks, "crosswalk_density": 0.0}, 1)
+    roads = unary_union([Polygon(r["polygon"]) for r in spec["roads"]]).buffer(0.3)
+    vm = VehicleManager({"traffic_density": 2.0})
+    vm.reset(spec, np.random.default_rng(0))
+    assert vm.is_connector.any()
+    for k in range(1200):
+        st = vm.step(0.1)
+        assert shapely.contains_xy(roads, st["x"], st["y"]).all(), "a vehicle left the roads"
+        if k % 3 == 0:
+            boxes = _boxes(st)
+            a, b = shapely.STRtree(boxes).query(boxes, predicate="intersects")
+            assert not np.any(a < b), f"step {k}: vehicles {a[a < b]} and {b[a < b]} overlap"
+    assert vm.turns >= 5, "vehicles should turn left and right through the junction"
+    assert np.mean(vm.v) > 1.0 and vm.continued > 0
