@@ -3,9 +3,15 @@
 Each agent steers at a carrot a few cells ahead on its goal site's distance field (sim.agents.navgrid) and
 pyrvo (RVO2) turns that preferred velocity into a collision-free one. The ego is one more ORCA agent whose
 position and velocity the simulator overwrites every step, so agents react to it but ORCA never moves it.
-Deadlocks are resolved in two stages: an agent that makes no progress for `stuck_steps` side-steps to its
-right (the rotate half of push-and-rotate, which breaks symmetric face-offs), and one still stuck after
-`regoal_steps` gives up its goal and picks another.
+Deadlocks are resolved by push-and-rotate (de Wilde et al. 2013) adapted to the continuous sidewalk, then by
+giving up: an agent that makes no progress for `stuck_steps` side-steps, right when there is room, else left
+(the *rotate* half: it breaks symmetric face-offs where two can pass); one stalled face to face with another
+agent, after `stuck_steps` when there is no room to side-step (a corridor one body wide) or after
+`2 * stuck_steps` otherwise, triggers the *push* half (sim.agents.deadlock): the lower-priority agent of the two
+retreats to the nearest cell off the other's path, waits until it has passed, then resumes its goal; one still
+stuck after `regoal_steps` gives up its goal and picks another.
+
+Movements: idle, walking, running (sim.agents.kinds), standing groups and road crossings (sim.agents.behaviours).
 """
 
 from __future__ import annotations
@@ -18,8 +24,11 @@ import numpy as np
 import pyrvo
 
 from curbside.config import ConfigError, merge_strict
+from sim.agents.behaviours import STAND_MARGIN, Crossings, Groups
+from sim.agents.deadlock import PushResolver
 from sim.agents.kinds import AGENT_KINDS, DEFAULT_MIX, KIND_NAMES, agent_kind
 from sim.agents.navgrid import JUMPS, NavGrid, boundary_segments, build_navgrid
+from sim.schema import Float, Int, Pair, Rule, check_table
 
 AGENT_DTYPE = np.dtype([("x", "f8"), ("y", "f8"), ("vx", "f8"), ("vy", "f8"), ("radius", "f8"), ("kind", "U16")])
 IDLE, WALKING, RUNNING = 0, 1, 2
@@ -45,8 +54,14 @@ AGENT_DEFAULTS: dict[str, Any] = {
     "time_horizon_obst": 1.0,
     "safety_margin": 0.1,  # added to every ORCA radius so sampling error never lets bodies touch
     "ego_margin": 0.25,  # the ego does not reciprocate, so agents keep extra room from it
-    "stuck_steps": 30,
+    "stuck_steps": 30,  # steps without progress before the side-step (rotate); push after this or twice this
     "regoal_steps": 150,
+    "push_window": 12.0,  # metres searched for a passing place when pushed aside (push half); 0 turns push off
+    "group_prob": 0.15,  # share of agents (pedestrians, wheelchair users) that start in standing groups
+    "group_size": [2, 4],  # members per group, [min, max]
+    "group_time": [10.0, 40.0],  # seconds a group stands before dispersing or walking on together
+    "group_disperse_prob": 0.5,  # chance that a group disperses (else it walks on together and stands again)
+    "cross_prob": 0.15,  # chance that a new goal lies across a road, reached over the nearest crosswalk
     "stuck_progress": 0.25,  # metres of field distance that count as progress
     "budget_factor": 2.0,  # goal time budget = factor * path length / speed + slack
     "budget_slack": 10.0,
@@ -55,6 +70,17 @@ AGENT_DEFAULTS: dict[str, Any] = {
     "intersection_margin": 10.0,  # metres around an intersection/junction/roundabout road polygon
     "route_band": 5.0,  # metres either side of the ego's route ("route": dynamic_density per 100 m of route)
     "trail_length": 15,
+}
+# Value ranges of the behaviour keys (the older keys are range-checked by SocialNav's table, sim.tasks.socialnav).
+BEHAVIOUR_RULES: dict[str, Rule] = {
+    "stuck_steps": Int(0, 1_000_000),
+    "regoal_steps": Int(1, 1_000_000),
+    "push_window": Float(0.0, 100.0, hint="metres; 0 turns the push half of push-and-rotate off"),
+    "group_prob": Float(0.0, 1.0, hint="share of agents that start in standing groups"),
+    "group_size": Pair(Int(2, 8), hint="[min, max] members"),
+    "group_time": Pair(Float(0.0, 3600.0), hint="[min, max] seconds a group stands"),
+    "group_disperse_prob": Float(0.0, 1.0),
+    "cross_prob": Float(0.0, 1.0, hint="chance that a new goal lies across a road"),
 }
 
 
@@ -111,6 +137,7 @@ class AgentManager:
 
     def __init__(self, config: Mapping[str, Any] | None = None) -> None:
         self.config = merge_strict(AGENT_DEFAULTS, config, name="agents config")
+        check_table({k: self.config[k] for k in BEHAVIOUR_RULES}, BEHAVIOUR_RULES, name="agents config")
         if self.config["spawn_area"] not in SPAWN_AREAS:
             raise ConfigError(f"unknown agents spawn_area {self.config['spawn_area']!r}; valid: {', '.join(SPAWN_AREAS)}")
         self._area: Any = None
@@ -125,6 +152,9 @@ class AgentManager:
         self._scene: Any = None  # the spec the cached grid and ORCA obstacles belong to
         self.n = 0
         self.time = 0.0
+        self.push = PushResolver(self.config["push_window"])
+        self.groups = Groups()
+        self.crossings = Crossings()
 
     # ------------------------------------------------------------------ reset
     def reset(self, spec: dict[str, Any], rng: np.random.Generator, ego: EgoState | None = None,
@@ -138,6 +168,7 @@ class AgentManager:
         fresh = spec is not self._scene
         if fresh:
             self.grid = build_navgrid(spec, plan_radius=c["plan_radius"], n_sites=c["n_goal_sites"])
+            self.crossings.setup(spec, self.grid)
         self._area = spawn_region(spec, c, route)
         if route is not None and len(route) >= 2:
             self._route_length = float(np.linalg.norm(np.diff(np.asarray(route)[:, :2], axis=0), axis=1).sum())
@@ -162,10 +193,18 @@ class AgentManager:
         self.budget = np.zeros(n)
         self.time = 0.0
         self.counts = {"in_time": 0, "late": 0, "abandoned": 0}
+        self.crossing = np.zeros(n, dtype=bool)
+        self.cross_counts = {"started": 0, "done": 0}
+        self.push.window = float(c["push_window"])
+        self.push.reset()
+        self.groups.reset(self, rng, clear)
         self._build_orca(spec, fresh)
+        self._orca_radius = self.radius + c["safety_margin"]
         self._scene = spec
         nodes = self.grid.nearest_node(self.pos)
         for i in range(n):
+            if self.groups.of[i] >= 0:
+                continue  # standing in its group already
             if rng.random() < c["idle_prob"]:
                 self.movement[i] = IDLE
                 self.idle_left[i] = rng.uniform(0.0, c["idle_time"][1])
@@ -287,23 +326,42 @@ class AgentManager:
         return (float(g.origin[0]) - 1e4 - 20.0 * slot, float(g.origin[1]) - 1e4)
 
     # ------------------------------------------------------------------ goals
-    def _new_goal(self, i: int, node: int, abandon: bool = False) -> None:
+    def _new_goal(self, i: int, node: int, abandon: bool = False, site: int | None = None,
+                  goal_xy: np.ndarray | None = None, speed: float | None = None) -> None:
+        """Send agent i (at `node`) to a random goal, or to `site` (its cell nearest `goal_xy`) walking at `speed`."""
         c, g, rng = self.config, self.grid, self.rng
-        here = int(np.argmin(np.linalg.norm(g.node_xy(g.sites) - self.pos[i], axis=1)))
-        choices = np.delete(np.arange(len(g.sites)), here) if len(g.sites) > 1 else np.arange(len(g.sites))
-        site = int(rng.choice(choices))
+        spread = c["goal_spread"]
+        self.crossing[i] = False
+        # cross_prob 0 draws nothing, so runs without crossings keep their random stream.
+        if site is None and c["cross_prob"] > 0 and rng.random() < c["cross_prob"]:
+            site = self.crossings.pick(self.pos[i])
+            if site is not None:
+                self.crossing[i] = True
+                self.cross_counts["started"] += 1
+                spread = min(spread, 1.0)  # stay by the crosswalk's far end, not 2.5 m around it
+        if site is None:
+            spread_sites = g.sites[:g.n_spread]  # crossing sites are goals of crossings only
+            here = int(np.argmin(np.linalg.norm(g.node_xy(spread_sites) - self.pos[i], axis=1)))
+            choices = np.delete(np.arange(len(spread_sites)), here) if len(spread_sites) > 1 else np.arange(1)
+            site = int(rng.choice(choices))
         if abandon:
             self.counts["abandoned"] += 1
-        kind = AGENT_KINDS[KIND_NAMES[self.kind_idx[i]]]
-        run = kind.run_speed is not None and rng.random() < c["run_prob"]
-        self.movement[i] = RUNNING if run else WALKING
-        self.speed[i] = kind.sample_speed(rng, "running" if run else "walking")
+        if speed is None:
+            kind = AGENT_KINDS[KIND_NAMES[self.kind_idx[i]]]
+            run = kind.run_speed is not None and rng.random() < c["run_prob"]
+            self.movement[i] = RUNNING if run else WALKING
+            self.speed[i] = kind.sample_speed(rng, "running" if run else "walking")
+        else:
+            self.movement[i], self.speed[i] = WALKING, speed
         dist = g.field(site)
-        centre = g.node_xy(np.array([g.sites[site]]))[0]
-        near = np.flatnonzero(np.linalg.norm(g.node_xy(np.flatnonzero(dist < c["goal_spread"] * 1.5)) - centre, axis=1)
-                              < c["goal_spread"])
-        near_nodes = np.flatnonzero(dist < c["goal_spread"] * 1.5)[near]
-        goal_node = int(rng.choice(near_nodes)) if len(near_nodes) else int(g.sites[site])
+        if goal_xy is None:
+            centre = g.node_xy(np.array([g.sites[site]]))[0]
+            near = np.flatnonzero(np.linalg.norm(g.node_xy(np.flatnonzero(dist < spread * 1.5)) - centre, axis=1)
+                                  < spread)
+            near_nodes = np.flatnonzero(dist < spread * 1.5)[near]
+            goal_node = int(rng.choice(near_nodes)) if len(near_nodes) else int(g.sites[site])
+        else:
+            goal_node = int(g.nearest_node(np.asarray(goal_xy, dtype=np.float64)[None])[0])
         self.site[i] = site
         self.goal[i] = g.node_xy(np.array([goal_node]))[0]
         length = float(dist[node]) + c["goal_spread"]
@@ -311,6 +369,10 @@ class AgentManager:
         self.budget[i] = c["budget_factor"] * length / max(self.speed[i], 0.1) + c["budget_slack"]
         self.best[i] = np.inf
         self.stall[i] = 0
+
+    def _walking_speed(self, i: int) -> float:
+        """A fresh walking speed for agent i's kind."""
+        return AGENT_KINDS[KIND_NAMES[self.kind_idx[i]]].sample_speed(self.rng, "walking")
 
     # ------------------------------------------------------------------ step
     def _set_ego(self, ego: EgoState | None) -> None:
@@ -332,12 +394,19 @@ class AgentManager:
         self._set_ego(_as_ego(ego))
         self.time += dt
         pref = np.zeros((self.n, 2))
+        pinned = np.zeros(self.n, dtype=bool)
         if self.n:
             nodes = g.nearest_node(self.pos)
+            self.push.release(self, nodes)
             self._update_goals(dt, nodes)
+            self.push.hold(self)
+            self.push.detect(self, nodes)
             moving = self.movement != IDLE
             if moving.any():
                 pref[moving] = self._preferred(nodes[moving], np.flatnonzero(moving))
+            self.push.steer(self, pref)
+            pinned = self.groups.standing(self) & ~self.push.busy(self.n)
+            self._set_orca_radii(pinned)
         sim = self.sim
         sim.set_time_step(float(dt))
         set_pref = sim.set_agent_pref_velocity
@@ -348,8 +417,8 @@ class AgentManager:
         new_pos = np.array([get_pos(i).to_tuple() for i in range(self.n)]).reshape(self.n, 2)
         new_vel = np.array([get_vel(i).to_tuple() for i in range(self.n)]).reshape(self.n, 2)
         # ORCA's obstacle handling is not a hard guarantee at concave corners: an agent whose step would leave
-        # the walkable area stays put instead.
-        bad = ~g.is_walkable(new_pos) if self.n else np.zeros(0, dtype=bool)
+        # the walkable area stays put instead; so do members standing in a group (see sim.agents.behaviours).
+        bad = (~g.is_walkable(new_pos) | pinned) if self.n else pinned
         for i in np.flatnonzero(bad):
             sim.set_agent_position(int(i), (float(self.pos[i, 0]), float(self.pos[i, 1])))
             sim.set_agent_velocity(int(i), (0.0, 0.0))
@@ -359,13 +428,25 @@ class AgentManager:
         self.trail[-1] = self.pos
         return self.states()
 
+    def _set_orca_radii(self, pinned: np.ndarray) -> None:
+        """ORCA radii: radius + safety_margin, plus STAND_MARGIN for agents that hold their spot (no reciprocity)."""
+        want = self.radius + self.config["safety_margin"] + STAND_MARGIN * pinned
+        for i in np.flatnonzero(want != self._orca_radius).tolist():
+            self.sim.set_agent_radius(i, float(want[i]))
+        self._orca_radius = want
+
     def _update_goals(self, dt: float, nodes: np.ndarray) -> None:
         c, g = self.config, self.grid
         idle = self.movement == IDLE
         if idle.any():
             self.idle_left[idle] -= dt
             for i in np.flatnonzero(idle & (self.idle_left <= 0)).tolist():
-                self._new_goal(i, int(nodes[i]))
+                if self.movement[i] != IDLE:
+                    continue  # its group's decision already sent it off
+                if self.groups.of[i] >= 0:
+                    self.groups.stand_over(self, i, nodes)
+                else:
+                    self._new_goal(i, int(nodes[i]))
             idle = self.movement == IDLE
         moving = np.flatnonzero(~idle)
         if not len(moving):
@@ -388,12 +469,18 @@ class AgentManager:
             for i in moving[arrived].tolist():
                 late = self.time - self.goal_t0[i] > self.budget[i]
                 self.counts["late" if late else "in_time"] += 1
-                if self.rng.random() < c["idle_prob"]:
+                self.cross_counts["done"] += int(self.crossing[i])
+                self.crossing[i] = False
+                if self.groups.of[i] >= 0:
+                    self.groups.arrived(self, i)
+                elif self.rng.random() < c["idle_prob"]:
                     self.movement[i] = IDLE
                     self.idle_left[i] = self.rng.uniform(*c["idle_time"])
                 else:
                     self._new_goal(i, int(nodes[i]))
         for i in moving[held & (stall >= c["regoal_steps"])].tolist():
+            if self.groups.of[i] >= 0:
+                self.groups.dissolve(self, int(self.groups.of[i]))
             self._new_goal(i, int(nodes[i]), abandon=True)
 
     def _preferred(self, nodes: np.ndarray, idx: np.ndarray) -> np.ndarray:
@@ -464,6 +551,33 @@ class AgentManager:
         """Goals reached within budget, late and abandoned so far, and the in-time fraction of finished goals."""
         done = sum(self.counts.values())
         return {**self.counts, "finished": done, "in_time_fraction": self.counts["in_time"] / done if done else 1.0}
+
+    def behaviour_stats(self) -> dict[str, int]:
+        """Standing groups (sim.agents.behaviours.Groups.stats), crossings started and done, pushes started and ended."""
+        return {**self.groups.stats(), "crossings_started": self.cross_counts["started"],
+                "crossings_done": self.cross_counts["done"], "crossing_now": int(self.crossing.sum()),
+                "pushes": self.push.started, "pushes_done": self.push.finished}
+
+    # ------------------------------------------------------------------ scripted scenarios
+    def place(self, i: int, xy: Sequence[float]) -> None:
+        """Put agent i at rest on world point `xy` (after reset; the point must be walkable)."""
+        p = np.asarray(xy, dtype=np.float64).reshape(2)
+        if not bool(self.grid.is_walkable(p[None])[0]):
+            raise ValueError(f"agent {i} cannot stand at {p.tolist()}: not on the walkable area")
+        self.pos[i], self.vel[i] = p, 0.0
+        self.trail[:, i] = p
+        self.sim.set_agent_position(int(i), (float(p[0]), float(p[1])))
+        self.sim.set_agent_velocity(int(i), (0.0, 0.0))
+
+    def send(self, i: int, xy: Sequence[float], speed: float | None = None) -> None:
+        """Give agent i a goal at the planning cell nearest `xy` (a goal site of its own), walking at `speed`."""
+        g = self.grid
+        p = np.asarray(xy, dtype=np.float64).reshape(1, 2)
+        site = g.add_site(int(g.nearest_node(p)[0]))
+        if self.groups.of[i] >= 0:
+            self.groups.dissolve(self, int(self.groups.of[i]))
+        self._new_goal(i, int(g.nearest_node(self.pos[i:i + 1])[0]), site=site, goal_xy=p[0],
+                       speed=self._walking_speed(i) if speed is None else float(speed))
 
     def overdue(self) -> int:
         """Agents still travelling whose time budget has already run out (goals that will count as late)."""

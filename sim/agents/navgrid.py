@@ -103,10 +103,49 @@ class NavGrid:
     graph: csr_matrix
     nearest_rc: np.ndarray  # int32 [2, rows, cols]: nearest free cell of every cell
     sites: np.ndarray  # node ids of goal sites
+    n_spread: int = 0  # the first n_spread sites are the farthest-point ones random goals are drawn from
     _dist: np.ndarray | None = None  # [sites, nodes] path length to each site, inf until computed
     _jump: np.ndarray | None = None
     _done: np.ndarray | None = None
     _centres: np.ndarray | None = None  # node_xy of every node, built on first use (agents look it up each tick)
+    _clearance: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if not self.n_spread:
+            self.n_spread = len(self.sites)
+
+    def add_site(self, node: int) -> int:
+        """Index of the goal site at `node`, appending one (its field computed on first use) when there is none."""
+        hit = np.flatnonzero(self.sites == node)
+        if len(hit):
+            return int(hit[0])
+        self.sites = np.append(self.sites, np.int64(node))
+        if self._dist is not None:
+            # Appended sites go after the spread ones, so random goal draws (over the first n_spread) do not change.
+            self._dist = np.vstack([self._dist, np.full((1, self.n_nodes), np.inf)])
+            self._jump = np.concatenate([self._jump, np.zeros((len(JUMPS), 1, self.n_nodes), dtype=np.int32)], 1)
+            self._done = np.append(self._done, False)
+        return len(self.sites) - 1
+
+    def clearance(self) -> np.ndarray:
+        """Metres from every cell centre to the nearest edge of the walkable area (objects, roads, buildings)."""
+        if self._clearance is None:
+            # Centre-to-centre distance to the nearest blocked cell, less the half cell up to that cell's edge.
+            edt = ndimage.distance_transform_edt(np.pad(self.walkable, 1))[1:-1, 1:-1]
+            self._clearance = np.maximum(edt - 0.5, 0.0) * self.res
+        return self._clearance
+
+    def path_nodes(self, node: int, site: int, max_steps: int) -> np.ndarray:
+        """Nodes of the shortest path from `node` toward `site` (at most max_steps + 1 of them, the site last)."""
+        self.plan_all(np.array([site]))
+        step = self._jump[0, site]
+        out = [int(node)]
+        for _ in range(max_steps):
+            nxt = int(step[out[-1]])
+            if nxt == out[-1]:
+                break
+            out.append(nxt)
+        return np.asarray(out, dtype=np.int64)
 
     @property
     def n_nodes(self) -> int:

@@ -1,0 +1,227 @@
+"""Movements beyond idle, walk and run: standing groups and road crossings.
+
+Standing groups (`group_prob`, `group_size`, `group_time`, `group_disperse_prob`): at reset about `group_prob`
+of the agents whose kind can stand in a group (pedestrians and wheelchair users) are gathered into groups of
+`group_size` = [min, max] members, standing in a ring on a sidewalk (neighbours' ORCA discs 5 cm apart, so a
+group of four pedestrians spans 1.2 m) for a time drawn from `group_time`. When the time is up the group
+either disperses (`group_disperse_prob`: every member takes its own goal) or walks on together: the members share
+one goal site and the slowest member's walking speed, their goals form the same ring around one goal cell, and
+once all of them have arrived they stand together again. A member that abandons its goal (stuck for
+`regoal_steps`) dissolves its group. Standing members hold their spots: ORCA would otherwise let anyone walking
+up behind a member herd it along (ORCA shares avoidance equally), so the crowd keeps them in place and, like
+the ego, gives them `STAND_MARGIN` more ORCA radius; a member in the way of someone who cannot get past is
+moved aside by the push (sim.agents.deadlock), which treats standing agents as the ones to yield.
+
+Crossing (`cross_prob`): the chance that a new goal lies across a road. Roads are not walkable, so any path
+across one already uses a crosswalk; a crossing goal makes it happen on purpose: the agent picks the crosswalk
+whose near end is closest to it among those it stands on the near side of and walks to a goal site 2 m past
+the far end (one site per crosswalk end, added to the navigation grid after the farthest-point sites).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from sim.agents.kinds import KIND_NAMES
+from sim.agents.navgrid import LEGEND_RAMP, LEGEND_SIDEWALK, NavGrid
+
+if TYPE_CHECKING:  # pragma: no cover - typing only; crowd imports this module
+    from sim.agents.crowd import AgentManager
+
+IDLE = 0
+GROUP_KINDS = ("pedestrian", "wheelchair_user")
+CROSS_BEYOND = 2.0  # metres past a crosswalk end (over the curb ramp) where a crossing goal lies
+CROSS_SNAP = 1.5  # a crossing site must be a planning cell this close to that point
+CENTRE_TRIES = 256  # candidate group centres checked at once, nearest first
+STAND_MARGIN = 0.15  # m added to a standing member's ORCA radius: it does not reciprocate (as the ego's margin)
+
+
+def ring_offsets(size: int, spacing: float, angle: float) -> np.ndarray:
+    """Offsets [size, 2] of `size` points on a circle, neighbours `spacing` apart, the first at `angle`."""
+    rho = spacing / 2.0 if size == 2 else spacing / (2.0 * np.sin(np.pi / size))
+    a = angle + 2.0 * np.pi * np.arange(size) / size
+    return rho * np.stack([np.cos(a), np.sin(a)], 1)
+
+
+def ring_spacing(m: AgentManager, members: np.ndarray) -> float:
+    """Centre distance of neighbours in a group's ring: ORCA discs (radius + safety_margin) 5 cm apart."""
+    return 2.0 * (float(m.radius[members].max()) + m.config["safety_margin"]) + 0.05
+
+
+class Crossings:
+    """Crosswalk ends as goal sites, and the choice of a crossing for an agent."""
+
+    def __init__(self) -> None:
+        self.near = np.zeros((0, 2))  # approach point on the side the agent starts from
+        self.far = np.zeros((0, 2))  # goal point past the far end
+        self.sites = np.zeros(0, dtype=np.int64)
+
+    def setup(self, spec: dict[str, Any], grid: NavGrid) -> None:
+        """Add one goal site 2 m past each end of every crosswalk of `spec` (skipped where no sidewalk is there)."""
+        near, far, sites = [], [], []
+        for cw in spec.get("crosswalks", []):
+            ends = np.asarray(cw.get("ends") or [], dtype=np.float64)
+            if ends.shape != (2, 2) or not np.isfinite(ends).all():
+                continue
+            for a, b in ((ends[0], ends[1]), (ends[1], ends[0])):
+                length = float(np.hypot(*(b - a)))
+                if length < 1e-6:
+                    continue
+                u = (b - a) / length
+                target = b + u * CROSS_BEYOND
+                node = int(grid.nearest_node(target[None])[0])
+                xy = grid.node_xy(np.array([node]))[0]
+                i, j = (int(v[0]) for v in grid.cell_of(xy[None]))
+                if np.hypot(*(xy - target)) > CROSS_SNAP or grid.cells[i, j] not in (LEGEND_SIDEWALK, LEGEND_RAMP):
+                    continue
+                near.append(a - u * CROSS_BEYOND)
+                far.append(xy)
+                sites.append(grid.add_site(node))
+        self.near = np.asarray(near, dtype=np.float64).reshape(-1, 2)
+        self.far = np.asarray(far, dtype=np.float64).reshape(-1, 2)
+        self.sites = np.asarray(sites, dtype=np.int64)
+
+    def pick(self, xy: np.ndarray) -> int | None:
+        """Goal site across the road from `xy` via the nearest crosswalk it is on the near side of; None if none."""
+        if not len(self.sites):
+            return None
+        dn = np.hypot(*(self.near - xy).T)
+        df = np.hypot(*(self.far - xy).T)
+        ok = dn < df
+        if not ok.any():
+            return None
+        return int(self.sites[int(np.argmin(np.where(ok, dn, np.inf)))])
+
+
+class Groups:
+    """Standing groups: formed at reset, standing for `group_time`, then dispersing or walking on together."""
+
+    def __init__(self) -> None:
+        self.of = np.zeros(0, dtype=np.int64)  # group id of every agent, -1 for none
+        self.spot = np.zeros((0, 2))  # where each standing member stands (NaN: not standing in a group)
+        self.members: dict[int, np.ndarray] = {}
+        self.walking: dict[int, bool] = {}
+        self.formed = self.stands = self.dispersed = self.walks = 0
+
+    def reset(self, m: AgentManager, rng: np.random.Generator, clear: list[tuple[float, float, float]]) -> None:
+        """Gather about group_prob of the eligible agents into standing rings (moves them; call before ORCA setup)."""
+        c = m.config
+        self.of = np.full(m.n, -1, dtype=np.int64)
+        self.spot = np.full((m.n, 2), np.nan)
+        self.members, self.walking = {}, {}
+        self.formed = self.stands = self.dispersed = self.walks = 0
+        if c["group_prob"] <= 0 or m.n < 2:
+            return
+        kinds = np.array([KIND_NAMES[k] for k in m.kind_idx])
+        order = rng.permutation(np.flatnonzero(np.isin(kinds, GROUP_KINDS)))
+        target = int(round(c["group_prob"] * m.n))
+        lo, hi = (int(v) for v in c["group_size"])
+        k = placed = 0
+        while placed < target and len(order) - k >= lo:
+            size = min(int(rng.integers(lo, hi + 1)), len(order) - k)
+            members = order[k:k + size]
+            k += size
+            if self._place(m, members, rng, clear):
+                gid = len(self.members)
+                self.members[gid], self.walking[gid] = members, False
+                self.of[members] = gid
+                m.movement[members] = IDLE
+                m.idle_left[members] = rng.uniform(*c["group_time"])
+                self.spot[members] = m.pos[members]
+                placed += size
+                self.formed += 1
+                self.stands += 1
+
+    def _place(self, m: AgentManager, members: np.ndarray, rng: np.random.Generator,
+               clear: list[tuple[float, float, float]]) -> bool:
+        """Move `members` into a ring on a sidewalk near the first one's spawn point; False if none fits nearby."""
+        g, c = m.grid, m.config
+        spacing = ring_spacing(m, members)
+        offsets = ring_offsets(len(members), spacing, float(rng.uniform(0.0, 2.0 * np.pi)))
+        centres = g.node_xy(np.arange(g.n_nodes))
+        d = np.hypot(*(centres - m.pos[members[0]]).T)
+        cand = np.flatnonzero(d < 15.0)
+        cand = cand[np.argsort(d[cand], kind="stable")][:CENTRE_TRIES]
+        if m._area is not None:
+            import shapely
+
+            cand = cand[shapely.contains_xy(m._area, centres[cand, 0], centres[cand, 1])]
+        spread = float(np.hypot(*offsets.T).max())
+        for x, y, r in clear:
+            cand = cand[np.hypot(centres[cand, 0] - x, centres[cand, 1] - y) > r + spread]
+        if not len(cand):
+            return False
+        slots = centres[cand][:, None, :] + offsets[None]  # [k, size, 2]
+        flat = slots.reshape(-1, 2)
+        i, j = g.cell_of(flat)
+        ok = (g.is_free(flat) & (g.cells[i, j] == LEGEND_SIDEWALK)).reshape(len(cand), -1).all(1)
+        others = np.setdiff1d(np.arange(m.n), members)
+        if len(others):
+            # Other agents (groups placed earlier included) keep the spawn clearance from every slot.
+            gap = np.linalg.norm(flat[:, None, :] - m.pos[others][None], axis=2)
+            need = np.tile(m.radius[members], len(cand))[:, None] + m.radius[others][None] + c["spawn_clearance"]
+            ok &= (gap >= need).reshape(len(cand), -1, len(others)).all((1, 2))
+        hit = np.flatnonzero(ok)
+        if not len(hit):
+            return False
+        m.pos[members] = slots[hit[0]]
+        return True
+
+    def stand_over(self, m: AgentManager, i: int, nodes: np.ndarray) -> None:
+        """Agent i's group has stood long enough: it disperses or walks on together to a shared goal."""
+        gid = int(self.of[i])
+        members = self.members[gid]
+        self.spot[members] = np.nan
+        if m.rng.random() < m.config["group_disperse_prob"]:
+            self.dissolve(m, gid)
+            self.dispersed += 1
+            for k in members.tolist():
+                m._new_goal(k, int(nodes[k]))
+            return
+        lead = int(members[0])
+        m._new_goal(lead, int(nodes[lead]))
+        crossing = bool(m.crossing[lead])
+        speed = min(float(m.speed[lead]), *(m._walking_speed(int(k)) for k in members[1:]))
+        spacing = ring_spacing(m, members)
+        ring = m.goal[lead] + ring_offsets(len(members), spacing, float(m.rng.uniform(0.0, 2.0 * np.pi)))
+        for k, xy in zip(members.tolist(), ring):
+            m._new_goal(k, int(nodes[k]), site=int(m.site[lead]), goal_xy=xy, speed=speed)
+        m.crossing[members] = crossing
+        if crossing:
+            m.cross_counts["started"] += len(members) - 1  # the lead's crossing was counted when it was drawn
+        self.walking[gid] = True
+        self.walks += 1
+
+    def arrived(self, m: AgentManager, i: int) -> None:
+        """A walking member reached its goal: it waits; once all have, the group stands again."""
+        gid = int(self.of[i])
+        m.movement[i] = IDLE
+        m.idle_left[i] = np.inf
+        members = self.members[gid]
+        if (m.movement[members] == IDLE).all():
+            m.idle_left[members] = m.rng.uniform(*m.config["group_time"])
+            self.spot[members] = m.pos[members]
+            self.walking[gid] = False
+            self.stands += 1
+
+    def dissolve(self, m: AgentManager, gid: int) -> None:
+        """End group `gid`: its members become single agents; those waiting for the others leave next step."""
+        members = self.members.pop(gid)
+        self.walking.pop(gid)
+        self.of[members] = -1
+        self.spot[members] = np.nan
+        waiting = members[np.isinf(m.idle_left[members])]
+        m.idle_left[waiting] = 0.0
+
+    def standing(self, m: AgentManager) -> np.ndarray:
+        """Bool mask of the members standing in their group now."""
+        return ~np.isnan(self.spot[:, 0]) & (m.movement == IDLE)
+
+    def stats(self) -> dict[str, int]:
+        """Groups formed, standing now, walking now, stands so far, dispersals and walks together."""
+        walking = sum(self.walking.values())
+        return {"groups": len(self.members), "grouped_agents": int((self.of >= 0).sum()),
+                "standing_groups": len(self.members) - walking, "walking_groups": walking,
+                "formed": self.formed, "stands": self.stands, "dispersed": self.dispersed, "walks": self.walks}
