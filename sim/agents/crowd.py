@@ -16,6 +16,7 @@ Movements: idle, walking, running (sim.agents.kinds), standing groups and road c
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -28,7 +29,6 @@ from sim.agents.behaviours import STAND_MARGIN, Crossings, Groups
 from sim.agents.deadlock import PushResolver
 from sim.agents.kinds import AGENT_KINDS, DEFAULT_MIX, KIND_NAMES, agent_kind
 from sim.agents.navgrid import JUMPS, NavGrid, boundary_segments, build_navgrid
-from sim.schema import Float, Int, Pair, Rule, check_table
 
 AGENT_DTYPE = np.dtype([("x", "f8"), ("y", "f8"), ("vx", "f8"), ("vy", "f8"), ("radius", "f8"), ("kind", "U16")])
 IDLE, WALKING, RUNNING = 0, 1, 2
@@ -71,17 +71,35 @@ AGENT_DEFAULTS: dict[str, Any] = {
     "route_band": 5.0,  # metres either side of the ego's route ("route": dynamic_density per 100 m of route)
     "trail_length": 15,
 }
-# Value ranges of the behaviour keys (the older keys are range-checked by SocialNav's table, sim.tasks.socialnav).
-BEHAVIOUR_RULES: dict[str, Rule] = {
-    "stuck_steps": Int(0, 1_000_000),
-    "regoal_steps": Int(1, 1_000_000),
-    "push_window": Float(0.0, 100.0, hint="metres; 0 turns the push half of push-and-rotate off"),
-    "group_prob": Float(0.0, 1.0, hint="share of agents that start in standing groups"),
-    "group_size": Pair(Int(2, 8), hint="[min, max] members"),
-    "group_time": Pair(Float(0.0, 3600.0), hint="[min, max] seconds a group stands"),
-    "group_disperse_prob": Float(0.0, 1.0),
-    "cross_prob": Float(0.0, 1.0, hint="chance that a new goal lies across a road"),
+# Value ranges of the deadlock and behaviour keys: (low, high, integers only, a [min, max] pair, what it means).
+BEHAVIOUR_RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
+    "stuck_steps": (0, 1_000_000, True, False, "steps"),
+    "regoal_steps": (1, 1_000_000, True, False, "steps"),
+    "push_window": (0.0, 100.0, False, False, "metres; 0 turns the push half of push-and-rotate off"),
+    "group_prob": (0.0, 1.0, False, False, "share of agents that start in standing groups"),
+    "group_size": (2, 8, True, True, "[min, max] members"),
+    "group_time": (0.0, 3600.0, False, True, "[min, max] seconds a group stands"),
+    "group_disperse_prob": (0.0, 1.0, False, False, "chance that a group disperses"),
+    "cross_prob": (0.0, 1.0, False, False, "chance that a new goal lies across a road"),
 }
+
+
+def check_behaviour_config(config: Mapping[str, Any]) -> None:
+    """Raise ConfigError naming the key and its valid range for a bad deadlock or behaviour value."""
+    for key, (lo, hi, integer, pair, hint) in BEHAVIOUR_RANGES.items():
+        value = config[key]
+        items = list(value) if pair and isinstance(value, (list, tuple)) else [value]
+        number = "an integer" if integer else "a finite number"
+        ok = (len(items) == (2 if pair else 1)
+              and all(isinstance(v, (int, float)) and not isinstance(v, bool) and (isinstance(v, int) or not integer)
+                      and math.isfinite(v) and lo <= v <= hi for v in items)
+              and (not pair or items[0] <= items[1]))
+        if not ok:
+            span = f"{number} in [{lo:g}, {hi:g}]"
+            what = f"a [min, max] pair (min <= max), each {span}" if pair else span
+            raise ConfigError(f"agents config.{key} must be {what}, got {value!r} ({hint})")
+
+
 
 
 @dataclass(frozen=True)
@@ -137,7 +155,7 @@ class AgentManager:
 
     def __init__(self, config: Mapping[str, Any] | None = None) -> None:
         self.config = merge_strict(AGENT_DEFAULTS, config, name="agents config")
-        check_table({k: self.config[k] for k in BEHAVIOUR_RULES}, BEHAVIOUR_RULES, name="agents config")
+        check_behaviour_config(self.config)
         if self.config["spawn_area"] not in SPAWN_AREAS:
             raise ConfigError(f"unknown agents spawn_area {self.config['spawn_area']!r}; valid: {', '.join(SPAWN_AREAS)}")
         self._area: Any = None
