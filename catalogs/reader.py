@@ -7,6 +7,9 @@ microseconds rather than one SQL round trip each.
 from __future__ import annotations
 
 import json
+import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,18 +17,68 @@ import duckdb
 import numpy as np
 
 from catalogs.records import AssetRecord
-from catalogs.schema import ASSET_COLUMNS, SCHEMA_VERSION, CatalogError, stored_version
+from catalogs.schema import (
+    ASSET_COLUMNS,
+    SCHEMA_VERSION,
+    CatalogCorrupt,
+    CatalogError,
+    CatalogLocked,
+    CatalogMissing,
+    CatalogSchemaError,
+    stored_version,
+)
+
+
+def catalog_error(exc: BaseException, path: str | Path) -> CatalogError:
+    """The accurate CatalogError for a DuckDB failure on the catalog at `path`: locked, corrupt or not a catalog."""
+    p = Path(path)
+    msg = " ".join(str(exc).split())
+    if "Could not set lock" in msg or "Conflicting lock" in msg:
+        holder = re.search(r"Conflicting lock is held in (.+?) \(PID (\d+)\)", msg)
+        who = f"process {holder.group(2)} ({holder.group(1)})" if holder else "another process"
+        # Never suggest a rebuild here: the file is healthy and the other process is probably filling it.
+        return CatalogLocked(
+            f"catalog {p} is locked: {who} has it open for writing (an ingest or build still running?); the file is "
+            f"not damaged; wait for that process to finish (or stop it), then retry"
+        )
+    if "Corrupt database file" in msg or "checksum" in msg:
+        detail = re.search(r"in block at location \d+", msg)
+        return CatalogCorrupt(
+            f"catalog {p} is corrupt (checksum mismatch{', ' + detail.group(0) if detail else ''}): its data cannot "
+            f"be read; rebuild it with `curbside catalog build --catalog {p}` (or re-run the ingest that made it) "
+            f"or restore a backup"
+        )
+    if "not a valid DuckDB database file" in msg:
+        return CatalogCorrupt(
+            f"{p} is not a DuckDB database file (wrong path, or a damaged copy); pass a catalog made by "
+            f"`curbside catalog build --catalog {p}` to --catalog"
+        )
+    if "does not exist" in msg and ("Table" in msg or "Catalog Error" in msg):
+        return CatalogSchemaError(
+            f"{p} is a DuckDB file but not a curbside catalog ({msg}); check --catalog, or build one with "
+            f"`curbside catalog build --catalog {p}`"
+        )
+    return CatalogError(f"cannot read catalog {p} ({msg}); check the file and its permissions")
+
+
+@contextmanager
+def catalog_errors(path: str | Path) -> Iterator[None]:
+    """Turn any DuckDB error raised in the block into the accurate CatalogError for the catalog at `path`."""
+    try:
+        yield
+    except duckdb.Error as e:
+        raise catalog_error(e, path) from e
 
 
 def open_catalog(path: str | Path) -> duckdb.DuckDBPyConnection:
     """Open a catalog read-only after checking it exists and has this curbside's schema version."""
     p = Path(path)
     if not p.exists():
-        raise CatalogError(
+        raise CatalogMissing(
             f"no catalog at {p}; build it with `curbside catalog build --catalog {p}`"
         )
     if p.is_dir():
-        raise CatalogError(f"{p} is a directory, not a catalog file; pass the .duckdb file to --catalog")
+        raise CatalogMissing(f"{p} is a directory, not a catalog file; pass the .duckdb file to --catalog")
     con = None
     try:
         con = duckdb.connect(str(p), read_only=True)
@@ -33,13 +86,11 @@ def open_catalog(path: str | Path) -> duckdb.DuckDBPyConnection:
     except duckdb.Error as e:
         if con is not None:
             con.close()
-        raise CatalogError(
-            f"{p} is not a readable curbside catalog ({e}); rebuild it with `curbside catalog build --catalog {p}`"
-        ) from e
+        raise catalog_error(e, p) from e
     version = stored_version(meta)
     if version != SCHEMA_VERSION:
         con.close()
-        raise CatalogError(
+        raise CatalogSchemaError(
             f"catalog {p} has schema version {version}, this curbside reads version {SCHEMA_VERSION}; "
             f"rebuild it with `curbside catalog build --catalog {p}`"
         )
@@ -68,9 +119,10 @@ class CatalogReader:
         self.root = self.path.parent
         con = open_catalog(self.path)
         try:
-            self.meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
-            cols = ", ".join(ASSET_COLUMNS)
-            rows = con.execute(f"SELECT {cols} FROM assets ORDER BY asset_id").fetchall()
+            with catalog_errors(self.path):  # a damaged data block only shows when the rows are read
+                self.meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
+                cols = ", ".join(ASSET_COLUMNS)
+                rows = con.execute(f"SELECT {cols} FROM assets ORDER BY asset_id").fetchall()
         finally:
             con.close()
         self._records: dict[str, AssetRecord] = {}

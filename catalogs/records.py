@@ -95,3 +95,5 @@ class RejectionRecord:
     stage: str
     reason: str
     detail: str | None = None
+    # Hash of the ingest configuration that produced the rejection: a re-run under another configuration retries it.
+    config_hash: str | None = None

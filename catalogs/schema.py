@@ -24,6 +24,22 @@ class CatalogError(RuntimeError):
     """A catalog that is missing, of another schema version, or otherwise unusable."""
 
 
+class CatalogMissing(CatalogError):
+    """No catalog file at the path (or the path is a directory): build one there or fix the path."""
+
+
+class CatalogLocked(CatalogError):
+    """Another process holds the catalog's DuckDB write lock; the file is fine, wait and retry (never rebuild)."""
+
+
+class CatalogCorrupt(CatalogError):
+    """The file is damaged (checksum mismatch) or not a DuckDB database at all: rebuild it or restore a copy."""
+
+
+class CatalogSchemaError(CatalogError):
+    """A readable DuckDB file that is not a curbside catalog of this schema version: rebuild or upgrade."""
+
+
 def stored_version(meta: dict[str, str]) -> int:
     """The schema version recorded in a catalog's meta table; -1 when absent or unreadable."""
     try:
@@ -106,6 +122,7 @@ def ddl(embedding_dim: int = DEFAULT_EMBEDDING_DIM) -> list[str]:
             stage VARCHAR NOT NULL,
             reason VARCHAR NOT NULL,
             detail VARCHAR,
+            config_hash VARCHAR,
             PRIMARY KEY (source, source_id, stage)
         )""",
     ]

@@ -16,7 +16,7 @@ import numpy as np
 
 from catalogs.reader import CatalogReader
 from catalogs.records import AssetRecord
-from catalogs.schema import CatalogError
+from catalogs.schema import CatalogError, CatalogLocked
 
 DIM_TOLERANCE = 0.02  # recorded extents must match the mesh bounding box within 2 % (issue 2)
 ABS_TOLERANCE = 1e-3  # metres; keeps millimetre-thin parts (sign plates) from failing on rounding alone
@@ -116,16 +116,17 @@ def check_asset_files(reader: CatalogReader, rec: AssetRecord, client: int) -> l
 
 def check_embeddings(path: str | Path, reader: CatalogReader) -> list[Problem]:
     """Problems of the text embeddings: assets without one, vectors that are not unit length."""
-    from catalogs.reader import open_catalog
+    from catalogs.reader import catalog_errors, open_catalog
 
     con = open_catalog(path)
     try:
-        rows = con.execute(
-            "SELECT a.asset_id, e.owner_id IS NULL, coalesce(sqrt(array_inner_product(e.vector, e.vector)), 0)"
-            " FROM assets a LEFT JOIN embeddings e ON e.owner_id = a.asset_id AND e.owner_kind = 'asset_text'"
-            " AND e.model = $model ORDER BY a.asset_id",
-            {"model": reader.meta.get("embedding_model")},
-        ).fetchall()
+        with catalog_errors(path):  # a damaged embeddings block shows only here
+            rows = con.execute(
+                "SELECT a.asset_id, e.owner_id IS NULL, coalesce(sqrt(array_inner_product(e.vector, e.vector)), 0)"
+                " FROM assets a LEFT JOIN embeddings e ON e.owner_id = a.asset_id AND e.owner_kind = 'asset_text'"
+                " AND e.model = $model ORDER BY a.asset_id",
+                {"model": reader.meta.get("embedding_model")},
+            ).fetchall()
     finally:
         con.close()
     out = []
@@ -145,7 +146,9 @@ def validate_catalog(path: str | Path, *, progress: bool = True) -> tuple[int, l
 
     try:
         reader = CatalogReader(path)
-    except CatalogError as e:
+    except CatalogLocked:
+        raise  # not a defect of the catalog: the caller says "wait and retry"
+    except CatalogError as e:  # corrupt, not a catalog, other schema version: the report says which
         return 0, [Problem(None, str(e))]
     problems: list[Problem] = []
     with _stdout_to_stderr():
@@ -158,5 +161,10 @@ def validate_catalog(path: str | Path, *, progress: bool = True) -> tuple[int, l
                 bar.advance(task)
     finally:
         p.disconnect(client)
-    problems += check_embeddings(path, reader)
+    try:
+        problems += check_embeddings(path, reader)
+    except CatalogLocked:
+        raise
+    except CatalogError as e:
+        problems.append(Problem(None, str(e)))
     return len(reader), problems

@@ -13,6 +13,7 @@ import duckdb
 import numpy as np
 import pyarrow as pa
 
+from catalogs.reader import catalog_error, catalog_errors
 from catalogs.records import AssetRecord, DescriptionRecord, MatchRecord, RejectionRecord, ViewRecord
 from catalogs.schema import (
     ASSET_COLUMNS,
@@ -21,6 +22,7 @@ from catalogs.schema import (
     SCHEMA_VERSION,
     ZONES,
     CatalogError,
+    CatalogSchemaError,
     ddl,
     stored_version,
 )
@@ -67,9 +69,10 @@ class CatalogWriter:
         try:
             self.con = duckdb.connect(str(self.path))
         except duckdb.Error as e:
-            raise CatalogError(f"cannot open {self.path} for writing ({e}); close other programs that hold it") from e
+            raise catalog_error(e, self.path) from e  # locked by another writer, corrupt, or not DuckDB
         try:
-            self._init_schema(embedding_dim, embedding_model)
+            with catalog_errors(self.path):
+                self._init_schema(embedding_dim, embedding_model)
         except BaseException:
             self.con.close()
             raise
@@ -79,12 +82,14 @@ class CatalogWriter:
         if "meta" in existing:
             meta = dict(self.con.execute("SELECT key, value FROM meta").fetchall())
             if stored_version(meta) != SCHEMA_VERSION:
-                raise CatalogError(
+                raise CatalogSchemaError(
                     f"catalog {self.path} has schema version {meta.get('schema_version')}, this curbside writes "
                     f"version {SCHEMA_VERSION}; rebuild it with `curbside catalog build --catalog {self.path}`"
                 )
             self.embedding_dim = int(meta["embedding_dim"])
             self.embedding_model = meta["embedding_model"]
+            # Additive, nullable column (still schema 1): catalogs written before it get it on first write.
+            self.con.execute("ALTER TABLE rejections ADD COLUMN IF NOT EXISTS config_hash VARCHAR")
             return
         with self.transaction():
             for stmt in ddl(embedding_dim):

@@ -9,6 +9,8 @@ redoes at most the unfinished asset, and primary-key upserts make the redo repla
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -19,6 +21,7 @@ import numpy as np
 
 from catalogs.records import AssetRecord, MatchRecord, RejectionRecord, ViewRecord
 from catalogs.schema import ASSET_IMAGE_KIND, ASSET_TEXT_KIND
+from curbside.config import ConfigError
 from retrieval.normalize import AssetRejected, QualityLimits
 from retrieval.scoring import DescriptionPool, ScoringConfig
 from retrieval.sources import SourceItem
@@ -55,6 +58,29 @@ class IngestConfig:
     max_rejections: int | None = None
     write_glb: bool = True
 
+    def __post_init__(self) -> None:
+        # Checked here, once, so a bad value stops the run before any asset: inside process_item it would
+        # become a per-asset rejection of every asset, remembered by content hash (issue 12: --views 0).
+        from retrieval.render import MAX_VIEWS
+
+        if not (isinstance(self.n_views, int) and 1 <= self.n_views <= MAX_VIEWS):
+            raise ConfigError(f"n_views must be an integer in 1..{MAX_VIEWS}, got {self.n_views!r}; e.g. --views 8")
+        if not (isinstance(self.n_informative, int) and self.n_informative >= 1):
+            raise ConfigError(f"n_informative must be an integer >= 1, got {self.n_informative!r}")
+        if not (isinstance(self.image_size, int) and self.image_size >= 16):
+            raise ConfigError(f"image_size must be an integer >= 16 pixels, got {self.image_size!r}")
+        if len(self.elevations) != 2:
+            raise ConfigError(f"elevations must be two angles in degrees, got {self.elevations!r}")
+        if self.max_rejections is not None and self.max_rejections < 0:
+            raise ConfigError(f"max_rejections must be >= 0 or None, got {self.max_rejections!r}")
+
+
+def config_hash(config: IngestConfig) -> str:
+    """Short hash of everything in the configuration that can change an asset's verdict (not max_rejections)."""
+    d = dataclasses.asdict(config)
+    d.pop("max_rejections", None)  # a run-level stop rule: it never decides one asset's fate
+    return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
 
 @dataclass
 class ItemResult:
@@ -72,9 +98,11 @@ class ItemResult:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
-def _reject(item: SourceItem, h: str, stage: str, reason: str, detail: str) -> ItemResult:
-    # The content hash in the detail lets a re-run skip the same bytes yet retry a fixed file.
-    rec = RejectionRecord(item.source, item.source_id, stage, reason, f"{detail} [sha256:{h[:16]}]")
+def _reject(item: SourceItem, h: str, stage: str, reason: str, detail: str, config: IngestConfig) -> ItemResult:
+    # The content hash in the detail lets a re-run skip the same bytes yet retry a fixed file; the config hash
+    # makes a run under another configuration retry it too.
+    rec = RejectionRecord(item.source, item.source_id, stage, reason, f"{detail} [sha256:{h[:16]}]",
+                          config_hash(config))
     return ItemResult(item.source, item.source_id, h, rejection=rec)
 
 
@@ -84,7 +112,7 @@ def process_item(item: SourceItem, config: IngestConfig, pool: DescriptionPool, 
     h = item.content_hash()
     if "rejected" in item.metadata:  # refused by the source's prefilter (licence, annotated size, download)
         reason, detail = item.metadata["rejected"]
-        return _reject(item, h, "fetch", reason, detail)
+        return _reject(item, h, "fetch", reason, detail, config)
     stage = "normalize"
     times: dict[str, float] = {}
     try:
@@ -113,10 +141,12 @@ def process_item(item: SourceItem, config: IngestConfig, pool: DescriptionPool, 
         return ItemResult(item.source, item.source_id, h, asset, views, matches, scores.image_embedding,
                           scores.text_embedding, seconds=times)
     except AssetRejected as rej:
-        return _reject(item, h, stage, rej.reason, rej.detail)
+        return _reject(item, h, stage, rej.reason, rej.detail, config)
+    except ConfigError:
+        raise  # a bad configuration is wrong for every asset: stop the run, never blame (and skip) the asset
     except Exception as exc:  # noqa: BLE001 - one broken asset must never stop the stage; the reason is kept
         tb = traceback.format_exception_only(type(exc), exc)[-1].strip()
-        return _reject(item, h, stage, "error", tb[:400])
+        return _reject(item, h, stage, "error", tb[:400], config)
 
 
 def _config_from_dict(d: dict[str, Any]) -> IngestConfig:
@@ -151,56 +181,94 @@ def ingest(source, catalog_path: str | Path, config: IngestConfig | None = None,
            workers: int | None = None, address: str | None = None, limit: int | None = None,
            progress: bool = True) -> IngestReport:
     """Run the stage for a source into the catalog at `catalog_path` (created if missing); resumable."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-    from catalogs.writer import CatalogWriter, asset_root
-    from retrieval.curation import load_size_priors
-    from retrieval.executors import run_map
-    from retrieval.scoring import load_pool
+    from catalogs.writer import CatalogWriter
 
     config = config or IngestConfig()
     catalog_path = Path(catalog_path)
     report = IngestReport()
-    with CatalogWriter(catalog_path) as writer:
-        con = writer.con
-        pool = load_pool(con, sorted(load_size_priors()))
-        record_pool(writer, pool, config)
-        done = {(s, i): h for s, i, h in con.execute("SELECT source, source_id, content_hash FROM assets").fetchall()}
-        refused = {(s, i): d for s, i, d in con.execute("SELECT source, source_id, detail FROM rejections").fetchall()}
-        pending = []
-        for item in source.items(limit):
-            key = (item.source, item.source_id)
-            if key in done or key in refused:
-                h = item.content_hash()
-                if done.get(key) == h or (refused.get(key) or "").endswith(f"[sha256:{h[:16]}]"):
-                    report.skipped += 1
-                    continue
-            pending.append(item)
-        root = asset_root(catalog_path)
-        args = (config, pool, str(root), str(catalog_path.parent))
-        columns = (TextColumn("[bold]ingest {task.fields[src]}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
-        with Progress(*columns, disable=not progress) as bar:
-            task = bar.add_task("ingest", total=len(pending), src=getattr(source, "name", "?"))
-            for res in run_map(process_item, pending, executor=executor, workers=workers, address=address, args=args):
-                with writer.transaction():  # one asset lands whole or not at all, even under SIGKILL
-                    _write_result(writer, res, config, catalog_path)
-                for k, v in res.seconds.items():
-                    report.seconds[k] = report.seconds.get(k, 0.0) + v
-                if res.rejection is not None:
-                    report.rejected += 1
-                    report.reasons[res.rejection.reason] = report.reasons.get(res.rejection.reason, 0) + 1
-                    if config.max_rejections is not None and report.rejected > config.max_rejections:
-                        raise TooManyRejections(
-                            f"{report.rejected} assets rejected (> max_rejections {config.max_rejections}); last: "
-                            f"{res.source_id}: {res.rejection.reason}. Check the source, or raise max_rejections; "
-                            f"finished assets are kept and a re-run resumes")
-                else:
-                    report.written += 1
-                bar.advance(task)
-        from retrieval.finalize import finalize
-
-        report.pruned_matches, report.duplicates = finalize(writer, config)
+    created = not catalog_path.exists()
+    try:
+        with CatalogWriter(catalog_path) as writer:
+            _ingest_into(writer, source, catalog_path, config, report, executor=executor, workers=workers,
+                         address=address, limit=limit, progress=progress)
+    except BaseException:
+        if created and report.written == 0 and report.rejected == 0:
+            # Nothing was recorded (e.g. the source was unreachable): leave no empty catalog that looks built.
+            _remove_empty_catalog(catalog_path)
+        raise
     return report
+
+
+def _remove_empty_catalog(catalog_path: Path) -> None:
+    """Delete a catalog this run created and wrote nothing to (its file, WAL and empty asset folders)."""
+    from catalogs.writer import asset_root
+
+    for f in (catalog_path, Path(str(catalog_path) + ".wal")):
+        f.unlink(missing_ok=True)
+    root = asset_root(catalog_path)
+    if root.is_dir() and not any(p.is_file() for p in root.rglob("*")):
+        import shutil
+
+        shutil.rmtree(root, ignore_errors=True)
+
+
+def _ingest_into(writer, source, catalog_path: Path, config: IngestConfig, report: IngestReport, *,  # noqa: ANN001
+                 executor: str, workers: int | None, address: str | None, limit: int | None, progress: bool) -> None:
+    """The body of `ingest` on an open writer; fills `report`."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from catalogs.writer import asset_root
+    from retrieval.curation import load_size_priors
+    from retrieval.executors import check_executor, run_map
+    from retrieval.scoring import cached_scorer, load_pool
+
+    check_executor(executor)  # before any asset: a typo here must not cost a run
+    con = writer.con
+    done = {(s, i): h for s, i, h in con.execute("SELECT source, source_id, content_hash FROM assets").fetchall()}
+    # A rejection is final only for the same bytes under the same configuration; download failures are
+    # transient and always retried. Rows from before config_hash existed (NULL) are retried once.
+    cfg = config_hash(config)
+    refused = {(s, i): d for s, i, d in con.execute(
+        "SELECT source, source_id, detail FROM rejections WHERE config_hash = ? AND reason <> 'download_failed'",
+        [cfg]).fetchall()}
+    pending = []
+    for item in source.items(limit):
+        key = (item.source, item.source_id)
+        if key in done or key in refused:
+            h = item.content_hash()
+            if done.get(key) == h or (refused.get(key) or "").endswith(f"[sha256:{h[:16]}]"):
+                report.skipped += 1
+                continue
+        pending.append(item)
+    # Models load after the source listed its items: an unreachable source fails in seconds, not after them.
+    pool = load_pool(con, sorted(load_size_priors()))
+    # Build the scorer now: a missing model folder is a configuration error of the run, not of each asset.
+    cached_scorer(config.scoring, pool)
+    record_pool(writer, pool, config)
+    root = asset_root(catalog_path)
+    args = (config, pool, str(root), str(catalog_path.parent))
+    columns = (TextColumn("[bold]ingest {task.fields[src]}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    with Progress(*columns, disable=not progress) as bar:
+        task = bar.add_task("ingest", total=len(pending), src=getattr(source, "name", "?"))
+        for res in run_map(process_item, pending, executor=executor, workers=workers, address=address, args=args):
+            with writer.transaction():  # one asset lands whole or not at all, even under SIGKILL
+                _write_result(writer, res, config, catalog_path)
+            for k, v in res.seconds.items():
+                report.seconds[k] = report.seconds.get(k, 0.0) + v
+            if res.rejection is not None:
+                report.rejected += 1
+                report.reasons[res.rejection.reason] = report.reasons.get(res.rejection.reason, 0) + 1
+                if config.max_rejections is not None and report.rejected > config.max_rejections:
+                    raise TooManyRejections(
+                        f"{report.rejected} assets rejected (> max_rejections {config.max_rejections}); last: "
+                        f"{res.source_id}: {res.rejection.reason}. Check the source, or raise max_rejections; "
+                        f"finished assets are kept and a re-run resumes")
+            else:
+                report.written += 1
+            bar.advance(task)
+    from retrieval.finalize import finalize
+
+    report.pruned_matches, report.duplicates = finalize(writer, config)
 
 
 def record_pool(writer, pool: DescriptionPool, config: IngestConfig) -> None:  # noqa: ANN001 - CatalogWriter

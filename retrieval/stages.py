@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from curbside.config import ConfigError
 from retrieval.ingest import IngestConfig, ItemResult, config_from_dict
 from retrieval.normalize import AssetRejected, CanonicalMesh
 from retrieval.scoring import AssetScores, DescriptionPool
@@ -77,6 +78,8 @@ def _guard(stage: str, fn: Callable[..., Any], *args: Any) -> tuple[Any, dict[st
         return fn(*args), None
     except AssetRejected as rej:
         return None, {"stage": stage, "reason": rej.reason, "detail": rej.detail}
+    except ConfigError:
+        raise  # wrong for every asset: stop the stage rather than reject them all
     except Exception as exc:  # noqa: BLE001 - one broken asset must never stop the stage; the reason is kept
         tb = traceback.format_exception_only(type(exc), exc)[-1].strip()
         return None, {"stage": stage, "reason": "error", "detail": tb[:400]}
@@ -229,6 +232,7 @@ def curate(manifest: Path, normalised_dir: Path, views: Path, views_dir: Path, s
                 rej = res if isinstance(res, dict) else None
             if rej is not None:
                 # Same detail as ingest's rejections: the content hash lets a later ingest skip the same bytes.
+                # No config_hash: this stage saw only its own params sections, so a later ingest re-checks them.
                 rec = RejectionRecord(item.source, item.source_id, rej["stage"], rej["reason"],
                                       f"{rej['detail']} [sha256:{h[:16]}]")
                 res = ItemResult(item.source, item.source_id, h, rejection=rec)

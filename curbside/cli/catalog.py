@@ -7,23 +7,23 @@ import json
 import os
 import sys
 from collections.abc import Iterator
+from enum import Enum
 from pathlib import Path
 
 import typer
 
 from catalogs import DEFAULT_CATALOG  # light: only the schema constants
+from catalogs.schema import OBJECT_CLASSES, ZONES
+from curbside.cli.errors import RunError, UsageError
+
+# Option choices as Enums, so click refuses a bad value before any catalog is opened, listing the valid ones.
+ObjectClass = Enum("ObjectClass", {c: c for c in OBJECT_CLASSES}, type=str)
+Zone = Enum("Zone", {z: z for z in ZONES}, type=str)
+ExportFormat = Enum("ExportFormat", {f: f for f in ("parquet", "csv", "jsonl")}, type=str)
 
 app = typer.Typer(help="Build, search, inspect and validate the DuckDB asset catalog.", no_args_is_help=True)
 CatalogOpt = typer.Option(DEFAULT_CATALOG, "--catalog", help="Path of the catalog's .duckdb file.")
 JsonOpt = typer.Option(False, "--json", help="Print one JSON document on stdout and nothing else.")
-
-
-def _err(message: str, code: int = 1) -> typer.Exit:
-    """Print an error to stderr and return the Exit to raise."""
-    from rich.console import Console
-
-    Console(stderr=True).print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
-    return typer.Exit(code)
 
 
 def _emit_json(doc: object) -> None:
@@ -32,15 +32,27 @@ def _emit_json(doc: object) -> None:
     sys.stdout.flush()
 
 
-def _open(catalog: Path):
-    """Open the catalog read-only, turning a missing or incompatible catalog into a clean CLI error."""
-    from catalogs.reader import open_catalog
-    from catalogs.schema import CatalogError
+@contextlib.contextmanager
+def _catalog_errors(catalog: Path) -> Iterator[None]:
+    """Map catalog failures to the CLI's error style: locked -> exit 1 (wait, retry), missing/corrupt/other -> 2."""
+    from catalogs.reader import catalog_errors
+    from catalogs.schema import CatalogError, CatalogLocked
 
     try:
-        return open_catalog(catalog)
+        with catalog_errors(catalog):  # DuckDB errors raised while reading (a damaged block) get the same words
+            yield
+    except CatalogLocked as e:
+        raise RunError(str(e)) from e
     except CatalogError as e:
-        raise _err(str(e)) from None
+        raise UsageError(str(e)) from e
+
+
+def _open(catalog: Path):
+    """Open the catalog read-only, turning a missing, locked, corrupt or incompatible catalog into one error line."""
+    from catalogs.reader import open_catalog
+
+    with _catalog_errors(catalog):
+        return open_catalog(catalog)
 
 
 @contextlib.contextmanager
@@ -66,7 +78,7 @@ def _encoder(model: str | None):
         try:
             return TextEncoder(model)
         except FileNotFoundError as e:
-            raise _err(str(e)) from None
+            raise UsageError(str(e)) from None
 
 
 def _embed_query(model: str | None, text: str):
@@ -97,10 +109,8 @@ def build(
     with _quiet_ml():
         from retrieval.build import build_procedural_catalog
 
-        try:
+        with _catalog_errors(catalog):
             report = build_procedural_catalog(catalog, variants=variants, seed=seed, categories=category or None)
-        except ValueError as e:
-            raise _err(str(e)) from None
     Console().print(
         f"[green]built[/] {catalog}: {report.n_assets} assets in {len(report.per_category)} categories "
         f"({variants} variant(s) each, seed {seed}, embeddings {report.embedding_model}) in {report.seconds:.1f} s"
@@ -112,8 +122,8 @@ def query(
     text: str = typer.Argument(..., help="What to look for, in plain words (e.g. 'somewhere to sit')."),
     catalog: Path = CatalogOpt,
     category: str = typer.Option(None, "--category", help="Only this category (e.g. bench)."),
-    object_class: str = typer.Option(None, "--object-class", help="standard, non_standard or clutter."),
-    zone: str = typer.Option(None, "--zone", help="Only assets that belong in this sidewalk zone."),
+    object_class: ObjectClass = typer.Option(None, "--object-class", help="Only this object class."),
+    zone: Zone = typer.Option(None, "--zone", help="Only assets that belong in this sidewalk zone."),
     max_height: float = typer.Option(None, "--max-height", help="Only assets at most this tall (m)."),
     source: str = typer.Option(None, "--source", help="Only this source (e.g. procedural)."),
     license: str = typer.Option(None, "--license", help="Only this licence (e.g. CC0-1.0)."),
@@ -122,24 +132,18 @@ def query(
 ) -> None:
     """Search the catalog by meaning: text-embedding similarity computed in DuckDB, filters as SQL parameters."""
     from catalogs.query import QueryFilters, search
-    from catalogs.schema import OBJECT_CLASSES, ZONES
 
     if not text.strip():
-        raise _err("the query text is empty; say what to look for, e.g. `curbside catalog query \"bench\"`")
-    if object_class is not None and object_class not in OBJECT_CLASSES:
-        raise _err(f"--object-class {object_class!r} is not one of {', '.join(OBJECT_CLASSES)}")
-    if zone is not None and zone not in ZONES:
-        raise _err(f"--zone {zone!r} is not one of {', '.join(ZONES)}")
-    filters = QueryFilters(category=category, object_class=object_class, zone=zone, max_height=max_height,
-                           source=source, license=license)
+        raise UsageError("the query text is empty; say what to look for, e.g. `curbside catalog query \"bench\"`")
+    filters = QueryFilters(category=category, object_class=object_class.value if object_class else None,
+                           zone=zone.value if zone else None, max_height=max_height, source=source, license=license)
     con = _open(catalog)
-    try:
+    # Checksum errors surface while blocks are read, not on open: the whole read maps to one error line.
+    with _catalog_errors(catalog), contextlib.closing(con):
         meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
         vec = _embed_query(meta.get("embedding_model"), text)
         results = search(con, vec, filters, limit=limit)
         known = {r[0] for r in con.execute("SELECT DISTINCT category FROM assets").fetchall()}
-    finally:
-        con.close()
     active = {k: v for k, v in vars(filters).items() if v is not None}
     hint = None
     if not results:
@@ -180,15 +184,13 @@ def show(
 ) -> None:
     """Show every recorded field of one asset, with its files resolved to absolute paths."""
     from catalogs.reader import CatalogReader
-    from catalogs.schema import CatalogError
 
-    try:
+    with _catalog_errors(catalog):
         reader = CatalogReader(catalog)
+    try:
         rec = reader.get(asset_id)
-    except CatalogError as e:
-        raise _err(str(e)) from None
     except KeyError:
-        raise _err(f"asset {asset_id!r} is not in {catalog}; find ids with `curbside catalog query TEXT`") from None
+        raise UsageError(f"asset {asset_id!r} is not in {catalog}; find ids with `curbside catalog query TEXT`") from None
     row = rec.to_row()
     for key in ("mesh_path", "glb_path", "collision_path"):
         resolved = reader.resolve(row[key])
@@ -213,10 +215,8 @@ def stats(catalog: Path = CatalogOpt, as_json: bool = JsonOpt) -> None:
     from catalogs.inspect import catalog_stats
 
     con = _open(catalog)
-    try:
+    with _catalog_errors(catalog), contextlib.closing(con):  # a damaged block shows while counting
         doc = catalog_stats(con)
-    finally:
-        con.close()
     doc["catalog"] = str(catalog)
     if as_json:
         _emit_json(doc)
@@ -244,20 +244,20 @@ def stats(catalog: Path = CatalogOpt, as_json: bool = JsonOpt) -> None:
 @app.command()
 def export(
     catalog: Path = CatalogOpt,
-    fmt: str = typer.Option("parquet", "--format", help="parquet, csv or jsonl."),
+    fmt: ExportFormat = typer.Option(ExportFormat.parquet.value, "--format", help="Output format."),
     out: Path = typer.Option(None, "--out", help="Output file (default: next to the catalog, same stem)."),
 ) -> None:
     """Export the assets table as parquet, csv or jsonl."""
-    from catalogs.inspect import EXPORT_FORMATS, export_assets
+    from catalogs.inspect import export_assets
 
-    if fmt not in EXPORT_FORMATS:
-        raise _err(f"--format {fmt!r} is not one of {', '.join(EXPORT_FORMATS)}")
+    fmt = ExportFormat(fmt).value
     out = out or catalog.with_suffix(f".{fmt}")
+    if out.is_dir():
+        # DuckDB's COPY would fail deep inside with an IO error; say what to pass instead.
+        raise UsageError(f"--out {out} is a directory; give a file path such as {out / ('assets.' + fmt)}")
     con = _open(catalog)
-    try:
+    with _catalog_errors(catalog), contextlib.closing(con):
         n = export_assets(con, fmt, out)
-    finally:
-        con.close()
     from rich.console import Console
 
     Console(stderr=True).print(f"[green]exported[/] {n} assets to {out}", highlight=False)
@@ -271,9 +271,10 @@ def validate(
     """Check schema version, files, mesh loading (trimesh, PyBullet) and dimensions (2 %); exit 1 on problems."""
     from catalogs.validate import validate_catalog
 
-    if not catalog.exists():
+    if not catalog.exists() or catalog.is_dir():
         _open(catalog)  # raises the standard "build it with ..." error
-    n, problems = validate_catalog(catalog, progress=not as_json)
+    with _catalog_errors(catalog):  # only a locked catalog gets here: corruption is reported as a problem below
+        n, problems = validate_catalog(catalog, progress=not as_json)
     if as_json:
         _emit_json({"catalog": str(catalog), "assets_checked": n, "ok": not problems,
                     "problems": [p.to_dict() for p in problems]})

@@ -2,9 +2,33 @@
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
+from enum import Enum
 from pathlib import Path
 
 import typer
+
+from curbside.cli.errors import RunError, UsageError
+
+# Option choices as Enums and ranges, so click refuses a bad value before the catalog is touched: a bad value
+# reaching the per-asset steps would be recorded as every asset's rejection (issue 12).
+Executor = Enum("Executor", {e: e for e in ("local", "process", "ray")}, type=str)  # retrieval.executors.EXECUTORS
+Scorer = Enum("Scorer", {e: e for e in ("imagenet", "clip", "none")}, type=str)  # retrieval.scoring.IMAGE_ENCODERS
+Calibration = Enum("Calibration", {e: e for e in ("softmax", "zscore", "none")}, type=str)  # scoring.CALIBRATIONS
+MAX_VIEWS = 20  # retrieval.render.MAX_VIEWS, not imported so `--help` stays light (a test checks they agree)
+
+
+@contextlib.contextmanager
+def _source_errors() -> Iterator[None]:
+    """Map a source that cannot list its assets, or a stopped run, to the CLI's one-line errors."""
+    from retrieval.ingest import TooManyRejections
+    from retrieval.sources import SourceError
+
+    try:
+        yield
+    except (SourceError, TooManyRejections) as e:
+        raise RunError(str(e)) from e
 
 
 def register(app: typer.Typer) -> None:
@@ -13,21 +37,22 @@ def register(app: typer.Typer) -> None:
     @app.command("ingest")
     def ingest_cmd(
         source: str = typer.Option("procedural", help="objaverse | local:DIR | procedural"),
-        limit: int = typer.Option(None, help="at most this many assets from the source"),
-        executor: str = typer.Option("local", help="local | process | ray"),
+        limit: int = typer.Option(None, min=1, help="at most this many assets from the source"),
+        executor: Executor = typer.Option(Executor.local.value, help="where the per-asset steps run"),
         address: str = typer.Option(None, help="Ray cluster address (with --executor ray)"),
-        workers: int = typer.Option(None, help="worker processes (process/ray executors)"),
+        workers: int = typer.Option(None, min=1, help="worker processes (process/ray executors)"),
         catalog: Path = typer.Option(Path("catalogs/default.duckdb"), help="catalog file (created if missing)"),
-        scorer: str = typer.Option("imagenet", help="image encoder: imagenet | clip | none"),
+        scorer: Scorer = typer.Option(Scorer.imagenet.value, help="image encoder"),
         clip_model: str = typer.Option(None, help="CLIP weights folder (with --scorer clip)"),
-        views: int = typer.Option(8, help="rendered views per asset (1-20)"),
-        calibration: str = typer.Option("softmax", help="per-signal calibration over the pool: softmax | zscore | none"),
-        per_category: int = typer.Option(2, help="procedural variants per category"),
+        views: int = typer.Option(8, min=1, max=MAX_VIEWS, help="rendered views per asset"),
+        calibration: Calibration = typer.Option(Calibration.softmax.value, help="per-signal calibration over the pool"),
+        per_category: int = typer.Option(2, min=1, help="procedural variants per category"),
         objaverse_cache: Path = typer.Option(None, help="objaverse cache folder (default ~/.objaverse)"),
     ) -> None:
         """Retrieve assets from a source, render, score and curate them into the catalog (resumable)."""
         from rich import print as rprint
 
+        from curbside.cli.catalog import _catalog_errors
         from retrieval.ingest import IngestConfig, ingest
         from retrieval.scoring import ScoringConfig
         from retrieval.sources import open_source
@@ -39,22 +64,24 @@ def register(app: typer.Typer) -> None:
             opts = {"cache_dir": objaverse_cache}
         try:
             src = open_source(source, **opts)
-            config = IngestConfig(n_views=views, scoring=ScoringConfig(image_encoder=scorer, clip_model=clip_model,
-                                                                       calibration=calibration))
+            config = IngestConfig(n_views=views, scoring=ScoringConfig(
+                image_encoder=Scorer(scorer).value, clip_model=clip_model, calibration=Calibration(calibration).value))
         except (ValueError, FileNotFoundError) as exc:
-            raise typer.BadParameter(str(exc)) from None
-        report = ingest(src, catalog, config, executor=executor, workers=workers, address=address, limit=limit)
+            raise UsageError(str(exc)) from None
+        with _catalog_errors(catalog), _source_errors():
+            report = ingest(src, catalog, config, executor=Executor(executor).value, workers=workers, address=address,
+                            limit=limit)
         rprint(f"[bold]ingest[/bold] {source} -> {catalog}: written {report.written}, rejected {report.rejected} "
                f"{report.reasons}, skipped {report.skipped}, duplicates {report.duplicates}")
 
     @app.command("eval")
     def eval_cmd(
-        per_category: int = typer.Option(1, help="procedural assets per category in the built-in labelled set"),
-        scorer: str = typer.Option("imagenet", help="image encoder: imagenet | clip | none"),
+        per_category: int = typer.Option(1, min=1, help="procedural assets per category in the built-in labelled set"),
+        scorer: Scorer = typer.Option(Scorer.imagenet.value, help="image encoder"),
         clip_model: str = typer.Option(None, help="CLIP weights folder (with --scorer clip)"),
         objaverse_cache: Path = typer.Option(None, help="evaluate on this objaverse cache's LVIS labels instead"),
-        limit: int = typer.Option(None, help="at most this many assets"),
-        calibration: str = typer.Option("softmax", help="per-signal calibration over the pool: softmax | zscore | none"),
+        limit: int = typer.Option(None, min=1, help="at most this many assets"),
+        calibration: Calibration = typer.Option(Calibration.softmax.value, help="per-signal calibration over the pool"),
     ) -> None:
         """Retrieval quality (category accuracy, precision@k) on a labelled set."""
         import tempfile
@@ -65,11 +92,11 @@ def register(app: typer.Typer) -> None:
         from retrieval.sources import open_source
 
         try:
-            config = IngestConfig(scoring=ScoringConfig(image_encoder=scorer, clip_model=clip_model,
-                                                        calibration=calibration))
+            config = IngestConfig(scoring=ScoringConfig(image_encoder=Scorer(scorer).value, clip_model=clip_model,
+                                                        calibration=Calibration(calibration).value))
         except (ValueError, FileNotFoundError) as exc:
-            raise typer.BadParameter(str(exc)) from None
-        with tempfile.TemporaryDirectory() as tmp:
+            raise UsageError(str(exc)) from None
+        with tempfile.TemporaryDirectory() as tmp, _source_errors():
             if objaverse_cache:
                 src = open_source("objaverse", cache_dir=objaverse_cache)
             else:

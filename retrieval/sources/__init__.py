@@ -50,6 +50,18 @@ class SourceItem:
         return h.hexdigest()
 
 
+class SourceError(RuntimeError):
+    """A source that cannot list its assets at all (unlike a bad asset, which becomes a rejection)."""
+
+
+class SourceUnavailable(SourceError):
+    """The source needs something this machine lacks (network access to its index): the message says what to do."""
+
+
+class SourceCacheCorrupt(SourceError):
+    """A file in the source's local cache is truncated or damaged: the message names it and says to delete it."""
+
+
 class Source(Protocol):
     """What every source provides."""
 

@@ -48,30 +48,47 @@ class LocalSource:
         self.default_license = license
 
     def items(self, limit: int | None = None) -> Iterator[SourceItem]:
-        """Yield one item per mesh file."""
+        """Yield one item per mesh file; a bad sidecar rejects its own asset only (reason `bad_metadata`)."""
         files = sorted(p for p in self.root.rglob("*") if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
         for n, path in enumerate(files):
             if limit is not None and n >= limit:
                 return
+            sidecar = next((c for c in (path.with_name(path.name + ".json"), path.with_suffix(".json")) if c.exists()),
+                           None)
             meta: dict = {}
-            sidecar = None
-            for cand in (path.with_name(path.name + ".json"), path.with_suffix(".json")):
-                if cand.exists():
-                    sidecar = cand
-                    try:
-                        meta = json.loads(cand.read_text())
-                    except json.JSONDecodeError as exc:
-                        raise ValueError(f"metadata sidecar {cand} is not valid JSON ({exc}); fix or remove it") from None
-                    unknown = set(meta) - set(SIDECAR_KEYS)
-                    if unknown:
-                        raise ValueError(f"sidecar {cand} has unknown keys {sorted(unknown)}; valid: {', '.join(SIDECAR_KEYS)}")
-                    break
+            problem = None
+            if sidecar is not None:
+                meta, problem = read_sidecar(sidecar)
             rel = path.relative_to(self.root).as_posix()
             companions = _companions(path) + ([str(sidecar)] if sidecar else [])
+            metadata = {"companion_files": companions, "format": path.suffix.lower()[1:]}
+            if problem:
+                # The sidecar is part of the content hash: fixing it changes the hash, so a re-run retries the asset.
+                metadata["rejected"] = ["bad_metadata", problem]
             yield SourceItem(
                 source="local", source_id=rel, path=str(path),
                 name=meta.get("name") or re.sub(r"[_\-.]+", " ", path.stem).strip(),
                 description=meta.get("description"), tags=list(meta.get("tags", [])), category=meta.get("category"),
                 license=meta.get("license", self.default_license), attribution=meta.get("attribution"),
-                up_axis=meta.get("up_axis"), metadata={"companion_files": companions, "format": path.suffix.lower()[1:]},
+                up_axis=meta.get("up_axis"), metadata=metadata,
             )
+
+
+def read_sidecar(path: Path) -> tuple[dict, str | None]:
+    """The sidecar's metadata, or ({}, why it is unusable): bad JSON, not an object, unknown keys, wrong types."""
+    try:
+        meta = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        return {}, f"metadata sidecar {path} is not valid JSON ({exc}); fix or remove it"
+    if not isinstance(meta, dict):
+        return {}, f"metadata sidecar {path} holds a {type(meta).__name__}, not a JSON object; fix or remove it"
+    unknown = sorted(set(meta) - set(SIDECAR_KEYS))
+    if unknown:
+        return {}, f"sidecar {path} has unknown keys {unknown}; valid: {', '.join(SIDECAR_KEYS)}"
+    bad = [k for k in SIDECAR_KEYS if k in meta and k != "tags" and not isinstance(meta[k], (str, type(None)))]
+    if bad:
+        return {}, f"sidecar {path}: {', '.join(bad)} must be text, got {meta[bad[0]]!r}; fix or remove it"
+    tags = meta.get("tags", [])
+    if not (isinstance(tags, list) and all(isinstance(t, str) for t in tags)):
+        return {}, f"sidecar {path}: tags must be a list of strings, got {tags!r}; fix or remove it"
+    return meta, None

@@ -1,20 +1,33 @@
-"""`objaverse`: Objaverse 1.0 through the `objaverse` package (annotations, LVIS categories, GLBs in its cache).
+"""`objaverse`: Objaverse 1.0 (annotations, LVIS categories, GLBs) in the `objaverse` package's cache layout.
 
-The package keeps everything under `objaverse.BASE_PATH/hf-objaverse-v1` (object-paths.json.gz, metadata/
-shards, lvis-annotations.json.gz, glbs/); `cache_dir` points it elsewhere. Prefilters run on the annotations
-before any download (licence, face count, GLB size); what they refuse becomes an item carrying its rejection, so
-the stage records it. Downloads go through `objaverse.load_objects` with a socket timeout and retries; a GLB
-already in the cache is not fetched again, so an interrupted run resumes where it stopped.
+Files live under `cache_dir/hf-objaverse-v1` (object-paths.json.gz, metadata/<shard>.json.gz,
+lvis-annotations.json.gz, glbs/<shard>/<uid>.glb), the layout of the `objaverse` package, so a cache it filled is
+used as is. Every download (annotations too) has a socket timeout and retries, and goes to a temporary file renamed
+into place (`os.replace`) only when complete: an interrupted run never leaves a truncated file that later reads
+as data. Prefilters run on the annotations before any GLB download (licence, face count, GLB size); what they
+refuse becomes an item carrying its rejection, so the stage records it. A GLB already in the cache is not fetched
+again, so an interrupted run resumes where it stopped.
 """
 
 from __future__ import annotations
 
+import gzip
+import http.client
+import json
+import os
 import socket
 import time
+import urllib.error
+import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
-from retrieval.sources import SourceItem
+from retrieval.sources import SourceCacheCorrupt, SourceItem, SourceUnavailable
+
+HF_URL = "https://huggingface.co/datasets/allenai/objaverse/resolve/main"
+URL_ENV = "CURBSIDE_OBJAVERSE_URL"  # another mirror (or, in tests, an address that refuses connections)
+DEFAULT_CACHE = Path.home() / ".objaverse"
 
 # LVIS category -> curbside category, for the LVIS categories that are street objects.
 LVIS_TO_CATEGORY = {
@@ -34,12 +47,80 @@ LICENSE_NAMES = {"by": "CC-BY-4.0", "by-sa": "CC-BY-SA-4.0", "by-nd": "CC-BY-ND-
                  "by-nc-sa": "CC-BY-NC-SA-4.0", "by-nc-nd": "CC-BY-NC-ND-4.0", "cc0": "CC0-1.0"}
 
 
-def use_cache_dir(cache_dir: str | Path) -> None:
-    """Point the objaverse package at `cache_dir` (it reads these module paths at every call)."""
-    import objaverse
+class DownloadError(OSError):
+    """A download that failed after every retry (the last error is in the message)."""
 
-    objaverse.BASE_PATH = str(cache_dir)
-    objaverse._VERSIONED_PATH = str(Path(cache_dir) / "hf-objaverse-v1")
+
+def download(url: str, dest: Path, *, timeout: float = 60.0, retries: int = 3) -> Path:
+    """Fetch `url` into `dest` atomically (temporary file, then os.replace), with a timeout and retries."""
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    # One temporary name per process: two runs filling one cache never write the same file.
+    tmp = dest.with_name(f".{dest.name}.{os.getpid()}.part")
+    last: BaseException | None = None
+    for attempt in range(max(1, retries)):
+        try:
+            with urllib.request.urlopen(url, timeout=timeout) as resp, open(tmp, "wb") as fh:
+                expected = resp.headers.get("Content-Length")
+                got = 0
+                while chunk := resp.read(1 << 20):
+                    fh.write(chunk)
+                    got += len(chunk)
+            # A connection closed early just ends the stream: only the announced length tells a short file.
+            if expected is not None and got != int(expected):
+                raise http.client.IncompleteRead(b"", int(expected) - got)
+            os.replace(tmp, dest)
+            return dest
+        except (OSError, http.client.HTTPException) as exc:  # URLError, HTTPError, timeouts, resets, short reads
+            last = exc
+            tmp.unlink(missing_ok=True)
+            if isinstance(getattr(exc, "reason", None), socket.gaierror):
+                break  # the host name does not resolve: offline, and retrying will not change that
+            if isinstance(exc, urllib.error.HTTPError) and 400 <= exc.code < 500:
+                break  # the file is not there (404) or not ours to fetch: asking again will not change it
+            if attempt + 1 < retries:
+                time.sleep(min(2 ** attempt, 10))
+        except BaseException:
+            tmp.unlink(missing_ok=True)  # interrupted: no half file left behind
+            raise
+    reason = last if isinstance(last, urllib.error.HTTPError) else (getattr(last, "reason", None) or last)
+    raise DownloadError(f"{url}: {type(last).__name__}: {reason}")
+
+
+class ObjaverseCache:
+    """The objaverse cache folder: reads files from it, downloading what is missing."""
+
+    def __init__(self, root: str | Path | None = None, *, timeout: float = 60.0, retries: int = 3,
+                 base_url: str | None = None) -> None:
+        self.root = Path(root) if root is not None else DEFAULT_CACHE
+        self.base = self.root / "hf-objaverse-v1"
+        self.url = (base_url or os.environ.get(URL_ENV) or HF_URL).rstrip("/")
+        self.timeout, self.retries = timeout, retries
+
+    def file(self, rel: str) -> Path:
+        """Local path of `rel` (e.g. glbs/000-000/uid.glb), downloaded first when missing; raises DownloadError."""
+        local = self.base / rel
+        if not local.exists():
+            download(f"{self.url}/{rel}", local, timeout=self.timeout, retries=self.retries)
+        return local
+
+    def annotation(self, rel: str) -> Any:
+        """A gzipped JSON annotation file; one line naming the problem and the fix when it cannot be had."""
+        try:
+            path = self.file(rel)
+        except DownloadError as exc:
+            raise SourceUnavailable(
+                f"objaverse needs network access to download {rel} into {self.base} ({exc}); connect to the "
+                f"network, pass --objaverse-cache DIR holding a filled cache, or ingest local meshes with "
+                f"--source local:DIR"
+            ) from None
+        try:
+            with gzip.open(path, "rt", encoding="utf-8") as fh:
+                return json.load(fh)
+        except (EOFError, OSError, ValueError) as exc:  # truncated gzip, not gzip, bad JSON or UTF-8
+            raise SourceCacheCorrupt(
+                f"objaverse cache file {path} is truncated or corrupt ({type(exc).__name__}: {exc}); delete it "
+                f"and rerun to download it again"
+            ) from None
 
 
 class ObjaverseSource:
@@ -50,42 +131,48 @@ class ObjaverseSource:
     def __init__(self, cache_dir: str | Path | None = None, lvis_categories: list[str] | None = None,
                  licenses: tuple[str, ...] = DEFAULT_LICENSES, max_faces: int = 200_000,
                  max_bytes: int = 50_000_000, timeout: float = 60.0, retries: int = 3, batch: int = 16,
-                 **_: object) -> None:
-        if cache_dir is not None:
-            use_cache_dir(cache_dir)
+                 base_url: str | None = None, **_: object) -> None:
+        self.cache = ObjaverseCache(cache_dir, timeout=timeout, retries=retries, base_url=base_url)
         self.lvis = {k: v for k, v in LVIS_TO_CATEGORY.items() if v} if lvis_categories is None else \
             {k: LVIS_TO_CATEGORY.get(k) for k in lvis_categories}
         self.licenses = tuple(licenses)
         self.max_faces, self.max_bytes = max_faces, max_bytes
         self.timeout, self.retries, self.batch = timeout, retries, batch
+        self._paths: dict[str, str] | None = None
+
+    def _object_paths(self) -> dict[str, str]:
+        """uid -> path of its GLB in the repository (object-paths.json.gz, loaded once)."""
+        if self._paths is None:
+            self._paths = self.cache.annotation("object-paths.json.gz")
+        return self._paths
+
+    def _annotations(self, uids: list[str]) -> dict[str, dict]:
+        """Sketchfab metadata of `uids`, from the metadata shards that hold them."""
+        paths = self._object_paths()
+        out: dict[str, dict] = {}
+        for shard in sorted({paths[u].split("/")[1] for u in uids if u in paths}):
+            data = self.cache.annotation(f"metadata/{shard}.json.gz")
+            out.update({u: data[u] for u in uids if u in data})
+        return out
 
     def _download(self, uids: list[str]) -> tuple[dict[str, str], dict[str, str]]:
         """Paths of the GLBs (downloading what is missing) and an error per uid that could not be fetched."""
-        import objaverse
-
         paths: dict[str, str] = {}
         errors: dict[str, str] = {}
-        old = socket.getdefaulttimeout()
-        socket.setdefaulttimeout(self.timeout)  # urllib.urlretrieve inside objaverse has no timeout of its own
-        try:
-            for uid in uids:
-                for attempt in range(self.retries):
-                    try:
-                        paths.update(objaverse.load_objects([uid]))
-                        errors.pop(uid, None)
-                        break
-                    except Exception as exc:  # noqa: BLE001 - network errors of every kind: retry, then record
-                        errors[uid] = f"{type(exc).__name__}: {exc}"[:200]
-                        time.sleep(min(2 ** attempt, 10) * (attempt + 1 < self.retries))
-        finally:
-            socket.setdefaulttimeout(old)
+        repo_paths = self._object_paths()
+        for uid in uids:
+            if uid not in repo_paths:
+                errors[uid] = "uid not listed in object-paths.json.gz"
+                continue
+            try:
+                paths[uid] = str(self.cache.file(repo_paths[uid]))
+            except DownloadError as exc:  # this asset only: recorded as download_failed, retried next run
+                errors[uid] = str(exc)[:200]
         return paths, errors
 
     def items(self, limit: int | None = None) -> Iterator[SourceItem]:
         """Yield items category by category (uids sorted), prefiltered, downloading in batches."""
-        import objaverse
-
-        lvis = objaverse.load_lvis_annotations()
+        lvis = self.cache.annotation("lvis-annotations.json.gz")
         chosen: list[tuple[str, str, str]] = []
         for lvis_cat in sorted(self.lvis):
             for uid in sorted(lvis.get(lvis_cat, [])):
@@ -94,7 +181,7 @@ class ObjaverseSource:
             chosen = chosen[:limit]
         for start in range(0, len(chosen), self.batch):
             part = chosen[start:start + self.batch]
-            ann = objaverse.load_annotations([u for u, _, _ in part])
+            ann = self._annotations([u for u, _, _ in part])
             ok = []
             verdicts: dict[str, tuple[str, str]] = {}
             for uid, _, _ in part:

@@ -8,7 +8,7 @@ import duckdb
 import pytest
 
 from catalogs.reader import CatalogReader, open_catalog
-from catalogs.schema import SCHEMA_VERSION, CatalogError, ddl
+from catalogs.schema import SCHEMA_VERSION, CatalogCorrupt, CatalogError, CatalogSchemaError, ddl
 from catalogs.writer import CatalogWriter, build_catalog
 
 TABLES = {"meta", "assets", "views", "descriptions", "matches", "embeddings", "rejections"}
@@ -62,13 +62,13 @@ def test_missing_catalog_names_build_command(tmp_path: Path) -> None:
 def test_non_catalog_files_are_refused(tmp_path: Path) -> None:
     junk = tmp_path / "junk.duckdb"
     junk.write_bytes(b"this is not a database")
-    with pytest.raises(CatalogError, match="not a readable curbside catalog"):
+    with pytest.raises(CatalogCorrupt, match="not a DuckDB database file"):
         open_catalog(junk)
     other = tmp_path / "other.duckdb"
     con = duckdb.connect(str(other))
     con.execute("CREATE TABLE t (x INTEGER)")
     con.close()
-    with pytest.raises(CatalogError, match="not a readable curbside catalog"):
+    with pytest.raises(CatalogSchemaError, match="not a curbside catalog"):
         open_catalog(other)
     with pytest.raises(CatalogError, match="directory"):
         open_catalog(tmp_path)

@@ -24,6 +24,17 @@ def run(*args: str):
     return runner.invoke(app, ["catalog", *args])
 
 
+def run_console(capsys: pytest.CaptureFixture, *args: str) -> tuple[int, str, str]:
+    """Invoke `curbside catalog ARGS` as the console script does (errors.run); returns (code, stdout, stderr)."""
+    import typer
+
+    from curbside.cli.errors import run as run_with_errors
+
+    code = run_with_errors(typer.main.get_command(app), ["catalog", *args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
 def query_json(catalog: Path, text: str, *extra: str) -> dict:
     res = run("query", text, "--catalog", str(catalog), "--json", *extra)
     assert res.exit_code == 0, res.output
@@ -88,12 +99,12 @@ def test_bad_filter_values_are_explained(small_catalog: Path) -> None:
 
 
 @pytest.mark.parametrize("cmd", [["query", "bench"], ["stats"], ["show", "x"], ["export"], ["validate"]])
-def test_missing_catalog_names_the_build_command(tmp_path: Path, cmd: list[str]) -> None:
+def test_missing_catalog_names_the_build_command(capsys, tmp_path: Path, cmd: list[str]) -> None:
     missing = tmp_path / "none.duckdb"
-    res = run(*cmd, "--catalog", str(missing))
-    assert res.exit_code == 1
-    assert f"curbside catalog build --catalog {missing}" in res.stderr
-    assert res.stdout == ""
+    code, out, err = run_console(capsys, *cmd, "--catalog", str(missing))
+    assert code == 2  # a missing file the user named is bad input
+    assert f"curbside catalog build --catalog {missing}" in err and len(err.strip().splitlines()) == 1
+    assert out == ""
 
 
 def test_stats(small_catalog: Path) -> None:
@@ -110,15 +121,15 @@ def test_stats(small_catalog: Path) -> None:
     assert res.exit_code == 0 and "fire_hydrant" in res.stdout
 
 
-def test_show(small_catalog: Path) -> None:
+def test_show(capsys, small_catalog: Path) -> None:
     asset_id = query_json(small_catalog, "fire hydrant")["results"][0]["asset_id"]
     res = run("show", asset_id, "--catalog", str(small_catalog), "--json")
     assert res.exit_code == 0, res.output
     doc = json.loads(res.stdout)
     assert doc["asset_id"] == asset_id and doc["category"] == "fire_hydrant"
     assert Path(doc["mesh_path_resolved"]).is_file()
-    res = run("show", "no/such/asset", "--catalog", str(small_catalog))
-    assert res.exit_code == 1 and "no/such/asset" in res.stderr
+    code, _, err = run_console(capsys, "show", "no/such/asset", "--catalog", str(small_catalog))
+    assert code == 2 and "no/such/asset" in err and "catalog query" in err
 
 
 @pytest.mark.parametrize("fmt", ["parquet", "csv", "jsonl"])
