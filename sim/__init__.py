@@ -4,7 +4,11 @@ Importing `sim` registers the Gymnasium environments `curbside/PointNav-v0` and 
 (entry points are strings, so nothing heavy loads; see sim.envs.ENV_IDS).
 """
 
-from sim.envs import ENV_IDS, register_envs
+from sim.quiet import import_pybullet
+
+import_pybullet()  # first, before any sim module imports pybullet: its build-time banner is noise on every command
+
+from sim.envs import ENV_IDS, register_envs  # noqa: E402
 
 register_envs()
 

@@ -2,21 +2,34 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+from enum import Enum
 from pathlib import Path
 from typing import Optional
 
 import typer
+
+from curbside.cli.errors import UsageError
 
 app = typer.Typer(help="Generate, render and collect urban scenes (scene specs as JSON).", no_args_is_help=True)
 
 DEFAULT_CATALOG = Path("catalogs/default.duckdb")
 
 
+# Choices as Enums so `--help` lists them and a typo fails before any work (names kept in sync by tests).
+Split = Enum("Split", {k: k for k in ("train", "test", "unseen", "finetune")}, type=str)  # type: ignore[misc]
+Preset = Enum("Preset", {"metaurban12k": "metaurban12k"}, type=str)  # type: ignore[misc]
+RoutePreset = Enum("RoutePreset", {k: k for k in ("short", "metaurban12k")}, type=str)  # type: ignore[misc]
+MAX_SEED = 2**32 - 1
+MAX_COUNT = 1_000_000  # splits start 1,000,000 seeds apart (sim.scene.dataset.MAX_COUNT)
+
+
 def _catalog(path: Path | None) -> str | None:
     """The catalog to use: the given path, else catalogs/default.duckdb when present, else none (fallback boxes)."""
     if path is not None:
         if not path.exists():
-            raise typer.BadParameter(f"no catalog at {path}; build one with `curbside catalog build`", param_hint="--catalog")
+            raise UsageError(f"no catalog at {path}; build one with `curbside catalog build` or leave out --catalog")
         return str(path)
     if DEFAULT_CATALOG.exists():
         return str(DEFAULT_CATALOG)
@@ -28,41 +41,52 @@ def _catalog(path: Path | None) -> str | None:
 
 
 def _blocks(value: str) -> int | str:
-    return int(value) if value.isdigit() else value
+    return int(value) if value.strip().isdigit() else value
 
 
-def _fail(e: Exception) -> None:
-    typer.secho(f"error: {e}", fg="red", err=True)
-    raise typer.Exit(2)
+@contextmanager
+def _catalog_errors() -> Iterator[None]:
+    """A catalog the user named that is corrupt or of another schema is bad input (exit 2), not a failed run."""
+    from catalogs.schema import CatalogError
+
+    try:
+        yield
+    except CatalogError as e:
+        raise UsageError(str(e)) from e
+
+
+def _file_out(out: Path, example: str) -> None:
+    """UsageError unless `out` can be a file (not an existing folder)."""
+    if out.is_dir():
+        raise UsageError(f"--out {out} is a directory; give a file path such as {out / example}")
 
 
 @app.command()
 def generate(
     out: Path = typer.Option(..., "--out", "-o", help="Scene spec JSON to write."),
-    blocks: str = typer.Option("3", help="Number of blocks, or block codes such as SXC (S, C, X, T, O)."),
-    seed: int = typer.Option(0, help="Random seed."),
+    blocks: str = typer.Option("3", help="Number of blocks (1-64), or block codes such as SXC (S, C, X, T, O)."),
+    seed: int = typer.Option(0, min=0, max=MAX_SEED, help="Random seed."),
     templates: str = typer.Option("abcdef", help="Sidewalk templates to draw from (a-g)."),
-    object_density: float = typer.Option(1.0, "--object-density", help="Object density rho_s."),
+    object_density: float = typer.Option(1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."),
     country: str | None = typer.Option(None, help="ISO country code of the category distribution (default: uniform)."),
     catalog: Path | None = typer.Option(None, help="Asset catalog (default: catalogs/default.duckdb if present)."),
-    crosswalk_density: float = typer.Option(0.5, "--crosswalk-density", help="Fraction of crosswalk candidates built."),
+    crosswalk_density: float = typer.Option(0.5, "--crosswalk-density",
+                                            help="Fraction of crosswalk candidates built, in [0, 1]."),
 ) -> None:
     """Generate one scene spec."""
     import warnings
 
-    from curbside.config import ConfigError
-    from catalogs.schema import CatalogError
     from sim.scene import generate_scene, save
+    from sim.scene.config import resolve_config
 
+    _file_out(out, "scene.json")
     cfg = {"blocks": _blocks(blocks), "templates": templates, "object_density": object_density,
            "country": country, "crosswalk_density": crosswalk_density}
+    resolve_config(cfg)  # a bad value (NaN, out of range) fails here, before the catalog warning or any work
     cat = _catalog(catalog)
-    try:
-        with warnings.catch_warnings(record=True):
-            warnings.simplefilter("always")
-            spec = generate_scene(cfg, seed, cat)
-    except (ConfigError, CatalogError) as e:
-        _fail(e)
+    with _catalog_errors(), warnings.catch_warnings(record=True):
+        warnings.simplefilter("always")
+        spec = generate_scene(cfg, seed, cat)
     save(spec, out)
     st = spec["stats"]
     if st["fallback_categories"]:
@@ -73,51 +97,61 @@ def generate(
 
 @app.command()
 def render(
-    scene: Path = typer.Argument(..., help="Scene spec JSON."),
+    scene: Path = typer.Argument(..., exists=True, dir_okay=False, readable=True, help="Scene spec JSON."),
     out: Path = typer.Option(..., "--out", "-o", help="PNG to write."),
-    dpi: int = typer.Option(150, help="Resolution."),
+    dpi: int = typer.Option(150, min=10, max=1200, help="Resolution (dots per inch)."),
 ) -> None:
     """Render a scene spec top-down to PNG."""
+    import json
+
     from sim.scene import load
+    from sim.scene.config import check_scene_spec
     from sim.scene.render import render_scene
 
+    _file_out(out, "scene.png")
     try:
         spec = load(scene)
-    except (FileNotFoundError, ValueError) as e:
-        _fail(e)
+    except json.JSONDecodeError as e:
+        raise UsageError(f"{scene} is not a scene spec JSON file ({e.msg} at line {e.lineno}); "
+                         "regenerate it with `curbside scenes generate`") from None
+    check_scene_spec(spec, source=str(scene))
     typer.echo(str(render_scene(spec, out, dpi=dpi)))
 
 
 @app.command()
 def dataset(
     out: Path = typer.Option(..., "--out", "-o", help="Output folder (scenes/*.json, index.jsonl, index.parquet)."),
-    split: str = typer.Option("train", help="train | test (templates a-f) | unseen | finetune (template g, held-out categories)."),
-    count: int = typer.Option(100, help="Number of scenes."),
-    blocks: str = typer.Option("3", help="Blocks per scene (count or codes)."),
-    object_density: float = typer.Option(1.0, "--object-density", help="Object density rho_s."),
+    split: Split = typer.Option("train", help="train | test (templates a-f) | unseen | finetune (template g, held-out categories)."),
+    count: int = typer.Option(100, min=1, max=MAX_COUNT, help="Number of scenes."),
+    blocks: str = typer.Option("3", help="Blocks per scene (count 1-64 or codes)."),
+    object_density: float = typer.Option(1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."),
     catalog: Path | None = typer.Option(None, help="Asset catalog (default: catalogs/default.duckdb if present)."),
-    workers: int = typer.Option(1, help="Worker processes."),
-    preset: Optional[str] = typer.Option(None, help="Scene preset, e.g. metaurban12k (the paper's density)."),
+    workers: int = typer.Option(1, min=1, max=256, help="Worker processes."),
+    preset: Optional[Preset] = typer.Option(None, help="Scene preset: metaurban12k (the paper's density)."),
 ) -> None:
-    """Generate a MetaUrban-12K-style split: one JSON per scene plus an index of per-scene summaries."""
+    """Generate a MetaUrban-12K-style split: one JSON per scene plus an index of per-scene summaries.
+
+    Resumable: a rerun into the same folder keeps the complete scene files of the same settings and generates
+    only the missing or corrupt ones.
+    """
     import time
 
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from curbside.config import ConfigError
-    from sim.scene.dataset import build_dataset
+    from sim.scene.config import resolve_config
+    from sim.scene.dataset import build_dataset, split_config
 
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out} is a file; give a folder for the dataset")
+    base = {"blocks": _blocks(blocks), "object_density": object_density, **({"preset": preset.value} if preset else {})}
+    resolve_config(split_config(split.value, base)[0])  # bad values fail before the catalog warning and the bar
     cat = _catalog(catalog)
     t0 = time.perf_counter()
-    cols = (TextColumn(f"[bold]{split}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn())
-    try:
-        with Progress(*cols) as bar:
-            task = bar.add_task(split, total=count)
-            base = {"blocks": _blocks(blocks), "object_density": object_density, **({"preset": preset} if preset else {})}
-            rows = build_dataset(split, count, out, base=base,
-                                 catalog=cat, workers=workers, progress=lambda n: bar.advance(task, n))
-    except ConfigError as e:
-        _fail(e)
+    cols = (TextColumn(f"[bold]{split.value}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn())
+    with _catalog_errors(), Progress(*cols) as bar:
+        task = bar.add_task(split.value, total=count)
+        rows = build_dataset(split.value, count, out, base=base,
+                             catalog=cat, workers=workers, progress=lambda n: bar.advance(task, n))
     dt = time.perf_counter() - t0
     objs = sum(r["objects"] for r in rows)
     typer.echo(f"{out}: {len(rows)} scenes, {objs} objects, {dt:.1f} s ({len(rows) / dt:.1f} scenes/s)")
@@ -125,19 +159,16 @@ def dataset(
 
 @app.command()
 def stats(
-    directory: Path = typer.Argument(..., help="Dataset folder written by `curbside scenes dataset`."),
+    directory: Path = typer.Argument(..., exists=True, file_okay=False, help="Dataset folder written by `curbside scenes dataset`."),
     vs_paper: bool = typer.Option(False, "--vs-paper", help="Print each MetaUrban-12K statistic beside ours (+ PNG)."),
-    route_preset: str = typer.Option("metaurban12k", help="Routes and agent density for --vs-paper: short (the "
+    route_preset: RoutePreset = typer.Option("metaurban12k", help="Routes and agent density for --vs-paper: short (the "
                                      "default tasks) or metaurban12k (the paper-scale preset)."),
     seed: int = typer.Option(0, min=0, help="Seed of the route draws (--vs-paper)."),
 ) -> None:
     """Write a dataset's statistics (objects per scene, object area, route length) as PNG and JSON."""
     from sim.scene.dataset import dataset_stats
 
-    try:
-        st, png, js = dataset_stats(directory)
-    except (FileNotFoundError, ValueError) as e:
-        _fail(e)
+    st, png, js = dataset_stats(directory)
     typer.echo(f"{st['scenes']} scenes: objects {st['objects']['mean']:.1f}±{st['objects']['std']:.1f}, "
                f"object area {st['object_area_m2']['mean']:.1f} m², route {st['route_length_m']['mean']:.0f} m")
     typer.echo(f"{png}\n{js}")
@@ -152,8 +183,7 @@ def stats(
     bar = iter(track(range(st["scenes"]), description="scenes vs paper", transient=True))
     from sim.tasks.pointnav import ROUTE_LENGTHS
 
-    if route_preset not in ROUTE_LENGTHS:
-        _fail(ValueError(f"unknown --route-preset {route_preset!r}; valid: {', '.join(ROUTE_LENGTHS)}"))
+    route_preset = route_preset.value
     from sim.envs.socialnav import PRESETS as SOCIALNAV_PRESETS
 
     density = SOCIALNAV_PRESETS.get(route_preset, {}).get("agents", {}).get("dynamic_density")

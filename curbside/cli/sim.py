@@ -3,56 +3,88 @@
 from __future__ import annotations
 
 import json
+from enum import Enum
 from pathlib import Path
 from typing import Optional
 
 import typer
+
+from curbside.cli.errors import UsageError
 
 app = typer.Typer(help="Run, evaluate, render and benchmark the PyBullet simulator.", no_args_is_help=True)
 
 # Task names on the command line -> Gymnasium env ids (SocialNav is added by sim.envs.socialnav).
 TASKS = {"PointNav": "curbside/PointNav-v0", "SocialNav": "curbside/SocialNav-v0"}
 POLICIES = ("expert", "random")
+# The names of sim.machines.MACHINES, listed here so `--help` does not import pybullet (a test keeps them equal).
+MACHINE_NAMES = ("delivery_bot", "delivery_bot_mod1", "delivery_bot_mod2", "wheelchair", "mobility_scooter",
+                 "robot_dog", "humanoid")
+MAX_SEED = 2**31 - 1  # episode seeds seed..seed+N-1 must stay valid numpy seeds
+CONFIG_EXAMPLE = '\'{"machine": "wheelchair", "horizon": 500}\''
+
+Task = Enum("Task", {k: k for k in TASKS}, type=str)  # type: ignore[misc]
+Policy = Enum("Policy", {k: k for k in POLICIES}, type=str)  # type: ignore[misc]
+MachineName = Enum("MachineName", {k: k for k in MACHINE_NAMES}, type=str)  # type: ignore[misc]
+
+SCENE_PATH = dict(exists=True, dir_okay=False, readable=True)
 
 
-def _env_config(machine: Optional[str], scene_path: Optional[Path], config_json: Optional[str]) -> dict:
-    cfg: dict = json.loads(config_json) if config_json else {}
+def parse_config(config_json: Optional[str]) -> dict:
+    """The --config JSON object as a dict; UsageError naming the problem and an example otherwise."""
+    if not config_json:
+        return {}
+    try:
+        cfg = json.loads(config_json)
+    except json.JSONDecodeError as e:
+        raise UsageError(f"--config is not valid JSON ({e.msg} at column {e.colno}); pass a JSON object such as "
+                         f"{CONFIG_EXAMPLE}") from None
+    if not isinstance(cfg, dict):
+        raise UsageError(f"--config must be a JSON object, got a JSON {type(cfg).__name__}; pass e.g. {CONFIG_EXAMPLE}")
+    return cfg
+
+
+def _env_config(machine: Optional[MachineName], scene_path: Optional[Path], config_json: Optional[str]) -> dict:
+    cfg = parse_config(config_json)
     if machine:
-        cfg["machine"] = machine
+        cfg["machine"] = machine.value
     if scene_path:
         cfg["scene_path"] = str(scene_path)
     return cfg
 
 
-def _check(task: str, policy: str) -> str:
-    if task not in TASKS:
-        raise typer.BadParameter(f"unknown task {task!r}; valid: {', '.join(TASKS)}")
-    if policy not in POLICIES:
-        raise typer.BadParameter(f"unknown policy {policy!r}; valid: {', '.join(POLICIES)}")
-    return TASKS[task]
+def _check_env(env_id: str, cfg: dict) -> None:
+    """Build the env once so a bad config or scene file fails as one line before any episode (or progress bar)."""
+    import gymnasium as gym
+
+    import sim  # noqa: F401  (registers the env ids; imports pybullet quietly)
+
+    gym.make(env_id, config=cfg).close()
 
 
 @app.command("eval")
 def eval_cmd(
-    task: str = typer.Option("PointNav", help=f"Task: {', '.join(TASKS)}."),
-    policy: str = typer.Option("expert", help="expert (pure pursuit) or random."),
-    episodes: int = typer.Option(10, min=1, help="Number of episodes."),
-    machine: Optional[str] = typer.Option(None, help="Machine name (default: the task's)."),
-    seed: int = typer.Option(0, help="Seed of the first episode; episode k uses seed + k."),
-    scene_path: Optional[Path] = typer.Option(None, help="A scene spec JSON instead of generated scenes."),
+    task: Task = typer.Option("PointNav", help="Task to run."),
+    policy: Policy = typer.Option("expert", help="expert (pure pursuit) or random."),
+    episodes: int = typer.Option(10, min=1, max=100_000, help="Number of episodes."),
+    machine: Optional[MachineName] = typer.Option(None, help="Machine (default: the task's; a custom one via --config)."),
+    seed: int = typer.Option(0, min=0, max=MAX_SEED, help="Seed of the first episode; episode k uses seed + k."),
+    scene_path: Optional[Path] = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of generated scenes."),
     config: Optional[str] = typer.Option(None, help="Extra env config as a JSON object."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Run a policy for N episodes and print SR, SPL, Cost (plus every other metric the env reports)."""
     from sim.eval import evaluate
 
-    env_id = _check(task, policy)
-    summary = evaluate(env_id, policy, episodes, _env_config(machine, scene_path, config), seed=seed,
-                       progress=not as_json)
+    if seed + episodes - 1 > MAX_SEED:
+        raise UsageError(f"--seed + --episodes must stay <= {MAX_SEED + 1}; lower --seed")
+    env_id = TASKS[task.value]
+    cfg = _env_config(machine, scene_path, config)
+    _check_env(env_id, cfg)
+    summary = evaluate(env_id, policy.value, episodes, cfg, seed=seed, progress=not as_json)
     if as_json:
         typer.echo(json.dumps(summary, sort_keys=True))
         return
-    typer.echo(f"{task} {policy} over {summary['episodes']} episodes: "
+    typer.echo(f"{task.value} {policy.value} over {summary['episodes']} episodes: "
                f"SR {summary['sr']:.3f}  SPL {summary['spl']:.3f}  Cost {summary['cost']:.2f}")
     for k, v in sorted(summary.items()):
         if k not in ("sr", "spl", "cost", "episodes") and isinstance(v, float):
@@ -62,11 +94,11 @@ def eval_cmd(
 @app.command("rollout")
 def rollout_cmd(
     out: Path = typer.Option(Path("outputs/rollout.gif"), help="GIF to write (a .png next to it holds the last frame)."),
-    task: str = typer.Option("PointNav", help=f"Task: {', '.join(TASKS)}."),
-    policy: str = typer.Option("expert", help="expert or random."),
-    machine: Optional[str] = typer.Option(None, help="Machine name."),
-    seed: int = typer.Option(0, help="Episode seed."),
-    scene_path: Optional[Path] = typer.Option(None, help="A scene spec JSON instead of a generated scene."),
+    task: Task = typer.Option("PointNav", help="Task to run."),
+    policy: Policy = typer.Option("expert", help="expert or random."),
+    machine: Optional[MachineName] = typer.Option(None, help="Machine (default: the task's)."),
+    seed: int = typer.Option(0, min=0, max=MAX_SEED, help="Episode seed."),
+    scene_path: Optional[Path] = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of a generated scene."),
     config: Optional[str] = typer.Option(None, help="Extra env config as a JSON object."),
     chase: bool = typer.Option(True, help="Add the chase-camera view next to the map."),
     metrics_out: Optional[Path] = typer.Option(None, help="Also write the episode's metrics as JSON here."),
@@ -74,8 +106,13 @@ def rollout_cmd(
     """Run one episode and write an animated GIF: top-down map with route and trajectory (+ chase camera)."""
     from sim.render import rollout_gif
 
-    env_id = _check(task, policy)
-    metrics = rollout_gif(env_id, policy, out, _env_config(machine, scene_path, config), seed=seed, chase=chase)
+    for path, flag in ((out, "--out"), (metrics_out, "--metrics-out")):
+        if path is not None and path.is_dir():
+            raise UsageError(f"{flag} {path} is a directory; give a file path such as {path / 'rollout.gif'}")
+    env_id = TASKS[task.value]
+    cfg = _env_config(machine, scene_path, config)
+    _check_env(env_id, cfg)
+    metrics = rollout_gif(env_id, policy.value, out, cfg, seed=seed, chase=chase)
     if metrics_out:
         metrics_out.parent.mkdir(parents=True, exist_ok=True)
         metrics_out.write_text(json.dumps(metrics, indent=2, sort_keys=True))
@@ -86,13 +123,14 @@ def rollout_cmd(
 @app.command("bench")
 def bench_cmd(
     quick: bool = typer.Option(False, "--quick", help="Smaller counts (seconds instead of a minute)."),
-    machine: str = typer.Option("delivery_bot", help="Machine to drive."),
+    machine: MachineName = typer.Option("delivery_bot", help="Machine to drive."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """PointNav env steps/s in a 3-block, ~200-object scene vs the raw PyBullet floor; reset time; RSS growth."""
+    import sim  # noqa: F401  (imports pybullet quietly)
     from sim.bench import run_bench
 
-    result = run_bench(quick=quick, machine=machine)
+    result = run_bench(quick=quick, machine=machine.value)
     if as_json:
         typer.echo(json.dumps(result, sort_keys=True))
         return

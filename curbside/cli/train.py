@@ -10,17 +10,12 @@ from typing import Optional
 import typer
 from rich.console import Console
 
+from curbside.cli.errors import fail
 from curbside.config import ConfigError
 
 app = typer.Typer(help="Train PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, BC or GAIL and evaluate them on a split.",
                   no_args_is_help=True)
 demos_app = typer.Typer(help="Expert demonstrations as Minari datasets for offline RL and imitation.", no_args_is_help=True)
-
-
-def _err(message: str, code: int = 2) -> typer.Exit:
-    """One line on stderr naming the problem and the fix; exit code 2 for bad input."""
-    Console(stderr=True).print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
-    return typer.Exit(code)
 
 
 def _config(config_json: Optional[str]) -> dict:
@@ -29,9 +24,9 @@ def _config(config_json: Optional[str]) -> dict:
     try:
         cfg = json.loads(config_json)
     except json.JSONDecodeError as e:
-        raise _err(f"--config is not valid JSON ({e.msg} at column {e.colno}); pass an object such as '{{\"machine\": \"wheelchair\"}}'") from None
+        raise fail(f"--config is not valid JSON ({e.msg} at column {e.colno}); pass an object such as '{{\"machine\": \"wheelchair\"}}'") from None
     if not isinstance(cfg, dict):
-        raise _err(f"--config must be a JSON object, got {type(cfg).__name__}; e.g. '{{\"machine\": \"wheelchair\"}}'")
+        raise fail(f"--config must be a JSON object, got {type(cfg).__name__}; e.g. '{{\"machine\": \"wheelchair\"}}'")
     return cfg
 
 
@@ -74,7 +69,7 @@ def run_cmd(
             raise ConfigError(f"{algo} learns from demonstrations: pass --demos DIR (collect with `curbside demos collect --task {task}`)")
         _check_env_config(task, cfg, "train")
     except (ConfigError, ValueError, FileNotFoundError) as e:
-        raise _err(str(e)) from None
+        raise fail(str(e)) from None
     path = train(algo, task, out, steps=steps, env_config=cfg, n_envs=envs, num_scenes=scenes, seed=seed,
                  demos=demos, resume=resume, eval_every=eval_every)
     Console(stderr=True).print(f"[green]trained[/] {algo} on {task}: {path}", highlight=False)
@@ -98,7 +93,7 @@ def eval_cmd(
         cfg = {**run.get("env_config", {}), **_config(config)}
         _check_env_config(run["task"], cfg, split)
     except (ConfigError, ValueError, FileNotFoundError) as e:
-        raise _err(str(e)) from None
+        raise fail(str(e)) from None
     summary = evaluate_policy(act, run["task"], cfg, split=split, episodes=episodes, seed=seed, progress=not as_json)
     summary["algo"] = run["algo"]
     if as_json:
@@ -127,7 +122,7 @@ def collect_cmd(
     try:
         _check_env_config(task, cfg, "train")
     except (ConfigError, ValueError, FileNotFoundError) as e:
-        raise _err(str(e)) from None
+        raise fail(str(e)) from None
     os.environ.setdefault("MINARI_DATASETS_PATH", str(out))
     summary = collect_demos(task, out, steps=steps, noise=noise, random_prob=random_prob, env_config=cfg,
                             num_scenes=scenes, seed=seed)

@@ -16,7 +16,7 @@ from sim.machines import Machine, machine_spec
 from sim.metrics import make_measures
 from sim.route import RoutePlanner
 from sim.sensors import Lidar
-from sim.tasks.pointnav import DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward, resolve_task_config
+from sim.tasks.pointnav import CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward, resolve_task_config
 from sim.world import SURFACE_KINDS, World, check_spec
 
 WALL_NZ = 0.5  # a contact whose normal is flatter than this is a wall (a curb side), not the ground
@@ -74,6 +74,7 @@ class PointNavEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
     default_config: dict[str, Any] = DEFAULT_CONFIG
     presets: dict[str, dict[str, Any]] = TASK_PRESETS
+    config_table: dict[str, Any] = CONFIG_TABLE  # (key -> type, range) of every config key; subclasses extend it
 
     def __init__(self, config: Mapping[str, Any] | None = None, render_mode: str | None = None) -> None:
         self.config = resolve_task_config(self.default_config, config, self.presets)
@@ -81,8 +82,8 @@ class PointNavEnv(gym.Env):
         if render_mode not in (None, "rgb_array"):
             raise ConfigError(f"unknown render_mode {render_mode!r}; valid: rgb_array (or None)")
         self.render_mode = render_mode
+        check_config(cfg, self.config_table, self.default_config)  # every value, before anything is built on it
         self.spec_machine = machine_spec(cfg["machine"])
-        check_config(cfg)
         self.reward_fn = make_reward(cfg["reward_preset"], cfg["reward"])
         self.dt = float(cfg["dt"])
         self.substeps = int(cfg["physics_substeps"])

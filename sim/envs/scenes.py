@@ -17,9 +17,8 @@ import numpy as np
 import pybullet as p
 
 from curbside.config import ConfigError
-from sim.tasks.pointnav import dataset_scenes, load_scene, read_scene, split_seed_offset
-
-MAX_SEED = 1_000_000  # splits start 1,000,000 seeds apart: scene_seed + num_scenes stays below that
+from sim.scene.config import check_scene_spec, resolve_config
+from sim.tasks.pointnav import MAX_SEED, dataset_scenes, generator_config, load_scene, read_scene, split_seed_offset
 
 
 @dataclass
@@ -48,10 +47,13 @@ class SceneSource:
         if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < MAX_SEED:
             raise ConfigError(f"config.scene_seed must be an integer in [0, {MAX_SEED}), got {seed!r}")
         self.files: list[Path] = []
-        if config["scene_spec"] is not None or config["scene_path"] is not None:
+        # Scene problems fail here, at construction, not at the first reset.
+        if config["scene_spec"] is not None:
             self.kind = "fixed"
-            if config["scene_path"] is not None:
-                read_scene(config["scene_path"])  # fail at construction, not at the first reset
+            check_scene_spec(config["scene_spec"], source="config.scene_spec")
+        elif config["scene_path"] is not None:
+            self.kind = "fixed"
+            read_scene(config["scene_path"])
         elif config["scene_dir"] is not None:
             self.kind = "dir"
             self.files = dataset_scenes(config["scene_dir"], config["split"])
@@ -66,6 +68,7 @@ class SceneSource:
             if seed + n > MAX_SEED:
                 raise ConfigError(f"config.scene_seed + num_scenes must stay <= {MAX_SEED} so splits never share a scene")
             self.offset = split_seed_offset(config["split"])
+            resolve_config(generator_config(config))
 
     @property
     def count(self) -> int:

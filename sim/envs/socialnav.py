@@ -17,6 +17,7 @@ from sim.envs.pointnav import PointNavEnv
 from sim.metrics import POINTNAV_MEASURES, Measure, register_measure
 from sim.tasks.pointnav import DEFAULT_CONFIG as POINTNAV_CONFIG
 from sim.tasks.pointnav import TASK_PRESETS
+from sim.tasks.socialnav import CONFIG_TABLE
 
 SOCIALNAV_MEASURES = [*POINTNAV_MEASURES, "psc", "stl", "sns"]
 DEFAULT_CONFIG: dict[str, Any] = {
@@ -67,6 +68,7 @@ class SocialNavEnv(PointNavEnv):
 
     default_config: dict[str, Any] = DEFAULT_CONFIG
     presets: dict[str, dict[str, Any]] = PRESETS
+    config_table: dict[str, Any] = CONFIG_TABLE  # sim.tasks.socialnav: type and range of every key
 
     def __init__(self, config: Mapping[str, Any] | None = None, render_mode: str | None = None) -> None:
         split = (config or {}).get("split", DEFAULT_CONFIG["split"]) if isinstance(config, Mapping) else None

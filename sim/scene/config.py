@@ -6,6 +6,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from curbside.config import ConfigError, merge_strict
+from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule, check_table
 
 SPEC_VERSION = "curbside.scene/1"
 
@@ -73,12 +74,50 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 
 
-def _range(cfg: Mapping[str, Any], key: str, *, positive: bool = True) -> None:
-    v = cfg[key]
-    if not (isinstance(v, (list, tuple)) and len(v) == 2 and all(isinstance(x, (int, float)) for x in v) and v[0] <= v[1]):
-        raise ConfigError(f"config.{key} must be a [min, max] pair with min <= max, got {v!r}")
-    if positive and v[0] <= 0:
-        raise ConfigError(f"config.{key} must be positive, got {v!r}")
+MAX_BLOCKS = 64
+MAX_BLOCK_DENSITY = 640.0  # blocks x max(object_density, 1): 20 x 50 (11,000 objects) took 74 s, 64 x 50 took 3 min
+MIN_FILL_GAP = 0.1
+_M = "metres"
+# Every key of DEFAULT_CONFIG: its type and valid range. The upper bounds keep one scene's generation within
+# about a minute on one core (object counts scale with object_density and 1 / standard_spacing, the raster with
+# 1 / grid_resolution^2); tests/sim/test_bad_input.py checks that no key is missing.
+CONFIG_TABLE: dict[str, Rule] = {
+    "preset": Choice(*PRESETS, none=True),
+    "blocks": Rule("any"),  # a count or codes: checked in resolve_config (1 to MAX_BLOCKS)
+    "block_types": Rule("str"),  # letters checked by check_codes (its message lists them)
+    "templates": Rule("str"),
+    "lanes": Pair(Float(1, 4), hint="lanes per direction"),
+    "lane_width": Pair(Float(1.0, 10.0), hint=_M),
+    "straight_length": Pair(Float(5.0, 500.0), hint=_M),
+    "curve_radius": Pair(Float(5.0, 1000.0), hint=_M),
+    "curve_angle": Pair(Float(1.0, 180.0), hint="degrees"),
+    "arm_length": Pair(Float(5.0, 500.0), hint=_M),
+    "roundabout_radius": Pair(Float(1.0, 200.0), hint=_M),
+    "building_depth": Pair(Float(0.5, 200.0), hint=_M),
+    "buildings": Bool(),
+    "curb_height": Float(0.0, 1.0, hint=_M),
+    "crosswalk_density": Float(0.0, 1.0),
+    "crosswalks": Rule("list", item=Rule("str"), none=True, hint="candidate ids such as 'r0.0:start'"),
+    "connect_crosswalks": Bool(),
+    "crosswalk_width": Pos(20.0, hint=_M),
+    "ramp_depth": Float(0.0, 20.0, hint=_M),
+    "object_density": Float(0.0, 50.0, hint="rho_s: 1 is the default density"),
+    "standard_spacing": Float(0.5, 1000.0, hint=_M),
+    "non_standard_per_100m": Float(0.0, 500.0),
+    "clutter_per_100m": Float(0.0, 500.0),
+    "density_model": Choice("sparse", "paper"),
+    "fill_gap": Float(0.0, 100.0, hi_open=True, hint=_M),
+    "fill_clutter": Float(0.0, 1.0, hi_open=True),
+    "fill_row_width": Float(0.3, 100.0, hi_open=True, hint=_M),
+    "min_objects": Int(0, 100_000),
+    "placement_tries": Int(1, 100),
+    "min_clear_width": Float(0.0, 10.0, hint=_M),
+    "country": Rule("str", none=True, hint="an ISO alpha-2 code such as FI"),
+    "distribution_path": Rule("path"),
+    "exclude_categories": Rule("list", item=Rule("str")),
+    "grid_resolution": Float(0.05, 2.0, hint="metres per walkable cell"),
+    "block_tries": Int(1, 1000),
+}
 
 
 def check_codes(codes: str, valid: Mapping[str, Any] | str, *, what: str) -> None:
@@ -98,45 +137,31 @@ def resolve_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
         raise ConfigError(f"unknown scene preset {preset!r}; valid: {', '.join(PRESETS)} (or null)")
     base = {**DEFAULT_CONFIG, **PRESETS[preset]} if preset else DEFAULT_CONFIG
     cfg = merge_strict(base, config, name="scene config")
+    check_table(cfg, CONFIG_TABLE, name="scene config")
     blocks = cfg["blocks"]
     if isinstance(blocks, bool) or not isinstance(blocks, (int, str)):
-        raise ConfigError(f"config.blocks must be a count or a string of block codes, got {blocks!r}")
-    if isinstance(blocks, int) and blocks < 1:
-        raise ConfigError(f"config.blocks must be at least 1, got {blocks}")
+        raise ConfigError(f"scene config.blocks must be a count or a string of block codes, got {blocks!r}")
     if isinstance(blocks, str):
         cfg["blocks"] = blocks = blocks.upper()
         check_codes(blocks, BLOCK_CODES, what="block code(s)")
+    # A count or code string past MAX_BLOCKS would run for minutes (50 blocks take ~6 s).
+    if (blocks if isinstance(blocks, int) else len(blocks)) > MAX_BLOCKS or blocks in (0, ""):
+        raise ConfigError(f"scene config.blocks must be 1 to {MAX_BLOCKS} blocks, got {blocks!r}; "
+                          "generate several scenes (`curbside scenes dataset`) for more street")
+    if isinstance(blocks, int) and blocks < 1:
+        raise ConfigError(f"scene config.blocks must be at least 1, got {blocks}")
+    # Work grows with blocks x density (64 blocks at density 50 took 3 minutes): keep a scene within about a minute.
+    n = blocks if isinstance(blocks, int) else len(blocks)
+    if n * max(float(cfg["object_density"]), 1.0) > MAX_BLOCK_DENSITY:
+        raise ConfigError(f"scene config.blocks x object_density must be <= {MAX_BLOCK_DENSITY:g}, got {n} x "
+                          f"{cfg['object_density']:g}; use fewer blocks or a lower object_density")
     cfg["block_types"] = str(cfg["block_types"]).upper()
     check_codes(cfg["block_types"], BLOCK_CODES, what="block code(s) in block_types")
     cfg["templates"] = "".join(sorted(set(str(cfg["templates"]).lower())))
     check_codes(cfg["templates"], TEMPLATE_NAMES, what="sidewalk template(s)")
-    for key in ("lane_width", "straight_length", "curve_radius", "curve_angle", "arm_length", "roundabout_radius", "building_depth"):
-        _range(cfg, key)
-    _range(cfg, "lanes")
     cfg["lanes"] = [int(cfg["lanes"][0]), int(cfg["lanes"][1])]
-    if not 0.0 <= float(cfg["crosswalk_density"]) <= 1.0:
-        raise ConfigError(f"config.crosswalk_density must lie in [0, 1], got {cfg['crosswalk_density']!r}")
-    if not isinstance(cfg["connect_crosswalks"], bool):
-        raise ConfigError(f"config.connect_crosswalks must be true or false, got {cfg['connect_crosswalks']!r}")
-    if cfg["crosswalks"] is not None and not (isinstance(cfg["crosswalks"], list) and all(isinstance(c, str) for c in cfg["crosswalks"])):
-        raise ConfigError("config.crosswalks must be null or a list of candidate ids such as 'r0.0:start'")
-    for key in ("object_density", "standard_spacing", "non_standard_per_100m", "clutter_per_100m", "min_clear_width", "curb_height", "ramp_depth"):
-        if not isinstance(cfg[key], (int, float)) or cfg[key] < 0:
-            raise ConfigError(f"config.{key} must be a number >= 0, got {cfg[key]!r}")
-    for key in ("crosswalk_width", "grid_resolution", "standard_spacing"):
-        if cfg[key] <= 0:
-            raise ConfigError(f"config.{key} must be > 0, got {cfg[key]!r}")
-    if cfg["density_model"] not in ("sparse", "paper"):
-        raise ConfigError(f"unknown config.density_model {cfg['density_model']!r}; valid: sparse, paper")
-    if not isinstance(cfg["min_objects"], int) or isinstance(cfg["min_objects"], bool) or not 0 <= cfg["min_objects"] <= 100_000:
-        raise ConfigError(f"config.min_objects must be an integer in [0, 100000], got {cfg['min_objects']!r}")
-    if not isinstance(cfg["fill_row_width"], (int, float)) or not 0.3 <= cfg["fill_row_width"] < 100:
-        raise ConfigError(f"config.fill_row_width must be a number in [0.3, 100), got {cfg['fill_row_width']!r}")
-    for key in ("fill_gap", "fill_clutter"):
-        if not isinstance(cfg[key], (int, float)) or not 0 <= cfg[key] < (1.0 if key == "fill_clutter" else 100.0):
-            raise ConfigError(f"config.{key} must be a number in [0, {1 if key == 'fill_clutter' else 100}), got {cfg[key]!r}")
-    if cfg["density_model"] == "paper" and cfg["fill_gap"] <= 0:
-        raise ConfigError("config.fill_gap must be > 0 with density_model 'paper'")
+    if cfg["density_model"] == "paper" and cfg["fill_gap"] < MIN_FILL_GAP:
+        raise ConfigError(f"scene config.fill_gap must be >= {MIN_FILL_GAP} m with density_model 'paper', got {cfg['fill_gap']!r}")
     bad = [c for c in cfg["exclude_categories"] if c not in ALL_CATEGORIES]
     if bad:
         raise ConfigError(f"unknown categories {bad} in exclude_categories; valid: {', '.join(ALL_CATEGORIES)}")
@@ -149,3 +174,69 @@ def resolve_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
 def max_sidewalk_width(templates: str) -> float:
     """Widest possible sidewalk (all zones at their maximum) over `templates`."""
     return max(sum(z[2] for z in TEMPLATES[t]) for t in templates)
+
+
+_SPEC_FIELDS = ("bounds", "roads", "sidewalks", "crosswalks", "objects", "walkable")
+_REGENERATE = "regenerate it with `curbside scenes generate` (docs/scene_spec.md describes the fields)"
+
+
+def _finite(value: Any, n: int | None = None) -> bool:
+    """Whether `value` is an array-like of finite numbers (n of them when n is given; [k, 2] points when n is 0)."""
+    import numpy as np
+
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return False
+    if n == 0:
+        return a.ndim == 2 and a.shape[1] == 2 and a.shape[0] > 0 and bool(np.isfinite(a).all())
+    return a.ndim == 1 and (n is None or a.shape[0] == n) and bool(np.isfinite(a).all())
+
+
+def check_scene_spec(spec: Any, source: str = "scene spec") -> None:
+    """Raise ConfigError unless `spec` is a `curbside.scene/1` document whose geometry is all finite numbers.
+
+    Catches what json.loads lets through (NaN, Infinity, strings, missing fields) where the spec is read, before a
+    world is built: Bullet and shapely would otherwise drop such objects silently.
+    """
+    if not isinstance(spec, Mapping):
+        raise ConfigError(f"{source} must be a JSON object, got {type(spec).__name__}; {_REGENERATE}")
+    if spec.get("version") != SPEC_VERSION:
+        raise ConfigError(f"{source} has version {spec.get('version')!r}; this curbside reads {SPEC_VERSION!r}: {_REGENERATE}")
+    missing = [k for k in _SPEC_FIELDS if k not in spec]
+    if missing:
+        raise ConfigError(f"{source} lacks {', '.join(missing)}; {_REGENERATE}")
+    b = spec["bounds"]
+    if not _finite(b, 4) or b[0] > b[2] or b[1] > b[3]:
+        raise ConfigError(f"{source} bounds must be 4 finite numbers [xmin, ymin, xmax, ymax], got {b!r}; {_REGENERATE}")
+    ch = spec.get("curb_height", 0.15)
+    if not _finite([ch], 1) or not 0.0 <= ch <= 1.0:
+        raise ConfigError(f"{source} curb_height must be a finite number in [0, 1] m, got {ch!r}; {_REGENERATE}")
+    for key in ("roads", "sidewalks", "crosswalks", "objects"):
+        if not isinstance(spec[key], list):
+            raise ConfigError(f"{source} {key} must be a list, got {type(spec[key]).__name__}; {_REGENERATE}")
+    for key in ("roads", "sidewalks", "crosswalks"):
+        for k, item in enumerate(spec[key]):
+            if not isinstance(item, Mapping) or not _finite(item.get("polygon"), 0):
+                raise ConfigError(f"{source} {key}[{k}] needs a polygon of finite [x, y] points; {_REGENERATE}")
+    for k, o in enumerate(spec["objects"]):
+        if not isinstance(o, Mapping):
+            raise ConfigError(f"{source} objects[{k}] must be a JSON object; {_REGENERATE}")
+        what = f"{source} objects[{k}] (id {o.get('id')!r})"
+        for field, n in (("position", 3), ("size", 3)):
+            if not _finite(o.get(field), n):
+                raise ConfigError(f"{what} {field} must be {n} finite numbers, got {o.get(field)!r}; {_REGENERATE}")
+        if min(o["size"]) < 0:
+            raise ConfigError(f"{what} size must be >= 0, got {o['size']!r}; {_REGENERATE}")
+        if not _finite([o.get("yaw", 0.0)], 1):
+            raise ConfigError(f"{what} yaw must be a finite number, got {o.get('yaw')!r}; {_REGENERATE}")
+        if "footprint" in o and not _finite(o["footprint"], 0):
+            raise ConfigError(f"{what} footprint must be finite [x, y] points; {_REGENERATE}")
+    w = spec["walkable"]
+    shape = w.get("shape") if isinstance(w, Mapping) else None
+    if (not isinstance(w, Mapping) or not _finite(w.get("origin"), 2) or not _finite([w.get("resolution")], 1)
+            or not w["resolution"] > 0 or not (isinstance(shape, list) and len(shape) == 2
+                                               and all(isinstance(v, int) and v > 0 for v in shape))
+            or not isinstance(w.get("cells"), str)):
+        raise ConfigError(f"{source} walkable must hold a finite origin, a resolution > 0, a [rows, cols] shape "
+                          f"and encoded cells; {_REGENERATE}")

@@ -48,54 +48,104 @@ def summarize(spec: dict[str, Any], file: str, split: str) -> dict[str, Any]:
 _WORKER: dict[str, Any] = {}
 
 
-def _init(cfg: dict[str, Any], catalog: str | None, out: str, split: str) -> None:
+def _init(cfg: dict[str, Any], catalog: str | None, out: str, split: str, resolved: dict[str, Any]) -> None:
     reader = None
     if catalog is not None:
         from catalogs.reader import CatalogReader
 
         reader = CatalogReader(catalog)
-    _WORKER.update(cfg=cfg, catalog=reader, name=catalog, out=out, split=split)
+    _WORKER.update(cfg=cfg, catalog=reader, name=catalog, out=out, split=split, resolved=resolved)
 
 
-def _one(seed: int) -> dict[str, Any]:
+def scene_file(split: str, seed: int) -> str:
+    """A scene's file name inside a dataset folder."""
+    return f"scenes/{split}_{seed:08d}.json"
+
+
+def verified_scene(path: Path, seed: int, config: dict[str, Any], catalog: str | None) -> dict[str, Any] | None:
+    """The spec at `path` when it is a complete scene of this seed, resolved config and catalog, else None.
+
+    Files are written atomically, so a file that parses is whole; the seed, config and catalog checks make a
+    rerun with other settings regenerate instead of mixing scenes of two configs in one dataset.
+    """
+    from curbside.config import ConfigError
+    from sim.scene.config import check_scene_spec
+
+    try:
+        spec = json.loads(path.read_text(encoding="utf-8"))
+        check_scene_spec(spec, source=str(path))
+    except (OSError, ValueError, ConfigError):
+        return None
+    if spec.get("seed") != seed or spec.get("config") != config or spec.get("catalog") != catalog:
+        return None
+    if not isinstance(spec.get("stats"), dict) or any(k not in spec["stats"] for k in SUMMARY_KEYS):
+        return None
+    return spec
+
+
+def _one(seed: int) -> tuple[dict[str, Any], bool]:
+    """(index row, whether it was generated) of one seed: an existing verified file is kept (resume)."""
     import warnings
 
     from sim.scene.generator import generate_scene
     from sim.scene.spec import save
 
+    name = scene_file(_WORKER["split"], seed)
+    path = Path(_WORKER["out"]) / name
+    if path.exists():
+        spec = verified_scene(path, seed, _WORKER["resolved"], _WORKER["name"])
+        if spec is not None:
+            return summarize(spec, name, _WORKER["split"]), False
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # fallback categories are in each scene's stats; the CLI reports them once
         spec = generate_scene(_WORKER["cfg"], seed, _WORKER["catalog"])
     spec["catalog"] = _WORKER["name"]
-    name = f"scenes/{_WORKER['split']}_{seed:08d}.json"
-    save(spec, Path(_WORKER["out"]) / name)
-    return summarize(spec, name, _WORKER["split"])
+    save(spec, path)  # atomic: a kill leaves the old file or none, never half a scene
+    return summarize(spec, name, _WORKER["split"]), True
+
+
+MAX_COUNT = 1_000_000  # splits start 1,000,000 seeds apart
 
 
 def build_dataset(
     split: str, count: int, out: str | Path, *, base: dict[str, Any] | None = None, catalog: str | None = None,
     workers: int = 1, progress: Callable[[int], None] | None = None,
 ) -> list[dict[str, Any]]:
-    """Generate `count` scenes of `split` into `out` (one JSON each) plus index.jsonl and index.parquet."""
-    from sim.scene.config import resolve_config
+    """Generate `count` scenes of `split` into `out` (one JSON each) plus index.jsonl and index.parquet.
 
+    Resumable: scene files already in `out` that are complete and match the seed, config and catalog are kept,
+    so a rerun after a kill generates only the missing (or corrupt) ones. Index rows follow seed order.
+    """
+    from curbside.config import ConfigError
+    from sim.scene.config import resolve_config
+    from sim.scene.spec import TMP_SUFFIX, canonical
+
+    if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= MAX_COUNT:
+        raise ConfigError(f"count must be an integer in [1, {MAX_COUNT}] (scenes per split), got {count!r}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
+        raise ConfigError(f"workers must be an integer in [1, 256], got {workers!r}")
     cfg, offset = split_config(split, base)
-    resolve_config(cfg)  # fail before starting workers
+    resolved = canonical(resolve_config(cfg))  # fail before starting workers; as stored in each spec
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"{out} is a file; give a folder for the dataset")
     (out / "scenes").mkdir(parents=True, exist_ok=True)
+    for tmp in (out / "scenes").glob(f".*{TMP_SUFFIX}"):
+        tmp.unlink(missing_ok=True)  # left by a killed run (sim.scene.spec.write_atomic)
     seeds = [offset + i for i in range(count)]
     rows: list[dict[str, Any]] = []
+    args = (cfg, catalog, str(out), split, resolved)
     if workers <= 1:
-        _init(cfg, catalog, str(out), split)
+        _init(*args)
         for s in seeds:
-            rows.append(_one(s))
+            rows.append(_one(s)[0])
             if progress:
                 progress(1)
     else:
         import multiprocessing as mp
 
-        with mp.get_context("spawn").Pool(workers, initializer=_init, initargs=(cfg, catalog, str(out), split)) as pool:
-            for row in pool.imap(_one, seeds, chunksize=8):
+        with mp.get_context("spawn").Pool(workers, initializer=_init, initargs=args) as pool:
+            for row, _ in pool.imap(_one, seeds, chunksize=8):
                 rows.append(row)
                 if progress:
                     progress(1)
@@ -104,14 +154,18 @@ def build_dataset(
 
 
 def write_index(rows: list[dict[str, Any]], out: Path) -> None:
-    """Write the per-scene summaries as index.jsonl and index.parquet."""
+    """Write the per-scene summaries as index.jsonl and index.parquet (each atomically)."""
+    import os
+
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    with open(out / "index.jsonl", "w", encoding="utf-8") as f:
-        for r in rows:
-            f.write(json.dumps(r, sort_keys=True) + "\n")
-    pq.write_table(pa.Table.from_pylist(rows), out / "index.parquet")
+    from sim.scene.spec import write_atomic
+
+    write_atomic(out / "index.jsonl", "".join(json.dumps(r, sort_keys=True) + "\n" for r in rows))
+    tmp = out / f".index.parquet.{os.getpid()}.tmp"
+    pq.write_table(pa.Table.from_pylist(rows), tmp)
+    os.replace(tmp, out / "index.parquet")
 
 
 def read_index(directory: str | Path) -> list[dict[str, Any]]:

@@ -46,11 +46,35 @@ def dumps(spec: dict[str, Any]) -> str:
 
 
 def save(spec: dict[str, Any], path: str | Path) -> Path:
-    """Write the canonical JSON of `spec` to `path` (parents created)."""
+    """Write the canonical JSON of `spec` to `path` atomically (parents created)."""
+    p = Path(path)
+    write_atomic(p, dumps(spec))
+    return p
+
+
+TMP_SUFFIX = ".tmp"
+
+
+def write_atomic(path: str | Path, text: str) -> None:
+    """Write `text` to a temporary file beside `path`, fsync it, then os.replace it into place.
+
+    A run killed mid-write leaves the old file or none, never a truncated one (only a `.<name>.<pid>.tmp` file,
+    which `sim.scene.dataset.build_dataset` removes on its next run).
+    """
+    import os
+
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(dumps(spec), encoding="utf-8")
-    return p
+    tmp = p.parent / f".{p.name}.{os.getpid()}{TMP_SUFFIX}"
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, p)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def load(path: str | Path) -> dict[str, Any]:

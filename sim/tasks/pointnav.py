@@ -12,15 +12,16 @@ Two reward presets (docs/tasks.md explains each choice):
 from __future__ import annotations
 
 import json
-import math
 import warnings
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from curbside.config import ConfigError, check_choice, merge_strict
+from curbside.config import ConfigError, merge_strict
 from sim.metrics import POINTNAV_MEASURES
+from sim.scene.dataset import SPLITS
+from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule, check_table
 
 DEFAULT_CONFIG: dict[str, Any] = {
     "preset": None,                   # a TASK_PRESETS name (e.g. "metaurban12k"): its values replace these defaults
@@ -154,44 +155,86 @@ REWARD_PRESETS: dict[str, dict[str, Any]] = {
 COLLISION_KINDS = ("object", "building", "curb", "agent", "vehicle")
 
 
-def _is_int(v: Any, lo: int) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool) and v >= lo
+MAX_SEED = 1_000_000  # splits start 1,000,000 seeds apart: scene_seed + num_scenes stays below that
+LIDAR_TABLE = {
+    "beams": Int(1, 4096), "range": Pos(1000.0), "height": Pos(10.0), "encoding": Choice("linear", "log"),
+    "low_beams": Int(0, 4096), "low_range": Pos(1000.0), "low_height": Pos(10.0),
+}
+RENDER_TABLE = {
+    "camera": Choice("top_down", "chase"), "width": Int(16, 4096), "height": Int(16, 4096),
+    "top_down_height": Pos(1000.0),
+}
+# Every key of DEFAULT_CONFIG: its type and valid range (tests/sim/test_bad_input.py checks that none is missing).
+# Bounds are generous for research use but finite: a NaN, inf or absurd value fails here, at construction.
+CONFIG_TABLE: dict[str, Any] = {
+    "preset": Choice(*TASK_PRESETS, none=True),
+    "machine": Rule("any"),  # a name or a dict of MachineSpec fields: checked by sim.machines.machine_spec + check_machine
+    "scene": Rule("mapping", hint="a partial scene generator config, see sim.scene.DEFAULT_CONFIG"),
+    "split": Choice(*SPLITS, none=True),
+    "scene_dir": Rule("path", none=True),
+    "scene_seed": Int(0, MAX_SEED - 1),
+    "num_scenes": Int(1, MAX_SEED, none=True),
+    "scene_cache": Int(1, 1024),
+    "scene_spec": Rule("mapping", none=True),
+    "scene_path": Rule("path", none=True),
+    "catalog": Rule("path", none=True),
+    "collision": Choice("box", "convex"),
+    "visual_meshes": Bool(),
+    "gui": Bool(),
+    "dt": Pos(1.0, hint="seconds per env step"),
+    "physics_substeps": Int(1, 100),
+    "horizon": Int(1, 10_000_000),
+    "horizon_min_speed": Pos(100.0, none=True),
+    "route_length": Pair(Float(5.0, 100_000.0), hint="metres"),
+    "route_margin": Float(0.0, 5.0),
+    "success_completion": Float(0.0, 1.0, lo_open=True),
+    "out_of_route_distance": Pos(1000.0),
+    "terminate_off_walkable": Bool(),
+    "stuck_steps": Int(0, 10_000_000),
+    "stuck_distance": Pos(1000.0),
+    "collision_steps": Int(0, 10_000_000),
+    "cost_kinds": Rule("list", choices=COLLISION_KINDS),
+    "lidar": LIDAR_TABLE,
+    "speed_scale": Pos(100.0),
+    "num_waypoints": Int(1, 1000),
+    "waypoint_spacing": Pos(100.0),
+    "reward_preset": Choice(*REWARD_PRESETS),
+    "reward": Rule("mapping", hint="terms of sim.tasks.pointnav.Reward"),
+    "measures": Rule("list", item=Rule("str")),
+    "render": RENDER_TABLE,
+}
+# Numeric MachineSpec fields of a custom machine (a dict): finite and within these bounds.
+MACHINE_TABLE: dict[str, Rule] = {
+    "v_max_kmh": Pos(200.0), "steer_max_deg": Float(0.0, 89.0), "friction": Float(0.0, 5.0),
+    "wheelbase": Pos(20.0), "wheel_radius": Pos(5.0), "wheel_width": Pos(5.0), "mass": Pos(100_000.0),
+    "length": Pos(20.0), "width": Pos(20.0), "height": Pos(20.0), "drag_area": Float(0.0, 100.0),
+    "rolling_resistance": Float(0.0, 1.0), "accel_max": Float(0.0, 100.0), "yaw_rate_max": Float(0.0, 100.0),
+    "engine_force": Pair(Float(0.0, 1e6)), "brake_force": Pair(Float(0.0, 1e6)),
+}
 
 
-def _is_pos(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < math.inf
+def check_machine(machine: Any) -> None:
+    """Check a custom machine dict's numbers (finite, in range) before sim.machines builds its spec."""
+    if not isinstance(machine, Mapping):
+        return  # a name (or a wrong type): machine_spec names the valid machines
+    for key, value in machine.items():
+        rule = MACHINE_TABLE.get(key)
+        if rule is not None and rule.kind == "pair" and _number(value):
+            value = [value, value]  # a single force means a fixed force (machine_spec accepts it)
+        if rule is not None:
+            rule.check(value, f"config.machine.{key}")
 
 
-def check_config(cfg: Mapping[str, Any]) -> None:
-    """Validate the task config's values (types, ranges, finiteness); ConfigError names the key and the range."""
-    lo, hi = (float(v) for v in cfg["route_length"])
-    if not 5.0 <= lo <= hi < math.inf:
-        raise ConfigError(f"config.route_length must be [min, max] with 5 <= min <= max, got {cfg['route_length']}")
-    if not _is_pos(cfg["dt"]) or not _is_int(cfg["physics_substeps"], 1):
-        raise ConfigError("config.dt must be a finite number > 0 and config.physics_substeps an integer >= 1")
-    for key, low in (("stuck_steps", 0), ("collision_steps", 0), ("horizon", 1), ("num_waypoints", 1), ("scene_cache", 1)):
-        if not _is_int(cfg[key], low):
-            raise ConfigError(f"config.{key} must be an integer >= {low}, got {cfg[key]!r}")
-    for key in ("stuck_distance", "waypoint_spacing", "speed_scale", "out_of_route_distance"):
-        if not _is_pos(cfg[key]):
-            raise ConfigError(f"config.{key} must be a positive finite number, got {cfg[key]!r}")
-    if cfg["horizon_min_speed"] is not None and not _is_pos(cfg["horizon_min_speed"]):
-        raise ConfigError(f"config.horizon_min_speed must be a positive number or None, got {cfg['horizon_min_speed']!r}")
-    if cfg["split"] is not None:
-        from sim.scene.dataset import SPLITS
-        check_choice(cfg["split"], tuple(SPLITS), what="config.split")
-    unknown = set(cfg["cost_kinds"]) - set(COLLISION_KINDS)
-    if unknown:
-        raise ConfigError(f"unknown config.cost_kinds {sorted(unknown)}; valid: {', '.join(COLLISION_KINDS)}")
-    lid = cfg["lidar"]
-    for key in ("range", "low_range", "height", "low_height"):
-        if not _is_pos(lid[key]):
-            raise ConfigError(f"config.lidar.{key} must be a positive finite number, got {lid[key]!r}")
-    for key in ("beams", "low_beams"):
-        if not _is_int(lid[key], 1 if key == "beams" else 0):
-            raise ConfigError(f"config.lidar.{key} must be an integer >= {1 if key == 'beams' else 0}, got {lid[key]!r}")
-    from sim.sensors import ENCODINGS
-    check_choice(lid["encoding"], ENCODINGS, what="config.lidar.encoding")
+def _number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def check_config(cfg: Mapping[str, Any], table: Mapping[str, Any] | None = None,
+                 defaults: Mapping[str, Any] | None = None) -> None:
+    """Validate every value of a task config (types, finiteness, ranges); ConfigError names the key and the range."""
+    check_table(cfg, CONFIG_TABLE if table is None else table, name="config",
+                defaults=DEFAULT_CONFIG if defaults is None else defaults)
+    check_machine(cfg["machine"])
 
 
 def make_reward(preset: str, overrides: Mapping[str, Any] | None) -> Reward:
@@ -213,25 +256,35 @@ def load_scene(config: Mapping[str, Any], seed: int) -> dict[str, Any]:
         raise RuntimeError(
             f"sim.scene.generate_scene is unavailable ({e}); pass config={{'scene_spec': ...}} or 'scene_path'"
         ) from e
-    scene_cfg = dict(config["scene"])
-    if config.get("split") is not None:
-        from sim.scene.dataset import split_config
-        scene_cfg, _ = split_config(config["split"], scene_cfg)
+    scene_cfg = generator_config(config)
     with warnings.catch_warnings():
         # Without a catalog the generator warns once per category; the env says it once per process instead.
         warnings.filterwarnings("ignore", message="no catalog was given")
         return generate_scene(scene_cfg, seed, config["catalog"])
 
 
+def generator_config(config: Mapping[str, Any]) -> dict[str, Any]:
+    """The scene generator config of generated episodes: `scene` with the split's templates and categories."""
+    scene_cfg = dict(config["scene"])
+    if config.get("split") is not None:
+        from sim.scene.dataset import split_config
+        scene_cfg, _ = split_config(config["split"], scene_cfg)
+    return scene_cfg
+
+
 def read_scene(path: str | Path) -> dict[str, Any]:
-    """A scene spec from a JSON file, with a clear error when it is missing or not JSON."""
+    """A scene spec from a JSON file, with a clear error when it is missing, not JSON or holds bad geometry."""
+    from sim.scene.config import check_scene_spec
+
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no scene spec at {path}; write one with `curbside scenes generate --out {path}`")
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        spec = json.loads(path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise ConfigError(f"{path} is not a scene spec JSON file ({e}); regenerate it with `curbside scenes generate`") from e
+    check_scene_spec(spec, source=str(path))
+    return spec
 
 
 def split_seed_offset(split: str | None) -> int:

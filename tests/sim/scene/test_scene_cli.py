@@ -35,9 +35,14 @@ def test_generate_render_dataset_stats(tmp_path: Path) -> None:
     assert st["scenes"] == 3 and st["objects"]["mean"] > 0 and (ds / "stats.png").exists()
 
 
-def test_bad_block_code_exits_with_the_valid_codes(tmp_path: Path) -> None:
-    r = runner.invoke(app, ["generate", "--blocks", "SQ", "--out", str(tmp_path / "x.json")])
-    assert r.exit_code == 2 and "valid: S (straight)" in r.output
+def test_bad_block_code_exits_with_the_valid_codes(tmp_path: Path, capsys) -> None:
+    import typer
+
+    from curbside.cli.errors import run
+
+    code = run(typer.main.get_command(app), ["generate", "--blocks", "SQ", "--out", str(tmp_path / "x.json")])
+    err = capsys.readouterr().err
+    assert code == 2 and "valid: S (straight)" in err and len(err.strip().splitlines()) == 1
 
 
 def test_train_and_unseen_splits_differ_in_templates_and_categories() -> None:

@@ -1,0 +1,196 @@
+"""Declarative value checks for strict configs (MetaDrive style): one (key -> type, range) table per config.
+
+`curbside.config.merge_strict` rejects unknown keys; the tables here reject bad values of known keys (wrong
+type, NaN/inf, out of range) at construction, with the valid range in the message, so a bad number fails
+where it is given instead of turning into NaN observations or an IndexError many steps later.
+
+A table maps each key to a `Rule` or to a nested table (a sub-config such as `lidar`). Keys a table does not
+list are checked against the type of their default value when defaults are given (so a key another module
+adds to its defaults is still type- and finiteness-checked).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Union
+
+from curbside.config import ConfigError
+
+
+def _num(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}" if isinstance(x, float) else str(x)
+
+
+@dataclass(frozen=True)
+class Rule:
+    """One key's valid values: its kind, numeric bounds, choices, and whether None is allowed."""
+
+    kind: str                      # int | float | bool | str | choice | pair | list | mapping | path | codes | any
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False          # lo itself is not allowed
+    hi_open: bool = False
+    choices: tuple[Any, ...] = ()  # choice: the valid values; codes: the valid letters; list: valid items
+    none: bool = False             # None is valid too
+    item: "Rule | None" = None     # pair: the rule of both elements; list: the rule of every item
+    max_len: int | None = None     # codes / list: longest allowed
+    hint: str = ""                 # appended to the message (what the value means, how to fix it)
+
+    def describe(self) -> str:
+        """The valid values in words, e.g. 'a finite number in (0, 1]'."""
+        k = self.kind
+        if k in ("int", "float"):
+            what = "an integer" if k == "int" else "a finite number"
+            if self.lo is not None and self.hi is not None:
+                what += f" in {'(' if self.lo_open else '['}{_fmt(self.lo)}, {_fmt(self.hi)}{')' if self.hi_open else ']'}"
+            elif self.lo is not None:
+                what += f" {'>' if self.lo_open else '>='} {_fmt(self.lo)}"
+            elif self.hi is not None:
+                what += f" {'<' if self.hi_open else '<='} {_fmt(self.hi)}"
+        elif k == "bool":
+            what = "true or false"
+        elif k == "str":
+            what = "a string"
+        elif k == "choice":
+            what = "one of " + ", ".join(map(str, self.choices))
+        elif k == "pair":
+            what = f"a [min, max] pair with min <= max, each {self.item.describe() if self.item else 'a number'}"
+        elif k == "list":
+            what = "a list" + (f" of {', '.join(map(str, self.choices))}" if self.choices else
+                               f" of {self.item.describe()}" if self.item else "")
+        elif k == "mapping":
+            what = "a JSON object (dict)" + (f" of {self.item.describe()}" if self.item else "")
+        elif k == "path":
+            what = "a path (string)"
+        elif k == "codes":
+            what = f"a string of the letters {''.join(self.choices)}"
+            if self.max_len:
+                what += f" (at most {self.max_len})"
+        else:
+            what = "any value"
+        return what + (" or null" if self.none else "")
+
+    def ok(self, v: Any) -> bool:
+        """Whether `v` satisfies this rule."""
+        if v is None:
+            return self.none or self.kind == "any"
+        k = self.kind
+        if k in ("int", "float"):
+            if not _num(v) or (k == "int" and not isinstance(v, int)) or not math.isfinite(v):
+                return False
+            if self.lo is not None and (v < self.lo or (self.lo_open and v == self.lo)):
+                return False
+            if self.hi is not None and (v > self.hi or (self.hi_open and v == self.hi)):
+                return False
+            return True
+        if k == "bool":
+            return isinstance(v, bool)
+        if k == "str":
+            return isinstance(v, str)
+        if k == "choice":
+            return isinstance(v, (str, int, float)) and not isinstance(v, bool) and v in self.choices
+        if k == "pair":
+            item = self.item or Rule("float")
+            return (isinstance(v, (list, tuple)) and len(v) == 2 and all(item.ok(x) for x in v) and v[0] <= v[1])
+        if k == "list":
+            if not isinstance(v, (list, tuple)) or (self.max_len is not None and len(v) > self.max_len):
+                return False
+            if self.choices:
+                return all(isinstance(x, str) and x in self.choices for x in v)
+            return all(self.item.ok(x) for x in v) if self.item else True
+        if k == "mapping":
+            return isinstance(v, Mapping) and (self.item is None or all(self.item.ok(x) for x in v.values()))
+        if k == "path":
+            return isinstance(v, (str, os.PathLike)) and str(v) != ""
+        if k == "codes":
+            return (isinstance(v, str) and 0 < len(v) <= (self.max_len or len(v))
+                    and all(c in self.choices for c in v.upper()))
+        return True
+
+    def check(self, v: Any, name: str) -> None:
+        """Raise ConfigError naming `name`, the valid values and the value given unless `v` is valid."""
+        if not self.ok(v):
+            hint = f" ({self.hint})" if self.hint else ""
+            if self.kind == "choice":  # the style of curbside.config.check_choice
+                listing = ", ".join(map(str, self.choices)) + (" (or null)" if self.none else "")
+                raise ConfigError(f"unknown {name} {v!r}; valid: {listing}{hint}")
+            raise ConfigError(f"{name} must be {self.describe()}, got {v!r}{hint}")
+
+
+def Int(lo: int | None = None, hi: int | None = None, *, none: bool = False, hint: str = "") -> Rule:
+    """An integer (not a bool) in [lo, hi]."""
+    return Rule("int", lo, hi, none=none, hint=hint)
+
+
+def Float(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False, hi_open: bool = False,
+          none: bool = False, hint: str = "") -> Rule:
+    """A finite int or float in the range (open ends with lo_open / hi_open)."""
+    return Rule("float", lo, hi, lo_open=lo_open, hi_open=hi_open, none=none, hint=hint)
+
+
+def Pos(hi: float, *, none: bool = False, hint: str = "") -> Rule:
+    """A finite number in (0, hi]."""
+    return Float(0.0, hi, lo_open=True, none=none, hint=hint)
+
+
+def Bool() -> Rule:
+    """true or false."""
+    return Rule("bool")
+
+
+def Choice(*choices: Any, none: bool = False) -> Rule:
+    """One of the given values."""
+    return Rule("choice", choices=tuple(choices), none=none)
+
+
+def Pair(item: Rule, *, hint: str = "") -> Rule:
+    """A [min, max] pair with min <= max, both satisfying `item`."""
+    return Rule("pair", item=item, hint=hint)
+
+
+Table = Mapping[str, Union[Rule, "Table"]]
+
+
+def infer(default: Any) -> Rule:
+    """The rule of a key no table lists, from its default value's type."""
+    if isinstance(default, bool):
+        return Bool()
+    if isinstance(default, int):
+        return Int()
+    if isinstance(default, float):
+        return Float()
+    if isinstance(default, str):
+        return Rule("str")
+    if isinstance(default, Mapping):
+        return Rule("mapping")
+    if isinstance(default, (list, tuple)):
+        if len(default) == 2 and all(_num(x) for x in default):
+            return Pair(Float())
+        return Rule("list")
+    return Rule("any")
+
+
+def check_table(cfg: Mapping[str, Any], table: Table, *, name: str = "config",
+                defaults: Mapping[str, Any] | None = None) -> None:
+    """Check every key of `cfg` against `table` (nested tables for sub-configs); ConfigError on the first bad one."""
+    for key, value in cfg.items():
+        rule = table.get(key)
+        sub_defaults = defaults.get(key) if isinstance(defaults, Mapping) else None
+        full = f"{name}.{key}"
+        if isinstance(rule, Mapping):
+            if not isinstance(value, Mapping):
+                raise ConfigError(f"{full} must be a JSON object (dict) of {', '.join(sorted(rule))}, got {value!r}")
+            check_table(value, rule, name=full, defaults=sub_defaults if isinstance(sub_defaults, Mapping) else None)
+            continue
+        if rule is None:
+            if defaults is None or key not in defaults:
+                continue  # merge_strict already rejected keys without a default
+            rule = infer(defaults[key])
+        rule.check(value, full)
