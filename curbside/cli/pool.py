@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import typer
 
+from curbside.cli.errors import UsageError
+
 app = typer.Typer(help="Inspect the description pool from the distribution pipeline.", no_args_is_help=True)
 
 DEFAULT_POOL = "data/pool/pool.parquet"
@@ -25,16 +27,20 @@ def show(
     from pipelines.countries import check_country
 
     if not Path(pool).exists():
-        typer.secho(f"{pool} not found; run `DVC_NO_ANALYTICS=1 dvc repro` first", fg="red", err=True)
-        raise typer.Exit(2)
+        raise UsageError(f"{pool} not found; run `DVC_NO_ANALYTICS=1 dvc repro` first, or pass --pool PATH")
     df = pd.read_parquet(pool)
     counts = [json.loads(c) for c in df["country_counts"]]
     if country:
         try:
             code = check_country(country, where="--country")
         except ValueError as exc:
-            typer.secho(str(exc), fg="red", err=True)
-            raise typer.Exit(2) from None
+            raise UsageError(str(exc)) from None
+        present = sorted({k for c in counts for k, n in c.items() if n > 0})
+        if code not in present:
+            # An empty table with exit 0 reads as "this country has no street objects"; it means no data.
+            raise UsageError(f"--country {code}: the pool {pool} has no descriptions from {code}; countries present: "
+                             f"{', '.join(present) or 'none'} (add {code}'s sources to the pipelines and "
+                             f"`dvc repro` to include it)")
         df = df.assign(rank_count=[c.get(code, 0) for c in counts])
         df = df[df["rank_count"] > 0]
     else:

@@ -80,7 +80,26 @@ def test_pool_show_cli(descriptions, embedded, tmp_path):
     rows = json.loads(res.output)
     assert len(rows) == 1 and rows[0]["category"] == "trash_bin" and rows[0]["count"] == 5
     bad = CliRunner().invoke(app, ["pool", "show", "--pool", str(tmp_path / "p.parquet"), "--country", "XX"])
-    assert bad.exit_code == 2
+    assert bad.exit_code != 0
+
+
+def test_pool_show_country_absent_from_the_pool(descriptions, embedded, tmp_path, capsys):
+    """A valid country the pool lacks is an error naming the countries present, not an empty table (issue 12)."""
+    import typer
+
+    from curbside.cli.errors import run
+    from curbside.cli.main import app
+
+    texts, vecs, _ = embedded
+    build_pool(descriptions, texts, vecs, eps=0.3, min_samples=2).to_parquet(tmp_path / "p.parquet")
+    argv = ["pool", "show", "--pool", str(tmp_path / "p.parquet")]
+    for bad, words in ((["--country", "US"], "countries present: FI, JP"), (["--country", "XX"], "ISO 3166-1"),
+                       (["--pool", str(tmp_path / "none.parquet")], "dvc repro")):
+        code = run(typer.main.get_command(app), [*argv, *bad])
+        err = capsys.readouterr().err
+        lines = err.strip().splitlines()
+        assert code == 2 and len(lines) == 1 and lines[0].startswith("error: ") and words in err, err
+        assert "Traceback" not in err
 
 
 def test_dvc_yaml_stages_match_modules_and_params():
