@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from sim.agents.crowd import SPAWN_AREAS
 from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule
 from sim.tasks.pointnav import CONFIG_TABLE as POINTNAV_TABLE
 from sim.tasks.pointnav import RENDER_TABLE
@@ -40,7 +41,7 @@ AGENTS_TABLE: dict[str, Rule] = {
     "budget_factor": Pos(100.0),
     "budget_slack": Float(0.0, 10_000.0),
     "spawn_clearance": Float(0.0, 10.0),
-    "spawn_area": Choice("sidewalks", "intersections", "route"),
+    "spawn_area": Choice(*SPAWN_AREAS),
     "intersection_margin": Float(0.0, 1000.0),
     "route_band": Pos(1000.0),
     "trail_length": Int(0, 10_000),
