@@ -116,7 +116,7 @@ class Groups:
             return
         kinds = np.array([KIND_NAMES[k] for k in m.kind_idx])
         order = rng.permutation(np.flatnonzero(np.isin(kinds, GROUP_KINDS)))
-        target = int(round(c["group_prob"] * m.n))
+        target = round(c["group_prob"] * m.n)
         lo, hi = (int(v) for v in c["group_size"])
         k = placed = 0
         while placed < target and len(order) - k >= lo:

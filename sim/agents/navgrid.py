@@ -108,7 +108,6 @@ class NavGrid:
     _jump: np.ndarray | None = None
     _done: np.ndarray | None = None
     _centres: np.ndarray | None = None  # node_xy of every node, built on first use (agents look it up each tick)
-    _clearance: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not self.n_spread:
@@ -126,14 +125,6 @@ class NavGrid:
             self._jump = np.concatenate([self._jump, np.zeros((len(JUMPS), 1, self.n_nodes), dtype=np.int32)], 1)
             self._done = np.append(self._done, False)
         return len(self.sites) - 1
-
-    def clearance(self) -> np.ndarray:
-        """Metres from every cell centre to the nearest edge of the walkable area (objects, roads, buildings)."""
-        if self._clearance is None:
-            # Centre-to-centre distance to the nearest blocked cell, less the half cell up to that cell's edge.
-            edt = ndimage.distance_transform_edt(np.pad(self.walkable, 1))[1:-1, 1:-1]
-            self._clearance = np.maximum(edt - 0.5, 0.0) * self.res
-        return self._clearance
 
     def path_nodes(self, node: int, site: int, max_steps: int) -> np.ndarray:
         """Nodes of the shortest path from `node` toward `site` (at most max_steps + 1 of them, the site last)."""
