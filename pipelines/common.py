@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 from curbside.config import ConfigError, merge_strict
+from curbside.reproducible import quiet_third_party, write_frame
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 CLOSED_SET_DIR = REPO_ROOT / "catalogs" / "closed_set"
@@ -33,11 +35,8 @@ def load_params(path: str | Path | None, section: str, defaults: Mapping[str, An
 
 
 def write_table(df: Any, path: str | Path) -> Path:
-    """Write a pandas DataFrame as parquet (creating the folder), without the pandas index."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    df.to_parquet(p, index=False)
-    return p
+    """Write a DataFrame as parquet, no index or pandas metadata: equal frames give equal bytes."""
+    return write_frame(df, path)
 
 
 def write_metrics(path: str | Path, metrics: Mapping[str, Any]) -> Path:
@@ -49,25 +48,38 @@ def write_metrics(path: str | Path, metrics: Mapping[str, Any]) -> Path:
 
 
 def progress():  # noqa: ANN201 - rich.progress.Progress, imported lazily
-    """A rich progress bar with a counter and elapsed time (transient so logs stay readable)."""
+    """A rich progress bar with a counter and elapsed time (transient; off when stderr is not a terminal)."""
+    from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+    console = Console(stderr=True)
     return Progress(
         TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-        transient=True,
+        console=console, transient=True, disable=not console.is_terminal,
     )
+
+
+def die_with_parent() -> None:
+    """End this process when its parent (dvc, or the shell that ran it) dies, even by SIGKILL (Linux prctl)."""
+    from retrieval.executors import die_with_parent as _die_with_parent
+
+    _die_with_parent(os.getppid())
 
 
 def stage_cli(name: str, run: Callable[[str], Mapping[str, Any]]) -> None:
     """Run a stage from the command line: `python -m pipelines.<name> --params params.yaml`."""
     import typer
+    from rich.console import Console
 
     def main(params: str = typer.Option(str(DEFAULT_PARAMS), "--params", help="Path of params.yaml.")) -> None:
+        die_with_parent()
+        quiet_third_party()
         try:
             metrics = run(params)
         except PipelineError as exc:
             typer.secho(f"{name}: {exc}", fg="red", err=True)
             raise typer.Exit(2) from None
-        typer.echo(f"{name}: " + ", ".join(f"{k}={v}" for k, v in sorted(metrics.items())))
+        summary = ", ".join(f"{k}={v}" for k, v in sorted(metrics.items()))
+        Console(highlight=False, soft_wrap=True).print(f"[bold]{name}[/bold]: {summary}")
 
     typer.run(main)

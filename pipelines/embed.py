@@ -7,7 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from pipelines.common import load_params, stage_cli, write_metrics
+from curbside.reproducible import write_parquet
+from pipelines.common import load_params, progress, stage_cli, write_metrics
 
 DEFAULTS: dict[str, Any] = {
     "model": "all-MiniLM-L6-v2",
@@ -15,31 +16,52 @@ DEFAULTS: dict[str, Any] = {
     "descriptions": "data/describe/descriptions.parquet",
     "out_dir": "data/embed",
 }
+# Stored vectors are rounded to this many decimals: float noise in the last bits (BLAS kernels, batch padding
+# shapes) mostly falls below the grid, so the same texts give the same bytes more often across machines. The
+# rounding moves a cosine by < 1e-4, far below DBSCAN's eps.
+DECIMALS = 5
+CHUNK = 2048  # texts per encode call: a rich progress bar advances per chunk (fixed, so batches are too)
 
 
 def embed_texts(texts: list[str], model: str | None = None, batch_size: int = 64) -> tuple[np.ndarray, str]:
     """Pure function of the stage: (n, d) unit float32 vectors for `texts` and the model's name."""
+    import torch
+
     from retrieval.encoders.text import TextEncoder
 
     enc = TextEncoder(model, batch_size=batch_size)
     # Street descriptions repeat ("a green metal bench"): embed each distinct text once, then scatter back.
+    # np.unique sorts, so the batches (and their padding) depend only on the set of texts, not on their order.
     unique, inverse = np.unique(np.asarray(list(texts), dtype=object), return_inverse=True)
-    vecs = enc.encode(unique.tolist(), show_progress=len(unique) > 2000)
+    todo = unique.tolist()
+    chunks = [todo[i:i + CHUNK] for i in range(0, len(todo), CHUNK)]
+    was = torch.are_deterministic_algorithms_enabled()
+    torch.use_deterministic_algorithms(True)  # no nondeterministic kernels; restored after, it is process-global
+    try:
+        if len(chunks) <= 1:
+            vecs = enc.encode(todo)
+        else:
+            parts = []
+            with progress() as bar:
+                task = bar.add_task("embed", total=len(todo))
+                for chunk in chunks:
+                    parts.append(enc.encode(chunk))
+                    bar.advance(task, len(chunk))
+            vecs = np.concatenate(parts)
+    finally:
+        torch.use_deterministic_algorithms(was)
     return vecs[inverse.reshape(-1)], enc.name
 
 
 def save_embeddings(path: str | Path, texts: list[str], vectors: np.ndarray, model: str) -> Path:
-    """Write (text, vector) rows as parquet with the model name in the schema metadata."""
+    """Write (text, vector) rows as parquet (vectors rounded to DECIMALS), the model name in the schema metadata."""
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
     d = vectors.shape[1] if vectors.ndim == 2 else 0
-    vec = pa.FixedSizeListArray.from_arrays(pa.array(vectors.reshape(-1).astype(np.float32)), d)
+    flat = np.round(np.asarray(vectors, dtype=np.float32).reshape(-1), DECIMALS).astype(np.float32)
+    vec = pa.FixedSizeListArray.from_arrays(pa.array(flat), d)
     table = pa.table({"text": pa.array(texts, pa.string()), "vector": vec}).replace_schema_metadata({"model": model})
-    pq.write_table(table, p)
-    return p
+    return write_parquet(table, path)
 
 
 def load_embeddings(path: str | Path) -> tuple[list[str], np.ndarray, str]:

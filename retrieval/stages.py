@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import traceback
 from collections.abc import Callable, Iterator
@@ -21,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from curbside.config import ConfigError
+from curbside.reproducible import quiet_third_party, write_frame, write_parquet
 from retrieval.ingest import IngestConfig, ItemResult, config_from_dict
 from retrieval.normalize import AssetRejected, CanonicalMesh
 from retrieval.scoring import AssetScores, DescriptionPool
@@ -106,8 +108,7 @@ def _write(rows: list[dict[str, Any]], path: Path) -> None:
     for c in ("asset_id", *_REJECT_COLS):
         if c not in df:
             df[c] = None
-    path.parent.mkdir(parents=True, exist_ok=True)
-    df.to_parquet(path, index=False)
+    write_frame(df, path)  # fixed writer settings: the same rows give the same bytes (dvc.lock stays put)
 
 
 def _save_canon(canon: CanonicalMesh, out: Path) -> None:
@@ -273,10 +274,38 @@ def _curate_one(item: SourceItem, h: str, row: dict, view_row: dict, score_row: 
                       scores.text_embedding)
 
 
+def dump_catalog(catalog_path: Path, out_dir: Path) -> list[str]:
+    """Write every table of a catalog as `out_dir/<table>.parquet`, rows sorted: the catalog's bytes-stable record.
+
+    A DuckDB file is not byte-reproducible (each file gets a random identifier, and block contents vary), so DVC
+    tracks this dump instead of the .duckdb: equal catalogs give equal dumps. Returns the table names.
+    """
+    import duckdb
+
+    out_dir = Path(out_dir)
+    if out_dir.exists():
+        shutil.rmtree(out_dir)
+    out_dir.mkdir(parents=True)
+    con = duckdb.connect(str(catalog_path), read_only=True)
+    try:
+        names = sorted(r[0] for r in con.execute("SELECT table_name FROM information_schema.tables").fetchall())
+        for name in names:
+            write_parquet(con.execute(f'SELECT * FROM "{name}" ORDER BY ALL').fetch_arrow_table(),
+                          out_dir / f"{name}.parquet")
+    finally:
+        con.close()
+    return names
+
+
 def main(argv: list[str] | None = None) -> None:
     """`python -m retrieval.stages <stage> --params retrieval/params.yaml [--root outputs/retrieval]`."""
     import yaml
+    from rich.console import Console
 
+    from retrieval.executors import die_with_parent
+
+    die_with_parent(os.getppid())  # dvc killed (even by SIGKILL): the stage ends too
+    quiet_third_party()
     ap = argparse.ArgumentParser(prog="python -m retrieval.stages", description=__doc__.splitlines()[0])
     ap.add_argument("stage", choices=list(STAGE_PARAMS))
     ap.add_argument("--params", type=Path, default=Path("retrieval/params.yaml"))
@@ -292,14 +321,22 @@ def main(argv: list[str] | None = None) -> None:
         name, limit = src_p.pop("name", "procedural"), src_p.pop("limit", None)
         if name == "procedural":  # generated meshes live with the stage's outputs, so DVC tracks them
             src_p["work_dir"] = norm / "source"
-        n = normalise(open_source(name, **src_p), config, norm, man, limit)
+        summary = f"{normalise(open_source(name, **src_p), config, norm, man, limit)} assets normalised -> {norm}"
     elif a.stage == "render":
-        n = render(man, norm, config, vdir, vt)
+        summary = f"{render(man, norm, config, vdir, vt)} assets rendered -> {vdir}"
     elif a.stage == "score":
-        n = score(man, vt, vdir, config, sc)
+        summary = f"{score(man, vt, vdir, config, sc)} assets scored -> {sc}"
     else:
-        n = curate(man, norm, vt, vdir, sc, config, r / "catalog.duckdb")
-    print(f"{a.stage}: {n}")
+        catalog = r / "catalog.duckdb"
+        # DVC tracks catalog_tables/ (below) and catalog_assets/, not the .duckdb: this stage's previous catalog
+        # is its own by-product, so it is replaced here as DVC replaces the tracked outputs.
+        for stale in (catalog, catalog.with_name(catalog.name + ".wal")):
+            stale.unlink(missing_ok=True)
+        written, rejected = curate(man, norm, vt, vdir, sc, config, catalog)
+        tables = dump_catalog(catalog, r / "catalog_tables")
+        summary = (f"{written} assets written, {rejected} rejected -> {catalog} "
+                   f"({len(tables)} tables dumped to {r / 'catalog_tables'})")
+    Console(highlight=False, soft_wrap=True).print(f"[bold]{a.stage}[/bold]: {summary}")
 
 
 if __name__ == "__main__":
