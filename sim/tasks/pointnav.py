@@ -164,6 +164,13 @@ RENDER_TABLE = {
     "camera": Choice("top_down", "chase"), "width": Int(16, 4096), "height": Int(16, 4096),
     "top_down_height": Pos(1000.0),
 }
+# Overrides of a reward preset's terms (Reward fields); weights are bounded so one step cannot dwarf a return.
+REWARD_TABLE: dict[str, Rule] = {
+    **{k: Float(-1e6, 1e6) for k in ("success", "out_of_route", "stuck", "disp", "lateral", "lateral_free",
+                                     "steering", "crash")},
+    "progress": Choice("route", "max"),
+    "floor": Bool(),
+}
 # Every key of DEFAULT_CONFIG: its type and valid range (tests/sim/test_bad_input.py checks that none is missing).
 # Bounds are generous for research use but finite: a NaN, inf or absurd value fails here, at construction.
 CONFIG_TABLE: dict[str, Any] = {
@@ -199,7 +206,7 @@ CONFIG_TABLE: dict[str, Any] = {
     "num_waypoints": Int(1, 1000),
     "waypoint_spacing": Pos(100.0),
     "reward_preset": Choice(*REWARD_PRESETS),
-    "reward": Rule("mapping", hint="terms of sim.tasks.pointnav.Reward"),
+    "reward": REWARD_TABLE,
     "measures": Rule("list", item=Rule("str")),
     "render": RENDER_TABLE,
 }

@@ -244,6 +244,11 @@ def test_every_config_key_has_a_rule() -> None:
 
     assert set(CONFIG_TABLE) == set(DEFAULT_CONFIG)
     assert set(SOCIAL_TABLE) == set(SOCIAL_DEFAULTS)
+    from dataclasses import fields
+
+    from sim.tasks.pointnav import Reward
+
+    assert set(CONFIG_TABLE["reward"]) == {f.name for f in fields(Reward)}
     for sub in ("lidar", "render"):
         assert set(CONFIG_TABLE[sub]) == set(DEFAULT_CONFIG[sub]) and set(SOCIAL_TABLE[sub]) == set(SOCIAL_DEFAULTS[sub])
     assert set(SCENE_TABLE) == set(SCENE_DEFAULTS)
