@@ -96,7 +96,11 @@ def run(command: click.Command, argv: Sequence[str] | None = None, prog_name: st
     except click.exceptions.Exit as e:  # typer.Exit raised outside click's own handling
         return int(e.exit_code or 0)
     except _CLICK_ERRORS as e:
-        e.show()
+        # Usage errors as one line too: click's own three (usage, hint, error) repeat what --help says.
+        ctx = getattr(e, "ctx", None)
+        hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+        if e.format_message():  # empty for "no arguments: here is the help", already printed
+            echo_error(f"{e.format_message()}{hint}")
         return int(e.exit_code)
     except click.Abort:
         echo_error("aborted")
