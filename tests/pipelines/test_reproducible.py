@@ -40,7 +40,7 @@ def _git(repo: Path, *args: str) -> str:
 
 def _dvc(repo: Path, *args: str) -> subprocess.CompletedProcess:
     """Run the venv's dvc in `repo`; fails the test with dvc's output when it fails."""
-    res = subprocess.run([str(VENV_BIN / "dvc"), *args], cwd=repo, env=_env(), capture_output=True, text=True,
+    res = subprocess.run([str(VENV_BIN / "dvc"), *args], cwd=repo, env=_env(), capture_output=True, text=True, check=False,
                          timeout=900)
     assert res.returncode == 0, f"dvc {' '.join(args)} failed:\n{res.stdout}\n{res.stderr}"
     return res
@@ -113,18 +113,17 @@ def _alive(pid: int) -> bool:
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="prctl(PR_SET_PDEATHSIG) is Linux-only")
 def test_stage_dies_when_its_parent_is_killed(tmp_path):
     """SIGKILL the process that launched a stage (dvc's role): the stage must not keep running as an orphan."""
-    params = yaml.safe_load((REPO_ROOT / "params.yaml").read_text())
-    osm = dict(params["osm"], tags_csv=str(REPO_ROOT / params["osm"]["tags_csv"]), out_dir=str(tmp_path / "osm"))
-    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"osm": osm}))
-    # The parent starts the osm stage (tens of seconds on the Helsinki extract), prints its pid, then waits.
+    # The stage's params file is a FIFO nobody writes: the stage blocks reading it, so it can only end if killed.
+    fifo = tmp_path / "params.yaml"
+    os.mkfifo(fifo)
     launcher = ("import subprocess, sys, time; "
-                f"p = subprocess.Popen([sys.executable, '-m', 'pipelines.osm', '--params', {str(tmp_path / 'params.yaml')!r}],"
-                f" cwd={str(REPO_ROOT)!r}, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL); "
-                "print(p.pid, flush=True); time.sleep(600)")
+                f"p = subprocess.Popen([sys.executable, '-m', 'pipelines.osm', '--params', {str(fifo)!r}], "
+                f"cwd={str(REPO_ROOT)!r}); print(p.pid, flush=True); time.sleep(600)")
     parent = subprocess.Popen([sys.executable, "-c", launcher], stdout=subprocess.PIPE, text=True, env=_env())
+    child = -1
     try:
         child = int(parent.stdout.readline())
-        time.sleep(3.0)  # past interpreter start-up: the stage is importing or working
+        time.sleep(3.0)  # past interpreter start-up: the stage is waiting on its params
         assert _alive(child), "the stage ended before its parent was killed: the test proves nothing"
         os.kill(parent.pid, signal.SIGKILL)
         parent.wait()
@@ -132,11 +131,8 @@ def test_stage_dies_when_its_parent_is_killed(tmp_path):
         while _alive(child) and time.monotonic() < deadline:
             time.sleep(0.1)
         assert not _alive(child), "the stage kept running after its parent was SIGKILLed"
-        assert not (tmp_path / "osm" / "metrics.json").exists()
     finally:
         if parent.poll() is None:
             parent.kill()
-        try:
+        if child > 0 and _alive(child):
             os.kill(child, signal.SIGKILL)
-        except (ProcessLookupError, UnboundLocalError):
-            pass
