@@ -1,4 +1,4 @@
-"""Mobile machines: parameters from DESIGN.md's table, PyBullet bodies, and the drive models that move them.
+"""Mobile machines: MetaUrban's parameters (docs/design.md), PyBullet bodies, and their drive models.
 
 Wheeled machines are rigid chassis bodies with four wheel contact spheres. Their longitudinal and yaw
 dynamics come from a kinematic-bicycle force model (engine, brake, rolling resistance, drag, grade,

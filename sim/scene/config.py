@@ -12,7 +12,7 @@ SPEC_VERSION = "curbside.scene/1"
 
 BLOCK_CODES = {"S": "straight", "C": "curve", "X": "intersection", "T": "T-junction", "O": "roundabout"}
 
-# Zones from the road outward with (min, max) widths in metres (DESIGN.md, MetaUrban's composition).
+# Zones from the road outward with (min, max) widths in metres (MetaUrban's composition, docs/design.md).
 TEMPLATES: dict[str, tuple[tuple[str, float, float], ...]] = {
     "a": (("near_road_buffer", 0.6, 0.8), ("clear", 2.4, 2.8)),
     "b": (("furnishing", 1.5, 1.8), ("clear", 2.4, 2.8)),

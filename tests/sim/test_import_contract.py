@@ -1,4 +1,4 @@
-"""DESIGN.md's contract: the simulator never imports torch, transformers or open_clip."""
+"""The catalog contract (docs/design.md): the simulator never imports torch, transformers or open_clip."""
 
 from __future__ import annotations
 
