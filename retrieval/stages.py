@@ -306,6 +306,9 @@ def main(argv: list[str] | None = None) -> None:
 
     die_with_parent(os.getppid())  # dvc killed (even by SIGKILL): the stage ends too
     quiet_third_party()
+    from sim.quiet import import_pybullet
+
+    import_pybullet()  # render and curate use pybullet: import it without its build-time banner
     ap = argparse.ArgumentParser(prog="python -m retrieval.stages", description=__doc__.splitlines()[0])
     ap.add_argument("stage", choices=list(STAGE_PARAMS))
     ap.add_argument("--params", type=Path, default=Path("retrieval/params.yaml"))

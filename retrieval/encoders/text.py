@@ -32,8 +32,16 @@ def resolve_model_path(model: str | None) -> str:
 @lru_cache(maxsize=4)
 def _load(path: str):  # noqa: ANN202 - SentenceTransformer, imported lazily
     from sentence_transformers import SentenceTransformer
+    from transformers.utils import logging as hf_logging
 
-    return SentenceTransformer(path, device="cpu")
+    # transformers 5 draws a "Loading weights" tqdm bar on every load: noise in stage and CLI output.
+    was = hf_logging.is_progress_bar_enabled()
+    hf_logging.disable_progress_bar()
+    try:
+        return SentenceTransformer(path, device="cpu")
+    finally:
+        if was:
+            hf_logging.enable_progress_bar()
 
 
 class TextEncoder:
