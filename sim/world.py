@@ -68,23 +68,26 @@ def mesh_shape(create: Callable[..., int], vertices: Sequence, indices: Sequence
     sys.getrefcount), so every mesh's Python lists stayed alive for good: 0.4-0.7 MB per world build, +125 MB
     over 200 envs. Bullet itself copies the numbers (it frees its shapes on resetSimulation/disconnect), so
     the references pybullet gained during the call are dead weight: count them per object and give them back.
-    A pybullet that stops leaking gains none, and then nothing is given back. `vertices`: [x, y, z] lists.
+    A pybullet that stops leaking gains none, and then nothing is given back.
     """
-    # A numpy array would reach pybullet as temporary lists we cannot see: hand over plain lists.
-    vertices = vertices.tolist() if isinstance(vertices, np.ndarray) else vertices
-    indices = indices.tolist() if isinstance(indices, np.ndarray) else indices
-    held = [vertices, *vertices] if indices is None else [vertices, *vertices, indices, *indices]
+    # Private copies: no other code (or thread) holds these lists, so any reference they gain during the call
+    # is pybullet's, and an object listed twice cannot be given back twice. Index items are small shared ints
+    # that pybullet does not keep; they are not counted.
+    verts = [list(v) for v in vertices]
+    held = [verts, *verts]
+    idx = None
+    if indices is not None:
+        idx = indices.tolist() if isinstance(indices, np.ndarray) else list(indices)
+        held.append(idx)
     before = list(map(sys.getrefcount, held))
     try:
-        if indices is None:
-            return create(p.GEOM_MESH, vertices=vertices, **kwargs)
-        return create(p.GEOM_MESH, vertices=vertices, indices=indices, **kwargs)
+        if idx is None:
+            return create(p.GEOM_MESH, vertices=verts, **kwargs)
+        return create(p.GEOM_MESH, vertices=verts, indices=idx, **kwargs)
     finally:
-        # `held` and the counts exist before and after the call alike, so only the call's references differ;
-        # keyed by id so an object listed twice is given back what it gained once, not twice.
+        # `held` and the counts exist before and after the call alike, so only the call's references differ.
         after = list(map(sys.getrefcount, held))
-        gained = {id(o): (o, a - b) for o, b, a in zip(held, before, after) if a > b}
-        deque(map(_py_decref, [o for o, k in gained.values() for _ in range(k)]), maxlen=0)
+        deque(map(_py_decref, [o for o, b, a in zip(held, before, after) for _ in range(a - b)]), maxlen=0)
 
 
 def category_color(category: str) -> tuple[float, float, float, float]:

@@ -38,24 +38,31 @@ def test_mesh_shape_gives_back_the_references_pybullet_keeps(client: int) -> Non
     verts, idx = _square_mesh(20)  # 441 vertices: indices above 256 are heap ints too
     watched = [verts, idx, verts[0], verts[-1], idx[-1]]
     before = [sys.getrefcount(o) for o in watched]
-    col = mesh_shape(p.createCollisionShape, verts, idx, physicsClientId=client)
-    vis = mesh_shape(p.createVisualShape, verts, idx, rgbaColor=[1, 0, 0, 1], physicsClientId=client)
-    hull = mesh_shape(p.createCollisionShape, verts[:30], physicsClientId=client)
-    after = [sys.getrefcount(o) for o in watched]
-    assert after == before
+    gc.collect()
+    objects0 = len(gc.get_objects())
+    for _ in range(10):
+        col = mesh_shape(p.createCollisionShape, verts, idx, physicsClientId=client)
+        vis = mesh_shape(p.createVisualShape, verts, idx, rgbaColor=[1, 0, 0, 1], physicsClientId=client)
+        hull = mesh_shape(p.createCollisionShape, verts[:30], physicsClientId=client)
+    gc.collect()
+    # The plain calls would have kept 10 x (441 + 441 + 30) vertex lists alive.
+    assert len(gc.get_objects()) - objects0 < 100
+    assert [sys.getrefcount(o) for o in watched] == before
     # The plain call keeps references (the bug this works around); if pybullet fixes it, this starts failing
-    # and mesh_shape becomes a pass-through that can go.
+    # and mesh_shape can become a plain call.
     plain = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
     n0 = sys.getrefcount(plain)
     p.createCollisionShape(p.GEOM_MESH, vertices=plain, physicsClientId=client)
     assert sys.getrefcount(plain) > n0
-    # The shapes are real: a ray down onto the concave mesh hits its top at z = 0.15.
+    # The shapes are real: a ray down onto the concave mesh hits its top at z = 0.15, and numpy input works.
     p.createMultiBody(0, col, vis, physicsClientId=client)
     p.createMultiBody(0, hull, -1, basePosition=[10, 10, 0], physicsClientId=client)
     hit = p.rayTest([2.0, 2.0, 5.0], [2.0, 2.0, -1.0], physicsClientId=client)[0]
     assert hit[0] >= 0 and hit[3][2] == pytest.approx(0.15, abs=1e-4)
-    del verts, idx, watched
-    gc.collect()  # freeing the lists after giving references back must not crash or double-free
+    box = mesh_shape(p.createCollisionShape, np.array(verts[:30]) + [0.0, 0.0, 1.0], physicsClientId=client)
+    p.createMultiBody(0, box, -1, basePosition=[20, 20, 0], physicsClientId=client)
+    hit = p.rayTest([20.5, 20.1, 5.0], [20.5, 20.1, -1.0], physicsClientId=client)[0]
+    assert hit[0] >= 0 and hit[3][2] == pytest.approx(1.15, abs=1e-3)
 
 
 def test_world_builds_do_not_keep_objects_or_memory(client: int) -> None:
