@@ -18,7 +18,9 @@ import gc
 import sys
 import time
 import warnings
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import psutil
 
@@ -47,7 +49,8 @@ def trimmed_rss_mb() -> float:
     return rss_mb()
 
 
-def plain_mesh_shape(create, vertices, indices=None, **kwargs) -> int:
+def plain_mesh_shape(create: Callable[..., int], vertices: Sequence, indices: Sequence | None = None,
+                     **kwargs: Any) -> int:
     """The pybullet call without giving back its references (the pre-issue-12 behaviour)."""
     if indices is None:
         return create(p.GEOM_MESH, vertices=vertices, **kwargs)
