@@ -68,7 +68,9 @@ def _dims_problem(what: str, recorded: tuple[float, float, float], extents: np.n
 
 def check_asset_files(reader: CatalogReader, rec: AssetRecord, client: int) -> list[Problem]:
     """Problems of one asset's files: existence, trimesh and PyBullet loading, dimensions, placement."""
-    import pybullet as p
+    from curbside.quiet import import_pybullet
+
+    p = import_pybullet()
     import trimesh
 
     out: list[Problem] = []
@@ -140,7 +142,9 @@ def check_embeddings(path: str | Path, reader: CatalogReader) -> list[Problem]:
 
 def validate_catalog(path: str | Path, *, progress: bool = True) -> tuple[int, list[Problem]]:
     """Check a catalog end to end; returns (number of assets checked, problems found)."""
-    import pybullet as p
+    from curbside.quiet import import_pybullet
+
+    p = import_pybullet()
     from rich.console import Console
     from rich.progress import Progress
 

@@ -2,7 +2,7 @@
 
 pybullet's C module init prints that line on every import (to stderr in the wheels we install, to stdout in some
 builds), so every `curbside sim` command began with it: noise above results and before the one error line, and
-a risk to JSON on stdout. `sim/__init__.py` calls `import_pybullet()` before any
+a risk to JSON on stdout (the catalog validator and the retrieval renderer use it too). `sim/__init__.py` calls `import_pybullet()` before any
 sim module runs `import pybullet` (a package's __init__ runs before its submodules), so the one real import is
 the quiet one; later imports find it in sys.modules.
 """

@@ -41,7 +41,9 @@ def view_specs(n_views: int = 8, elevations: tuple[float, float] = (15.0, 40.0))
 @lru_cache(maxsize=1)
 def _client() -> int:
     """One DIRECT PyBullet client per process: connecting costs more than rendering a view."""
-    import pybullet as p
+    from curbside.quiet import import_pybullet
+
+    p = import_pybullet()
 
     return p.connect(p.DIRECT)
 
@@ -57,7 +59,9 @@ def render_obj(
     obj_path: str | Path, specs: list[ViewSpec], size: int = 224, fov: float = 40.0, bounds: np.ndarray | None = None,
 ) -> list[np.ndarray]:
     """Render a textured OBJ (z-up) from each view on a white background; returns HxWx3 uint8 images."""
-    import pybullet as p
+    from curbside.quiet import import_pybullet
+
+    p = import_pybullet()
 
     cid = _client()
     vis = p.createVisualShape(p.GEOM_MESH, fileName=str(obj_path), physicsClientId=cid)

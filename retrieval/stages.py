@@ -306,7 +306,7 @@ def main(argv: list[str] | None = None) -> None:
 
     die_with_parent(os.getppid())  # dvc killed (even by SIGKILL): the stage ends too
     quiet_third_party()
-    from sim.quiet import import_pybullet
+    from curbside.quiet import import_pybullet
 
     import_pybullet()  # render and curate use pybullet: import it without its build-time banner
     ap = argparse.ArgumentParser(prog="python -m retrieval.stages", description=__doc__.splitlines()[0])

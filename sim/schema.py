@@ -32,7 +32,7 @@ def _fmt(x: float) -> str:
 class Rule:
     """One key's valid values: its kind, numeric bounds, choices, and whether None is allowed."""
 
-    kind: str                      # int | float | bool | str | choice | pair | list | mapping | path | codes | any
+    kind: str                      # int | float | bool | str | choice | pair | list | mapping | path | file | codes | any
     lo: float | None = None
     hi: float | None = None
     lo_open: bool = False          # lo itself is not allowed
@@ -69,6 +69,8 @@ class Rule:
             what = "a JSON object (dict)" + (f" of {self.item.describe()}" if self.item else "")
         elif k == "path":
             what = "a path (string)"
+        elif k == "file":
+            what = "the path of an existing file"
         elif k == "codes":
             what = f"a string of the letters {''.join(self.choices)}"
             if self.max_len:
@@ -109,6 +111,8 @@ class Rule:
             return isinstance(v, Mapping) and (self.item is None or all(self.item.ok(x) for x in v.values()))
         if k == "path":
             return isinstance(v, (str, os.PathLike)) and str(v) != ""
+        if k == "file":
+            return isinstance(v, (str, os.PathLike)) and str(v) != "" and os.path.isfile(v)
         if k == "codes":
             return (isinstance(v, str) and 0 < len(v) <= (self.max_len or len(v))
                     and all(c in self.choices for c in v.upper()))

@@ -135,6 +135,8 @@ def query(
 
     if not text.strip():
         raise UsageError("the query text is empty; say what to look for, e.g. `curbside catalog query \"bench\"`")
+    if max_height is not None and not (0.0 < max_height < float("inf")):
+        raise UsageError(f"--max-height must be a finite height in metres above 0, got {max_height}")
     filters = QueryFilters(category=category, object_class=object_class.value if object_class else None,
                            zone=zone.value if zone else None, max_height=max_height, source=source, license=license)
     con = _open(catalog)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from typing import Any
 
@@ -109,6 +110,10 @@ class PointNavEnv(gym.Env):
         self.observation_space = gym.spaces.Box(low, np.ones(n, dtype=np.float32), dtype=np.float32)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         self._wp_offsets = np.arange(1, W + 1, dtype=np.float64) * float(cfg["waypoint_spacing"])
+        if cfg["gui"] and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+            # PyBullet's GUI connect waits forever for a display that is not there.
+            raise ConfigError("config.gui needs a display, and DISPLAY is not set; use gui: false (render() draws "
+                              "images without one) or run under a desktop or xvfb-run")
         self.client = p.connect(p.GUI if cfg["gui"] else p.DIRECT)
         self.cache = SceneCache(cfg["scene_cache"], self.client, bool(cfg["gui"]))
         self.slot: SceneSlot | None = None

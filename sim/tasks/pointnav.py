@@ -87,7 +87,7 @@ def resolve_task_config(defaults: Mapping[str, Any], config: Mapping[str, Any] |
     base = dict(defaults)
     name = cfg.get("preset")
     if name is not None:
-        if name not in presets:
+        if not isinstance(name, str) or name not in presets:
             raise ConfigError(f"unknown config.preset {name!r}; valid: {', '.join(presets)} (or None)")
         base = merge_strict(base, presets[name], name=f"preset {name}")
     if isinstance(cfg.get("scene"), Mapping):
@@ -184,7 +184,7 @@ CONFIG_TABLE: dict[str, Any] = {
     "scene_cache": Int(1, 1024),
     "scene_spec": Rule("mapping", none=True),
     "scene_path": Rule("path", none=True),
-    "catalog": Rule("path", none=True),
+    "catalog": Rule("file", none=True, hint="build one with `curbside catalog build --catalog PATH`"),
     "collision": Choice("box", "convex"),
     "visual_meshes": Bool(),
     "gui": Bool(),
