@@ -38,10 +38,15 @@ def test_build_variants_seeds_and_determinism(tmp_path: Path) -> None:
     assert sorted(p.name for p in a.parent.iterdir()) == ["c.duckdb", "c_assets"]
 
 
-def test_build_refuses_unknown_category_and_keeps_nothing(tmp_path: Path) -> None:
+def test_build_refuses_unknown_category_and_keeps_nothing(tmp_path: Path, capfd) -> None:
+    import typer
+
+    from curbside.cli.errors import run
+
     cat = tmp_path / "c.duckdb"
-    res = runner.invoke(app, ["catalog", "build", "--catalog", str(cat), "--category", "spaceship"])
-    assert res.exit_code == 1 and "spaceship" in res.stderr and "fire_hydrant" in res.stderr
+    code = run(typer.main.get_command(app), ["catalog", "build", "--catalog", str(cat), "--category", "spaceship"])
+    err = capfd.readouterr().err
+    assert code == 2 and "spaceship" in err and "fire_hydrant" in err and len(err.strip().splitlines()) == 1
     assert not cat.exists()
 
 
