@@ -6,7 +6,6 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from enum import Enum
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -19,7 +18,7 @@ DEFAULT_CATALOG = Path("catalogs/default.duckdb")
 
 # Choices as Enums so `--help` lists them and a typo fails before any work (names kept in sync by tests).
 Split = Enum("Split", {k: k for k in ("train", "test", "unseen", "finetune")}, type=str)  # type: ignore[misc]
-Preset = Enum("Preset", {"metaurban12k": "metaurban12k"}, type=str)  # type: ignore[misc]
+Preset = Enum("Preset", {"metaurban12k": "metaurban12k", "none": "none"}, type=str)  # type: ignore[misc]
 RoutePreset = Enum("RoutePreset", {k: k for k in ("short", "metaurban12k")}, type=str)  # type: ignore[misc]
 MAX_SEED = 2**32 - 1
 MAX_COUNT = 1_000_000  # splits start 1,000,000 seeds apart (sim.scene.dataset.MAX_COUNT)
@@ -127,9 +126,13 @@ def dataset(
     object_density: float = typer.Option(1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."),
     catalog: Path | None = typer.Option(None, help="Asset catalog (default: catalogs/default.duckdb if present)."),
     workers: int = typer.Option(1, min=1, max=256, help="Worker processes."),
-    preset: Optional[Preset] = typer.Option(None, help="Scene preset: metaurban12k (the paper's density)."),
+    preset: Preset = typer.Option("metaurban12k", help="Scene preset: metaurban12k (the paper's density, the "
+                                  "default) or none (the generator's plain defaults, sparser scenes)."),
 ) -> None:
     """Generate a MetaUrban-12K-style split: one JSON per scene plus an index of per-scene summaries.
+
+    By default the scenes follow the `metaurban12k` preset, whose statistics match the paper's MetaUrban-12K
+    (docs/scenes.md); `--preset none` gives the generator's plain defaults.
 
     Resumable: a rerun into the same folder keeps the complete scene files of the same settings and generates
     only the missing or corrupt ones.
@@ -143,7 +146,9 @@ def dataset(
 
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file; give a folder for the dataset")
-    base = {"blocks": _blocks(blocks), "object_density": object_density, **({"preset": preset.value} if preset else {})}
+    base = {"blocks": _blocks(blocks), "object_density": object_density}
+    if preset.value != "none":
+        base["preset"] = preset.value
     resolve_config(split_config(split.value, base)[0])  # bad values fail before the catalog warning and the bar
     cat = _catalog(catalog)
     t0 = time.perf_counter()
