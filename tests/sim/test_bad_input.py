@@ -353,7 +353,7 @@ def test_dataset_resumes_after_a_kill_and_repairs_missing_or_corrupt_files(tmp_p
 
     ds, count = tmp_path / "ds", 10
     args = [str(CURBSIDE), "scenes", "dataset", "--split", "test", "--count", str(count), "--blocks", "1",
-            "--out", str(ds)]
+            "--preset", "none", "--out", str(ds)]
     proc = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         with within(300):

@@ -29,6 +29,8 @@ def test_generate_render_dataset_stats(tmp_path: Path) -> None:
     rows = [json.loads(x) for x in (ds / "index.jsonl").read_text().splitlines()]
     assert len(rows) == 3 and all((ds / row["file"]).exists() for row in rows)
     assert all(row["templates"] == "g" and row["split"] == "unseen" for row in rows)
+    # The dataset default is the metaurban12k preset: the paper's minimum of 300 objects per scene.
+    assert all(row["objects"] >= 300 for row in rows), [row["objects"] for row in rows]
     r = runner.invoke(app, ["stats", str(ds)])
     assert r.exit_code == 0, r.output
     st = json.loads((ds / "stats.json").read_text())
