@@ -93,6 +93,7 @@ class CategorySampler:
     def __init__(self, exclude: list[str], frequencies: dict[str, float] | None = None) -> None:
         self.warnings: list[str] = []
         self.weights: dict[str, tuple[list[str], np.ndarray]] = {}
+        self._cdf: dict[tuple[str, tuple[str, ...] | None], Any] = {}
         for cls in OBJECT_CLASSES:
             cats = by_class(cls, exclude)
             w = np.ones(len(cats))
@@ -105,17 +106,31 @@ class CategorySampler:
 
     def draw(self, rng: np.random.Generator, object_class: str, allowed: list[str] | None = None) -> str | None:
         """One category of `object_class` (restricted to `allowed` when given); None when none is allowed."""
+        key = (object_class, None if allowed is None else tuple(allowed))
+        cdf = self._cdf.get(key)
+        if cdf is None:
+            cdf = self._cdf[key] = self._make_cdf(object_class, allowed)
+        if cdf is False:
+            return None
+        cats, c = cdf
+        # What rng.choice(len(cats), p=w / w.sum()) does, without its per-call validation (the placer draws
+        # thousands of categories per scene): one uniform draw searched in the normalised CDF.
+        return cats[int(c.searchsorted(rng.random(), side="right"))]
+
+    def _make_cdf(self, object_class: str, allowed: list[str] | None) -> tuple[list[str], np.ndarray] | bool:
         cats, w = self.weights[object_class]
         if allowed is not None:
             keep = np.array([c in allowed for c in cats], dtype=bool)
             if not keep.any():
-                return None
+                return False
             w = np.where(keep, w, 0.0)
             if w.sum() <= 0:
                 w = keep.astype(np.float64)
         if not cats:
-            return None
-        return cats[int(rng.choice(len(cats), p=w / w.sum()))]
+            return False
+        c = (w / w.sum()).cumsum()
+        c /= c[-1]
+        return cats, c
 
 
 def category_info(category: str) -> dict[str, Any]:

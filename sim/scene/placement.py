@@ -94,9 +94,12 @@ class Placer:
         """Place one object if its footprint lies in `zone`, overlaps nothing and (optionally) avoids keep-outs."""
         depth, width, height = asset[1]
         corners = rectangle(center, yaw, depth, width)
-        poly = shapely.polygons(corners)
         if not shapely.is_prepared(zone.polygon):
             shapely.prepare(zone.polygon)
+        # A corner outside the zone rejects at once (most refusals), without building the footprint polygon.
+        if not shapely.intersects_xy(zone.polygon, corners[:, 0], corners[:, 1]).all():
+            return False
+        poly = shapely.polygons(corners)
         if not zone.polygon.contains(poly):
             return False
         check = shapely.polygons(rectangle(center, yaw, depth + GAP, width + GAP))
@@ -242,13 +245,13 @@ class Placer:
         width = d1 - d0
         allowed = [c for c, (k, zs, _) in CATEGORIES.items() if k != "clutter" and zkind in zs
                    and c != "building_facade" and self.min_depth[c] <= width - 0.05]
+        ns = [c for c in allowed if CATEGORIES[c][0] == "non_standard"]
         s, s1 = sw.s_range[0] + float(self.rng.uniform(0.0, gap_mean)), sw.s_range[1]
         while s < s1:
             clutter = not allowed or self.rng.random() < p_clutter
             if clutter:
                 cat = self.sampler.draw(self.rng, "clutter")
             else:
-                ns = [c for c in allowed if CATEGORIES[c][0] == "non_standard"]
                 cat = self.sampler.draw(self.rng, "non_standard" if ns else "standard", ns or allowed)
             a = self.asset(cat, zone.kind, width - 0.05) if cat is not None else None
             if a is None:
