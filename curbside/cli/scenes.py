@@ -18,6 +18,7 @@ DEFAULT_CATALOG = Path("catalogs/default.duckdb")
 
 # Choices as Enums so `--help` lists them and a typo fails before any work (names kept in sync by tests).
 Split = Enum("Split", {k: k for k in ("train", "test", "unseen", "finetune")}, type=str)  # type: ignore[misc]
+# The scene presets (sim.scene.config.PRESETS, kept equal by a test) plus "none", the generator's plain defaults.
 Preset = Enum("Preset", {"metaurban12k": "metaurban12k", "none": "none"}, type=str)  # type: ignore[misc]
 RoutePreset = Enum("RoutePreset", {k: k for k in ("short", "metaurban12k")}, type=str)  # type: ignore[misc]
 MAX_SEED = 2**32 - 1

@@ -134,7 +134,7 @@ def test_cli_and_table_choices_match_the_simulator() -> None:
     from sim.tasks.pointnav import LIDAR_TABLE, ROUTE_LENGTHS
 
     assert tuple(MACHINES) == MACHINE_NAMES
-    assert [s.value for s in Split] == list(SPLITS) and [p.value for p in Preset] == list(PRESETS)
+    assert [s.value for s in Split] == list(SPLITS) and [p.value for p in Preset] == [*PRESETS, "none"]
     assert [r.value for r in RoutePreset] == list(ROUTE_LENGTHS)
     assert set(LIDAR_TABLE["encoding"].choices) == set(ENCODINGS)
 
