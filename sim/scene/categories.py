@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from pathlib import Path
 from typing import Any
 
@@ -106,16 +107,18 @@ class CategorySampler:
 
     def draw(self, rng: np.random.Generator, object_class: str, allowed: list[str] | None = None) -> str | None:
         """One category of `object_class` (restricted to `allowed` when given); None when none is allowed."""
-        key = (object_class, None if allowed is None else tuple(allowed))
+        key = (object_class, None if allowed is None else allowed if type(allowed) is tuple else tuple(allowed))
         cdf = self._cdf.get(key)
         if cdf is None:
-            cdf = self._cdf[key] = self._make_cdf(object_class, allowed)
+            made = self._make_cdf(object_class, allowed)
+            # The CDF as plain floats: bisect_right on them is c.searchsorted(u, side="right").
+            cdf = self._cdf[key] = made if made is False else (made[0], made[1].tolist())
         if cdf is False:
             return None
         cats, c = cdf
         # What rng.choice(len(cats), p=w / w.sum()) does, without its per-call validation (the placer draws
         # thousands of categories per scene): one uniform draw searched in the normalised CDF.
-        return cats[int(c.searchsorted(rng.random(), side="right"))]
+        return cats[bisect_right(c, rng.random())]
 
     def _make_cdf(self, object_class: str, allowed: list[str] | None) -> tuple[list[str], np.ndarray] | bool:
         cats, w = self.weights[object_class]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import warnings
 from collections import Counter
 from pathlib import Path
@@ -42,6 +43,19 @@ def _bounds(polys: list[Any]) -> tuple[float, float, float, float]:
 
 def generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any = None) -> dict[str, Any]:
     """Generate one scene spec from a strict config, a seed and an optional catalog (reader or path)."""
+    # A scene allocates tens of thousands of small objects and no garbage cycles worth collecting meanwhile:
+    # pausing the cyclic collector spares its repeated passes (~10 % of the time); it resumes afterwards.
+    paused = gc.isenabled()
+    if paused:
+        gc.disable()
+    try:
+        return _generate_scene(config, seed, catalog)
+    finally:
+        if paused:
+            gc.enable()
+
+
+def _generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any) -> dict[str, Any]:
     cfg = resolve_config(config)
     reader, catalog_name = _open_catalog(catalog)
     rng = np.random.default_rng(int(seed))

@@ -3,11 +3,17 @@
 from __future__ import annotations
 
 import math
+from bisect import bisect_left
 
 import numpy as np
 import shapely
+from shapely import lib
+from shapely.creation import HandleNaN
 from shapely.geometry import LineString, MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
+
+_ALLOW_NAN = np.intc(HandleNaN.get_value("allow"))  # shapely.linearrings' default handle_nan
+_NO_HOLES = np.empty((0,), dtype=object)
 
 
 def unit(angle: float) -> np.ndarray:
@@ -37,6 +43,9 @@ class Centerline:
         self.heading = hv
         # Left normals at the vertices, computed once: every band, zone and building strip offsets along them.
         self.normals = np.stack([-np.sin(hv), np.cos(hv)], axis=1)
+        # Plain-float copies for `point` (called for every placement candidate): list indexing and float
+        # arithmetic give the same doubles as the numpy scalars, without their per-operation overhead.
+        self._lists = (self.s.tolist(), self.pts[:, 0].tolist(), self.pts[:, 1].tolist(), hv.tolist())
 
     def offset(self, d: float) -> np.ndarray:
         """Vertices shifted sideways by `d` (left positive)."""
@@ -57,12 +66,13 @@ class Centerline:
 
     def point(self, s: float, d: float) -> tuple[np.ndarray, float]:
         """Scalar fast path of `to_world`: the world point at (s, d) and the heading there."""
-        i = min(max(int(np.searchsorted(self.s, s)) - 1, 0), len(self.s) - 2)
-        s0, s1 = self.s[i], self.s[i + 1]
+        sl, xl, yl, hl = self._lists
+        i = min(max(bisect_left(sl, s) - 1, 0), len(sl) - 2)  # np.searchsorted(self.s, s) - 1, clamped
+        s0, s1 = sl[i], sl[i + 1]
         t = min(max((s - s0) / (s1 - s0), 0.0), 1.0) if s1 > s0 else 0.0
-        x = self.pts[i, 0] + t * (self.pts[i + 1, 0] - self.pts[i, 0])
-        y = self.pts[i, 1] + t * (self.pts[i + 1, 1] - self.pts[i, 1])
-        h = self.heading[i] + t * (self.heading[i + 1] - self.heading[i])
+        x = xl[i] + t * (xl[i + 1] - xl[i])
+        y = yl[i] + t * (yl[i + 1] - yl[i])
+        h = hl[i] + t * (hl[i + 1] - hl[i])
         return np.array([x - d * math.sin(h), y + d * math.cos(h)]), float(h)
 
     def project(self, xy: np.ndarray) -> np.ndarray:
@@ -104,23 +114,31 @@ def strip(cl: Centerline, d0: float, d1: float, s0: float | None = None, s1: flo
         s1 = cl.length if s1 is None else s1
         inner = cl.s[(cl.s > s0) & (cl.s < s1)]
         s = np.concatenate([[s0], inner, [s1]])
-        a, _ = cl.to_world(s, np.full(len(s), d0))
-        b, _ = cl.to_world(s, np.full(len(s), d1))
+        # to_world(s, d0) and to_world(s, d1), sharing the frame and the normals (the same elementwise math).
+        p, h = cl.frame(s)
+        n = np.stack([-np.sin(h), np.cos(h)], axis=1)
+        a = p + np.full(len(s), d0, dtype=np.float64)[:, None] * n
+        b = p + np.full(len(s), d1, dtype=np.float64)[:, None] * n
     ring = np.concatenate([a, b[::-1]])
     x, y = ring[:, 0], ring[:, 1]
     # Shoelace sign instead of shapely's orient(): one polygon construction per strip, not two.
     if float(x[:-1] @ y[1:] - y[:-1] @ x[1:] + x[-1] * y[0] - y[-1] * x[0]) < 0:
         ring = ring[::-1]
-    return shapely.polygons(ring)
+    # shapely.polygons(ring) without its argument handling: the same ring (closed by linearrings), no holes.
+    return lib.polygons(lib.linearrings(ring, _ALLOW_NAN), _NO_HOLES)
+
+
+def corners(x: float, y: float, yaw: float, depth: float, width: float) -> list[list[float]]:
+    """`rectangle` as plain floats: the four corners (counter-clockwise) as [[x, y], ...] lists."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    ax, ay = c * depth / 2, s * depth / 2
+    bx, by = -s * width / 2, c * width / 2
+    return [[x - ax - bx, y - ay - by], [x + ax - bx, y + ay - by], [x + ax + bx, y + ay + by], [x - ax + bx, y - ay + by]]
 
 
 def rectangle(center: np.ndarray, yaw: float, depth: float, width: float) -> np.ndarray:
     """Four corners (counter-clockwise) of a depth x width rectangle centred at `center`, x axis at `yaw`."""
-    c, s = math.cos(yaw), math.sin(yaw)
-    ax, ay = c * depth / 2, s * depth / 2
-    bx, by = -s * width / 2, c * width / 2
-    x, y = float(center[0]), float(center[1])
-    return np.array([[x - ax - bx, y - ay - by], [x + ax - bx, y + ay - by], [x + ax + bx, y + ay + by], [x - ax + bx, y - ay + by]])
+    return np.array(corners(float(center[0]), float(center[1]), yaw, depth, width))
 
 
 def largest(geom: shapely.Geometry) -> Polygon | None:

@@ -90,40 +90,68 @@ def _rings(poly: Polygon) -> list[np.ndarray]:
 
 def paint(mask: np.ndarray, origin: tuple[float, float], resolution: float, poly: Polygon, value: int | bool) -> None:
     """Set the cells of `mask` whose centres lie inside `poly` to `value` (even-odd scanlines over its rows)."""
-    if poly.is_empty:
+    paint_many(mask, origin, resolution, [poly], value)
+
+
+def _polygons(polys: Iterable[Any]) -> list[Polygon]:
+    """The non-empty polygons of `polys`, multi-part geometries split into their polygon parts."""
+    out = []
+    for poly in polys:
+        if poly.is_empty:
+            continue
+        if isinstance(poly, Polygon):
+            out.append(poly)
+            continue
+        out += [part for part in getattr(poly, "geoms", []) if isinstance(part, Polygon) and not part.is_empty]
+    return out
+
+
+def paint_many(mask: np.ndarray, origin: tuple[float, float], resolution: float, polys: Iterable[Any], value: int | bool) -> None:
+    """`paint` of every polygon of `polys` with one `value`, in one vectorised pass.
+
+    Row k's centre is y_k = y0 + (k + 0.5) * res; an edge crosses row k when min(y) <= y_k < max(y) (the
+    half-open rule counts each vertex once, like a point-in-polygon test), so the rows an edge crosses are one
+    `searchsorted` range. Each polygon's crossings on a row, sorted by x, pair up as inside spans; a cell is in
+    when its centre is strictly inside. All cells of all spans get `value` (spans of different polygons may
+    overlap: they set the same value).
+    """
+    parts = _polygons(polys)
+    if not parts:
         return
-    if not isinstance(poly, Polygon):
-        for part in getattr(poly, "geoms", []):
-            if isinstance(part, Polygon):
-                paint(mask, origin, resolution, part, value)
-        return
-    _, ymin, _, ymax = poly.bounds
-    i0 = max(math.floor((ymin - origin[1]) / resolution - 0.5), 0)
-    i1 = min(math.ceil((ymax - origin[1]) / resolution - 0.5) + 1, mask.shape[0])
-    if i1 <= i0:
-        return
-    ys = origin[1] + (np.arange(i0, i1) + 0.5) * resolution
-    rings = _rings(poly)
-    a = np.concatenate([r[:-1] for r in rings])
-    b = np.concatenate([r[1:] for r in rings])
-    # Half-open rule (y0 <= y < y1 on either end) counts each vertex once, like a point-in-polygon test.
+    h, w = mask.shape
+    rings = [(i, r) for i, poly in enumerate(parts) for r in _rings(poly)]
+    a = np.concatenate([r[:-1] for _, r in rings])
+    b = np.concatenate([r[1:] for _, r in rings])
+    pid = np.repeat(np.array([i for i, _ in rings], dtype=np.int64), [len(r) - 1 for _, r in rings])
+    ys = origin[1] + (np.arange(0, h) + 0.5) * resolution
     lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
-    cross = (ys[:, None] >= lo[None, :]) & (ys[:, None] < hi[None, :])
-    rows, edges = np.nonzero(cross)
-    if rows.size == 0:
+    k0 = np.searchsorted(ys, lo, side="left")  # first row with y_k >= lo
+    cnt = np.maximum(np.searchsorted(ys, hi, side="left") - k0, 0)  # rows with lo <= y_k < hi
+    total = int(cnt.sum())
+    if total == 0:
         return
+    ends = np.cumsum(cnt)
+    edges = np.repeat(np.arange(len(a)), cnt)
+    rows = np.repeat(k0, cnt) + (np.arange(total) - np.repeat(ends - cnt, cnt))
     ax, ay, bx, by = a[edges, 0], a[edges, 1], b[edges, 0], b[edges, 1]
     x = ax + (ys[rows] - ay) * (bx - ax) / (by - ay)
-    order = np.lexsort((x, rows))
+    order = np.lexsort((x, rows, pid[edges]))
     rows, x = rows[order], x[order]
-    # Consecutive crossings on one row pair up as inside spans; a cell is in when its centre is strictly inside.
     start = np.ceil((x[0::2] - origin[0]) / resolution - 0.5 + 1e-12).astype(np.int64)
     stop = np.ceil((x[1::2] - origin[0]) / resolution - 0.5 - 1e-12).astype(np.int64)
-    start = np.clip(start, 0, mask.shape[1])
-    stop = np.clip(stop, 0, mask.shape[1])
-    for r, c0, c1 in zip((rows[0::2] + i0).tolist(), start.tolist(), stop.tolist()):
-        if c1 > c0:
-            mask[r, c0:c1] = value
+    start = np.clip(start, 0, w)
+    stop = np.clip(stop, 0, w)
+    keep = stop > start
+    if not keep.any():
+        return
+    r, c0, n = rows[0::2][keep], start[keep], (stop - start)[keep]
+    # The cells of every span through one flat index array (span k covers r*w + c0 ... r*w + c0 + n - 1).
+    ends = np.cumsum(n)
+    idx = np.arange(int(ends[-1]), dtype=np.int64) + np.repeat(r * w + c0 - (ends - n), n)
+    if mask.flags.c_contiguous:
+        mask.reshape(-1)[idx] = value
+    else:
+        mask[np.unravel_index(idx, mask.shape)] = value
 
 
 def paint_reference(mask: np.ndarray, origin: tuple[float, float], resolution: float, poly: Polygon, value: int | bool) -> None:
@@ -151,8 +179,8 @@ def rasterize(
     origin, shape = grid_frame(bounds, resolution)
     mask = np.zeros(shape, dtype=np.uint8)
     for code, polys in layers:
-        for p in polys:
-            paint(mask, origin, resolution, p, code)
+        # One pass per layer: its polygons all paint the same code, so their order within the layer is moot.
+        paint_many(mask, origin, resolution, polys, code)
     return mask, origin
 
 

@@ -3,22 +3,41 @@
 from __future__ import annotations
 
 import math
+import struct
 import warnings
 from collections import Counter
 from typing import Any
 
 import numpy as np
 import shapely
+from shapely import lib
 from shapely.geometry import LineString, Polygon
-from shapely.strtree import STRtree
+from shapely.io import DecodingErrorOptions
+from shapely.strtree import BinaryPredicate, STRtree
 
 from sim.scene.categories import CATEGORIES, CLUTTER_ZONES, CategorySampler
-from sim.scene.geometry import rectangle
+from sim.scene.geometry import corners as rect_corners
 from sim.scene.sidewalks import Sidewalk, Zone
 
+_WKB_RAISE = np.uint8(DecodingErrorOptions.get_value("raise"))  # as shapely.from_wkb(..., on_invalid="raise")
+_INTERSECTS = BinaryPredicate.get_value("intersects")
 FILL_ZONES = ("near_road_buffer", "furnishing", "frontage_buffer", "frontage")
 CELL = 5.0  # spatial-hash cell size (m) for the incremental overlap test
 GAP = 0.02  # clearance kept between footprints so rounding to 0.1 mm never makes them touch
+_WKB_RECT = struct.Struct("<bIII10d")  # little-endian WKB polygon: one ring of 5 XY points
+
+
+def _polygon(pts: list[list[float]]) -> Polygon:
+    """The polygon shapely.polygons(pts) builds for four corners (the ring closed on the first), read from
+    WKB: the same doubles in the same order, without the array round trip."""
+    (ax, ay), (bx, by), (cx, cy), (dx, dy) = pts
+    return lib.from_wkb(_WKB_RECT.pack(1, 3, 1, 5, ax, ay, bx, by, cx, cy, dx, dy, ax, ay), _WKB_RAISE)
+
+
+def _bounds(pts: list[list[float]]) -> tuple[float, float, float, float]:
+    """Bounds of four corners: the extremes of the coordinates, as shapely's bounds of their polygon."""
+    (ax, ay), (bx, by), (cx, cy), (dx, dy) = pts
+    return min(ax, bx, cx, dx), min(ay, by, cy, dy), max(ax, bx, cx, dx), max(ay, by, cy, dy)
 
 
 def _wrap(a: float) -> float:
@@ -41,7 +60,12 @@ class Placer:
     def __init__(self, cfg: dict[str, Any], rng: np.random.Generator, catalog: Any, sampler: CategorySampler) -> None:
         self.cfg, self.rng, self.catalog, self.sampler = cfg, rng, catalog, sampler
         self.objects: list[dict[str, Any]] = []
-        self.polys: list[Polygon] = []
+        # Placed footprints grown by GAP: corners, bounds and (built only when a candidate's bounds meet them)
+        # the shapely polygon. Bounds that do not meet prove two footprints disjoint, so most candidates never
+        # reach shapely; those whose bounds meet get the exact shapely test, as before.
+        self.check_corners: list[list[list[float]]] = []
+        self.check_bounds: list[tuple[float, float, float, float]] = []
+        self.polys: list[Polygon | None] = []
         self.cells: dict[tuple[int, int], list[int]] = {}
         self.refused: Counter[str] = Counter()
         self.fallback: list[str] = []
@@ -49,6 +73,9 @@ class Placer:
         self.min_depth = {c: self._min_depth(c) for c in CATEGORIES}
         self.keep_out: STRtree | None = None
         self.keep_polys: list[Polygon] = []
+        self.keep_bounds: list[tuple[float, float, float, float]] = []
+        self.keep_cells: dict[tuple[int, int], list[int]] = {}
+        self._zones: dict[int, tuple[Polygon, tuple[float, float, float, float]]] = {}
 
     def _in_catalog(self, category: str) -> bool:
         return self.catalog is not None and len(self.catalog.candidates(category)) > 0
@@ -62,6 +89,12 @@ class Placer:
         """Areas no object may touch (clear-path corridors, ramp approaches)."""
         self.keep_polys = polys
         self.keep_out = STRtree(polys) if polys else None
+        self.keep_bounds = [tuple(map(float, b)) for b in shapely.bounds(np.asarray(polys, dtype=object))] if polys else []
+        self.keep_cells = {}
+        for k, (x0, y0, x1, y1) in enumerate(self.keep_bounds):
+            for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
+                for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
+                    self.keep_cells.setdefault((i, j), []).append(k)
 
     def asset(self, category: str, zone: str, max_depth: float, max_width: float | None = None) -> tuple[str | None, list[float]] | None:
         """(asset_id, size) of an asset of `category` that fits, a fallback box, or None when nothing fits."""
@@ -77,15 +110,57 @@ class Placer:
         size = list(CATEGORIES[category][2])
         return None if size[0] > max_depth or (max_width is not None and size[1] > max_width) else (None, size)
 
-    def _free(self, poly: Polygon, check: Polygon) -> bool:
-        x0, y0, x1, y1 = check.bounds
+    def _zone(self, zone: Zone) -> tuple[Polygon, tuple[float, float, float, float]]:
+        """The zone's polygon (prepared) and its bounds, computed once per polygon."""
+        zp = zone.polygon
+        ent = self._zones.get(id(zp))
+        if ent is None or ent[0] is not zp:
+            if not shapely.is_prepared(zp):
+                shapely.prepare(zp)
+            ent = self._zones[id(zp)] = (zp, tuple(map(float, zp.bounds)))
+        return ent
+
+    def _check_poly(self, k: int) -> Polygon:
+        p = self.polys[k]
+        if p is None:
+            p = self.polys[k] = _polygon(self.check_corners[k])
+        return p
+
+    def _free(self, poly: Polygon, pb: tuple[float, float, float, float], check: list[list[float]],
+              cb: tuple[float, float, float, float], keep_out: bool) -> bool:
+        """No placed footprint meets `check` and (with `keep_out`) no keep-out meets the footprint `poly`.
+
+        Shapes whose bounds do not meet cannot meet (the bounds are the extremes of the corners), so only those
+        whose bounds meet go to shapely, with the same exact predicates as always.
+        """
+        x0, y0, x1, y1 = cb
         idx: set[int] = set()
+        cells = self.cells
         for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
             for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
-                idx.update(self.cells.get((i, j), ()))
-        if idx and shapely.intersects(check, [self.polys[k] for k in sorted(idx)]).any():
-            return False
-        return self.keep_out is None or len(self.keep_out.query(poly, predicate="intersects")) == 0
+                c = cells.get((i, j))
+                if c:
+                    idx.update(c)
+        if idx:
+            bounds = self.check_bounds
+            near = [k for k in sorted(idx) if not (bounds[k][2] < x0 or bounds[k][0] > x1 or bounds[k][3] < y0 or bounds[k][1] > y1)]
+            if near and shapely.intersects(_polygon(check), [self._check_poly(k) for k in near]).any():
+                return False
+        if not keep_out or self.keep_out is None:
+            return True
+        x0, y0, x1, y1 = pb
+        kb, kc = self.keep_bounds, self.keep_cells
+        for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
+            for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
+                for k in kc.get((i, j), ()):
+                    b = kb[k]
+                    if not (b[2] < x0 or b[0] > x1 or b[3] < y0 or b[1] > y1):
+                        # Some keep-out's bounds meet the footprint's: the exact query decides (what
+                        # STRtree.query(poly, predicate="intersects") runs, minus its argument handling).
+                        q = np.empty(1, dtype=object)
+                        q[0] = poly
+                        return self.keep_out._tree.query(q, _INTERSECTS).shape[1] == 0
+        return True
 
     def try_place(
         self, sw: Sidewalk, zone: Zone, category: str, asset: tuple[str | None, list[float]],
@@ -93,25 +168,26 @@ class Placer:
     ) -> bool:
         """Place one object if its footprint lies in `zone`, overlaps nothing and (optionally) avoids keep-outs."""
         depth, width, height = asset[1]
-        corners = rectangle(center, yaw, depth, width)
-        if not shapely.is_prepared(zone.polygon):
-            shapely.prepare(zone.polygon)
-        # A corner outside the zone rejects at once (most refusals), without building the footprint polygon.
-        if not shapely.intersects_xy(zone.polygon, corners[:, 0], corners[:, 1]).all():
+        x, y = float(center[0]), float(center[1])
+        corners = rect_corners(x, y, yaw, depth, width)
+        zp, (zx0, zy0, zx1, zy1) = self._zone(zone)
+        pb = _bounds(corners)
+        # A corner outside the zone's bounds is outside the zone: most refusals end here, without shapely.
+        # (The zone containing the footprint implies every corner lies in the zone, so no separate corner test.)
+        if pb[0] < zx0 or pb[1] < zy0 or pb[2] > zx1 or pb[3] > zy1:
             return False
-        poly = shapely.polygons(corners)
-        if not zone.polygon.contains(poly):
+        poly = _polygon(corners)
+        if not zp.contains(poly):
             return False
-        check = shapely.polygons(rectangle(center, yaw, depth + GAP, width + GAP))
-        saved, self.keep_out = self.keep_out, (self.keep_out if keep_out else None)
-        try:
-            if not self._free(poly, check):
-                return False
-        finally:
-            self.keep_out = saved
+        check = rect_corners(x, y, yaw, depth + GAP, width + GAP)
+        cb = _bounds(check)
+        if not self._free(poly, pb, check, cb, keep_out):
+            return False
         k = len(self.polys)
-        self.polys.append(check)
-        x0, y0, x1, y1 = check.bounds
+        self.polys.append(None)
+        self.check_corners.append(check)
+        self.check_bounds.append(cb)
+        x0, y0, x1, y1 = cb
         for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
             for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
                 self.cells.setdefault((i, j), []).append(k)
@@ -122,10 +198,10 @@ class Placer:
             "object_class": CATEGORIES[category][0],
             "zone": zone.kind,
             "sidewalk_id": sw.id,
-            "position": [float(center[0]), float(center[1]), self.z],
+            "position": [x, y, self.z],
             "yaw": _wrap(yaw),
             "size": [float(depth), float(width), float(height)],
-            "footprint": corners.tolist(),
+            "footprint": corners,
         })
         return True
 
@@ -243,9 +319,10 @@ class Placer:
         cl, side = sw.roadway.centerline, sw.side
         zkind = "furnishing" if zone.kind == "near_road_buffer" else zone.kind
         width = d1 - d0
-        allowed = [c for c, (k, zs, _) in CATEGORIES.items() if k != "clutter" and zkind in zs
-                   and c != "building_facade" and self.min_depth[c] <= width - 0.05]
-        ns = [c for c in allowed if CATEGORIES[c][0] == "non_standard"]
+        # Tuples: the sampler keys its CDFs by them, without copying them on every draw.
+        allowed = tuple(c for c, (k, zs, _) in CATEGORIES.items() if k != "clutter" and zkind in zs
+                        and c != "building_facade" and self.min_depth[c] <= width - 0.05)
+        ns = tuple(c for c in allowed if CATEGORIES[c][0] == "non_standard")
         s, s1 = sw.s_range[0] + float(self.rng.uniform(0.0, gap_mean)), sw.s_range[1]
         while s < s1:
             clutter = not allowed or self.rng.random() < p_clutter

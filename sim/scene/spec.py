@@ -11,10 +11,109 @@ import numpy as np
 from sim.scene.config import SPEC_VERSION
 
 DECIMALS = 4
+assert 10.0 ** DECIMALS == 10000.0  # the scale the plain-float rounding paths below multiply by
+
+
+def _round(v: float) -> float:
+    """round(v, 4), with 0.0 for -0.0, for a Python float; mostly without Python's decimal round trip.
+
+    With |v * 1e4| < 1e12 the product is off the exact one by < 2 ** -13, so a fraction within 0.499 of an
+    integer r means the exact value rounds to r too (no tie): round(v, 4) is then the double nearest to
+    r / 10 ** 4, which is what the (correctly rounded) division r / 10000.0 gives. Other values (near a tie,
+    huge, inf, nan) take round(v, 4) itself.
+    """
+    y = v * 10000.0
+    if -1e12 < y < 1e12:
+        r = round(y)
+        d = y - r
+        if -0.499 < d < 0.499:
+            return r / 10000.0  # an int 0 gives 0.0, never -0.0
+    r = round(v, DECIMALS)
+    return 0.0 if r == 0 else r  # -0.0 and 0.0 must serialise alike
 
 
 def canonical(obj: Any) -> Any:
     """Copy of `obj` with floats rounded to 0.1 mm, tuples as lists and numpy scalars as Python numbers."""
+    # Fast paths for the exact built-in types specs are made of (the objects list holds thousands of small
+    # dicts and coordinate lists); anything else goes through `_canonical`, which defines the result.
+    t = type(obj)
+    if t is float:
+        return _round(obj)
+    if t is str or t is int or obj is None or t is bool:
+        return obj
+    if t is dict:
+        out = {}
+        for k, v in obj.items():
+            if type(k) is not str:
+                k = str(k)
+            tv = type(v)
+            if tv is str or tv is int or v is None or tv is bool:
+                out[k] = v
+            elif tv is float:
+                out[k] = _round(v)
+            else:
+                out[k] = canonical(v)
+        return out
+    if t is list:
+        n = len(obj)
+        if 0 < n <= 32:  # longer coordinate lists are quicker in numpy (`_canonical`)
+            t0 = type(obj[0])
+            if t0 is float:
+                for v in obj:
+                    if type(v) is not float:
+                        return _canonical(obj)
+                if n <= 4:
+                    return [_round(v) for v in obj]
+                r = _np_rounded(obj)
+            elif t0 is list:
+                r = _float_rows(obj)
+            else:
+                r = None
+            if r is not None:
+                return r
+    return _canonical(obj)
+
+
+def _np_rounded(obj: list[float]) -> list[float] | None:
+    """(np.round(np.asarray(obj), 4) + 0.0).tolist() for a list of Python floats, in plain Python: numpy
+    multiplies by 10.0 ** 4, rounds half to even (rint, as Python's round) and divides back; the quotient of
+    the int is the same double and never -0.0. None for inf or nan (left to numpy and json, as before)."""
+    try:
+        return [round(v * 10000.0) / 10000.0 for v in obj]
+    except (OverflowError, ValueError):
+        return None
+
+
+def _float_rows(obj: list[Any]) -> list[list[float]] | None:
+    """Equal-length lists of Python floats (a float64 array in `_canonical`), rounded as numpy rounds them
+    (see `_np_rounded`). None when `obj` is anything else."""
+    n = len(obj[0])
+    if n == 0:
+        return None
+    out = []
+    try:
+        if n == 2:
+            for row in obj:
+                if type(row) is not list or len(row) != 2:
+                    return None
+                x, y = row
+                if type(x) is not float or type(y) is not float:
+                    return None
+                out.append([round(x * 10000.0) / 10000.0, round(y * 10000.0) / 10000.0])
+            return out
+        for row in obj:
+            if type(row) is not list or len(row) != n:
+                return None
+            for v in row:
+                if type(v) is not float:
+                    return None
+            out.append([round(v * 10000.0) / 10000.0 for v in row])
+    except (OverflowError, ValueError):
+        return None  # inf or nan: left to numpy and json, as before
+    return out
+
+
+def _canonical(obj: Any) -> Any:
     if isinstance(obj, float):
         r = round(obj, DECIMALS)
         return 0.0 if r == 0 else r  # -0.0 and 0.0 must serialise alike
