@@ -75,6 +75,17 @@ class Centerline:
         h = hl[i] + t * (hl[i + 1] - hl[i])
         return np.array([x - d * math.sin(h), y + d * math.cos(h)]), float(h)
 
+    def point_xy(self, s: float, d: float) -> tuple[float, float, float]:
+        """`point` as plain floats (x, y, heading): the same arithmetic, without building the array."""
+        sl, xl, yl, hl = self._lists
+        i = min(max(bisect_left(sl, s) - 1, 0), len(sl) - 2)
+        s0, s1 = sl[i], sl[i + 1]
+        t = min(max((s - s0) / (s1 - s0), 0.0), 1.0) if s1 > s0 else 0.0
+        x = xl[i] + t * (xl[i + 1] - xl[i])
+        y = yl[i] + t * (yl[i + 1] - yl[i])
+        h = hl[i] + t * (hl[i + 1] - hl[i])
+        return float(x - d * math.sin(h)), float(y + d * math.cos(h)), float(h)
+
     def project(self, xy: np.ndarray) -> np.ndarray:
         """Arc length of the closest centerline point to each of `xy`."""
         return shapely.line_locate_point(self.line, shapely.points(np.asarray(xy)))

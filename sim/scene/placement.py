@@ -16,7 +16,6 @@ from shapely.io import DecodingErrorOptions
 from shapely.strtree import BinaryPredicate, STRtree
 
 from sim.scene.categories import CATEGORIES, CLUTTER_ZONES, CategorySampler
-from sim.scene.geometry import corners as rect_corners
 from sim.scene.sidewalks import Sidewalk, Zone
 
 _WKB_RAISE = np.uint8(DecodingErrorOptions.get_value("raise"))  # as shapely.from_wkb(..., on_invalid="raise")
@@ -34,10 +33,18 @@ def _polygon(pts: list[list[float]]) -> Polygon:
     return lib.from_wkb(_WKB_RECT.pack(1, 3, 1, 5, ax, ay, bx, by, cx, cy, dx, dy, ax, ay), _WKB_RAISE)
 
 
-def _bounds(pts: list[list[float]]) -> tuple[float, float, float, float]:
-    """Bounds of four corners: the extremes of the coordinates, as shapely's bounds of their polygon."""
-    (ax, ay), (bx, by), (cx, cy), (dx, dy) = pts
-    return min(ax, bx, cx, dx), min(ay, by, cy, dy), max(ax, bx, cx, dx), max(ay, by, cy, dy)
+def _rect(x: float, y: float, c: float, s: float, depth: float, width: float,
+          ) -> tuple[list[list[float]], tuple[float, float, float, float]]:
+    """`corners(x, y, yaw, depth, width)` given c, s = cos(yaw), sin(yaw) (the same expressions), and their
+    bounds (the extremes of the coordinates, as shapely's bounds of their polygon): one call for both, the trigonometry shared by a footprint and its grown check box."""
+    ax, ay = c * depth / 2, s * depth / 2
+    bx, by = -s * width / 2, c * width / 2
+    px, py = x - ax - bx, y - ay - by
+    qx, qy = x + ax - bx, y + ay - by
+    rx, ry = x + ax + bx, y + ay + by
+    tx, ty = x - ax + bx, y - ay + by
+    return ([[px, py], [qx, qy], [rx, ry], [tx, ty]],
+            (min(px, qx, rx, tx), min(py, qy, ry, ty), max(px, qx, rx, tx), max(py, qy, ry, ty)))
 
 
 def _wrap(a: float) -> float:
@@ -164,14 +171,14 @@ class Placer:
 
     def try_place(
         self, sw: Sidewalk, zone: Zone, category: str, asset: tuple[str | None, list[float]],
-        center: np.ndarray, yaw: float, *, keep_out: bool = True,
+        center: np.ndarray | tuple[float, float], yaw: float, *, keep_out: bool = True,
     ) -> bool:
         """Place one object if its footprint lies in `zone`, overlaps nothing and (optionally) avoids keep-outs."""
         depth, width, height = asset[1]
         x, y = float(center[0]), float(center[1])
-        corners = rect_corners(x, y, yaw, depth, width)
+        c, sn = math.cos(yaw), math.sin(yaw)
+        corners, pb = _rect(x, y, c, sn, depth, width)
         zp, (zx0, zy0, zx1, zy1) = self._zone(zone)
-        pb = _bounds(corners)
         # A corner outside the zone's bounds is outside the zone: most refusals end here, without shapely.
         # (The zone containing the footprint implies every corner lies in the zone, so no separate corner test.)
         if pb[0] < zx0 or pb[1] < zy0 or pb[2] > zx1 or pb[3] > zy1:
@@ -179,8 +186,7 @@ class Placer:
         poly = _polygon(corners)
         if not zp.contains(poly):
             return False
-        check = rect_corners(x, y, yaw, depth + GAP, width + GAP)
-        cb = _bounds(check)
+        check, cb = _rect(x, y, c, sn, depth + GAP, width + GAP)
         if not self._free(poly, pb, check, cb, keep_out):
             return False
         k = len(self.polys)
@@ -228,8 +234,8 @@ class Placer:
             ok = False
             if a is not None:
                 for ds in (0.0, 0.8, -0.8, 1.6)[: max(1, int(self.cfg["placement_tries"]))]:
-                    p, h = cl.point(s + ds, side * (zone.d0 + zone.d1) / 2)
-                    if self.try_place(sw, zone, cat, a, p, h + side * math.pi / 2):
+                    x, y, h = cl.point_xy(s + ds, side * (zone.d0 + zone.d1) / 2)
+                    if self.try_place(sw, zone, cat, a, (x, y), h + side * math.pi / 2):
                         ok = True
                         break
             if not ok:
@@ -245,13 +251,13 @@ class Placer:
         for _ in range(max(1, int(self.cfg["placement_tries"]))):
             s = self.rng.uniform(*sw.s_range)
             d = self.rng.uniform(lo, hi)
-            p, h = cl.point(s, side * d)
+            x, y, h = cl.point_xy(s, side * d)
             if yaw_mode == "random":
                 yaw = float(self.rng.uniform(-math.pi, math.pi))
             else:
                 # Furnishing objects face the walkway (away from the road); frontage objects face the road.
                 yaw = h + side * math.pi / 2 * (1 if zone.kind == "furnishing" else -1)
-            if self.try_place(sw, zone, category, asset, p, yaw):
+            if self.try_place(sw, zone, category, asset, (x, y), yaw):
                 return True
         return False
 
@@ -324,8 +330,11 @@ class Placer:
                         and c != "building_facade" and self.min_depth[c] <= width - 0.05)
         ns = tuple(c for c in allowed if CATEGORIES[c][0] == "non_standard")
         s, s1 = sw.s_range[0] + float(self.rng.uniform(0.0, gap_mean)), sw.s_range[1]
+        # rng.uniform(lo, hi) for finite lo <= hi is lo + (hi - lo) * rng.random() (numpy's random_uniform:
+        # low + range * next_double, the same draw and the same two roundings), without its argument handling.
+        rnd = self.rng.random
         while s < s1:
-            clutter = not allowed or self.rng.random() < p_clutter
+            clutter = not allowed or rnd() < p_clutter
             if clutter:
                 cat = self.sampler.draw(self.rng, "clutter")
             else:
@@ -339,10 +348,10 @@ class Placer:
             half = (max(depth, wid) if clutter else depth) / 2
             lo, hi = d0 + half + 0.02, d1 - half - 0.02
             if hi >= lo:
-                p, h = cl.point(s + along / 2, side * float(self.rng.uniform(lo, hi)))
-                yaw = float(self.rng.uniform(-math.pi, math.pi)) if clutter else (
+                x, y, h = cl.point_xy(s + along / 2, side * (lo + (hi - lo) * rnd()))
+                yaw = (-math.pi + (math.pi - -math.pi) * rnd()) if clutter else (
                     h + side * math.pi / 2 * (1 if zkind == "furnishing" else -1))
-                if not self.try_place(sw, zone, cat, a, p, yaw):
+                if not self.try_place(sw, zone, cat, a, (x, y), yaw):
                     self.refused[cat] += 1
             s += along + float(self.rng.gamma(2.0, gap_mean / 2.0))
 
@@ -375,8 +384,8 @@ class Placer:
             for deep, shrink in shapes:
                 size = [a[1][0] * deep, max(a[1][1] * shrink, 3.0), a[1][2]]
                 sc = s + size[1] / 2 + 0.1
-                p, h = cl.point(sc, side * (zone.d0 + size[0] / 2))
-                if self.try_place(sw, zone, "building_facade", (a[0], size), p, h - side * math.pi / 2, keep_out=False):
+                x, y, h = cl.point_xy(sc, side * (zone.d0 + size[0] / 2))
+                if self.try_place(sw, zone, "building_facade", (a[0], size), (x, y), h - side * math.pi / 2, keep_out=False):
                     s = sc + size[1] / 2 + 0.1
                     placed = True
                     break
