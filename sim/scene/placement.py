@@ -20,6 +20,7 @@ from sim.scene.sidewalks import Sidewalk, Zone
 
 _WKB_RAISE = np.uint8(DecodingErrorOptions.get_value("raise"))  # as shapely.from_wkb(..., on_invalid="raise")
 _INTERSECTS = BinaryPredicate.get_value("intersects")
+_intersects_scalar = lib.intersects_scalar  # what Polygon.intersects calls for one geometry
 FILL_ZONES = ("near_road_buffer", "furnishing", "frontage_buffer", "frontage")
 CELL = 5.0  # spatial-hash cell size (m) for the incremental overlap test
 GAP = 0.02  # clearance kept between footprints so rounding to 0.1 mm never makes them touch
@@ -151,8 +152,13 @@ class Placer:
         if idx:
             bounds = self.check_bounds
             near = [k for k in sorted(idx) if not (bounds[k][2] < x0 or bounds[k][0] > x1 or bounds[k][3] < y0 or bounds[k][1] > y1)]
-            if near and shapely.intersects(_polygon(check), [self._check_poly(k) for k in near]).any():
-                return False
+            if near:
+                # shapely.intersects(check, [...]).any() pair by pair (the same GEOS predicate), stopping at the
+                # first footprint it meets.
+                cp = _polygon(check)
+                for k in near:
+                    if _intersects_scalar(cp, self._check_poly(k)):
+                        return False
         if not keep_out or self.keep_out is None:
             return True
         x0, y0, x1, y1 = pb
@@ -178,7 +184,10 @@ class Placer:
         x, y = float(center[0]), float(center[1])
         c, sn = math.cos(yaw), math.sin(yaw)
         corners, pb = _rect(x, y, c, sn, depth, width)
-        zp, (zx0, zy0, zx1, zy1) = self._zone(zone)
+        ent = self._zones.get(id(zone.polygon))
+        if ent is None or ent[0] is not zone.polygon:
+            ent = self._zone(zone)
+        zp, (zx0, zy0, zx1, zy1) = ent
         # A corner outside the zone's bounds is outside the zone: most refusals end here, without shapely.
         # (The zone containing the footprint implies every corner lies in the zone, so no separate corner test.)
         if pb[0] < zx0 or pb[1] < zy0 or pb[2] > zx1 or pb[3] > zy1:
