@@ -118,3 +118,19 @@ def run(command: click.Command, argv: Sequence[str] | None = None, prog_name: st
         return code
     return int(rv) if isinstance(rv, int) else 0
 
+
+CONFIG_EXAMPLE = '\'{"machine": "wheelchair", "horizon": 500}\''
+
+
+def parse_config_json(config_json: str | None, option: str = "--config") -> dict:
+    """The JSON object given to `option` as a dict ({} when absent); UsageError naming the problem otherwise."""
+    if not config_json:
+        return {}
+    try:
+        cfg = json.loads(config_json)
+    except json.JSONDecodeError as e:
+        raise UsageError(f"{option} is not valid JSON ({e.msg} at column {e.colno}); pass a JSON object such as "
+                         f"{CONFIG_EXAMPLE}") from None
+    if not isinstance(cfg, dict):
+        raise UsageError(f"{option} must be a JSON object, got a JSON {type(cfg).__name__}; pass e.g. {CONFIG_EXAMPLE}")
+    return cfg

@@ -9,7 +9,7 @@ from typing import Optional
 
 import typer
 
-from curbside.cli.errors import UsageError
+from curbside.cli.errors import UsageError, parse_config_json
 
 app = typer.Typer(help="Run, evaluate, render and benchmark the PyBullet simulator.", no_args_is_help=True)
 
@@ -20,7 +20,6 @@ POLICIES = ("expert", "random")
 MACHINE_NAMES = ("delivery_bot", "delivery_bot_mod1", "delivery_bot_mod2", "wheelchair", "mobility_scooter",
                  "robot_dog", "humanoid")
 MAX_SEED = 2**31 - 1  # episode seeds seed..seed+N-1 must stay valid numpy seeds
-CONFIG_EXAMPLE = '\'{"machine": "wheelchair", "horizon": 500}\''
 
 Task = Enum("Task", {k: k for k in TASKS}, type=str)  # type: ignore[misc]
 Policy = Enum("Policy", {k: k for k in POLICIES}, type=str)  # type: ignore[misc]
@@ -29,22 +28,8 @@ MachineName = Enum("MachineName", {k: k for k in MACHINE_NAMES}, type=str)  # ty
 SCENE_PATH = dict(exists=True, dir_okay=False, readable=True)
 
 
-def parse_config(config_json: Optional[str]) -> dict:
-    """The --config JSON object as a dict; UsageError naming the problem and an example otherwise."""
-    if not config_json:
-        return {}
-    try:
-        cfg = json.loads(config_json)
-    except json.JSONDecodeError as e:
-        raise UsageError(f"--config is not valid JSON ({e.msg} at column {e.colno}); pass a JSON object such as "
-                         f"{CONFIG_EXAMPLE}") from None
-    if not isinstance(cfg, dict):
-        raise UsageError(f"--config must be a JSON object, got a JSON {type(cfg).__name__}; pass e.g. {CONFIG_EXAMPLE}")
-    return cfg
-
-
 def _env_config(machine: Optional[MachineName], scene_path: Optional[Path], config_json: Optional[str]) -> dict:
-    cfg = parse_config(config_json)
+    cfg = parse_config_json(config_json)
     if machine:
         cfg["machine"] = machine.value
     if scene_path:

@@ -10,24 +10,12 @@ from typing import Optional
 import typer
 from rich.console import Console
 
-from curbside.cli.errors import fail
+from curbside.cli.errors import fail, parse_config_json
 from curbside.config import ConfigError
 
 app = typer.Typer(help="Train PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, BC or GAIL and evaluate them on a split.",
                   no_args_is_help=True)
 demos_app = typer.Typer(help="Expert demonstrations as Minari datasets for offline RL and imitation.", no_args_is_help=True)
-
-
-def _config(config_json: Optional[str]) -> dict:
-    if not config_json:
-        return {}
-    try:
-        cfg = json.loads(config_json)
-    except json.JSONDecodeError as e:
-        raise fail(f"--config is not valid JSON ({e.msg} at column {e.colno}); pass an object such as '{{\"machine\": \"wheelchair\"}}'") from None
-    if not isinstance(cfg, dict):
-        raise fail(f"--config must be a JSON object, got {type(cfg).__name__}; e.g. '{{\"machine\": \"wheelchair\"}}'")
-    return cfg
 
 
 def _check_env_config(task: str, cfg: dict, split: str) -> None:
@@ -59,7 +47,7 @@ def run_cmd(
     from curbside.train.policies import check_algo
     from curbside.train.run import train
 
-    cfg = _config(config)
+    cfg = parse_config_json(config)
     try:
         check_algo(algo)
         if demos is not None and not (demos / "data").is_dir():
@@ -90,7 +78,7 @@ def eval_cmd(
 
     try:
         act, run = load_policy(run_dir)
-        cfg = {**run.get("env_config", {}), **_config(config)}
+        cfg = {**run.get("env_config", {}), **parse_config_json(config)}
         _check_env_config(run["task"], cfg, split)
     except (ConfigError, ValueError, FileNotFoundError) as e:
         raise fail(str(e)) from None
@@ -118,7 +106,7 @@ def collect_cmd(
     """Record the noisy expert on the train split as a Minari dataset; print its path and success rate."""
     from curbside.train.demos import collect_demos
 
-    cfg = _config(config)
+    cfg = parse_config_json(config)
     try:
         _check_env_config(task, cfg, "train")
     except (ConfigError, ValueError, FileNotFoundError) as e:
