@@ -250,11 +250,15 @@ class VehicleManager:
         use = has & ~blocked & (ahead < cand)
         cand[use], cand_dv[use] = ahead[use], v[front][use] - rear_v[nx][use]
         # A vehicle that just left a lane still has its rear on it: it leads that lane's front vehicle.
-        for j in np.flatnonzero(self.prev_lane >= 0).tolist():
-            lead = (ls[front] == self.prev_lane[j])
-            tail = to_end + self.s[j] - half
-            hit = lead & (tail < cand)
-            cand[hit], cand_dv[hit] = tail[hit], v[front][hit] - self.v[j]
+        left = np.flatnonzero(self.prev_lane >= 0)
+        if len(left):
+            k = left[np.lexsort((self.s[left], self.prev_lane[left]))]  # per lane left, the rearmost first
+            k = k[np.r_[True, self.prev_lane[k][1:] != self.prev_lane[k][:-1]]]
+            tail_s, tail_v = np.full(len(self.lanes), np.inf), np.zeros(len(self.lanes))
+            tail_s[self.prev_lane[k]], tail_v[self.prev_lane[k]] = self.s[k], self.v[k]
+            tail = to_end + tail_s[ls[front]] - half
+            hit = tail < cand
+            cand[hit], cand_dv[hit] = tail[hit], v[front][hit] - tail_v[ls[front]][hit]
         for ci in np.flatnonzero(self.occupied).tolist():
             for li, s_in in self.cw_lanes[ci]:
                 stop = to_end + s_in - c["stop_gap"]
