@@ -99,8 +99,8 @@ def _one(seed: int) -> tuple[dict[str, Any], bool]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # fallback categories are in each scene's stats; the CLI reports them once
         spec = generate_scene(_WORKER["cfg"], seed, _WORKER["catalog"])
-    spec["catalog"] = _WORKER["name"]
-    save(spec, path)  # atomic: a kill leaves the old file or none, never half a scene
+    spec["catalog"] = _WORKER["name"]  # a str or None: the spec stays canonical
+    save(spec, path, is_canonical=True)  # atomic: a kill leaves the old file or none, never half a scene
     return summarize(spec, name, _WORKER["split"]), True
 
 

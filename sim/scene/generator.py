@@ -108,7 +108,7 @@ def _generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any) -> d
 
     objects = placer.objects
     by_class = Counter(o["object_class"] for o in objects)
-    obj_area = float(sum(o["size"][0] * o["size"][1] for o in objects if o["zone"] != "building"))
+    obj_area = float(placer.object_area)
     walk_area = float(sum(p.area for p in walk_polys + cw_polys))
     stats = {
         "objects": len(objects),
@@ -165,8 +165,9 @@ def _generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any) -> d
             }
             for c in crosswalks
         ],
-        "objects": objects,
         "walkable": encode_walkable(mask, origin, res),
         "stats": stats,
     }
-    return canonical(spec)
+    spec = canonical(spec)
+    spec["objects"] = objects  # placed in canonical form already (Placer.try_place)
+    return spec

@@ -17,10 +17,12 @@ from shapely.strtree import BinaryPredicate, STRtree
 
 from sim.scene.categories import CATEGORIES, CLUTTER_ZONES, CategorySampler
 from sim.scene.sidewalks import Sidewalk, Zone
+from sim.scene.spec import round_points, round_value
 
 _WKB_RAISE = np.uint8(DecodingErrorOptions.get_value("raise"))  # as shapely.from_wkb(..., on_invalid="raise")
 _INTERSECTS = BinaryPredicate.get_value("intersects")
 _intersects_scalar = lib.intersects_scalar  # what Polygon.intersects calls for one geometry
+_contains_scalar = lib.contains_scalar  # and Polygon.contains
 FILL_ZONES = ("near_road_buffer", "furnishing", "frontage_buffer", "frontage")
 CELL = 5.0  # spatial-hash cell size (m) for the incremental overlap test
 GAP = 0.02  # clearance kept between footprints so rounding to 0.1 mm never makes them touch
@@ -75,6 +77,7 @@ class Placer:
         self.check_bounds: list[tuple[float, float, float, float]] = []
         self.polys: list[Polygon | None] = []
         self.cells: dict[tuple[int, int], list[int]] = {}
+        self.object_area = 0.0  # footprint area of placed non-building objects, summed at their exact sizes
         self.refused: Counter[str] = Counter()
         self.fallback: list[str] = []
         self.z = float(cfg["curb_height"])
@@ -193,7 +196,7 @@ class Placer:
         if pb[0] < zx0 or pb[1] < zy0 or pb[2] > zx1 or pb[3] > zy1:
             return False
         poly = _polygon(corners)
-        if not zp.contains(poly):
+        if not _contains_scalar(zp, poly):  # zp.contains(poly), minus shapely's argument handling
             return False
         check, cb = _rect(x, y, c, sn, depth + GAP, width + GAP)
         if not self._free(poly, pb, check, cb, keep_out):
@@ -206,6 +209,10 @@ class Placer:
         for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
             for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
                 self.cells.setdefault((i, j), []).append(k)
+        if zone.kind != "building":
+            self.object_area += depth * width
+        # Objects are stored as the spec holds them (sim.scene.spec.canonical: 0.1 mm), so the generator need not
+        # walk hundreds of them again; placement itself used the exact corners above.
         self.objects.append({
             "id": f"o{len(self.objects)}",
             "asset_id": asset[0],
@@ -213,10 +220,10 @@ class Placer:
             "object_class": CATEGORIES[category][0],
             "zone": zone.kind,
             "sidewalk_id": sw.id,
-            "position": [x, y, self.z],
-            "yaw": _wrap(yaw),
-            "size": [float(depth), float(width), float(height)],
-            "footprint": corners,
+            "position": [round_value(x), round_value(y), round_value(self.z)],
+            "yaw": round_value(_wrap(yaw)),
+            "size": [round_value(float(depth)), round_value(float(width)), round_value(float(height))],
+            "footprint": round_points(corners),
         })
         return True
 

@@ -131,3 +131,21 @@ def test_default_config_is_not_mutated() -> None:
     before = json.dumps(DEFAULT_CONFIG, sort_keys=True)
     _quiet({"blocks": "SC", "templates": "g"}, 0)
     assert json.dumps(DEFAULT_CONFIG, sort_keys=True) == before
+
+
+def test_fast_writer_matches_the_standard_json_encoder_and_refuses_non_finite(tmp_path: Path) -> None:
+    spec = _quiet({"blocks": "SX", "preset": "metaurban12k"}, 3)
+    text = dumps(spec)
+    # orjson (sim.scene.spec.encode) must write exactly what the standard library writes for a spec.
+    assert text == json.dumps(json.loads(text), sort_keys=True, separators=(",", ":"), allow_nan=False)
+    # The generator returns a canonical spec: saving it without re-rounding gives the same bytes.
+    save(spec, tmp_path / "a.json")
+    save(spec, tmp_path / "b.json", is_canonical=True)
+    assert (tmp_path / "a.json").read_bytes() == (tmp_path / "b.json").read_bytes() == text.encode()
+    for bad in (float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="finite"):
+            dumps({**spec, "bounds": [0.0, 0.0, bad, 1.0]})
+        with pytest.raises(ValueError, match="finite"):
+            dumps({**spec, "curb_height": bad})
+        with pytest.raises(ValueError, match="finite"):
+            dumps({**spec, "roads": [{"polygon": [[0.0, 1.0]] * 40 + [[bad, 2.0]]}]})
