@@ -193,7 +193,8 @@ def encode_walkable(mask: np.ndarray, origin: tuple[float, float], resolution: f
         "shape": [int(mask.shape[0]), int(mask.shape[1])],
         "encoding": ENCODING,
         "legend": dict(LEGEND),
-        "cells": base64.b64encode(zlib.compress(data, 6)).decode("ascii"),
+        # Level 1: the masks are long runs, so it is ~3x faster than level 6 for ~2 KB more per scene.
+        "cells": base64.b64encode(zlib.compress(data, 1)).decode("ascii"),
     }
 
 

@@ -13,14 +13,12 @@ import shapely
 from shapely import lib
 from shapely.geometry import LineString, Polygon
 from shapely.io import DecodingErrorOptions
-from shapely.strtree import BinaryPredicate, STRtree
 
 from sim.scene.categories import CATEGORIES, CLUTTER_ZONES, CategorySampler
 from sim.scene.sidewalks import Sidewalk, Zone
 from sim.scene.spec import round_points, round_value
 
 _WKB_RAISE = np.uint8(DecodingErrorOptions.get_value("raise"))  # as shapely.from_wkb(..., on_invalid="raise")
-_INTERSECTS = BinaryPredicate.get_value("intersects")
 _intersects_scalar = lib.intersects_scalar  # what Polygon.intersects calls for one geometry
 _contains_scalar = lib.contains_scalar  # and Polygon.contains
 FILL_ZONES = ("near_road_buffer", "furnishing", "frontage_buffer", "frontage")
@@ -82,7 +80,6 @@ class Placer:
         self.fallback: list[str] = []
         self.z = float(cfg["curb_height"])
         self.min_depth = {c: self._min_depth(c) for c in CATEGORIES}
-        self.keep_out: STRtree | None = None
         self.keep_polys: list[Polygon] = []
         self.keep_bounds: list[tuple[float, float, float, float]] = []
         self.keep_cells: dict[tuple[int, int], list[int]] = {}
@@ -99,7 +96,8 @@ class Placer:
     def set_keep_out(self, polys: list[Polygon]) -> None:
         """Areas no object may touch (clear-path corridors, ramp approaches)."""
         self.keep_polys = polys
-        self.keep_out = STRtree(polys) if polys else None
+        if polys:
+            shapely.prepare(polys)
         self.keep_bounds = [tuple(map(float, b)) for b in shapely.bounds(np.asarray(polys, dtype=object))] if polys else []
         self.keep_cells = {}
         for k, (x0, y0, x1, y1) in enumerate(self.keep_bounds):
@@ -162,20 +160,17 @@ class Placer:
                 for k in near:
                     if _intersects_scalar(cp, self._check_poly(k)):
                         return False
-        if not keep_out or self.keep_out is None:
+        if not keep_out or not self.keep_polys:
             return True
         x0, y0, x1, y1 = pb
-        kb, kc = self.keep_bounds, self.keep_cells
+        kb, kc, kp = self.keep_bounds, self.keep_cells, self.keep_polys
         for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
             for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
                 for k in kc.get((i, j), ()):
                     b = kb[k]
-                    if not (b[2] < x0 or b[0] > x1 or b[3] < y0 or b[1] > y1):
-                        # Some keep-out's bounds meet the footprint's: the exact query decides (what
-                        # STRtree.query(poly, predicate="intersects") runs, minus its argument handling).
-                        q = np.empty(1, dtype=object)
-                        q[0] = poly
-                        return self.keep_out._tree.query(q, _INTERSECTS).shape[1] == 0
+                    # Keep-outs whose bounds meet the footprint's get the exact (prepared) GEOS predicate.
+                    if not (b[2] < x0 or b[0] > x1 or b[3] < y0 or b[1] > y1) and _intersects_scalar(kp[k], poly):
+                        return False
         return True
 
     def try_place(
