@@ -92,8 +92,11 @@ class Centerline:
 
     @property
     def line(self) -> LineString:
-        """The centerline as a shapely LineString."""
-        return LineString(self.pts)
+        """The centerline as a shapely LineString (built once)."""
+        line = self.__dict__.get("_line")
+        if line is None:
+            line = self.__dict__["_line"] = LineString(self.pts)
+        return line
 
 
 def straight(p: np.ndarray, h: float, length: float) -> Centerline:

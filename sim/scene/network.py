@@ -83,10 +83,14 @@ def sidewalk_groups(sidewalks: list[Sidewalk]) -> list[int]:
     if polys:
         a, b = STRtree(polys).query(polys, predicate="dwithin", distance=1e-3)
         eps = 0.02
+        grown: dict[int, Polygon] = {}
         for i, j in zip(a.tolist(), b.tolist()):
-            # The overlap of one polygon with the other grown by eps is about eps times their common edge.
-            if i < j and find(i) != find(j) and polys[i].intersection(polys[j].buffer(eps, join_style="mitre")).area >= MIN_SHARED * eps:
-                parent[find(i)] = find(j)
+            if i < j and find(i) != find(j):
+                if j not in grown:
+                    grown[j] = polys[j].buffer(eps, join_style="mitre")
+                # The overlap of one polygon with the other grown by eps is about eps times their common edge.
+                if polys[i].intersection(grown[j]).area >= MIN_SHARED * eps:
+                    parent[find(i)] = find(j)
     return [find(i) for i in range(len(sidewalks))]
 
 

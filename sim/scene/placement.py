@@ -16,7 +16,7 @@ from shapely.io import DecodingErrorOptions
 
 from sim.scene.categories import CATEGORIES, CLUTTER_ZONES, CategorySampler
 from sim.scene.sidewalks import Sidewalk, Zone
-from sim.scene.spec import round_points, round_value
+from sim.scene.spec import round_value
 
 _WKB_RAISE = np.uint8(DecodingErrorOptions.get_value("raise"))  # as shapely.from_wkb(..., on_invalid="raise")
 _intersects_scalar = lib.intersects_scalar  # what Polygon.intersects calls for one geometry
@@ -143,21 +143,21 @@ class Placer:
         whose bounds meet go to shapely, with the same exact predicates as always.
         """
         x0, y0, x1, y1 = cb
-        idx: set[int] = set()
-        cells = self.cells
+        cells, bounds = self.cells, self.check_bounds
+        cp = None
+        seen: set[int] = set()
         for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
             for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
-                c = cells.get((i, j))
-                if c:
-                    idx.update(c)
-        if idx:
-            bounds = self.check_bounds
-            near = [k for k in sorted(idx) if not (bounds[k][2] < x0 or bounds[k][0] > x1 or bounds[k][3] < y0 or bounds[k][1] > y1)]
-            if near:
-                # shapely.intersects(check, [...]).any() pair by pair (the same GEOS predicate), stopping at the
-                # first footprint it meets.
-                cp = _polygon(check)
-                for k in near:
+                for k in cells.get((i, j), ()):
+                    if k in seen:
+                        continue
+                    seen.add(k)
+                    b = bounds[k]
+                    if b[2] < x0 or b[0] > x1 or b[3] < y0 or b[1] > y1:
+                        continue
+                    # Bounds meet: the exact GEOS predicate decides; any hit refuses, so the order is moot.
+                    if cp is None:
+                        cp = _polygon(check)
                     if _intersects_scalar(cp, self._check_poly(k)):
                         return False
         if not keep_out or not self.keep_polys:
@@ -218,7 +218,7 @@ class Placer:
             "position": [round_value(x), round_value(y), round_value(self.z)],
             "yaw": round_value(_wrap(yaw)),
             "size": [round_value(float(depth)), round_value(float(width)), round_value(float(height))],
-            "footprint": round_points(corners),
+            "footprint": [[round(px * 1e4) / 1e4, round(py * 1e4) / 1e4] for px, py in corners],  # as canonical rounds [x, y] rows
         })
         return True
 
@@ -343,14 +343,16 @@ class Placer:
         s, s1 = sw.s_range[0] + float(self.rng.uniform(0.0, gap_mean)), sw.s_range[1]
         # rng.uniform(lo, hi) for finite lo <= hi is lo + (hi - lo) * rng.random() (numpy's random_uniform:
         # low + range * next_double, the same draw and the same two roundings), without its argument handling.
-        rnd = self.rng.random
+        rng = self.rng
+        rnd, gamma, draw, asset, try_place = rng.random, rng.gamma, self.sampler.draw, self.asset, self.try_place
+        point_xy = cl.point_xy
         while s < s1:
             clutter = not allowed or rnd() < p_clutter
             if clutter:
-                cat = self.sampler.draw(self.rng, "clutter")
+                cat = draw(rng, "clutter")
             else:
-                cat = self.sampler.draw(self.rng, "non_standard" if ns else "standard", ns or allowed)
-            a = self.asset(cat, zone.kind, width - 0.05) if cat is not None else None
+                cat = draw(rng, "non_standard" if ns else "standard", ns or allowed)
+            a = asset(cat, zone.kind, width - 0.05) if cat is not None else None
             if a is None:
                 s += gap_mean
                 continue
@@ -359,12 +361,12 @@ class Placer:
             half = (max(depth, wid) if clutter else depth) / 2
             lo, hi = d0 + half + 0.02, d1 - half - 0.02
             if hi >= lo:
-                x, y, h = cl.point_xy(s + along / 2, side * (lo + (hi - lo) * rnd()))
+                x, y, h = point_xy(s + along / 2, side * (lo + (hi - lo) * rnd()))
                 yaw = (-math.pi + (math.pi - -math.pi) * rnd()) if clutter else (
                     h + side * math.pi / 2 * (1 if zkind == "furnishing" else -1))
-                if not self.try_place(sw, zone, cat, a, (x, y), yaw):
+                if not try_place(sw, zone, cat, a, (x, y), yaw):
                     self.refused[cat] += 1
-            s += along + float(self.rng.gamma(2.0, gap_mean / 2.0))
+            s += along + float(gamma(2.0, gap_mean / 2.0))
 
     def buildings(self, sw: Sidewalk) -> int:
         """Building facades side by side along the building zone; returns how many spots were skipped."""

@@ -45,12 +45,6 @@ def round_value(v: float) -> float:
     return _round(v)
 
 
-def round_points(rows: list[list[float]]) -> list[list[float]]:
-    """A list of [x, y, ...] float rows as `canonical` stores it."""
-    out = _float_rows(rows) if rows else None
-    return out if out is not None else _canonical(rows)
-
-
 def canonical(obj: Any) -> Any:
     """Copy of `obj` with floats rounded to 0.1 mm, tuples as lists and numpy scalars as Python numbers."""
     # Fast paths for the exact built-in types specs are made of (the objects list holds thousands of small
