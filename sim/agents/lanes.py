@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 import shapely
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 from shapely.geometry import LineString, Polygon
 
 
@@ -196,23 +198,11 @@ def build_conflict_zones(lanes: list[Lane], width: float, merge: float = 12.0) -
         z = np.zeros(0)
         return ConflictZones(z.astype(np.int64), z.astype(np.int64), z, z, z, 0)
     arr = np.array(pts)
-    # Crossings closer than `merge` belong to one intersection: union-find over the points.
+    # Crossings closer than `merge` belong to one intersection: connected components of the "close" graph,
+    # numbered in the order of their first point.
     xy = arr[:, 3:5]
-    parent = np.arange(len(arr))
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return int(i)
-
-    close = np.argwhere(np.linalg.norm(xy[:, None] - xy[None], axis=2) < merge)
-    for i, j in close.tolist():
-        ri, rj = root(i), root(j)
-        if ri != rj:
-            parent[max(ri, rj)] = min(ri, rj)
-    roots = np.array([root(i) for i in range(len(arr))])
-    zone_of = np.unique(roots, return_inverse=True)[1]
+    close = np.linalg.norm(xy[:, None] - xy[None], axis=2) < merge
+    zone_of = connected_components(csr_matrix(close), directed=False)[1]
     lane_ids = arr[:, 0].astype(np.int64)
     keys = sorted({(int(zone_of[i]), int(lane_ids[i])) for i in range(len(arr))})
     lane, zone, s_in, s_out, axis = [], [], [], [], []

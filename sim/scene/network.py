@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import shapely
+from scipy.cluster.hierarchy import DisjointSet
 from shapely.geometry import Polygon
 from shapely.strtree import STRtree
 
@@ -70,28 +71,21 @@ def join_seams(blocks: list[Block], sidewalks: list[Sidewalk], roads: list[Polyg
 
 
 def sidewalk_groups(sidewalks: list[Sidewalk]) -> list[int]:
-    """Group index of every sidewalk: sidewalks sharing at least MIN_SHARED m of boundary are in one group."""
-    parent = list(range(len(sidewalks)))
-
-    def find(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
+    """Group label of every sidewalk: sidewalks sharing at least MIN_SHARED m of boundary are in one group."""
+    groups = DisjointSet(range(len(sidewalks)))
     polys = [sw.polygon for sw in sidewalks]
     if polys:
         a, b = STRtree(polys).query(polys, predicate="dwithin", distance=1e-3)
         eps = 0.02
         grown: dict[int, Polygon] = {}
         for i, j in zip(a.tolist(), b.tolist()):
-            if i < j and find(i) != find(j):
+            if i < j and not groups.connected(i, j):
                 if j not in grown:
                     grown[j] = polys[j].buffer(eps, join_style="mitre")
                 # The overlap of one polygon with the other grown by eps is about eps times their common edge.
                 if polys[i].intersection(grown[j]).area >= MIN_SHARED * eps:
-                    parent[find(i)] = find(j)
-    return [find(i) for i in range(len(sidewalks))]
+                    groups.merge(i, j)
+    return [int(groups[i]) for i in range(len(sidewalks))]
 
 
 def connecting_picks(pairs: list[tuple[int, int]], chosen: list[bool], groups: list[int], order: np.ndarray) -> list[bool]:
@@ -99,20 +93,14 @@ def connecting_picks(pairs: list[tuple[int, int]], chosen: list[bool], groups: l
 
     `pairs` holds, per crosswalk candidate, the indices of the two sidewalks it would join.
     """
-    parent = {g: g for g in groups}
-
-    def find(g: int) -> int:
-        while parent[g] != g:
-            g = parent[g]
-        return g
-
+    joined = DisjointSet(groups)
     out = list(chosen)
     for k, (i, j) in enumerate(pairs):
         if out[k]:
-            parent[find(groups[i])] = find(groups[j])
+            joined.merge(groups[i], groups[j])
     for k in order.tolist():
         i, j = pairs[k]
-        if not out[k] and find(groups[i]) != find(groups[j]):
-            parent[find(groups[i])] = find(groups[j])
+        if not out[k] and not joined.connected(groups[i], groups[j]):
+            joined.merge(groups[i], groups[j])
             out[k] = True
     return out

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import struct
 import warnings
 from collections import Counter
 from typing import Any
@@ -12,40 +11,14 @@ import numpy as np
 import shapely
 from shapely import lib
 from shapely.geometry import LineString, Polygon
-from shapely.io import DecodingErrorOptions
 
 from sim.scene.categories import CATEGORIES, CLUTTER_ZONES, CategorySampler
+from sim.scene.occupancy import GAP, Occupancy, quad_polygon, rect
 from sim.scene.sidewalks import Sidewalk, Zone
 from sim.scene.spec import round_value
 
-_WKB_RAISE = np.uint8(DecodingErrorOptions.get_value("raise"))  # as shapely.from_wkb(..., on_invalid="raise")
-_intersects_scalar = lib.intersects_scalar  # what Polygon.intersects calls for one geometry
-_contains_scalar = lib.contains_scalar  # and Polygon.contains
+_contains_scalar = lib.contains_scalar  # what Polygon.contains calls for one geometry
 FILL_ZONES = ("near_road_buffer", "furnishing", "frontage_buffer", "frontage")
-CELL = 5.0  # spatial-hash cell size (m) for the incremental overlap test
-GAP = 0.02  # clearance kept between footprints so rounding to 0.1 mm never makes them touch
-_WKB_RECT = struct.Struct("<bIII10d")  # little-endian WKB polygon: one ring of 5 XY points
-
-
-def _polygon(pts: list[list[float]]) -> Polygon:
-    """The polygon shapely.polygons(pts) builds for four corners (the ring closed on the first), read from
-    WKB: the same doubles in the same order, without the array round trip."""
-    (ax, ay), (bx, by), (cx, cy), (dx, dy) = pts
-    return lib.from_wkb(_WKB_RECT.pack(1, 3, 1, 5, ax, ay, bx, by, cx, cy, dx, dy, ax, ay), _WKB_RAISE)
-
-
-def _rect(x: float, y: float, c: float, s: float, depth: float, width: float,
-          ) -> tuple[list[list[float]], tuple[float, float, float, float]]:
-    """`corners(x, y, yaw, depth, width)` given c, s = cos(yaw), sin(yaw) (the same expressions), and their
-    bounds (the extremes of the coordinates, as shapely's bounds of their polygon): one call for both, the trigonometry shared by a footprint and its grown check box."""
-    ax, ay = c * depth / 2, s * depth / 2
-    bx, by = -s * width / 2, c * width / 2
-    px, py = x - ax - bx, y - ay - by
-    qx, qy = x + ax - bx, y + ay - by
-    rx, ry = x + ax + bx, y + ay + by
-    tx, ty = x - ax + bx, y - ay + by
-    return ([[px, py], [qx, qy], [rx, ry], [tx, ty]],
-            (min(px, qx, rx, tx), min(py, qy, ry, ty), max(px, qx, rx, tx), max(py, qy, ry, ty)))
 
 
 def _wrap(a: float) -> float:
@@ -68,21 +41,12 @@ class Placer:
     def __init__(self, cfg: dict[str, Any], rng: np.random.Generator, catalog: Any, sampler: CategorySampler) -> None:
         self.cfg, self.rng, self.catalog, self.sampler = cfg, rng, catalog, sampler
         self.objects: list[dict[str, Any]] = []
-        # Placed footprints grown by GAP: corners, bounds and (built only when a candidate's bounds meet them)
-        # the shapely polygon. Bounds that do not meet prove two footprints disjoint, so most candidates never
-        # reach shapely; those whose bounds meet get the exact shapely test, as before.
-        self.check_corners: list[list[list[float]]] = []
-        self.check_bounds: list[tuple[float, float, float, float]] = []
-        self.polys: list[Polygon | None] = []
-        self.cells: dict[tuple[int, int], list[int]] = {}
+        self.occupied = Occupancy()
         self.object_area = 0.0  # footprint area of placed non-building objects, summed at their exact sizes
         self.refused: Counter[str] = Counter()
         self.fallback: list[str] = []
         self.z = float(cfg["curb_height"])
         self.min_depth = {c: self._min_depth(c) for c in CATEGORIES}
-        self.keep_polys: list[Polygon] = []
-        self.keep_bounds: list[tuple[float, float, float, float]] = []
-        self.keep_cells: dict[tuple[int, int], list[int]] = {}
         self._zones: dict[int, tuple[Polygon, tuple[float, float, float, float]]] = {}
 
     def _in_catalog(self, category: str) -> bool:
@@ -95,15 +59,7 @@ class Placer:
 
     def set_keep_out(self, polys: list[Polygon]) -> None:
         """Areas no object may touch (clear-path corridors, ramp approaches)."""
-        self.keep_polys = polys
-        if polys:
-            shapely.prepare(polys)
-        self.keep_bounds = [tuple(map(float, b)) for b in shapely.bounds(np.asarray(polys, dtype=object))] if polys else []
-        self.keep_cells = {}
-        for k, (x0, y0, x1, y1) in enumerate(self.keep_bounds):
-            for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
-                for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
-                    self.keep_cells.setdefault((i, j), []).append(k)
+        self.occupied.set_keep_out(polys)
 
     def asset(self, category: str, zone: str, max_depth: float, max_width: float | None = None) -> tuple[str | None, list[float]] | None:
         """(asset_id, size) of an asset of `category` that fits, a fallback box, or None when nothing fits."""
@@ -129,50 +85,6 @@ class Placer:
             ent = self._zones[id(zp)] = (zp, tuple(map(float, zp.bounds)))
         return ent
 
-    def _check_poly(self, k: int) -> Polygon:
-        p = self.polys[k]
-        if p is None:
-            p = self.polys[k] = _polygon(self.check_corners[k])
-        return p
-
-    def _free(self, poly: Polygon, pb: tuple[float, float, float, float], check: list[list[float]],
-              cb: tuple[float, float, float, float], keep_out: bool) -> bool:
-        """No placed footprint meets `check` and (with `keep_out`) no keep-out meets the footprint `poly`.
-
-        Shapes whose bounds do not meet cannot meet (the bounds are the extremes of the corners), so only those
-        whose bounds meet go to shapely, with the same exact predicates as always.
-        """
-        x0, y0, x1, y1 = cb
-        cells, bounds = self.cells, self.check_bounds
-        cp = None
-        seen: set[int] = set()
-        for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
-            for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
-                for k in cells.get((i, j), ()):
-                    if k in seen:
-                        continue
-                    seen.add(k)
-                    b = bounds[k]
-                    if b[2] < x0 or b[0] > x1 or b[3] < y0 or b[1] > y1:
-                        continue
-                    # Bounds meet: the exact GEOS predicate decides; any hit refuses, so the order is moot.
-                    if cp is None:
-                        cp = _polygon(check)
-                    if _intersects_scalar(cp, self._check_poly(k)):
-                        return False
-        if not keep_out or not self.keep_polys:
-            return True
-        x0, y0, x1, y1 = pb
-        kb, kc, kp = self.keep_bounds, self.keep_cells, self.keep_polys
-        for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
-            for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
-                for k in kc.get((i, j), ()):
-                    b = kb[k]
-                    # Keep-outs whose bounds meet the footprint's get the exact (prepared) GEOS predicate.
-                    if not (b[2] < x0 or b[0] > x1 or b[3] < y0 or b[1] > y1) and _intersects_scalar(kp[k], poly):
-                        return False
-        return True
-
     def try_place(
         self, sw: Sidewalk, zone: Zone, category: str, asset: tuple[str | None, list[float]],
         center: np.ndarray | tuple[float, float], yaw: float, *, keep_out: bool = True,
@@ -181,7 +93,7 @@ class Placer:
         depth, width, height = asset[1]
         x, y = float(center[0]), float(center[1])
         c, sn = math.cos(yaw), math.sin(yaw)
-        corners, pb = _rect(x, y, c, sn, depth, width)
+        corners, pb = rect(x, y, c, sn, depth, width)
         ent = self._zones.get(id(zone.polygon))
         if ent is None or ent[0] is not zone.polygon:
             ent = self._zone(zone)
@@ -190,20 +102,13 @@ class Placer:
         # (The zone containing the footprint implies every corner lies in the zone, so no separate corner test.)
         if pb[0] < zx0 or pb[1] < zy0 or pb[2] > zx1 or pb[3] > zy1:
             return False
-        poly = _polygon(corners)
+        poly = quad_polygon(corners)
         if not _contains_scalar(zp, poly):  # zp.contains(poly), minus shapely's argument handling
             return False
-        check, cb = _rect(x, y, c, sn, depth + GAP, width + GAP)
-        if not self._free(poly, pb, check, cb, keep_out):
+        check, cb = rect(x, y, c, sn, depth + GAP, width + GAP)
+        if not self.occupied.free(poly, pb, check, cb, keep_out):
             return False
-        k = len(self.polys)
-        self.polys.append(None)
-        self.check_corners.append(check)
-        self.check_bounds.append(cb)
-        x0, y0, x1, y1 = cb
-        for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
-            for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
-                self.cells.setdefault((i, j), []).append(k)
+        self.occupied.add(check, cb)
         if zone.kind != "building":
             self.object_area += depth * width
         # Objects are stored as the spec holds them (sim.scene.spec.canonical: 0.1 mm), so the generator need not
