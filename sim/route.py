@@ -10,12 +10,11 @@ from typing import Any
 
 import numpy as np
 from scipy import ndimage
-from scipy.sparse import coo_matrix, diags
+from scipy.sparse import diags
 from scipy.sparse.csgraph import dijkstra
 
-from sim.scene.grid import decode_walkable, obstacle_mask
+from sim.scene.grid import SIDEWALK, decode_walkable, grid_graph, obstacle_mask
 
-SIDEWALK, CROSSWALK, RAMP = 1, 2, 3
 LONG_ROUTE = 120.0  # metres: longer routes are drawn as chained legs
 
 
@@ -129,24 +128,7 @@ class RoutePlanner:
         # when there is room, and squeeze past obstacles only when they must.
         prefer = half_width + margin + comfort
         self.penalty = 1.0 + 2.0 * np.clip(1.0 - clearance / prefer, 0.0, 1.0)
-        self.graph = self._graph()
-
-    def _graph(self):
-        node, res = self.node, self.grid.resolution
-        src, dst, w = [], [], []
-        rows, cols = node.shape
-        for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-            j0, j1 = max(0, -dj), cols - max(0, dj)
-            a = node[0:rows - di, j0:j1]
-            b = node[di:rows, j0 + dj:j1 + dj]
-            ok = (a >= 0) & (b >= 0)
-            src.append(a[ok])
-            dst.append(b[ok])
-            pen = 0.5 * (self.penalty[0:rows - di, j0:j1][ok] + self.penalty[di:rows, j0 + dj:j1 + dj][ok])
-            w.append(res * math.hypot(di, dj) * pen)
-        src, dst, w = np.concatenate(src), np.concatenate(dst), np.concatenate(w)
-        n = len(self.rows)
-        return coo_matrix((np.concatenate([w, w]), (np.concatenate([src, dst]), np.concatenate([dst, src]))), shape=(n, n)).tocsr()
+        self.graph = grid_graph(self.free, g.resolution, cost=self.penalty)
 
     def _nearest_node(self, x: float, y: float) -> int:
         pts = self.grid.cell_to_world(np.stack([self.rows, self.cols], -1))

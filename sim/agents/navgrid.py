@@ -7,59 +7,20 @@ site share the field, so planning 100 agents costs at most `n_sites` Dijkstra ru
 
 from __future__ import annotations
 
-import base64
-import zlib
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from scipy import ndimage
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
+from shapely.geometry import Polygon
 
-try:  # shapely 2 ships vectorised predicates; the planner rasterises footprints with them
-    import shapely
-    from shapely.geometry import Polygon
-except ImportError as exc:  # pragma: no cover - shapely is a core dependency
-    raise ImportError("sim.agents needs shapely>=2: pip install shapely") from exc
+from sim.scene.grid import CROSSWALK as LEGEND_CROSSWALK
+from sim.scene.grid import RAMP as LEGEND_RAMP
+from sim.scene.grid import SIDEWALK as LEGEND_SIDEWALK
+from sim.scene.grid import decode_walkable, grid_graph, obstacle_mask
 
-LEGEND_SIDEWALK, LEGEND_CROSSWALK, LEGEND_RAMP = 1, 2, 3
-
-
-def decode_cells(spec: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, float]:
-    """Decode the spec's walkable grid into (uint8 cells [rows, cols], origin [x0, y0], resolution)."""
-    try:
-        w = spec["walkable"]
-        rows, cols = (int(v) for v in w["shape"])
-        if w.get("encoding", "zlib+base64:uint8") != "zlib+base64:uint8":
-            raise ValueError(f"unsupported walkable encoding {w['encoding']!r}; expected 'zlib+base64:uint8'")
-        raw = zlib.decompress(base64.b64decode(w["cells"]))
-        cells = np.frombuffer(raw, dtype=np.uint8).reshape(rows, cols).copy()
-        return cells, np.asarray(w["origin"], dtype=np.float64), float(w["resolution"])
-    except KeyError as exc:
-        raise ValueError(f"scene spec lacks walkable.{exc.args[0]}; regenerate it with sim.scene.generate_scene") from None
-
-
-def rasterize_polygons(polys: list[np.ndarray], origin: np.ndarray, res: float, shape: tuple[int, int],
-                       inflate: float = 0.0) -> np.ndarray:
-    """Return a bool mask of the cells whose centres lie in any polygon grown by `inflate` metres."""
-    mask = np.zeros(shape, dtype=bool)
-    for pts in polys:
-        poly = Polygon(pts)
-        if inflate > 0:
-            poly = poly.buffer(inflate, quad_segs=4)
-        xmin, ymin, xmax, ymax = poly.bounds
-        j0 = max(int(np.floor((xmin - origin[0]) / res)), 0)
-        j1 = min(int(np.ceil((xmax - origin[0]) / res)), shape[1])
-        i0 = max(int(np.floor((ymin - origin[1]) / res)), 0)
-        i1 = min(int(np.ceil((ymax - origin[1]) / res)), shape[0])
-        if j0 >= j1 or i0 >= i1:
-            continue
-        xs = origin[0] + (np.arange(j0, j1) + 0.5) * res
-        ys = origin[1] + (np.arange(i0, i1) + 0.5) * res
-        gx, gy = np.meshgrid(xs, ys)
-        mask[i0:i1, j0:j1] |= shapely.contains_xy(poly, gx, gy)
-    return mask
+__all__ = ["JUMPS", "LEGEND_CROSSWALK", "LEGEND_RAMP", "LEGEND_SIDEWALK", "NavGrid", "boundary_segments", "build_navgrid"]
 
 
 def boundary_segments(mask: np.ndarray, origin: np.ndarray, res: float) -> list[tuple[tuple[float, float], tuple[float, float]]]:
@@ -245,12 +206,14 @@ def build_navgrid(spec: dict[str, Any], *, plan_radius: float = 0.5, n_sites: in
 
     A pure function of the spec, so one grid (and its distance fields) serves every episode in a scene.
     """
-    cells, origin, res = decode_cells(spec)
+    g = decode_walkable(spec)
+    cells, origin, res = g.mask, np.asarray(g.origin, dtype=np.float64), g.resolution
     surface = cells > 0
-    footprints = [np.asarray(o["footprint"], dtype=np.float64) for o in spec.get("objects", []) if o.get("footprint")]
-    objects = rasterize_polygons(footprints, origin, res, cells.shape)
+    footprints = [Polygon(o["footprint"]) for o in spec.get("objects", []) if o.get("footprint")]
+    # Agents keep the cells of objects thinner than a cell (cover_thin=False): ORCA sees those as obstacles.
+    objects = obstacle_mask(g, footprints, cover_thin=False)
     walkable = surface & ~objects
-    inflated = rasterize_polygons(footprints, origin, res, cells.shape, inflate=plan_radius)
+    inflated = obstacle_mask(g, footprints, inflate=plan_radius, cover_thin=False)
     # Keep plans a body radius away from curbs and building edges, so ORCA obstacles are rarely touched.
     edge_clear = ndimage.distance_transform_edt(surface) * res > plan_radius
     free = surface & ~inflated & edge_clear
@@ -264,7 +227,7 @@ def build_navgrid(spec: dict[str, Any], *, plan_radius: float = 0.5, n_sites: in
     node_rc = np.argwhere(free).astype(np.int32)
     node_of = np.full(cells.shape, -1, dtype=np.int32)
     node_of[node_rc[:, 0], node_rc[:, 1]] = np.arange(len(node_rc), dtype=np.int32)
-    graph = _grid_graph(free, node_of, res)
+    graph = grid_graph(free, res, corner_cutting=False)
     _, idx = ndimage.distance_transform_edt(~free, return_indices=True)
     nearest_rc = idx.astype(np.int32)
 
@@ -272,26 +235,6 @@ def build_navgrid(spec: dict[str, Any], *, plan_radius: float = 0.5, n_sites: in
     candidates = sidewalk_nodes if len(sidewalk_nodes) else np.arange(len(node_rc))
     sites = _spread_sites(node_rc[candidates].astype(np.float64), candidates, n_sites)
     return NavGrid(cells, origin, res, walkable, free, node_of, node_rc, graph, nearest_rc, sites)
-
-
-def _grid_graph(free: np.ndarray, node_of: np.ndarray, res: float) -> csr_matrix:
-    """8-connected graph over free cells; diagonals only where both orthogonal cells are free (no corner cutting)."""
-    padded = np.pad(node_of, 1, constant_values=-1)
-    rc = np.argwhere(free) + 1  # indices into the padded array
-    u_all = padded[rc[:, 0], rc[:, 1]]
-    src, dst, wt = [], [], []
-    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        v = padded[rc[:, 0] + di, rc[:, 1] + dj]
-        ok = v >= 0
-        if di and dj:
-            ok &= (padded[rc[:, 0] + di, rc[:, 1]] >= 0) & (padded[rc[:, 0], rc[:, 1] + dj] >= 0)
-        u, v = u_all[ok], v[ok]
-        c = np.full(len(u), res * (np.sqrt(2.0) if (di and dj) else 1.0))
-        src += [u, v]
-        dst += [v, u]
-        wt += [c, c]
-    n = int(free.sum())
-    return csr_matrix((np.concatenate(wt), (np.concatenate(src), np.concatenate(dst))), shape=(n, n))
 
 
 def _spread_sites(rc: np.ndarray, candidates: np.ndarray, k: int) -> np.ndarray:

@@ -12,7 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from sim.agents.navgrid import rasterize_polygons
+from shapely.geometry import Polygon
+
+from sim.scene.grid import paint
 
 
 def _rect(x0: float, y0: float, x1: float, y1: float) -> list[list[float]]:
@@ -65,11 +67,11 @@ def toy_street_spec(length: float = 60.0, seed: int = 0, n_objects: int = 8, res
     shape = (int(round(2 * (half_road + walk) / res)), int(round(length / res)))
     cells = np.zeros(shape, dtype=np.uint8)
     for sw in sidewalks:
-        cells[rasterize_polygons([np.asarray(sw["polygon"])], origin, res, shape)] = 1
+        paint(cells, tuple(origin), res, Polygon(sw["polygon"]), 1)
     for cw in crosswalks:
-        cells[rasterize_polygons([np.asarray(cw["polygon"])], origin, res, shape)] = 2
+        paint(cells, tuple(origin), res, Polygon(cw["polygon"]), 2)
         for ramp in cw["ramps"]:
-            cells[rasterize_polygons([np.asarray(ramp["polygon"])], origin, res, shape)] = 3
+            paint(cells, tuple(origin), res, Polygon(ramp["polygon"]), 3)
     return {
         "version": "curbside.scene/1", "seed": seed, "config": {"toy": True, "length": length}, "catalog": None,
         "bounds": [0.0, -half_road - walk, length, half_road + walk], "curb_height": 0.15,

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import shapely
+from scipy.sparse import coo_matrix, csr_matrix
 from shapely.geometry import Polygon
 
 ENCODING = "zlib+base64:uint8"
@@ -203,6 +204,9 @@ def decode_walkable(spec: dict[str, Any]) -> WalkableGrid:
     w = spec.get("walkable", spec)
     if w.get("encoding") != ENCODING:
         raise ValueError(f"walkable grid encoding {w.get('encoding')!r} is not supported; expected {ENCODING!r}")
+    missing = [k for k in ("shape", "cells", "origin", "resolution") if k not in w]
+    if missing:
+        raise ValueError(f"scene spec lacks walkable.{missing[0]}; regenerate it with `curbside scenes generate`")
     rows, cols = (int(v) for v in w["shape"])
     raw = zlib.decompress(base64.b64decode(w["cells"]))
     if len(raw) != rows * cols:
@@ -219,21 +223,56 @@ def _footprint(obj: Any) -> Polygon:
     return Polygon(obj)
 
 
-def obstacle_mask(grid: WalkableGrid, objects: Iterable[Any], inflate: float = 0.0) -> np.ndarray:
+def obstacle_mask(grid: WalkableGrid, objects: Iterable[Any], inflate: float = 0.0, *, cover_thin: bool = True) -> np.ndarray:
     """Boolean mask of cells covered by object footprints grown by `inflate` metres (an agent's radius).
 
-    `objects` are spec objects (dicts with `footprint`), lists of [x, y] points, or shapely polygons.
+    `objects` are spec objects (dicts with `footprint`), lists of [x, y] points, or shapely polygons. With
+    `cover_thin`, an object thinner than a cell (a pole) that covers no cell centre still blocks its cell.
     """
     out = np.zeros(grid.shape, dtype=bool)
-    for obj in objects:
-        poly = _footprint(obj)
-        if inflate > 0:
-            poly = poly.buffer(inflate, join_style="mitre" if inflate < 0.05 else "round", quad_segs=4)
+    polys = [_footprint(obj) for obj in objects]
+    if inflate > 0:
+        polys = [p.buffer(inflate, join_style="mitre" if inflate < 0.05 else "round", quad_segs=4) for p in polys]
+    if not cover_thin:
+        paint_many(out, grid.origin, grid.resolution, polys, True)
+        return out
+    for poly in polys:
         before = int(out.sum())
         paint(out, grid.origin, grid.resolution, poly, True)
-        # A pole thinner than a cell may cover no cell centre: it must still block its cell for planners.
         if int(out.sum()) == before and not poly.is_empty:
             i, j = (int(v) for v in grid.world_to_cell((poly.centroid.x, poly.centroid.y)))
             if 0 <= i < grid.shape[0] and 0 <= j < grid.shape[1]:
                 out[i, j] = True
     return out
+
+
+def grid_graph(free: np.ndarray, resolution: float, *, cost: np.ndarray | None = None,
+               corner_cutting: bool = True) -> csr_matrix:
+    """8-connected graph over the True cells of `free`, nodes numbered row-major (as np.nonzero lists them).
+
+    An edge costs its length (resolution, or resolution * sqrt 2 on diagonals) times the mean of `cost` at
+    its two cells when `cost` is given. Without `corner_cutting`, a diagonal needs both cells it passes
+    between to be free too.
+    """
+    rows, cols = free.shape
+    node = np.full(free.shape, -1, dtype=np.int64)
+    node[free] = np.arange(int(free.sum()))
+    src, dst, w = [], [], []
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        j0, j1 = max(0, -dj), cols - max(0, dj)
+        a = node[0:rows - di, j0:j1]
+        b = node[di:rows, j0 + dj:j1 + dj]
+        ok = (a >= 0) & (b >= 0)
+        if di and dj and not corner_cutting:
+            ok &= (node[di:rows, j0:j1] >= 0) & (node[0:rows - di, j0 + dj:j1 + dj] >= 0)
+        src.append(a[ok])
+        dst.append(b[ok])
+        length = resolution * math.hypot(di, dj)
+        if cost is None:
+            w.append(np.full(int(ok.sum()), length))
+        else:
+            w.append(length * (0.5 * (cost[0:rows - di, j0:j1][ok] + cost[di:rows, j0 + dj:j1 + dj][ok])))
+    src_a, dst_a, w_a = np.concatenate(src), np.concatenate(dst), np.concatenate(w)
+    n = int(free.sum())
+    return coo_matrix((np.concatenate([w_a, w_a]), (np.concatenate([src_a, dst_a]), np.concatenate([dst_a, src_a]))),
+                      shape=(n, n)).tocsr()

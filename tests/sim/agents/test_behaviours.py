@@ -8,11 +8,12 @@ import zlib
 
 import numpy as np
 import pytest
+from shapely.geometry import Polygon
 
 from curbside.config import ConfigError
 from sim.agents import AgentManager, toy_street_spec
 from sim.agents.crowd import sidewalk_length
-from sim.agents.navgrid import rasterize_polygons
+from sim.scene.grid import paint
 
 BAY = 4.0  # side of the square bays at both ends of the corridor
 
@@ -29,7 +30,7 @@ def corridor_spec(width: float, length: float, res: float) -> dict:
     shape = (round((BAY + 2.0) / res), round((2 * BAY + length + 2.0) / res))
     cells = np.zeros(shape, dtype=np.uint8)
     for p in polys:
-        cells[rasterize_polygons([np.asarray(p)], origin, res, shape)] = 1
+        paint(cells, tuple(origin), res, Polygon(p), 1)
     sidewalks = [{"id": f"s{k}", "road_id": "r0", "side": "left", "template": "a", "polygon": p,
                   "edge": [p[0], p[1]], "zones": [], "clear_path": [[p[0][0], 0.0], [p[1][0], 0.0]]}
                  for k, p in enumerate(polys)]
