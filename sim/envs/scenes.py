@@ -18,7 +18,8 @@ import pybullet as p
 
 from curbside.config import ConfigError
 from sim.scene.config import check_scene_spec, resolve_config
-from sim.tasks.pointnav import MAX_SEED, dataset_scenes, generator_config, load_scene, read_scene, split_seed_offset
+from sim.tasks.pointnav import MAX_SEED
+from sim.tasks.scenes import dataset_scenes, generator_config, load_scene, read_scene, split_seed_offset
 
 
 @dataclass

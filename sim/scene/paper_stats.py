@@ -88,7 +88,8 @@ def dataset_vs_paper(directory: str | Path, *, route_length: tuple[float, float]
                      agent_density: float | None = None, progress: Callable[[int], None] | None = None) -> dict[str, Any]:
     """Mean of every figure over a dataset's scenes beside the paper's, with the ratio; also the per-scene values."""
     from sim.scene.dataset import read_index
-    from sim.tasks.pointnav import DEFAULT_CONFIG, read_scene
+    from sim.tasks.pointnav import DEFAULT_CONFIG
+    from sim.tasks.scenes import read_scene
 
     d = Path(directory)
     rows = read_index(d)

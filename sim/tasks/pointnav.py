@@ -1,4 +1,4 @@
-"""The PointNav task: its config defaults, the reward presets, and where an episode's scene comes from.
+"""The PointNav task: its config defaults and reward presets (an episode's scene comes from `sim.tasks.scenes`).
 
 Two reward presets (docs/tasks.md explains each choice):
 - `paper`: the MetaUrban paper's formula R = R_term + 0.5 R_disp + 1.0 R_lateral + 0.1 R_steering + 1.0 R_crash, kept
@@ -11,11 +11,8 @@ Two reward presets (docs/tasks.md explains each choice):
 
 from __future__ import annotations
 
-import json
-import warnings
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
-from pathlib import Path
 from typing import Any
 
 from curbside.config import ConfigError, merge_strict
@@ -249,69 +246,3 @@ def make_reward(preset: str, overrides: Mapping[str, Any] | None) -> Reward:
     if preset not in REWARD_PRESETS:
         raise ConfigError(f"unknown reward_preset {preset!r}; valid: {', '.join(REWARD_PRESETS)}")
     return Reward(**merge_strict(REWARD_PRESETS[preset], overrides, name="config.reward"))
-
-
-def load_scene(config: Mapping[str, Any], seed: int) -> dict[str, Any]:
-    """The scene spec an episode runs in: `scene_spec`, else `scene_path`, else generated with `seed`."""
-    if config["scene_spec"] is not None:
-        return dict(config["scene_spec"])
-    if config["scene_path"] is not None:
-        return read_scene(config["scene_path"])
-    try:
-        from sim.scene import generate_scene
-    except ImportError as e:  # the generator is a sibling subsystem; say what to do without it
-        raise RuntimeError(
-            f"sim.scene.generate_scene is unavailable ({e}); pass config={{'scene_spec': ...}} or 'scene_path'"
-        ) from e
-    scene_cfg = generator_config(config)
-    with warnings.catch_warnings():
-        # Without a catalog the generator warns once per category; the env says it once per process instead.
-        warnings.filterwarnings("ignore", message="no catalog was given")
-        return generate_scene(scene_cfg, seed, config["catalog"])
-
-
-def generator_config(config: Mapping[str, Any]) -> dict[str, Any]:
-    """The scene generator config of generated episodes: `scene` with the split's templates and categories."""
-    scene_cfg = dict(config["scene"])
-    if config.get("split") is not None:
-        from sim.scene.dataset import split_config
-        scene_cfg, _ = split_config(config["split"], scene_cfg)
-    return scene_cfg
-
-
-def read_scene(path: str | Path) -> dict[str, Any]:
-    """A scene spec from a JSON file, with a clear error when it is missing, not JSON or holds bad geometry."""
-    from sim.scene.config import check_scene_spec
-
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no scene spec at {path}; write one with `curbside scenes generate --out {path}`")
-    try:
-        spec = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise ConfigError(f"{path} is not a scene spec JSON file ({e}); regenerate it with `curbside scenes generate`") from e
-    check_scene_spec(spec, source=str(path))
-    return spec
-
-
-def split_seed_offset(split: str | None) -> int:
-    """First generator seed of `split` (0 without a split): splits draw from disjoint seed ranges."""
-    if split is None:
-        return 0
-    from sim.scene.dataset import split_config
-    return split_config(split)[1]
-
-
-def dataset_scenes(scene_dir: str | Path, split: str | None) -> list[Path]:
-    """Scene files of `split` in a dataset folder (its index.jsonl), sorted; a clear error when there are none."""
-    from sim.scene.dataset import read_index
-    d = Path(scene_dir)
-    if not d.is_dir():
-        raise ConfigError(f"config.scene_dir {d} is not a folder; create it with `curbside scenes dataset --out {d}`")
-    rows = read_index(d)
-    files = sorted(d / r["file"] for r in rows if split is None or r.get("split") == split)
-    if not files:
-        have = sorted({str(r.get("split")) for r in rows}) or ["none"]
-        raise ConfigError(f"split {split!r} has no scenes in {d} (it holds: {', '.join(have)}); "
-                          f"create them with `curbside scenes dataset --split {split} --out {d}`")
-    return files
