@@ -12,8 +12,10 @@ import struct
 import numpy as np
 import shapely
 from shapely import lib
-from shapely.geometry import Polygon
+from shapely.geometry import LineString, Polygon
 from shapely.io import DecodingErrorOptions
+
+from sim.scene.sidewalks import Sidewalk
 
 CELL = 5.0  # spatial-hash cell size (m)
 GAP = 0.02  # clearance kept between footprints so rounding to 0.1 mm never makes them touch
@@ -42,6 +44,16 @@ def rect(x: float, y: float, c: float, s: float, depth: float, width: float) -> 
     tx, ty = x - ax + bx, y - ay + by
     return ([[px, py], [qx, qy], [rx, ry], [tx, ty]],
             (min(px, qx, rx, tx), min(py, qy, ry, ty), max(px, qx, rx, tx), max(py, qy, ry, ty)))
+
+
+def corridor(sw: Sidewalk, width: float, extend: float = 4.0) -> Polygon:
+    """Keep-out band of `width` along the clear path, extended past both ends so corners stay open."""
+    pts = np.asarray(sw.clear_path.coords)
+    a, b = pts[1] - pts[0], pts[-1] - pts[-2]
+    a /= max(np.hypot(*a), 1e-9)
+    b /= max(np.hypot(*b), 1e-9)
+    ext = np.concatenate([[pts[0] - extend * a], pts, [pts[-1] + extend * b]])
+    return LineString(ext).buffer(width / 2, cap_style="flat", quad_segs=2)
 
 
 def _cells(b: Bounds) -> list[tuple[int, int]]:

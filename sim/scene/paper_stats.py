@@ -49,7 +49,7 @@ def scene_figures(spec: dict[str, Any], rng: np.random.Generator, route_length: 
     from shapely.geometry import Polygon
 
     from sim.agents.crowd import AGENT_DEFAULTS, sidewalk_length
-    from sim.route import RoutePlanner, RouteError
+    from sim.route import RouteError, RoutePlanner
 
     objs = [o for o in spec.get("objects", []) if len(o.get("footprint") or []) >= 3]
     polys = [Polygon(o["footprint"]) for o in objs]

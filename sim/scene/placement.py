@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import shapely
 from shapely import lib
-from shapely.geometry import LineString, Polygon
+from shapely.geometry import Polygon
 
 from sim.scene.categories import CATEGORIES, CLUTTER_ZONES, CategorySampler
 from sim.scene.occupancy import GAP, Occupancy, quad_polygon, rect
@@ -19,20 +19,6 @@ from sim.scene.spec import round_value
 
 _contains_scalar = lib.contains_scalar  # what Polygon.contains calls for one geometry
 FILL_ZONES = ("near_road_buffer", "furnishing", "frontage_buffer", "frontage")
-
-
-def _wrap(a: float) -> float:
-    return float(math.atan2(math.sin(a), math.cos(a)))
-
-
-def corridor(sw: Sidewalk, width: float, extend: float = 4.0) -> Polygon:
-    """Keep-out band of `width` along the clear path, extended past both ends so corners stay open."""
-    pts = np.asarray(sw.clear_path.coords)
-    a, b = pts[1] - pts[0], pts[-1] - pts[-2]
-    a /= max(np.hypot(*a), 1e-9)
-    b /= max(np.hypot(*b), 1e-9)
-    ext = np.concatenate([[pts[0] - extend * a], pts, [pts[-1] + extend * b]])
-    return LineString(ext).buffer(width / 2, cap_style="flat", quad_segs=2)
 
 
 class Placer:
@@ -121,7 +107,7 @@ class Placer:
             "zone": zone.kind,
             "sidewalk_id": sw.id,
             "position": [round_value(x), round_value(y), round_value(self.z)],
-            "yaw": round_value(_wrap(yaw)),
+            "yaw": round_value(math.atan2(math.sin(yaw), math.cos(yaw))),  # wrapped to (-pi, pi]
             "size": [round_value(float(depth)), round_value(float(width)), round_value(float(height))],
             "footprint": [[round(px * 1e4) / 1e4, round(py * 1e4) / 1e4] for px, py in corners],  # as canonical rounds [x, y] rows
         })
