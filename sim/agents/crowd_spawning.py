@@ -1,0 +1,98 @@
+"""Where the crowd spawns and how many: spawn areas, sidewalk length, drawing kinds and placing agents."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from curbside.config import ConfigError
+from sim.agents.kinds import KIND_NAMES
+
+SPAWN_AREAS = ("sidewalks", "intersections", "route")
+
+
+def spawn_region(spec: dict[str, Any], config: Mapping[str, Any], route: np.ndarray | None) -> Any:
+    """The polygon agents spawn in (None: every sidewalk): around intersections, or along the ego's route."""
+    from shapely.geometry import LineString, Polygon
+    from shapely.ops import unary_union
+
+    area = config["spawn_area"]
+    if area == "sidewalks":
+        return None
+    if area == "intersections":
+        roads = [Polygon(r["polygon"]) for r in spec.get("roads", []) if r.get("block") in ("X", "T", "O")]
+        return unary_union(roads).buffer(float(config["intersection_margin"])) if roads else Polygon()
+    if route is None or len(route) < 2:
+        raise ConfigError("agents spawn_area 'route' needs the ego's route (SocialNav passes it at reset)")
+    return LineString(np.asarray(route)[:, :2]).buffer(float(config["route_band"]))
+
+
+def sidewalk_length(spec: dict[str, Any]) -> float:
+    """Total sidewalk length in metres (clear-path polylines, else curb edges) used by dynamic_density."""
+    total = 0.0
+    for sw in spec.get("sidewalks", []):
+        line = np.asarray(sw.get("clear_path") or sw.get("edge") or [], dtype=np.float64)
+        if len(line) >= 2:
+            total += float(np.linalg.norm(np.diff(line, axis=0), axis=1).sum())
+    return total
+
+
+class AgentSpawning:
+    """AgentManager's spawning part: draws the agents' kinds and places them apart on the walkable grid."""
+
+    def _draw_kinds(self, spec: dict[str, Any], rng: np.random.Generator) -> list[str]:
+        c = self.config
+        if c["counts"]:
+            kinds = [k for k in KIND_NAMES for _ in range(int(c["counts"].get(k, 0)))]
+        else:
+            n = int(round(c["dynamic_density"] * self._area_length(spec) / 100.0))
+            names = list(c["mix"])
+            p = np.array([c["mix"][k] for k in names], dtype=np.float64)
+            kinds = list(rng.choice(names, size=n, p=p / p.sum())) if n else []
+        if len(kinds) > c["max_agents"]:
+            raise ConfigError(f"{len(kinds)} agents requested but max_agents is {c['max_agents']}; "
+                              "lower dynamic_density/counts or raise max_agents")
+        return [str(k) for k in kinds]
+
+    def _area_length(self, spec: dict[str, Any]) -> float:
+        """Metres of sidewalk (or route) the spawn count scales with: dynamic_density agents per 100 m of it."""
+        if self._area is None:
+            return sidewalk_length(spec)
+        if self.config["spawn_area"] == "route":
+            return float(self._route_length)
+        from shapely.geometry import LineString
+
+        total = 0.0
+        for sw in spec.get("sidewalks", []):
+            line = sw.get("clear_path") or sw.get("edge") or []
+            if len(line) >= 2:
+                total += LineString(line).intersection(self._area).length
+        return total
+
+    def _spawn_positions(self, rng: np.random.Generator, clear: list[tuple[float, float, float]]) -> np.ndarray:
+        g = self.grid
+        cand = g.node_xy(rng.permutation(g.n_nodes))
+        if self._area is not None:
+            import shapely
+
+            cand = cand[shapely.contains_xy(self._area, cand[:, 0], cand[:, 1])]
+        for x, y, r in clear:
+            cand = cand[np.hypot(cand[:, 0] - x, cand[:, 1] - y) > r]
+        cand = cand + rng.uniform(-0.3, 0.3, cand.shape) * g.res  # off the cell centres, still in the cell
+        pos = np.zeros((self.n, 2))
+        placed, k = 0, 0
+        while placed < self.n and k < len(cand):
+            p = cand[k]
+            k += 1
+            if placed:
+                d = np.linalg.norm(pos[:placed] - p, axis=1)
+                if np.any(d < self.radius[:placed] + self.radius[placed] + self.config["spawn_clearance"]):
+                    continue
+            pos[placed] = p
+            placed += 1
+        if placed < self.n:
+            raise ValueError(f"only {placed} of {self.n} agents fit on this scene's walkable area; "
+                             "lower dynamic_density or the explicit counts")
+        return pos
