@@ -34,6 +34,23 @@ COLORS = {
 }
 
 
+WALL_NZ = 0.5  # a contact whose normal is flatter than this is a wall (a curb side), not the ground
+
+
+def touching(client: int, body: int, kinds: Mapping[int, str], extra: Mapping[int, str], hits: set[str]) -> None:
+    """Add to `hits` what `body` touches now: the kind of each body (`extra` first, then `kinds`, else
+    "object"), and "curb" for a surface touched through a wall-like contact normal."""
+    for cp in p.getContactPoints(bodyA=body, physicsClientId=client):
+        if cp[8] > 1e-3:
+            continue  # within the contact margin but not touching
+        kind = extra.get(cp[2]) or kinds.get(cp[2], "object")
+        if kind in SURFACE_KINDS:
+            if abs(cp[7][2]) < WALL_NZ:
+                hits.add("curb")
+        else:
+            hits.add(kind)
+
+
 class SceneError(ValueError):
     """A scene spec this simulator cannot build (wrong version, missing or malformed fields)."""
 

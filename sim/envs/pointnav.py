@@ -12,21 +12,16 @@ import numpy as np
 import pybullet as p
 
 from curbside.config import ConfigError
-from sim.envs.scenes import SceneCache, SceneSlot, SceneSource
+from sim.envs.observation import EgoObservation
+from sim.envs.scenes import SceneCache, SceneSlot, SceneSource, build_slot
 from sim.machines import Machine, machine_spec
 from sim.metrics import make_measures
 from sim.route import RoutePlanner
-from sim.sensors import Lidar
-from sim.tasks.pointnav import CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward, resolve_task_config
-from sim.world import SURFACE_KINDS, World, check_spec
+from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, Termination, check_config, make_reward,
+                                resolve_task_config)
+from sim.world import World, check_spec, touching
 
-WALL_NZ = 0.5  # a contact whose normal is flatter than this is a wall (a curb side), not the ground
 STATIC_COLLISION_KINDS = ("object", "building", "curb")  # with "agent" and "vehicle": sim.tasks.pointnav.COLLISION_KINDS
-GOAL_LOG_SCALE = math.log1p(500.0)  # goal distances up to 500 m span [0, 1] in the observation
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 class PointNavEnv(gym.Env):
@@ -93,23 +88,11 @@ class PointNavEnv(gym.Env):
             check_spec(cfg["scene_spec"])
         self.scenes = SceneSource(cfg)
         self.measures = make_measures(list(cfg["measures"]))
-        lid = cfg["lidar"]
-        self.num_beams = int(lid["beams"])
-        self.num_low_beams = int(lid["low_beams"])
-        W = int(cfg["num_waypoints"])
-        self.num_waypoints = W
-        self.observation_names = (
-            [f"lidar_{k}" for k in range(self.num_beams)] + [f"low_{k}" for k in range(self.num_low_beams)]
-            + ["speed", "yaw_rate", "heading_error", "lateral_offset", "last_steering", "last_throttle"]
-            + [f"wp{i}_{a}" for i in range(W) for a in "xy"]
-            + ["goal_distance", "goal_heading_sin", "goal_heading_cos"]
-        )
-        n = len(self.observation_names)
-        low = -np.ones(n, dtype=np.float32)
-        low[: self.num_beams + self.num_low_beams] = 0.0
-        self.observation_space = gym.spaces.Box(low, np.ones(n, dtype=np.float32), dtype=np.float32)
+        self.observation = EgoObservation(cfg)
+        self.num_beams, self.num_low_beams = self.observation.num_beams, self.observation.num_low_beams
+        self.observation_names = self.observation.names
+        self.observation_space = self.observation.space
         self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
-        self._wp_offsets = np.arange(1, W + 1, dtype=np.float64) * float(cfg["waypoint_spacing"])
         if cfg["gui"] and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
             # PyBullet's GUI connect waits forever for a display that is not there.
             raise ConfigError("config.gui needs a display, and DISPLAY is not set; use gui: false (render() draws "
@@ -137,7 +120,7 @@ class PointNavEnv(gym.Env):
         if slot is None:
             slot = self.cache.new_slot(key)
             try:
-                self._build_slot(slot, load())
+                build_slot(slot, load(), self.config, self.spec_machine)
                 self._use(slot)
                 self._on_scene(slot.world.spec)
             except BaseException:
@@ -147,24 +130,6 @@ class PointNavEnv(gym.Env):
         else:
             self._use(slot)
             self._load_scene_state(slot.state)
-
-    def _build_slot(self, slot: SceneSlot, spec: dict[str, Any]) -> None:
-        cfg = self.config
-        catalog = None
-        if cfg["catalog"] is not None and (cfg["collision"] == "convex" or cfg["visual_meshes"]):
-            from catalogs.reader import CatalogReader
-            catalog = CatalogReader(cfg["catalog"])
-        slot.world = World(spec, client=slot.client, collision=cfg["collision"], catalog=catalog,
-                           visual_meshes=bool(cfg["visual_meshes"]), physics_dt=self.dt / self.substeps)
-        slot.machine = Machine(slot.client, self.spec_machine)
-        lid = cfg["lidar"]
-        r0 = slot.machine.bounding_radius + 0.05
-        slot.lidar = Lidar(slot.client, beams=self.num_beams, range_m=float(lid["range"]), height=float(lid["height"]),
-                           start_radius=r0, encoding=lid["encoding"])
-        slot.low_lidar = (Lidar(slot.client, beams=self.num_low_beams, range_m=max(float(lid["low_range"]), r0 + 0.1),
-                                height=float(lid["low_height"]), start_radius=r0) if self.num_low_beams else None)
-        slot.planner = RoutePlanner(spec, self.spec_machine.half_width, margin=float(cfg["route_margin"]))
-        slot.state = {}
 
     def _use(self, slot: SceneSlot) -> None:
         self.slot = slot
@@ -255,8 +220,7 @@ class PointNavEnv(gym.Env):
         self.succeeded = False
         self.out_of_route = False
         self.stuck = False
-        self._progress_mark = (0, 0.0)  # (step, max progress) when progress last grew by stuck_distance
-        self._contact_run = 0
+        self.termination = Termination.from_config(cfg)
         self._reference_length: float | None = None
         self.last_action = np.zeros(2, dtype=np.float64)
         self.step_collisions: set[str] = set()
@@ -301,18 +265,9 @@ class PointNavEnv(gym.Env):
         for k in hits:
             self.collision_counts[k] = self.collision_counts.get(k, 0) + 1
         self.cost_total += int(collided)
-        cfg = self.config
-        self.succeeded = self.max_progress >= cfg["success_completion"] * self.route.length
-        self.out_of_route = (not self.succeeded) and (
-            abs(lat) > cfg["out_of_route_distance"]
-            or (cfg["terminate_off_walkable"] and self.planner.grid.label_at(x, y) == 0)
-        )
-        self._contact_run = self._contact_run + 1 if hits else 0
-        if self.max_progress >= self._progress_mark[1] + cfg["stuck_distance"]:
-            self._progress_mark = (self.steps, self.max_progress)
-        self.stuck = not (self.succeeded or self.out_of_route) and (
-            (cfg["stuck_steps"] > 0 and self.steps - self._progress_mark[0] >= cfg["stuck_steps"])
-            or (cfg["collision_steps"] > 0 and self._contact_run >= cfg["collision_steps"]))
+        off_walkable = self.config["terminate_off_walkable"] and self.planner.grid.label_at(x, y) == 0
+        self.succeeded, self.out_of_route, self.stuck = self.termination(
+            self.steps, self.max_progress, self.route.length, lat, off_walkable, bool(hits))
         d_steer = steer - self.last_action[0]
         reward = self.reward_fn(progress, new_progress, lat, d_steer, m.speed, collided, self.succeeded,
                                 self.out_of_route, self.stuck)
@@ -335,42 +290,11 @@ class PointNavEnv(gym.Env):
         return obs, reward, terminated, truncated, info
 
     def _contacts(self, hits: set[str]) -> None:
-        kinds, extra = self.kinds, self._collision_kinds
-        for cp in p.getContactPoints(bodyA=self.machine.body, physicsClientId=self.client):
-            if cp[8] > 1e-3:
-                continue  # within the contact margin but not touching
-            body = cp[2]
-            kind = extra.get(body) or kinds.get(body, "object")
-            if kind in SURFACE_KINDS:
-                if abs(cp[7][2]) < WALL_NZ:
-                    hits.add("curb")
-            else:
-                hits.add(kind)
+        touching(self.client, self.machine.body, self.kinds, self._collision_kinds, hits)
 
     def _observe(self) -> np.ndarray:
-        m, route = self.machine, self.route
-        x, y, z = m.position
-        yaw = m.yaw
-        self.lidar.scan(x, y, z, yaw)
-        parts = [self.lidar.encoded()]
-        if self.low_lidar is not None:
-            parts.append(self.low_lidar.scan(x, y, z, yaw))
-        heading_err = _wrap(yaw - route.heading_at(self.progress))
-        c, s = math.cos(yaw), math.sin(yaw)
-        wp = route.point_at(self.progress + self._wp_offsets)
-        dx, dy = wp[:, 0] - x, wp[:, 1] - y
-        scale = 1.0 / (self._wp_offsets[-1])
-        ego = np.stack([(c * dx + s * dy) * scale, (-s * dx + c * dy) * scale], 1).ravel()
-        gx, gy = route.goal[0] - x, route.goal[1] - y
-        bearing = math.atan2(gy, gx) - yaw
-        state = [
-            m.speed / self.config["speed_scale"], m.yaw_rate / 2.0, heading_err / math.pi,
-            self.lateral / self.config["out_of_route_distance"], self.last_action[0], self.last_action[1],
-        ]
-        tail = [math.log1p(math.hypot(gx, gy)) / GOAL_LOG_SCALE, math.sin(bearing), math.cos(bearing)]
-        obs = np.concatenate([*parts, np.asarray(state), ego, np.asarray(tail)]).astype(np.float32)
-        np.clip(obs, -1.0, 1.0, out=obs)
-        return obs
+        return self.observation(self.machine, self.route, self.progress, self.lateral, self.last_action,
+                                self.lidar, self.low_lidar)
 
     def render(self) -> np.ndarray | None:
         """An RGB frame (H, W, 3) from the configured camera ('top_down' or 'chase') via TinyRenderer."""

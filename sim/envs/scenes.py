@@ -17,9 +17,13 @@ import numpy as np
 import pybullet as p
 
 from curbside.config import ConfigError
+from sim.machines import Machine
+from sim.route import RoutePlanner
 from sim.scene.config import check_scene_spec, resolve_config
+from sim.sensors import Lidar
 from sim.tasks.pointnav import MAX_SEED
 from sim.tasks.scenes import dataset_scenes, generator_config, load_scene, read_scene, split_seed_offset
+from sim.world import World
 
 
 @dataclass
@@ -137,3 +141,23 @@ class SceneCache:
                 pass
         self.slots.clear()
         self._spare = []
+
+
+def build_slot(slot: SceneSlot, spec: dict[str, Any], cfg: Mapping[str, Any], machine: Any) -> None:
+    """Build a scene into `slot`: its world, the machine of spec `machine`, both LiDARs and the route planner."""
+    catalog = None
+    if cfg["catalog"] is not None and (cfg["collision"] == "convex" or cfg["visual_meshes"]):
+        from catalogs.reader import CatalogReader
+        catalog = CatalogReader(cfg["catalog"])
+    dt = float(cfg["dt"])
+    slot.world = World(spec, client=slot.client, collision=cfg["collision"], catalog=catalog,
+                       visual_meshes=bool(cfg["visual_meshes"]), physics_dt=dt / int(cfg["physics_substeps"]))
+    slot.machine = Machine(slot.client, machine)
+    lid = cfg["lidar"]
+    r0 = slot.machine.bounding_radius + 0.05
+    slot.lidar = Lidar(slot.client, beams=int(lid["beams"]), range_m=float(lid["range"]), height=float(lid["height"]),
+                       start_radius=r0, encoding=lid["encoding"])
+    slot.low_lidar = (Lidar(slot.client, beams=int(lid["low_beams"]), range_m=max(float(lid["low_range"]), r0 + 0.1),
+                            height=float(lid["low_height"]), start_radius=r0) if int(lid["low_beams"]) else None)
+    slot.planner = RoutePlanner(spec, machine.half_width, margin=float(cfg["route_margin"]))
+    slot.state = {}

@@ -246,3 +246,35 @@ def make_reward(preset: str, overrides: Mapping[str, Any] | None) -> Reward:
     if preset not in REWARD_PRESETS:
         raise ConfigError(f"unknown reward_preset {preset!r}; valid: {', '.join(REWARD_PRESETS)}")
     return Reward(**merge_strict(REWARD_PRESETS[preset], overrides, name="config.reward"))
+
+
+@dataclass
+class Termination:
+    """PointNav's episode end: success, out of route, or stuck (no new progress, or pinned in contact)."""
+
+    success_completion: float
+    out_of_route_distance: float
+    stuck_distance: float
+    stuck_steps: int
+    collision_steps: int
+    mark: tuple[int, float] = (0, 0.0)  # (step, max progress) when progress last grew by stuck_distance
+    contact_run: int = 0  # consecutive steps in contact
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any]) -> Termination:
+        """A fresh detector for one episode of a task config."""
+        return cls(float(cfg["success_completion"]), float(cfg["out_of_route_distance"]), float(cfg["stuck_distance"]),
+                   int(cfg["stuck_steps"]), int(cfg["collision_steps"]))
+
+    def __call__(self, steps: int, max_progress: float, route_length: float, lateral: float, off_walkable: bool,
+                 in_contact: bool) -> tuple[bool, bool, bool]:
+        """(succeeded, out_of_route, stuck) after step `steps`."""
+        succeeded = max_progress >= self.success_completion * route_length
+        out_of_route = (not succeeded) and (abs(lateral) > self.out_of_route_distance or off_walkable)
+        self.contact_run = self.contact_run + 1 if in_contact else 0
+        if max_progress >= self.mark[1] + self.stuck_distance:
+            self.mark = (steps, max_progress)
+        stuck = not (succeeded or out_of_route) and (
+            (self.stuck_steps > 0 and steps - self.mark[0] >= self.stuck_steps)
+            or (self.collision_steps > 0 and self.contact_run >= self.collision_steps))
+        return succeeded, out_of_route, stuck

@@ -1,0 +1,66 @@
+"""The PointNav observation vector: LiDAR scans, ego state, route waypoints and the goal (table in PointNavEnv)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+GOAL_LOG_SCALE = math.log1p(500.0)  # goal distances up to 500 m span [0, 1] in the observation
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+class EgoObservation:
+    """Names, space and values of the `B + L + 6 + 2 W + 3` observation of a PointNav-style task."""
+
+    def __init__(self, cfg: Mapping[str, Any]) -> None:
+        lid = cfg["lidar"]
+        self.num_beams = int(lid["beams"])
+        self.num_low_beams = int(lid["low_beams"])
+        self.num_waypoints = w = int(cfg["num_waypoints"])
+        self.names = (
+            [f"lidar_{k}" for k in range(self.num_beams)] + [f"low_{k}" for k in range(self.num_low_beams)]
+            + ["speed", "yaw_rate", "heading_error", "lateral_offset", "last_steering", "last_throttle"]
+            + [f"wp{i}_{a}" for i in range(w) for a in "xy"]
+            + ["goal_distance", "goal_heading_sin", "goal_heading_cos"]
+        )
+        n = len(self.names)
+        low = -np.ones(n, dtype=np.float32)
+        low[: self.num_beams + self.num_low_beams] = 0.0
+        self.space = gym.spaces.Box(low, np.ones(n, dtype=np.float32), dtype=np.float32)
+        self._wp_offsets = np.arange(1, w + 1, dtype=np.float64) * float(cfg["waypoint_spacing"])
+        self.speed_scale = float(cfg["speed_scale"])
+        self.lateral_scale = float(cfg["out_of_route_distance"])
+
+    def __call__(self, machine: Any, route: Any, progress: float, lateral: float, last_action: np.ndarray,
+                 lidar: Any, low_lidar: Any | None) -> np.ndarray:
+        """The observation of `machine` at arc length `progress` and offset `lateral` on `route` (scans now)."""
+        m = machine
+        x, y, z = m.position
+        yaw = m.yaw
+        lidar.scan(x, y, z, yaw)
+        parts = [lidar.encoded()]
+        if low_lidar is not None:
+            parts.append(low_lidar.scan(x, y, z, yaw))
+        heading_err = _wrap(yaw - route.heading_at(progress))
+        c, s = math.cos(yaw), math.sin(yaw)
+        wp = route.point_at(progress + self._wp_offsets)
+        dx, dy = wp[:, 0] - x, wp[:, 1] - y
+        scale = 1.0 / (self._wp_offsets[-1])
+        ego = np.stack([(c * dx + s * dy) * scale, (-s * dx + c * dy) * scale], 1).ravel()
+        gx, gy = route.goal[0] - x, route.goal[1] - y
+        bearing = math.atan2(gy, gx) - yaw
+        state = [
+            m.speed / self.speed_scale, m.yaw_rate / 2.0, heading_err / math.pi,
+            lateral / self.lateral_scale, last_action[0], last_action[1],
+        ]
+        tail = [math.log1p(math.hypot(gx, gy)) / GOAL_LOG_SCALE, math.sin(bearing), math.cos(bearing)]
+        obs = np.concatenate([*parts, np.asarray(state), ego, np.asarray(tail)]).astype(np.float32)
+        np.clip(obs, -1.0, 1.0, out=obs)
+        return obs
