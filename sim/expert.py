@@ -39,7 +39,7 @@ class PurePursuitExpert:
         x, y, _ = m.position
         v = m.speed
         ld = self.lookahead + self.lookahead_gain * max(v, 0.0)
-        tx, ty = route.point_at(u.progress + ld)
+        tx, ty = route.point_at(u.episode.progress + ld)
         dx, dy = tx - x, ty - y
         alpha = math.atan2(dy, dx) - m.yaw
         alpha = (alpha + math.pi) % (2 * math.pi) - math.pi
@@ -57,7 +57,7 @@ class PurePursuitExpert:
         gap = self._corridor_gap(u)
         if gap < self.slow_distance:
             v_target = min(v_target, spec.v_max * max(0.0, (gap - self.stop_distance) / (self.slow_distance - self.stop_distance)))
-        remaining = route.length - u.progress
+        remaining = route.length - u.episode.progress
         v_target = min(v_target, max(0.5, math.sqrt(2.0 * 1.0 * max(remaining, 0.0))))
         err = v_target - v
         if spec.kind == "wheeled":

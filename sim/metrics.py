@@ -57,7 +57,7 @@ class Success(Measure):
     """1 when the episode completed >= success_completion of the route, else 0."""
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        return {"success": float(env.succeeded)}
+        return {"success": float(env.episode.succeeded)}
 
 
 @register_measure("route_completion")
@@ -65,7 +65,7 @@ class RouteCompletion(Measure):
     """Largest fraction of the reference route reached (0..1)."""
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        return {"route_completion": float(min(env.max_progress / env.route.length, 1.0))}
+        return {"route_completion": float(min(env.episode.max_progress / env.route.length, 1.0))}
 
 
 @register_measure("path_length")
@@ -73,7 +73,7 @@ class PathLength(Measure):
     """Planar distance the machine travelled, in metres."""
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        return {"path_length": float(env.path_length)}
+        return {"path_length": float(env.episode.path_length)}
 
 
 @register_measure("spl")
@@ -87,10 +87,10 @@ class SPL(Measure):
     """
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        if not env.succeeded:
+        if not env.episode.succeeded:
             return {"spl": 0.0}
         l_ref = env.reference_length()
-        return {"spl": l_ref / max(env.path_length, l_ref, 1e-9)}
+        return {"spl": l_ref / max(env.episode.path_length, l_ref, 1e-9)}
 
 
 @register_measure("stl")
@@ -98,11 +98,11 @@ class SuccessWeightedTimeLength(Measure):
     """S * min(1, t_ref / t), t_ref = l / min(stl_cruise_speed, v_max), l the same geodesic as SPL's (Deitke et al. 2022)."""
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        if not env.succeeded:
+        if not env.episode.succeeded:
             return {"stl": 0.0}
         v = min(float(env.config.get("stl_cruise_speed", 2.5)), env.machine.spec.v_max)
         t_ref = env.reference_length() / v
-        t = max(env.steps * env.dt, 1e-9)
+        t = max(env.episode.steps * env.dt, 1e-9)
         return {"stl": min(1.0, t_ref / t)}
 
 
@@ -111,7 +111,7 @@ class Cost(Measure):
     """Steps in contact with a body of the env's `cost_kinds` (the episode's safety cost)."""
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        return {"cost": float(env.cost_total)}
+        return {"cost": float(env.episode.cost_total)}
 
 
 @register_measure("collisions")
@@ -119,8 +119,8 @@ class Collisions(Measure):
     """Collision steps by kind: `collisions_<kind>` for every kind the env knows, plus `collisions`."""
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        out = {f"collisions_{k}": float(env.collision_counts.get(k, 0)) for k in env.collision_kinds_all}
-        out["collisions"] = float(sum(env.collision_counts.values()))
+        out = {f"collisions_{k}": float(env.episode.collision_counts.get(k, 0)) for k in env.collision_kinds_all}
+        out["collisions"] = float(sum(env.episode.collision_counts.values()))
         return out
 
 
@@ -129,7 +129,7 @@ class Time(Measure):
     """Simulated episode duration in seconds, and the number of steps."""
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        return {"time": float(env.steps * env.dt), "steps": float(env.steps)}
+        return {"time": float(env.episode.steps * env.dt), "steps": float(env.episode.steps)}
 
 
 POINTNAV_MEASURES = ["success", "spl", "route_completion", "cost", "collisions", "path_length", "time"]

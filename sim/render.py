@@ -115,16 +115,16 @@ def rollout_gif(env_id: str, policy: str, out: Any, config: dict | None = None, 
         obs, _, term, trunc, info = env.step(act(env, obs))
         frame = Image.fromarray(bg)
         draw = ImageDraw.Draw(frame)
-        traj = [to_px(x, y) for x, y in u.trajectory]
+        traj = [to_px(x, y) for x, y in u.episode.trajectory]
         if len(traj) > 1:
             draw.line(traj, fill=(30, 110, 255), width=3)
         ex, ey = traj[-1]
         r = max(3.0, u.machine.spec.length / side * w)
-        color = (255, 60, 60) if u.step_collisions else (255, 150, 20)
+        color = (255, 60, 60) if u.episode.step_collisions else (255, 150, 20)
         draw.ellipse([ex - r, ey - r, ex + r, ey + r], fill=color)
         hx, hy = to_px(u.machine.position[0] + 2.0 * np.cos(u.machine.yaw), u.machine.position[1] + 2.0 * np.sin(u.machine.yaw))
         draw.line([(ex, ey), (hx, hy)], fill=(20, 20, 20), width=2)
-        if chase and (u.steps % 2 == 1 or term or trunc):
+        if chase and (u.episode.steps % 2 == 1 or term or trunc):
             cam = Image.fromarray(camera_image(u, "chase", 160, 160)).resize((h, h), Image.NEAREST)
             last_cam = cam
         if chase:

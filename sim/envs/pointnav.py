@@ -12,6 +12,7 @@ import numpy as np
 import pybullet as p
 
 from curbside.config import ConfigError
+from sim.envs.episode import Episode
 from sim.envs.observation import EgoObservation
 from sim.envs.scenes import SceneCache, SceneSlot, SceneSource, build_slot
 from sim.machines import Machine, machine_spec
@@ -207,28 +208,16 @@ class PointNavEnv(gym.Env):
         z = self.world.surface_height(float(start[0]), float(start[1]))
         m.reset(float(start[0]), float(start[1]), z, yaw, rng)
         cfg = self.config
-        self.horizon = int(cfg["horizon"])
+        horizon = int(cfg["horizon"])
         if cfg["horizon_min_speed"] is not None:
-            self.horizon = min(self.horizon, max(int(math.ceil(self.route.length / cfg["horizon_min_speed"] / self.dt)), 1))
-        self.steps = 0
-        self.progress = 0.0
-        self.max_progress = 0.0
-        self.lateral = 0.0
-        self.path_length = 0.0
-        self.cost_total = 0
-        self.collision_counts: dict[str, int] = {}
-        self.succeeded = False
-        self.out_of_route = False
-        self.stuck = False
+            horizon = min(horizon, max(int(math.ceil(self.route.length / cfg["horizon_min_speed"] / self.dt)), 1))
+        self.episode = Episode(horizon, [(float(start[0]), float(start[1]))])
         self.termination = Termination.from_config(cfg)
         self._reference_length: float | None = None
-        self.last_action = np.zeros(2, dtype=np.float64)
-        self.step_collisions: set[str] = set()
-        self.trajectory = [(float(start[0]), float(start[1]))]
         self._on_reset(rng)
         for meas in self.measures:
             meas.reset(self)
-        return self._observe(), {"route_length": self.route.length, "horizon": self.horizon}
+        return self._observe(), {"route_length": self.route.length, "horizon": horizon}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         """Advance 0.1 s (config dt): apply the action, step physics, sense, reward."""
@@ -252,49 +241,41 @@ class PointNavEnv(gym.Env):
             self._contacts(hits)
         self._on_step()
         x, y = m.position[0], m.position[1]
-        self.path_length += math.hypot(x - x0, y - y0)
-        self.trajectory.append((x, y))
-        s, lat = self.route.project(x, y, self.progress)
-        progress = s - self.progress
-        new_progress = max(s - self.max_progress, 0.0)
-        self.progress, self.lateral = s, lat
-        self.max_progress = max(self.max_progress, s)
-        self.steps += 1
+        ep = self.episode
+        s, lat = self.route.project(x, y, ep.progress)
         collided = bool(hits & self.cost_kinds)
-        self.step_collisions = hits
-        for k in hits:
-            self.collision_counts[k] = self.collision_counts.get(k, 0) + 1
-        self.cost_total += int(collided)
+        progress, new_progress = ep.advance((x0, y0), (x, y), s, lat, hits, collided)
         off_walkable = self.config["terminate_off_walkable"] and self.planner.grid.label_at(x, y) == 0
-        self.succeeded, self.out_of_route, self.stuck = self.termination(
-            self.steps, self.max_progress, self.route.length, lat, off_walkable, bool(hits))
-        d_steer = steer - self.last_action[0]
-        reward = self.reward_fn(progress, new_progress, lat, d_steer, m.speed, collided, self.succeeded,
-                                self.out_of_route, self.stuck)
-        self.last_action = a
-        terminated = self.succeeded or self.out_of_route or self.stuck
-        truncated = (not terminated) and self.steps >= self.horizon
+        ep.succeeded, ep.out_of_route, ep.stuck = self.termination(
+            ep.steps, ep.max_progress, self.route.length, lat, off_walkable, bool(hits))
+        d_steer = steer - ep.last_action[0]
+        reward = self.reward_fn(progress, new_progress, lat, d_steer, m.speed, collided, ep.succeeded, ep.out_of_route,
+                                ep.stuck)
+        ep.last_action = a
+        terminated = ep.succeeded or ep.out_of_route or ep.stuck
+        truncated = (not terminated) and ep.steps >= ep.horizon
         for meas in self.measures:
             meas.update(self)
         obs = self._observe()
-        info: dict[str, Any] = {"cost": float(collided), "route_completion": min(self.max_progress / self.route.length, 1.0),
-                                "collision_kinds": sorted(hits), "out_of_route": self.out_of_route, "stuck": self.stuck}
+        info: dict[str, Any] = {"cost": float(collided), "route_completion": min(ep.max_progress / self.route.length, 1.0),
+                                "collision_kinds": sorted(hits), "out_of_route": ep.out_of_route, "stuck": ep.stuck}
         if terminated or truncated:
             metrics = self._episode_metrics()
             info.update(metrics)
             info["metrics"] = metrics
             # The per-step cost stays 0/1 on the last step too; the episode's total has its own key.
-            info["episode_cost"] = metrics.get("cost", float(self.cost_total))
+            info["episode_cost"] = metrics.get("cost", float(ep.cost_total))
             info["cost"] = float(collided)
-            info["is_success"] = self.succeeded
+            info["is_success"] = ep.succeeded
         return obs, reward, terminated, truncated, info
 
     def _contacts(self, hits: set[str]) -> None:
         touching(self.client, self.machine.body, self.kinds, self._collision_kinds, hits)
 
     def _observe(self) -> np.ndarray:
-        return self.observation(self.machine, self.route, self.progress, self.lateral, self.last_action,
-                                self.lidar, self.low_lidar)
+        ep = self.episode
+        return self.observation(self.machine, self.route, ep.progress, ep.lateral, ep.last_action, self.lidar,
+                                self.low_lidar)
 
     def render(self) -> np.ndarray | None:
         """An RGB frame (H, W, 3) from the configured camera ('top_down' or 'chase') via TinyRenderer."""

@@ -63,7 +63,7 @@ def test_bad_input_is_rejected(spec):
     with pytest.raises(ValueError, match="NaN or inf"):
         env.step([0.0, math.inf])
     env.step([5.0, -7.0])  # clipped, not an error
-    assert env.last_action.tolist() == [1.0, -1.0]
+    assert env.episode.last_action.tolist() == [1.0, -1.0]
     with pytest.raises(ConfigError, match="valid keys"):
         PointNavEnv({"scene_spec": spec, "lidar_beams": 10})
     with pytest.raises(ConfigError, match="delivery_bot"):
@@ -92,7 +92,7 @@ def test_expert_succeeds_and_metrics_are_consistent(spec):
             assert info["route_completion"] >= 0.95
             assert 0.0 < info["spl"] <= 1.0
             assert total > 0.0  # progress plus the success bonus outweigh the lateral penalty
-        assert info["path_length"] > 0 and info["time"] == pytest.approx(u.steps * 0.1)
+        assert info["path_length"] > 0 and info["time"] == pytest.approx(u.episode.steps * 0.1)
         # A step can hit several kinds at once, so the cost (collision steps) is at most the per-kind sum.
         assert info["cost"] <= info["collisions"] == sum(info[f"collisions_{k}"] for k in ("object", "building", "curb"))
     assert np.mean([i["success"] for i in results]) >= 0.75

@@ -71,7 +71,7 @@ def test_standing_still_ends_the_episode_and_costs_more_than_driving(spec):
 def test_going_back_and_forth_earns_nothing_with_the_learnable_reward(spec):
     env = PointNavEnv({"scene_spec": spec})
     env.reset(seed=0)
-    s0 = env.max_progress
+    s0 = env.episode.max_progress
     gain = env.reward_fn(progress=1.0, new_progress=0.0, lateral=0.0, d_steer=0.0, speed=1.0, collided=False,
                          succeeded=False, out_of_route=False, stuck=False)
     assert gain == 0.0 and s0 == 0.0

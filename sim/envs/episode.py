@@ -1,0 +1,44 @@
+"""The record of one episode: what the machine has done so far, read by measures, rewards, renderers and the expert."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Episode:
+    """Counters of one PointNav-style episode, updated once per step by `advance`."""
+
+    horizon: int  # steps before truncation
+    trajectory: list[tuple[float, float]]  # machine positions, the start first
+    steps: int = 0
+    progress: float = 0.0  # arc length of the machine's projection on the route
+    max_progress: float = 0.0  # largest arc length reached
+    lateral: float = 0.0  # signed offset from the route (left +)
+    path_length: float = 0.0  # planar distance driven
+    cost_total: int = 0  # steps in contact with a cost kind
+    collision_counts: dict[str, int] = field(default_factory=dict)  # steps in contact, per kind
+    step_collisions: set[str] = field(default_factory=set)  # kinds touched on the last step
+    succeeded: bool = False
+    out_of_route: bool = False
+    stuck: bool = False
+    last_action: np.ndarray = field(default_factory=lambda: np.zeros(2, dtype=np.float64))
+
+    def advance(self, start: tuple[float, float], end: tuple[float, float], s: float, lateral: float, hits: set[str],
+                collided: bool) -> tuple[float, float]:
+        """Record a step from `start` to `end` (x, y), projected at arc length `s`; returns (progress, new progress)."""
+        (x0, y0), (x, y) = start, end
+        self.path_length += math.hypot(x - x0, y - y0)
+        self.trajectory.append((x, y))
+        progress, new_progress = s - self.progress, max(s - self.max_progress, 0.0)
+        self.progress, self.lateral = s, lateral
+        self.max_progress = max(self.max_progress, s)
+        self.steps += 1
+        self.step_collisions = hits
+        for k in hits:
+            self.collision_counts[k] = self.collision_counts.get(k, 0) + 1
+        self.cost_total += int(collided)
+        return progress, new_progress
