@@ -2,53 +2,31 @@
 
 from __future__ import annotations
 
+import csv
 from bisect import bisect_right
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from catalogs.schema import OBJECT_CLASSES
 from curbside.config import ConfigError
 
+Category = tuple[str, tuple[str, ...], tuple[float, float, float]]  # (object class, zones, fallback size)
+
+
+def _load_categories() -> dict[str, Category]:
+    """The category table `categories.csv` beside this module, in its row order (the generator's draw order)."""
+    with resources.files("sim.scene").joinpath("categories.csv").open(encoding="utf-8") as f:
+        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+    return {r["category"]: (r["object_class"], tuple(r["zones"].split()),
+                            (float(r["depth"]), float(r["width"]), float(r["height"]))) for r in rows}
+
+
 # Each category: (object class, designated zones, fallback size [depth, width, height] in metres).
-# Depth is the extent along the object's front (+x), which faces away from the road.
-CATEGORIES: dict[str, tuple[str, tuple[str, ...], tuple[float, float, float]]] = {
-    "street_lamp": ("standard", ("furnishing",), (0.3, 0.3, 6.0)),
-    "utility_pole": ("standard", ("furnishing",), (0.35, 0.35, 9.0)),
-    "traffic_sign": ("standard", ("furnishing",), (0.1, 0.6, 2.5)),
-    "traffic_light": ("standard", ("furnishing",), (0.4, 0.4, 3.5)),
-    "fire_hydrant": ("standard", ("furnishing",), (0.4, 0.4, 0.8)),
-    "bollard": ("standard", ("furnishing",), (0.25, 0.25, 1.0)),
-    "tree": ("standard", ("furnishing",), (1.2, 1.2, 6.0)),
-    "parking_meter": ("standard", ("furnishing",), (0.3, 0.3, 1.4)),
-    "bench": ("non_standard", ("furnishing", "frontage"), (0.6, 1.8, 0.85)),
-    "trash_bin": ("non_standard", ("furnishing", "frontage"), (0.6, 0.6, 1.0)),
-    "recycling_bin": ("non_standard", ("furnishing", "frontage"), (0.7, 0.7, 1.1)),
-    "planter": ("non_standard", ("furnishing", "frontage_buffer", "frontage"), (0.9, 0.9, 0.8)),
-    "mailbox": ("non_standard", ("furnishing",), (0.5, 0.5, 1.2)),
-    "bike_rack": ("non_standard", ("furnishing",), (0.6, 2.0, 0.9)),
-    "newspaper_box": ("non_standard", ("furnishing", "frontage"), (0.5, 0.5, 1.1)),
-    "vending_machine": ("non_standard", ("frontage",), (0.8, 1.0, 1.9)),
-    "phone_booth": ("non_standard", ("furnishing", "frontage"), (1.0, 1.0, 2.3)),
-    "bus_shelter": ("non_standard", ("furnishing",), (1.4, 4.0, 2.6)),
-    "advertising_board": ("non_standard", ("furnishing", "frontage"), (0.3, 1.4, 2.2)),
-    "kiosk": ("non_standard", ("frontage",), (2.0, 2.5, 2.8)),
-    "cafe_table": ("non_standard", ("frontage",), (0.8, 0.8, 0.75)),
-    "chair": ("non_standard", ("frontage",), (0.5, 0.5, 0.9)),
-    "food_cart": ("non_standard", ("frontage", "furnishing"), (1.2, 2.0, 2.0)),
-    "street_cabinet": ("non_standard", ("furnishing",), (0.5, 1.0, 1.3)),
-    "drinking_fountain": ("non_standard", ("furnishing", "frontage"), (0.5, 0.5, 1.0)),
-    "building_facade": ("non_standard", ("building",), (10.0, 12.0, 12.0)),
-    "traffic_cone": ("clutter", (), (0.35, 0.35, 0.7)),
-    "barrier": ("clutter", (), (0.5, 1.5, 1.0)),
-    "bicycle": ("clutter", (), (1.8, 0.6, 1.1)),
-    "e_scooter": ("clutter", (), (1.1, 0.5, 1.2)),
-    "shopping_bag": ("clutter", (), (0.4, 0.25, 0.45)),
-    "cardboard_box": ("clutter", (), (0.5, 0.5, 0.4)),
-    "drink_can": ("clutter", (), (0.07, 0.07, 0.12)),
-}
+CATEGORIES: dict[str, Category] = _load_categories()
 ALL_CATEGORIES = tuple(CATEGORIES)
-OBJECT_CLASSES = ("standard", "non_standard", "clutter")
 CLUTTER_ZONES = ("near_road_buffer", "furnishing", "clear", "frontage_buffer", "frontage")
 
 
