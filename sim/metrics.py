@@ -1,22 +1,27 @@
 """Episode metrics as small registered measures (habitat-lab style).
 
-A measure is a class with `reset(env)`, `update(env)` (after every step) and `value(env, metrics)`
-(at episode end; `metrics` holds the values of the measures computed before it, so SNS can read STL and
-PSC). Register one with `@register_measure("name")`; an env lists the measures it computes in its
-config (`measures`). The env attributes the PointNav measures read are documented in docs/simulator.md.
+A measure is a class with `reset(env)`, `update(env)` (after every step) and `value(env, metrics)` (at
+episode end; `metrics` holds the values of the measures computed before it). It declares what it needs:
+`requires` (measures listed before it: SNS reads STL and PSC) and `needs_agents` (an env with cohabitants).
+`make_measures` checks both when an env is built, so a wrong list fails at `gymnasium.make`, not at an
+episode's end. Register one with `@register_measure("name")`; an env lists the measures it computes in its
+config (`measures`). Measures read the running episode as `env.episode` (`sim.envs.episode.Episode`).
 """
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any, Callable, TypeVar
 
 from curbside.config import ConfigError
 
 
 class Measure:
-    """Base class: override `reset`, `update` and `value`."""
+    """Base class: override `reset`, `update` and `value`; declare `requires` and `needs_agents`."""
 
     name: str = ""
+    requires: tuple[str, ...] = ()  # measures that must be listed (and so computed) before this one
+    needs_agents: bool = False  # reads the cohabitants (SocialNav)
 
     def reset(self, env: Any) -> None:
         """Called at the end of env.reset (the episode's route and machine are set)."""
@@ -29,7 +34,7 @@ class Measure:
         raise NotImplementedError
 
 
-MEASURES: dict[str, type[Measure]] = {}
+MEASURES: dict[str, Callable[[], Measure]] = {}
 M = TypeVar("M", bound=type[Measure])
 
 
@@ -42,38 +47,48 @@ def register_measure(name: str) -> Callable[[M], M]:
     return deco
 
 
-def make_measures(names: list[str]) -> list[Measure]:
-    """Instantiate the named measures in order; unknown names raise listing the registered ones."""
-    out = []
-    for n in names:
+def make_measures(names: list[str], *, agents: bool = True) -> list[Measure]:
+    """Instantiate the named measures in order, checking that each one's needs are met (else ConfigError)."""
+    out: list[Measure] = []
+    for i, n in enumerate(names):
         if n not in MEASURES:
             raise ConfigError(f"unknown measure {n!r}; registered measures: {', '.join(sorted(MEASURES))}")
-        out.append(MEASURES[n]())
+        m = MEASURES[n]()
+        missing = [r for r in m.requires if r not in names[:i]]
+        if missing:
+            raise ConfigError(f"measure {n!r} needs {', '.join(map(repr, missing))} listed before it in config.measures")
+        if m.needs_agents and not agents:
+            raise ConfigError(f"measure {n!r} needs cohabitants; use curbside/SocialNav-v0 or drop it from config.measures")
+        out.append(m)
     return out
 
 
-@register_measure("success")
-class Success(Measure):
-    """1 when the episode completed >= success_completion of the route, else 0."""
+class Readout(Measure):
+    """A measure read off the finished episode: one row of READOUTS."""
+
+    def __init__(self, name: str) -> None:
+        self.name, self.__doc__ = name, READOUTS[name][0]
+        self._read = READOUTS[name][1]
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        return {"success": float(env.episode.succeeded)}
+        return self._read(env)
 
 
-@register_measure("route_completion")
-class RouteCompletion(Measure):
-    """Largest fraction of the reference route reached (0..1)."""
-
-    def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        return {"route_completion": float(min(env.episode.max_progress / env.route.length, 1.0))}
-
-
-@register_measure("path_length")
-class PathLength(Measure):
-    """Planar distance the machine travelled, in metres."""
-
-    def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        return {"path_length": float(env.episode.path_length)}
+# name -> (what it measures, its values at episode end from the env and its `episode`).
+READOUTS: dict[str, tuple[str, Callable[[Any], dict[str, float]]]] = {
+    "success": ("1 when the episode completed >= success_completion of the route, else 0",
+                lambda env: {"success": float(env.episode.succeeded)}),
+    "route_completion": ("largest fraction of the reference route reached (0..1)",
+                         lambda env: {"route_completion": float(min(env.episode.max_progress / env.route.length, 1.0))}),
+    "path_length": ("planar distance the machine travelled, in metres",
+                    lambda env: {"path_length": float(env.episode.path_length)}),
+    "cost": ("steps in contact with a body of the env's `cost_kinds` (the episode's safety cost)",
+             lambda env: {"cost": float(env.episode.cost_total)}),
+    "time": ("simulated episode duration in seconds, and the number of steps",
+             lambda env: {"time": float(env.episode.steps * env.dt), "steps": float(env.episode.steps)}),
+}
+for _name in READOUTS:
+    MEASURES[_name] = partial(Readout, _name)
 
 
 @register_measure("spl")
@@ -106,14 +121,6 @@ class SuccessWeightedTimeLength(Measure):
         return {"stl": min(1.0, t_ref / t)}
 
 
-@register_measure("cost")
-class Cost(Measure):
-    """Steps in contact with a body of the env's `cost_kinds` (the episode's safety cost)."""
-
-    def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        return {"cost": float(env.episode.cost_total)}
-
-
 @register_measure("collisions")
 class Collisions(Measure):
     """Collision steps by kind: `collisions_<kind>` for every kind the env knows, plus `collisions`."""
@@ -124,12 +131,36 @@ class Collisions(Measure):
         return out
 
 
-@register_measure("time")
-class Time(Measure):
-    """Simulated episode duration in seconds, and the number of steps."""
+@register_measure("psc")
+class PersonalSpaceCompliance(Measure):
+    """SocialNav: the fraction of steps with every agent's body farther than `personal_space` from the ego's footprint.
+
+    Measured between body surfaces (ego rectangle to agent circle); 0.45 m is the edge of Hall's intimate
+    distance (Hall 1966). A threshold between centres smaller than two bodies' radii could never fail.
+    """
+
+    needs_agents = True
+
+    def reset(self, env: Any) -> None:
+        self.ok = self.steps = 0
+
+    def update(self, env: Any) -> None:
+        self.steps += 1
+        self.ok += int(env._min_agent_distance > env.config["personal_space"])
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        return {"time": float(env.episode.steps * env.dt), "steps": float(env.episode.steps)}
+        return {"psc": self.ok / self.steps if self.steps else 1.0}
+
+
+@register_measure("sns")
+class SocialNavigationScore(Measure):
+    """SocialNav: SNS = mean(STL, PSC) (Deitke et al. 2022)."""
+
+    requires = ("stl", "psc")
+
+    def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
+        return {"sns": 0.5 * (metrics["stl"] + metrics["psc"])}
 
 
 POINTNAV_MEASURES = ["success", "spl", "route_completion", "cost", "collisions", "path_length", "time"]
+SOCIALNAV_MEASURES = [*POINTNAV_MEASURES, "psc", "stl", "sns"]

@@ -72,6 +72,7 @@ class PointNavEnv(gym.Env):
     default_config: dict[str, Any] = DEFAULT_CONFIG
     presets: dict[str, dict[str, Any]] = TASK_PRESETS
     config_table: dict[str, Any] = CONFIG_TABLE  # (key -> type, range) of every config key; subclasses extend it
+    has_agents = False  # cohabitants (SocialNav): measures that need them are refused without
 
     def __init__(self, config: Mapping[str, Any] | None = None, render_mode: str | None = None) -> None:
         self.config = resolve_task_config(self.default_config, config, self.presets)
@@ -88,7 +89,7 @@ class PointNavEnv(gym.Env):
         if cfg["scene_spec"] is not None:
             check_spec(cfg["scene_spec"])
         self.scenes = SceneSource(cfg)
-        self.measures = make_measures(list(cfg["measures"]))
+        self.measures = make_measures(list(cfg["measures"]), agents=self.has_agents)
         self.observation = EgoObservation(cfg)
         self.num_beams, self.num_low_beams = self.observation.num_beams, self.observation.num_low_beams
         self.observation_names = self.observation.names

@@ -14,12 +14,11 @@ from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
 from sim.agents.render import draw_top_down
 from sim.agents.vehicles import VEHICLE_DEFAULTS, VehicleManager
 from sim.envs.pointnav import PointNavEnv
-from sim.metrics import POINTNAV_MEASURES, Measure, register_measure
+from sim.metrics import SOCIALNAV_MEASURES
 from sim.tasks.pointnav import DEFAULT_CONFIG as POINTNAV_CONFIG
 from sim.tasks.pointnav import TASK_PRESETS
 from sim.tasks.socialnav import CONFIG_TABLE
 
-SOCIALNAV_MEASURES = [*POINTNAV_MEASURES, "psc", "stl", "sns"]
 DEFAULT_CONFIG: dict[str, Any] = {
     **POINTNAV_CONFIG,
     "agents": dict(AGENT_DEFAULTS),
@@ -69,6 +68,7 @@ class SocialNavEnv(PointNavEnv):
     default_config: dict[str, Any] = DEFAULT_CONFIG
     presets: dict[str, dict[str, Any]] = PRESETS
     config_table: dict[str, Any] = CONFIG_TABLE  # sim.tasks.socialnav: type and range of every key
+    has_agents = True
 
     def __init__(self, config: Mapping[str, Any] | None = None, render_mode: str | None = None) -> None:
         split = (config or {}).get("split", DEFAULT_CONFIG["split"]) if isinstance(config, Mapping) else None
@@ -268,32 +268,3 @@ class SocialNavEnv(PointNavEnv):
                              vehicles=self.vehicle_states(), ego=(x, y, m.yaw, m.spec.length, m.spec.width),
                              route=self.route.point_at(np.linspace(0.0, self.route.length, 100)),
                              size=int(r["width"]), view=float(r["top_down_height"]) * 1.6)
-
-
-@register_measure("psc")
-class PersonalSpaceCompliance(Measure):
-    """Fraction of steps with every agent's body farther than `personal_space` from the ego's footprint.
-
-    Measured between body surfaces (ego rectangle to agent circle); 0.45 m is the edge of Hall's intimate
-    distance (Hall 1966). A threshold between centres smaller than two bodies' radii could never fail.
-    """
-
-    def reset(self, env: Any) -> None:
-        self.ok = self.steps = 0
-
-    def update(self, env: Any) -> None:
-        self.steps += 1
-        self.ok += int(env._min_agent_distance > env.config["personal_space"])
-
-    def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        return {"psc": self.ok / self.steps if self.steps else 1.0}
-
-
-@register_measure("sns")
-class SocialNavigationScore(Measure):
-    """SNS = mean(STL, PSC) (Deitke et al. 2022); list it after `stl` and `psc`."""
-
-    def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        if "stl" not in metrics or "psc" not in metrics:
-            raise ValueError("measure 'sns' needs 'stl' and 'psc' listed before it in config.measures")
-        return {"sns": 0.5 * (metrics["stl"] + metrics["psc"])}

@@ -9,6 +9,7 @@ import pybullet as p
 import pytest
 
 from curbside.config import ConfigError
+from sim.envs.pointnav import PointNavEnv
 from sim.machines import MACHINES, WHEELED, Machine, machine_spec
 from sim.metrics import MEASURES, Measure, make_measures, register_measure
 from sim.route import RoutePlanner
@@ -98,3 +99,13 @@ def test_measure_registry():
     with pytest.raises(ConfigError, match="registered measures"):
         make_measures(["nope"])
     MEASURES.pop("test_constant")
+
+
+def test_measures_declare_what_they_need(spec):
+    # SNS reads STL and PSC: listed after them it is built, before them the env refuses at construction.
+    assert [m.name for m in make_measures(["stl", "psc", "sns"])] == ["stl", "psc", "sns"]
+    with pytest.raises(ConfigError, match="'sns' needs 'stl', 'psc' listed before it"):
+        make_measures(["sns", "stl", "psc"])
+    # PSC reads the cohabitants: a PointNav env refuses it at construction instead of failing at a step.
+    with pytest.raises(ConfigError, match="'psc' needs cohabitants"):
+        PointNavEnv({"scene_spec": spec, "measures": ["success", "psc"]})
