@@ -2,31 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-
-def make_policy(name: str, env: Any) -> Callable[[Any, np.ndarray], np.ndarray]:
-    """A callable (env, obs) -> action for `expert` (pure pursuit) or `random` (seeded by the env)."""
-    if name == "expert":
-        from sim.expert import PurePursuitExpert
-        expert = PurePursuitExpert()
-        return lambda e, obs: expert.act(e)
-    if name == "random":
-        return lambda e, obs: e.action_space.sample()
-    raise ValueError(f"unknown policy {name!r}; valid: expert, random")
-
-
-def run_episode(env: Any, policy: Callable[[Any, np.ndarray], np.ndarray], seed: int) -> dict[str, float]:
-    """Run one episode from reset(seed) to its end; return the metrics from the final info."""
-    obs, _ = env.reset(seed=seed)
-    env.action_space.seed(seed)
-    while True:
-        obs, _, term, trunc, info = env.step(policy(env, obs))
-        if term or trunc:
-            return dict(info["metrics"])
+from sim.rollout import make_policy, rollout
 
 
 def evaluate(env_id: str, policy: str, episodes: int, config: Mapping[str, Any] | None = None, *,
@@ -48,7 +29,7 @@ def evaluate(env_id: str, policy: str, episodes: int, config: Mapping[str, Any] 
         else:
             seeds = range(seed, seed + episodes)
         for s in seeds:
-            rows.append(run_episode(env, act, s))
+            rows.append(rollout(env, act, s))
     finally:
         env.close()
     summary = summarize(rows)

@@ -87,32 +87,32 @@ def rollout_gif(env_id: str, policy: str, out: Any, config: dict | None = None, 
     from PIL import Image, ImageDraw
 
     from sim.envs import register_envs
-    from sim.eval import make_policy
+    from sim.rollout import make_policy, rollout
 
     register_envs()
 
     env = gym.make(env_id, config=dict(config or {}))
     u = env.unwrapped
-    obs, _ = env.reset(seed=seed)
-    env.action_space.seed(seed)
-    act = make_policy(policy, env)
-    pts = u.route.points
-    margin = 8.0
-    x0, y0 = pts.min(0) - margin
-    x1, y1 = pts.max(0) + margin
-    side = max(x1 - x0, y1 - y0)  # square view keeps the map undistorted
-    cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
-    extent = (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2)
-    bg = _map_background(u.scene_spec, pts, extent, map_px)
-    h, w = bg.shape[:2]
+    frames: list[np.ndarray] = []
+    view: dict[str, Any] = {}
 
-    def to_px(x: float, y: float) -> tuple[float, float]:
-        return ((x - extent[0]) / side * w, (extent[3] - y) / side * h)
+    def start(env: Any) -> None:
+        pts = u.route.points
+        margin = 8.0
+        x0, y0 = pts.min(0) - margin
+        x1, y1 = pts.max(0) + margin
+        side = max(x1 - x0, y1 - y0)  # square view keeps the map undistorted
+        cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+        extent = (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2)
+        view.update(side=side, extent=extent, bg=_map_background(u.scene_spec, pts, extent, map_px))
 
-    frames = []
-    info: dict = {}
-    while True:
-        obs, _, term, trunc, info = env.step(act(env, obs))
+    def draw_frame(env: Any, done: bool) -> None:
+        side, extent, bg = view["side"], view["extent"], view["bg"]
+        h, w = bg.shape[:2]
+
+        def to_px(x: float, y: float) -> tuple[float, float]:
+            return ((x - extent[0]) / side * w, (extent[3] - y) / side * h)
+
         frame = Image.fromarray(bg)
         draw = ImageDraw.Draw(frame)
         traj = [to_px(x, y) for x, y in u.episode.trajectory]
@@ -124,20 +124,21 @@ def rollout_gif(env_id: str, policy: str, out: Any, config: dict | None = None, 
         draw.ellipse([ex - r, ey - r, ex + r, ey + r], fill=color)
         hx, hy = to_px(u.machine.position[0] + 2.0 * np.cos(u.machine.yaw), u.machine.position[1] + 2.0 * np.sin(u.machine.yaw))
         draw.line([(ex, ey), (hx, hy)], fill=(20, 20, 20), width=2)
-        if chase and (u.episode.steps % 2 == 1 or term or trunc):
-            cam = Image.fromarray(camera_image(u, "chase", 160, 160)).resize((h, h), Image.NEAREST)
-            last_cam = cam
+        if chase and (u.episode.steps % 2 == 1 or done):
+            view["cam"] = Image.fromarray(camera_image(u, "chase", 160, 160)).resize((h, h), Image.NEAREST)
         if chase:
             canvas = Image.new("RGB", (w + h, h))
             canvas.paste(frame, (0, 0))
-            canvas.paste(last_cam, (w, 0))
+            canvas.paste(view["cam"], (w, 0))
             frame = canvas
         frames.append(np.asarray(frame))
-        if term or trunc:
-            break
-    env.close()
+
+    try:
+        metrics = rollout(env, make_policy(policy, env), seed, on_reset=start, on_step=draw_frame)
+    finally:
+        env.close()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     imageio.mimsave(out, frames, duration=1000 / fps, loop=0)
     Image.fromarray(frames[-1]).save(out.with_suffix(".png"))
-    return dict(info["metrics"])
+    return metrics

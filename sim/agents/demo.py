@@ -21,6 +21,7 @@ def run_episode(out: Path, seed: int = 0, n_agents: int = 24, size: int = 320) -
     from sim.agents.kinds import DEFAULT_MIX
     from sim.envs import register_envs
     from sim.expert import PurePursuitExpert
+    from sim.rollout import rollout
 
     register_envs()
     counts = {k: max(1, int(round(v * n_agents))) for k, v in DEFAULT_MIX.items()}
@@ -28,19 +29,17 @@ def run_episode(out: Path, seed: int = 0, n_agents: int = 24, size: int = 320) -
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         env = gym.make("curbside/SocialNav-v0", config=cfg, render_mode="rgb_array")
-    env.reset(seed=seed)
     expert = PurePursuitExpert()
-    frames, info = [env.render()], {}
-    while True:
-        _, _, term, trunc, info = env.step(expert.act(env))
-        frames.append(env.render())
-        if term or trunc:
-            break
-    env.close()
+    frames: list[np.ndarray] = []
+    try:
+        metrics = rollout(env, lambda e, obs: expert.act(e), seed, on_reset=lambda e: frames.append(e.render()),
+                          on_step=lambda e, done: frames.append(e.render()))
+    finally:
+        env.close()
     out.parent.mkdir(parents=True, exist_ok=True)
     imageio.mimsave(out.with_suffix(".gif"), frames[::2], duration=200, loop=0)
     imageio.imwrite(out.with_suffix(".png"), frames[len(frames) // 2])
-    metrics = {k: float(v) for k, v in info["metrics"].items()}
+    metrics = {k: float(v) for k, v in metrics.items()}
     metrics["agents"] = float(sum(counts.values()))
     out.with_suffix(".json").write_text(json.dumps(metrics, indent=2, sort_keys=True))
     return metrics
