@@ -7,12 +7,11 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-import pybullet as p
 
 from sim.agents.crowd import AGENT_DEFAULTS, AgentManager, EgoState
-from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
 from sim.agents.render import draw_top_down
 from sim.agents.vehicles import VEHICLE_DEFAULTS, VehicleManager
+from sim.envs.bodies import CohabitantBodies
 from sim.envs.pointnav import PointNavEnv
 from sim.metrics import SOCIALNAV_MEASURES
 from sim.tasks.pointnav import DEFAULT_CONFIG as POINTNAV_CONFIG
@@ -44,7 +43,6 @@ SPLIT_AGENT_BEHAVIOUR: dict[str, dict[str, Any]] = {
                     "scooter_rider": 0.14, "delivery_robot": 0.09, "robot_dog": 0.05}}
     for split in ("unseen", "finetune")
 }
-VEHICLE_HEIGHT = 1.5
 
 
 class SocialNavEnv(PointNavEnv):
@@ -79,34 +77,24 @@ class SocialNavEnv(PointNavEnv):
         self.crowd = AgentManager(self.config["agents"])
         self.traffic = VehicleManager(self.config["vehicles"])
         self.collision_kinds_all = [*self.collision_kinds_all, "agent", "vehicle"]
-        self._agent_bodies: list[int] = []
-        self._vehicle_bodies: list[int] = []
-        self._shapes: dict[Any, tuple[int, int]] = {}
-        self._body_kind_idx = self._body_kind_src = np.zeros(0, dtype=np.int16)
-        self._vehicles_shown = -1
+        self.bodies: CohabitantBodies | None = None  # per world, made with it (_on_scene)
         self._vehicle_states: np.ndarray | None = None  # the traffic's states of this tick, shared by sync and obs
 
     # -- hooks -------------------------------------------------------------------------------------
-    _WORLD_STATE = ("crowd", "traffic", "_agent_bodies", "_vehicle_bodies", "_shapes", "_vehicles_shown", "_collision_kinds",
-                    "_body_kind_idx", "_body_kind_src", "_body_kinds", "_half_heights", "_body_xyz")
+    _WORLD_STATE = ("crowd", "traffic", "bodies", "_collision_kinds")
 
     def _on_scene(self, spec: Mapping[str, Any]) -> None:
         # A new world in its client: no agent body or shape exists there yet. Crowd and traffic keep planners
         # built for one scene (navigation grid, lanes), so each cached world has its own.
         self.crowd = AgentManager(self.config["agents"])
         self.traffic = VehicleManager(self.config["vehicles"])
-        self._agent_bodies, self._vehicle_bodies, self._shapes = [], [], {}
-        self._vehicles_shown = -1
         self._collision_kinds = {}
-        self._body_kind_idx = self._body_kind_src = np.zeros(0, dtype=np.int16)
+        self.bodies = CohabitantBodies(self.client, self._collision_kinds)
 
     def _park_bodies(self) -> None:
         # Last episode's agents and vehicles must not stand where the next start's surface height is probed.
-        for body in self._agent_bodies + self._vehicle_bodies:
-            p.resetBasePositionAndOrientation(body, [0, 0, -20], [0, 0, 0, 1], physicsClientId=self.client)
-        self._vehicles_shown = -1
-        if getattr(self, "_body_xyz", None) is not None:
-            self._body_xyz = np.full_like(self._body_xyz, np.nan)
+        if self.bodies is not None:
+            self.bodies.park()
 
     def _scene_state(self) -> dict[str, Any]:
         # The agent bodies live in the world being left: park them so they are out of the way when it returns.
@@ -141,80 +129,12 @@ class SocialNavEnv(PointNavEnv):
         self._min_agent_distance = self._nearest_agent()
 
     # -- bodies ------------------------------------------------------------------------------------
-    def _shape(self, key: Any, make: Any) -> tuple[int, int]:
-        if key not in self._shapes:
-            self._shapes[key] = make()
-        return self._shapes[key]
-
     def _sync_bodies(self) -> None:
-        c = self.client
-        crowd = self.crowd
         vehicles = self._vehicle_states if self._vehicle_states is not None else self.vehicle_states()
         self._vehicle_states = None
-        self._ensure_bodies(vehicles)
-        if crowd.n:
-            xyz = np.empty((crowd.n, 3))
-            xyz[:, :2] = crowd.pos
-            xyz[:, 2] = self._agent_base_heights(crowd.pos) + self._half_heights
-            # Standing agents keep their body where it is: a Bullet reset per body is the cost worth saving.
-            moved = np.flatnonzero(np.any(xyz != self._body_xyz, axis=1))
-            for k, pos in zip(moved.tolist(), xyz[moved].tolist()):
-                p.resetBasePositionAndOrientation(self._agent_bodies[k], pos, (0, 0, 0, 1), physicsClientId=c)
-            self._body_xyz = xyz
-        if len(vehicles):
-            half_yaw = (0.5 * vehicles["yaw"]).tolist()
-            for body, x, y, h in zip(self._vehicle_bodies, vehicles["x"].tolist(), vehicles["y"].tolist(), half_yaw):
-                p.resetBasePositionAndOrientation(body, [x, y, VEHICLE_HEIGHT / 2], [0, 0, math.sin(h), math.cos(h)],
-                                                  physicsClientId=c)
-
-    def _bodies_match(self) -> bool:
-        """Whether the agent bodies still match the crowd's agents (a reset may change their number or kinds)."""
-        idx = self.crowd.kind_idx
-        if len(self._agent_bodies) != self.crowd.n:
-            return False
-        if self._body_kind_src is not idx:  # a new episode: compare by value once, then by identity
-            if not np.array_equal(self._body_kind_idx, idx):
-                return False
-            self._body_kind_src = idx
-        return True
-
-    def _ensure_bodies(self, vehicles: np.ndarray) -> None:
-        c = self.client
-        if not self._bodies_match():
-            kinds = [KIND_NAMES[k] for k in self.crowd.kind_idx]
-            for b in self._agent_bodies:
-                p.removeBody(b, physicsClientId=c)
-                self._collision_kinds.pop(b, None)
-            self._agent_bodies = []
-            for k in kinds:
-                kind = AGENT_KINDS[k]
-                # Capsules, not cylinders: Bullet ray-tests a cylinder about four times slower than a capsule, and
-                # the LiDAR's rays made cylinders the costliest part of a SocialNav step.
-                shaft = max(kind.height - 2.0 * kind.radius, 0.0)
-                col, vis = self._shape(k, lambda kind=kind, shaft=shaft: (
-                    p.createCollisionShape(p.GEOM_CAPSULE, radius=kind.radius, height=shaft, physicsClientId=c),
-                    p.createVisualShape(p.GEOM_CAPSULE, radius=kind.radius, length=shaft,
-                                        rgbaColor=[*kind.color, 1.0], physicsClientId=c)))
-                body = p.createMultiBody(0.0, col, vis, [0, 0, -20], physicsClientId=c)
-                self._agent_bodies.append(body)
-                self._collision_kinds[body] = "agent"
-            self._body_kinds = kinds
-            self._body_kind_idx = self._body_kind_src = self.crowd.kind_idx
-            self._half_heights = np.array([max(AGENT_KINDS[k].height, 2.0 * AGENT_KINDS[k].radius) / 2 for k in kinds])
-            self._body_xyz = np.full((len(kinds), 3), np.nan)  # nan != anything: every body moves on the first sync
-        while len(self._vehicle_bodies) < len(vehicles):
-            cfg = self.traffic.config
-            half = [cfg["length"] / 2, cfg["width"] / 2, VEHICLE_HEIGHT / 2]
-            col, vis = self._shape("vehicle", lambda half=half: (
-                p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c),
-                p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[0.25, 0.25, 0.65, 1.0], physicsClientId=c)))
-            body = p.createMultiBody(0.0, col, vis, [0, 0, -20], physicsClientId=c)
-            self._vehicle_bodies.append(body)
-            self._collision_kinds[body] = "vehicle"
-        if len(vehicles) != self._vehicles_shown:  # park unused bodies once, not every step
-            for body in self._vehicle_bodies[len(vehicles):]:
-                p.resetBasePositionAndOrientation(body, [0, 0, -20], [0, 0, 0, 1], physicsClientId=c)
-            self._vehicles_shown = len(vehicles)
+        crowd, cfg = self.crowd, self.traffic.config
+        self.bodies.sync(crowd.kind_idx, crowd.pos, self._agent_base_heights(crowd.pos), vehicles,
+                         (cfg["length"], cfg["width"]))
 
     def _agent_base_heights(self, xy: np.ndarray) -> np.ndarray:
         g = self.crowd.grid

@@ -171,7 +171,7 @@ def test_socialnav_cache_keeps_each_worlds_agents():
         for _ in range(3):
             env.step([0.0, 0.5])
         keys.append(env.slot.key)
-        assert len(env._agent_bodies) == env.crowd.n
+        assert len(env.bodies.agents) == env.crowd.n
     assert len(set(keys)) == 2
     env.close()
 

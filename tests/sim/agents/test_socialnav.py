@@ -47,7 +47,7 @@ def test_agent_states_and_bodies(env) -> None:
     assert np.hypot(after["x"] - before["x"], after["y"] - before["y"]).max() > 0.5, "agents should move"
     # Every agent is a PyBullet body at its state's position.
     import pybullet as p
-    for body, a in zip(u._agent_bodies, after):
+    for body, a in zip(u.bodies.agents, after):
         pos, _ = p.getBasePositionAndOrientation(body, physicsClientId=u.client)
         assert abs(pos[0] - a["x"]) < 1e-6 and abs(pos[1] - a["y"]) < 1e-6
 
@@ -60,7 +60,7 @@ def test_agent_collision_costs_and_lidar_sees_agents(env) -> None:
     u.crowd.pos[0] = ahead
     u._sync_bodies()
     u.lidar.scan(*u.machine.position, u.machine.yaw)
-    assert u._agent_bodies[0] in set(u.lidar.hit_ids.tolist()), "the LiDAR must see an agent in front"
+    assert u.bodies.agents[0] in set(u.lidar.hit_ids.tolist()), "the LiDAR must see an agent in front"
     u.crowd.pos[0] = (x, y)
     u._sync_bodies()
     _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))

@@ -1,0 +1,108 @@
+"""The PyBullet bodies of one world's cohabitants: agent capsules and vehicle boxes, moved to their states each tick."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pybullet as p
+
+from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
+
+VEHICLE_HEIGHT = 1.5
+PARKED = [0, 0, -20]  # where unused bodies wait, below the ground
+
+
+class CohabitantBodies:
+    """Bodies for a crowd and its traffic in one Bullet client; their ids go into `collision_kinds` by kind."""
+
+    def __init__(self, client: int, collision_kinds: dict[int, str]) -> None:
+        self.client = client
+        self.collision_kinds = collision_kinds  # body id -> "agent" / "vehicle": the env classifies contacts by it
+        self.agents: list[int] = []
+        self.vehicles: list[int] = []
+        self._shapes: dict[Any, tuple[int, int]] = {}
+        self._kind_idx = self._kind_src = np.zeros(0, dtype=np.int16)
+        self._vehicles_shown = -1
+        self._half_heights = np.zeros(0)
+        self._xyz: np.ndarray | None = None
+
+    def park(self) -> None:
+        """Move every body out of the way (below the ground), e.g. while the next start's height is probed."""
+        for body in self.agents + self.vehicles:
+            p.resetBasePositionAndOrientation(body, PARKED, [0, 0, 0, 1], physicsClientId=self.client)
+        self._vehicles_shown = -1
+        if self._xyz is not None:
+            self._xyz = np.full_like(self._xyz, np.nan)
+
+    def sync(self, kind_idx: np.ndarray, pos: np.ndarray, base_heights: np.ndarray, vehicles: np.ndarray,
+             vehicle_size: tuple[float, float]) -> None:
+        """Place the agent bodies at `pos` (on `base_heights`) and the vehicle bodies at `vehicles`' states."""
+        c = self.client
+        self._ensure(kind_idx, len(vehicles), vehicle_size)
+        if len(pos):
+            xyz = np.empty((len(pos), 3))
+            xyz[:, :2] = pos
+            xyz[:, 2] = base_heights + self._half_heights
+            # Standing agents keep their body where it is: a Bullet reset per body is the cost worth saving.
+            moved = np.flatnonzero(np.any(xyz != self._xyz, axis=1))
+            for k, at in zip(moved.tolist(), xyz[moved].tolist()):
+                p.resetBasePositionAndOrientation(self.agents[k], at, (0, 0, 0, 1), physicsClientId=c)
+            self._xyz = xyz
+        if len(vehicles):
+            half_yaw = (0.5 * vehicles["yaw"]).tolist()
+            for body, x, y, h in zip(self.vehicles, vehicles["x"].tolist(), vehicles["y"].tolist(), half_yaw):
+                p.resetBasePositionAndOrientation(body, [x, y, VEHICLE_HEIGHT / 2], [0, 0, math.sin(h), math.cos(h)],
+                                                  physicsClientId=c)
+
+    def _shape(self, key: Any, make: Any) -> tuple[int, int]:
+        if key not in self._shapes:
+            self._shapes[key] = make()
+        return self._shapes[key]
+
+    def _match(self, kind_idx: np.ndarray) -> bool:
+        """Whether the agent bodies still match the agents' kinds (a reset may change their number or kinds)."""
+        if len(self.agents) != len(kind_idx):
+            return False
+        if self._kind_src is not kind_idx:  # a new episode: compare by value once, then by identity
+            if not np.array_equal(self._kind_idx, kind_idx):
+                return False
+            self._kind_src = kind_idx
+        return True
+
+    def _ensure(self, kind_idx: np.ndarray, n_vehicles: int, vehicle_size: tuple[float, float]) -> None:
+        c = self.client
+        if not self._match(kind_idx):
+            kinds = [KIND_NAMES[k] for k in kind_idx]
+            for b in self.agents:
+                p.removeBody(b, physicsClientId=c)
+                self.collision_kinds.pop(b, None)
+            self.agents = []
+            for k in kinds:
+                kind = AGENT_KINDS[k]
+                # Capsules, not cylinders: Bullet ray-tests a cylinder about four times slower than a capsule, and
+                # the LiDAR's rays made cylinders the costliest part of a SocialNav step.
+                shaft = max(kind.height - 2.0 * kind.radius, 0.0)
+                col, vis = self._shape(k, lambda kind=kind, shaft=shaft: (
+                    p.createCollisionShape(p.GEOM_CAPSULE, radius=kind.radius, height=shaft, physicsClientId=c),
+                    p.createVisualShape(p.GEOM_CAPSULE, radius=kind.radius, length=shaft,
+                                        rgbaColor=[*kind.color, 1.0], physicsClientId=c)))
+                body = p.createMultiBody(0.0, col, vis, PARKED, physicsClientId=c)
+                self.agents.append(body)
+                self.collision_kinds[body] = "agent"
+            self._kind_idx = self._kind_src = kind_idx
+            self._half_heights = np.array([max(AGENT_KINDS[k].height, 2.0 * AGENT_KINDS[k].radius) / 2 for k in kinds])
+            self._xyz = np.full((len(kinds), 3), np.nan)  # nan != anything: every body moves on the first sync
+        while len(self.vehicles) < n_vehicles:
+            half = [vehicle_size[0] / 2, vehicle_size[1] / 2, VEHICLE_HEIGHT / 2]
+            col, vis = self._shape("vehicle", lambda half=half: (
+                p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c),
+                p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[0.25, 0.25, 0.65, 1.0], physicsClientId=c)))
+            body = p.createMultiBody(0.0, col, vis, PARKED, physicsClientId=c)
+            self.vehicles.append(body)
+            self.collision_kinds[body] = "vehicle"
+        if n_vehicles != self._vehicles_shown:  # park unused bodies once, not every step
+            for body in self.vehicles[n_vehicles:]:
+                p.resetBasePositionAndOrientation(body, PARKED, [0, 0, 0, 1], physicsClientId=c)
+            self._vehicles_shown = n_vehicles
