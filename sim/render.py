@@ -40,7 +40,8 @@ def _map_background(spec: dict, route_pts: np.ndarray, extent: tuple[float, floa
     import matplotlib.pyplot as plt
     from matplotlib.patches import Polygon as MplPolygon
 
-    from sim.world import COLORS, category_color
+    from sim.palette import LANE_LINE, ROUTE, category_color
+    from sim.palette import SURFACE as COLORS
 
     x0, y0, x1, y1 = extent
     fig = plt.figure(figsize=(px / 100, px * (y1 - y0) / (x1 - x0) / 100), dpi=100, facecolor=COLORS["ground"][:3])
@@ -57,7 +58,7 @@ def _map_background(spec: dict, route_pts: np.ndarray, extent: tuple[float, floa
         poly(road["polygon"], COLORS["road"], 1)
         for line in road.get("lane_lines", []):
             ln = np.asarray(line)
-            ax.plot(ln[:, 0], ln[:, 1], color=(0.9, 0.85, 0.3), lw=0.6, dashes=(4, 4), zorder=2)
+            ax.plot(ln[:, 0], ln[:, 1], color=LANE_LINE, lw=0.6, dashes=(4, 4), zorder=2)
     for sw in spec["sidewalks"]:
         poly(sw["polygon"], COLORS["sidewalk"], 2)
         for zone in sw.get("zones", []):
@@ -69,8 +70,8 @@ def _map_background(spec: dict, route_pts: np.ndarray, extent: tuple[float, floa
             poly(ramp["polygon"], COLORS["ramp"], 3)
     for obj in spec["objects"]:
         poly(obj["footprint"], category_color(str(obj.get("category", "object"))), 4)
-    ax.plot(route_pts[:, 0], route_pts[:, 1], color=(0.1, 0.8, 0.3), lw=2.0, zorder=5)
-    ax.plot(*route_pts[-1], marker="*", color=(0.1, 0.9, 0.3), markersize=14, zorder=6)
+    ax.plot(route_pts[:, 0], route_pts[:, 1], color=ROUTE, lw=2.0, zorder=5)
+    ax.plot(*route_pts[-1], marker="*", color=ROUTE, markersize=14, zorder=6)
     fig.canvas.draw()
     img = np.asarray(fig.canvas.buffer_rgba())[:, :, :3].copy()
     plt.close(fig)

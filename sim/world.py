@@ -19,19 +19,13 @@ from shapely.geometry import LineString, Point, Polygon
 from shapely.geometry.polygon import orient
 
 from sim.meshes import extrusion_mesh, mesh_shape
+from sim.palette import SURFACE, category_color
 from sim.meshes import polygons as _polys
 from sim.scene.config import SPEC_VERSION
 
 # Body kinds: what a contact with or a ray hit on that body means.
 SURFACE_KINDS = ("ground", "sidewalk", "ramp")
-COLORS = {
-    "ground": (0.33, 0.36, 0.33, 1.0),
-    "road": (0.22, 0.22, 0.24, 1.0),
-    "sidewalk": (0.72, 0.70, 0.66, 1.0),
-    "ramp": (0.85, 0.75, 0.35, 1.0),
-    "crosswalk": (0.93, 0.93, 0.93, 1.0),
-    "building": (0.55, 0.45, 0.40, 1.0),
-}
+COLORS = SURFACE  # the world's colours are the palette's (sim.palette)
 
 
 WALL_NZ = 0.5  # a contact whose normal is flatter than this is a wall (a curb side), not the ground
@@ -68,14 +62,6 @@ def check_spec(spec: Mapping[str, Any]) -> None:
     missing = [k for k in ("bounds", "roads", "sidewalks", "crosswalks", "objects", "walkable") if k not in spec]
     if missing:
         raise SceneError(f"scene spec lacks {missing}; see docs/scene_spec.md for the required fields")
-
-
-def category_color(category: str) -> tuple[float, float, float, float]:
-    """A stable colour per object category (hash-free so it is the same in every process)."""
-    h = sum((i + 1) * ord(ch) for i, ch in enumerate(category))
-    rng = np.random.default_rng(h)
-    r, g, b = rng.uniform(0.25, 0.95, 3)
-    return (float(r), float(g), float(b), 1.0)
 
 
 def _obj_vertices(path: str) -> np.ndarray:

@@ -9,13 +9,10 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from sim.agents.kinds import AGENT_KINDS
+from sim.palette import EGO, OBJECT, ROUTE, SURFACE, VEHICLE, rgb255
 
-ROAD, SIDEWALK, CROSSWALK, OBJECT = (90, 90, 95), (205, 205, 200), (245, 245, 245), (140, 100, 60)
-VEHICLE, EGO, ROUTE = (60, 60, 160), (255, 140, 0), (0, 170, 200)
-
-
-def _rgb(c: tuple[float, float, float]) -> tuple[int, int, int]:
-    return tuple(int(255 * v) for v in c)  # type: ignore[return-value]
+ROAD, SIDEWALK, CROSSWALK = (rgb255(SURFACE[k]) for k in ("road", "sidewalk", "crosswalk"))
+GROUND, OBJECT_RGB, VEHICLE_RGB, EGO_RGB, ROUTE_RGB = (rgb255(c) for c in (SURFACE["ground"], OBJECT, VEHICLE, EGO, ROUTE))
 
 
 def draw_top_down(spec: dict[str, Any], centre: tuple[float, float], *, agents: np.ndarray | None = None,
@@ -30,7 +27,7 @@ def draw_top_down(spec: dict[str, Any], centre: tuple[float, float], *, agents: 
         pts = np.asarray(pts, dtype=np.float64).reshape(-1, 2)
         return list(zip((pts[:, 0] - cx) * scale + size / 2, size / 2 - (pts[:, 1] - cy) * scale))
 
-    img = Image.new("RGB", (size, size), (60, 110, 60))
+    img = Image.new("RGB", (size, size), GROUND)
     d = ImageDraw.Draw(img)
     for r in spec.get("roads", []):
         d.polygon(px(r["polygon"]), fill=ROAD)
@@ -40,13 +37,13 @@ def draw_top_down(spec: dict[str, Any], centre: tuple[float, float], *, agents: 
         d.polygon(px(c["polygon"]), fill=CROSSWALK)
     for o in spec.get("objects", []):
         if o.get("footprint"):
-            d.polygon(px(o["footprint"]), fill=OBJECT)
+            d.polygon(px(o["footprint"]), fill=OBJECT_RGB)
     if route is not None and len(route) > 1:
-        d.line(px(route), fill=ROUTE, width=max(1, int(0.15 * scale)))
+        d.line(px(route), fill=ROUTE_RGB, width=max(1, int(0.15 * scale)))
     for v in [] if vehicles is None else vehicles:
-        d.polygon(px(_box(v["x"], v["y"], v["yaw"], v["length"], v["width"])), fill=VEHICLE)
+        d.polygon(px(_box(v["x"], v["y"], v["yaw"], v["length"], v["width"])), fill=VEHICLE_RGB)
     if agents is not None and len(agents):
-        colours = [_rgb(AGENT_KINDS[str(k)].color) for k in agents["kind"]]
+        colours = [rgb255(AGENT_KINDS[str(k)].color) for k in agents["kind"]]
         if trails is not None:
             for i, col in enumerate(colours):
                 faded = tuple(int(0.5 * c + 0.5 * 255) for c in col)
@@ -57,7 +54,7 @@ def draw_top_down(spec: dict[str, Any], centre: tuple[float, float], *, agents: 
             d.ellipse([x - r, y - r, x + r, y + r], fill=col, outline=(0, 0, 0))
     if ego is not None:
         x, y, yaw, length, width = ego
-        d.polygon(px(_box(x, y, yaw, length, width)), fill=EGO, outline=(0, 0, 0))
+        d.polygon(px(_box(x, y, yaw, length, width)), fill=EGO_RGB, outline=(0, 0, 0))
     return np.asarray(img)
 
 

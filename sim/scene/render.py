@@ -5,15 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-ZONE_COLORS = {
-    "near_road_buffer": "#9ccc65",
-    "furnishing": "#d7ccc8",
-    "clear": "#eeeeee",
-    "frontage_buffer": "#bcaaa4",
-    "frontage": "#ffe0b2",
-    "building": "#cfd8dc",
-}
-CLASS_COLORS = {"standard": "#1565c0", "non_standard": "#e65100", "clutter": "#c2185b", "building": "#607d8b"}
+from sim.palette import OBJECT_CLASS, SURFACE, ZONE
+
+ZONE_COLORS = ZONE
+CLASS_COLORS = OBJECT_CLASS
 
 
 def render_scene(spec: dict[str, Any], out: str | Path, *, dpi: int = 150, title: str | None = None) -> Path:
@@ -29,8 +24,8 @@ def render_scene(spec: dict[str, Any], out: str | Path, *, dpi: int = 150, title
     w, h = xmax - xmin, ymax - ymin
     scale = 12.0 / max(w, h)
     fig, ax = plt.subplots(figsize=(max(w * scale, 4) + 2.5, max(h * scale, 4)))
-    ax.set_facecolor("#a5d6a7")
-    ax.add_collection(PolyCollection([r["polygon"] for r in spec["roads"]], facecolors="#546e7a", edgecolors="none"))
+    ax.set_facecolor(SURFACE["ground"][:3])
+    ax.add_collection(PolyCollection([r["polygon"] for r in spec["roads"]], facecolors=[SURFACE["road"][:3]], edgecolors="none"))
     islands = [r["island"] for r in spec["roads"] if r.get("island")]
     if islands:
         ax.add_collection(PolyCollection(islands, facecolors="#81c784", edgecolors="#33691e", linewidths=0.5))
@@ -45,7 +40,7 @@ def render_scene(spec: dict[str, Any], out: str | Path, *, dpi: int = 150, title
     cws = [c["polygon"] for c in spec["crosswalks"]]
     ax.add_collection(PolyCollection(cws, facecolors="white", edgecolors="#212121", linewidths=0.5, hatch="||||"))
     ramps = [r["polygon"] for c in spec["crosswalks"] for r in c["ramps"]]
-    ax.add_collection(PolyCollection(ramps, facecolors="#fff176", edgecolors="#f9a825", linewidths=0.4))
+    ax.add_collection(PolyCollection(ramps, facecolors=[SURFACE["ramp"][:3]], edgecolors="#f9a825", linewidths=0.4))
     for cls, color in CLASS_COLORS.items():
         if cls == "building":
             polys = [o["footprint"] for o in spec["objects"] if o["category"] == "building_facade"]
@@ -58,8 +53,8 @@ def render_scene(spec: dict[str, Any], out: str | Path, *, dpi: int = 150, title
     x0, y0 = xmin + 0.03 * w, ymin + 0.03 * h
     ax.add_patch(Rectangle((x0, y0), bar, max(h, w) * 0.006, color="black"))
     ax.text(x0 + bar / 2, y0 + max(h, w) * 0.015, f"{bar:.0f} m", ha="center", va="bottom", fontsize=8)
-    handles = [Patch(color="#546e7a", label="road")] + [Patch(color=c, label=k.replace("_", " ")) for k, c in ZONE_COLORS.items()]
-    handles += [Patch(facecolor="white", edgecolor="black", hatch="||||", label="crosswalk"), Patch(color="#fff176", label="curb ramp")]
+    handles = [Patch(color=SURFACE["road"][:3], label="road")] + [Patch(color=c, label=k.replace("_", " ")) for k, c in ZONE_COLORS.items()]
+    handles += [Patch(facecolor="white", edgecolor="black", hatch="||||", label="crosswalk"), Patch(color=SURFACE["ramp"][:3], label="curb ramp")]
     handles += [Patch(color=c, label=f"{k.replace('_', '-')} object" if k != "building" else "building facade")
                 for k, c in CLASS_COLORS.items()]
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
