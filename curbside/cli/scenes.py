@@ -190,7 +190,7 @@ def stats(
     from sim.tasks.pointnav import ROUTE_LENGTHS
 
     route_preset = route_preset.value
-    from sim.envs.socialnav import PRESETS as SOCIALNAV_PRESETS
+    from sim.tasks.socialnav import PRESETS as SOCIALNAV_PRESETS
 
     density = SOCIALNAV_PRESETS.get(route_preset, {}).get("agents", {}).get("dynamic_density")
     result = dataset_vs_paper(directory, seed=seed, route_length=tuple(ROUTE_LENGTHS[route_preset]),

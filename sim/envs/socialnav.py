@@ -8,41 +8,12 @@ from typing import Any
 
 import numpy as np
 
-from sim.agents.crowd import AGENT_DEFAULTS, AgentManager, EgoState
+from sim.agents.crowd import AgentManager, EgoState
 from sim.agents.render import draw_top_down
-from sim.agents.vehicles import VEHICLE_DEFAULTS, VehicleManager
+from sim.agents.vehicles import VehicleManager
 from sim.envs.bodies import CohabitantBodies
 from sim.envs.pointnav import PointNavEnv
-from sim.metrics import SOCIALNAV_MEASURES
-from sim.tasks.pointnav import DEFAULT_CONFIG as POINTNAV_CONFIG
-from sim.tasks.pointnav import TASK_PRESETS
-from sim.tasks.socialnav import CONFIG_TABLE
-
-DEFAULT_CONFIG: dict[str, Any] = {
-    **POINTNAV_CONFIG,
-    "agents": dict(AGENT_DEFAULTS),
-    "vehicles": dict(VEHICLE_DEFAULTS),
-    "traffic": True,  # vehicles on the roads
-    "personal_space": 0.45,  # m between body surfaces (ego footprint to agent body): Hall's intimate distance
-    "stl_cruise_speed": 2.5,  # m/s; t_ref = geodesic / min(this, v_max); the expert's cruise speed
-    "cost_kinds": ["object", "building", "agent", "vehicle"],
-    "measures": list(SOCIALNAV_MEASURES),
-    "render": {**POINTNAV_CONFIG["render"], "camera": "map", "width": 256, "height": 256},
-}
-# SocialNav's presets: PointNav's plus the paper's 10 dynamic agents per block (7.2 per 100 m of sidewalk on the
-# metaurban12k scenes, which have ~139 m of sidewalk per block).
-PRESETS: dict[str, dict[str, Any]] = {
-    name: {**preset, "agents": {"dynamic_density": 7.2}} for name, preset in TASK_PRESETS.items()
-}
-# Unseen agent behaviour (the paper's "unseen" split has unseen agent behaviour too): in unseen and finetune,
-# more people run and fewer stand, lanes do not form (no keep-right offset), wheeled VRUs are twice as common,
-# and agents react later to each other. Keys the caller sets in `agents` still win.
-SPLIT_AGENT_BEHAVIOUR: dict[str, dict[str, Any]] = {
-    split: {"run_prob": 0.3, "idle_prob": 0.1, "keep_right": 0.0, "time_horizon": 1.0,
-            "mix": {"pedestrian": 0.40, "wheelchair_user": 0.08, "cyclist": 0.14, "skateboarder": 0.10,
-                    "scooter_rider": 0.14, "delivery_robot": 0.09, "robot_dog": 0.05}}
-    for split in ("unseen", "finetune")
-}
+from sim.tasks.socialnav import CONFIG_TABLE, DEFAULT_CONFIG, PRESETS, SPLIT_AGENT_BEHAVIOUR
 
 
 class SocialNavEnv(PointNavEnv):

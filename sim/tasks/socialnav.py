@@ -1,4 +1,4 @@
-"""SocialNav's config table: PointNav's keys plus the cohabitants (`agents`), traffic (`vehicles`) and social metrics.
+"""SocialNav's config: defaults, presets and the table of PointNav's keys plus cohabitants, traffic and social metrics.
 
 The agent and vehicle defaults live with their simulators (sim.agents.crowd.AGENT_DEFAULTS,
 sim.agents.vehicles.VEHICLE_DEFAULTS); their value ranges are listed here so SocialNav rejects a bad number at
@@ -9,10 +9,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from sim.agents.crowd import SPAWN_AREAS
+from sim.agents.crowd import AGENT_DEFAULTS, SPAWN_AREAS
+from sim.agents.vehicles import VEHICLE_DEFAULTS
+from sim.metrics import SOCIALNAV_MEASURES
 from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule
 from sim.tasks.pointnav import CONFIG_TABLE as POINTNAV_TABLE
-from sim.tasks.pointnav import RENDER_TABLE
+from sim.tasks.pointnav import DEFAULT_CONFIG as POINTNAV_CONFIG
+from sim.tasks.pointnav import RENDER_TABLE, TASK_PRESETS
 
 AGENTS_TABLE: dict[str, Rule] = {
     "dynamic_density": Float(0.0, 100.0, hint="agents per 100 m of sidewalk"),
@@ -71,4 +74,30 @@ CONFIG_TABLE: dict[str, Any] = {
     "personal_space": Float(0.0, 10.0, hint="metres between body surfaces"),
     "stl_cruise_speed": Pos(50.0, hint="m/s"),
     "render": {**RENDER_TABLE, "camera": Choice("map", "top_down", "chase")},
+}
+
+DEFAULT_CONFIG: dict[str, Any] = {
+    **POINTNAV_CONFIG,
+    "agents": dict(AGENT_DEFAULTS),
+    "vehicles": dict(VEHICLE_DEFAULTS),
+    "traffic": True,  # vehicles on the roads
+    "personal_space": 0.45,  # m between body surfaces (ego footprint to agent body): Hall's intimate distance
+    "stl_cruise_speed": 2.5,  # m/s; t_ref = geodesic / min(this, v_max); the expert's cruise speed
+    "cost_kinds": ["object", "building", "agent", "vehicle"],
+    "measures": list(SOCIALNAV_MEASURES),
+    "render": {**POINTNAV_CONFIG["render"], "camera": "map", "width": 256, "height": 256},
+}
+# SocialNav's presets: PointNav's plus the paper's 10 dynamic agents per block (7.2 per 100 m of sidewalk on the
+# metaurban12k scenes, which have ~139 m of sidewalk per block).
+PRESETS: dict[str, dict[str, Any]] = {
+    name: {**preset, "agents": {"dynamic_density": 7.2}} for name, preset in TASK_PRESETS.items()
+}
+# Unseen agent behaviour (the paper's "unseen" split has unseen agent behaviour too): in unseen and finetune,
+# more people run and fewer stand, lanes do not form (no keep-right offset), wheeled VRUs are twice as common,
+# and agents react later to each other. Keys the caller sets in `agents` still win.
+SPLIT_AGENT_BEHAVIOUR: dict[str, dict[str, Any]] = {
+    split: {"run_prob": 0.3, "idle_prob": 0.1, "keep_right": 0.0, "time_horizon": 1.0,
+            "mix": {"pedestrian": 0.40, "wheelchair_user": 0.08, "cyclist": 0.14, "skateboarder": 0.10,
+                    "scooter_rider": 0.14, "delivery_robot": 0.09, "robot_dog": 0.05}}
+    for split in ("unseen", "finetune")
 }

@@ -236,7 +236,7 @@ def _nested(path: tuple, value: object) -> dict:
 
 
 def test_every_config_key_has_a_rule() -> None:
-    from sim.envs.socialnav import DEFAULT_CONFIG as SOCIAL_DEFAULTS
+    from sim.tasks.socialnav import DEFAULT_CONFIG as SOCIAL_DEFAULTS
     from sim.scene.config import CONFIG_TABLE as SCENE_TABLE
     from sim.scene.config import DEFAULT_CONFIG as SCENE_DEFAULTS
     from sim.tasks.pointnav import CONFIG_TABLE, DEFAULT_CONFIG
