@@ -8,6 +8,7 @@ site share the field, so planning 100 agents costs at most `n_sites` Dijkstra ru
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy import ndimage
@@ -213,7 +214,7 @@ def build_navgrid(spec: dict[str, Any], *, plan_radius: float = 0.5, n_sites: in
     # Agents keep the cells of objects thinner than a cell (cover_thin=False): ORCA sees those as obstacles.
     objects = obstacle_mask(g, footprints, cover_thin=False)
     walkable = surface & ~objects
-    inflated = obstacle_mask(g, footprints, inflate=plan_radius, cover_thin=False)
+    inflated = obstacle_mask(g, footprints, inflate=plan_radius, cover_thin=False, join_style="round")
     # Keep plans a body radius away from curbs and building edges, so ORCA obstacles are rarely touched.
     edge_clear = ndimage.distance_transform_edt(surface) * res > plan_radius
     free = surface & ~inflated & edge_clear

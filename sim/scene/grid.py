@@ -15,7 +15,6 @@ from typing import Any
 
 import numpy as np
 import shapely
-from scipy.sparse import coo_matrix, csr_matrix
 from shapely.geometry import Polygon
 
 ENCODING = "zlib+base64:uint8"
@@ -223,37 +222,49 @@ def _footprint(obj: Any) -> Polygon:
     return Polygon(obj)
 
 
-def obstacle_mask(grid: WalkableGrid, objects: Iterable[Any], inflate: float = 0.0, *, cover_thin: bool = True) -> np.ndarray:
+def obstacle_mask(grid: WalkableGrid, objects: Iterable[Any], inflate: float = 0.0, *, cover_thin: bool = True,
+                  join_style: str | None = None) -> np.ndarray:
     """Boolean mask of cells covered by object footprints grown by `inflate` metres (an agent's radius).
 
     `objects` are spec objects (dicts with `footprint`), lists of [x, y] points, or shapely polygons. With
     `cover_thin`, an object thinner than a cell (a pole) that covers no cell centre still blocks its cell.
+    `join_style` of the growth: by default mitre below 5 cm (keeps box corners) and round above.
     """
     out = np.zeros(grid.shape, dtype=bool)
     polys = [_footprint(obj) for obj in objects]
     if inflate > 0:
-        polys = [p.buffer(inflate, join_style="mitre" if inflate < 0.05 else "round", quad_segs=4) for p in polys]
+        join = join_style or ("mitre" if inflate < 0.05 else "round")
+        polys = [p.buffer(inflate, join_style=join, quad_segs=4) for p in polys]
     if not cover_thin:
         paint_many(out, grid.origin, grid.resolution, polys, True)
         return out
+    (x0, y0), res, (h, w) = grid.origin, grid.resolution, grid.shape
     for poly in polys:
-        before = int(out.sum())
-        paint(out, grid.origin, grid.resolution, poly, True)
-        if int(out.sum()) == before and not poly.is_empty:
+        if poly.is_empty:
+            continue
+        # Painting sets only cells whose centres lie in the polygon, all inside its bounds: count there, not grid-wide.
+        bx0, by0, bx1, by1 = poly.bounds
+        win = (slice(max(int(math.floor((by0 - y0) / res)), 0), min(int(math.ceil((by1 - y0) / res)) + 1, h)),
+               slice(max(int(math.floor((bx0 - x0) / res)), 0), min(int(math.ceil((bx1 - x0) / res)) + 1, w)))
+        before = int(out[win].sum())
+        paint(out, grid.origin, res, poly, True)
+        if int(out[win].sum()) == before:
             i, j = (int(v) for v in grid.world_to_cell((poly.centroid.x, poly.centroid.y)))
-            if 0 <= i < grid.shape[0] and 0 <= j < grid.shape[1]:
+            if 0 <= i < h and 0 <= j < w:
                 out[i, j] = True
     return out
 
 
 def grid_graph(free: np.ndarray, resolution: float, *, cost: np.ndarray | None = None,
-               corner_cutting: bool = True) -> csr_matrix:
+               corner_cutting: bool = True) -> Any:
     """8-connected graph over the True cells of `free`, nodes numbered row-major (as np.nonzero lists them).
 
     An edge costs its length (resolution, or resolution * sqrt 2 on diagonals) times the mean of `cost` at
     its two cells when `cost` is given. Without `corner_cutting`, a diagonal needs both cells it passes
-    between to be free too.
+    between to be free too. Returns a scipy CSR matrix (scipy is imported here: the generator never needs it).
     """
+    from scipy.sparse import coo_matrix
+
     rows, cols = free.shape
     node = np.full(free.shape, -1, dtype=np.int64)
     node[free] = np.arange(int(free.sum()))

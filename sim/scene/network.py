@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import shapely
-from scipy.cluster.hierarchy import DisjointSet
 from shapely.geometry import Polygon
 from shapely.strtree import STRtree
 
@@ -72,6 +71,8 @@ def join_seams(blocks: list[Block], sidewalks: list[Sidewalk], roads: list[Polyg
 
 def sidewalk_groups(sidewalks: list[Sidewalk]) -> list[int]:
     """Group label of every sidewalk: sidewalks sharing at least MIN_SHARED m of boundary are in one group."""
+    from scipy.cluster.hierarchy import DisjointSet  # only here: importing scipy.cluster costs ~0.25 s
+
     groups = DisjointSet(range(len(sidewalks)))
     polys = [sw.polygon for sw in sidewalks]
     if polys:
@@ -93,6 +94,7 @@ def connecting_picks(pairs: list[tuple[int, int]], chosen: list[bool], groups: l
 
     `pairs` holds, per crosswalk candidate, the indices of the two sidewalks it would join.
     """
+    from scipy.cluster.hierarchy import DisjointSet
     joined = DisjointSet(groups)
     out = list(chosen)
     for k, (i, j) in enumerate(pairs):
