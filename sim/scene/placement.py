@@ -15,7 +15,7 @@ from shapely.geometry import Polygon
 from sim.scene.categories import CATEGORIES, CLUTTER_ZONES, CategorySampler
 from sim.scene.occupancy import GAP, Occupancy, quad_polygon, rect
 from sim.scene.sidewalks import Sidewalk, Zone
-from sim.scene.spec import round_value
+from sim.scene.spec import round_points, round_value
 
 _contains_scalar = lib.contains_scalar  # what Polygon.contains calls for one geometry
 FILL_ZONES = ("near_road_buffer", "furnishing", "frontage_buffer", "frontage")
@@ -31,7 +31,7 @@ class Placer:
         self.object_area = 0.0  # footprint area of placed non-building objects, summed at their exact sizes
         self.refused: Counter[str] = Counter()
         self.fallback: list[str] = []
-        self.z = float(cfg["curb_height"])
+        self.z = round_value(float(cfg["curb_height"]))  # objects stand on the curb, stored at 0.1 mm
         self.min_depth = {c: self._min_depth(c) for c in CATEGORIES}
         self._zones: dict[int, tuple[Polygon, tuple[float, float, float, float]]] = {}
 
@@ -106,10 +106,10 @@ class Placer:
             "object_class": CATEGORIES[category][0],
             "zone": zone.kind,
             "sidewalk_id": sw.id,
-            "position": [round_value(x), round_value(y), round_value(self.z)],
+            "position": [round_value(x), round_value(y), self.z],
             "yaw": round_value(math.atan2(math.sin(yaw), math.cos(yaw))),  # wrapped to (-pi, pi]
             "size": [round_value(float(depth)), round_value(float(width)), round_value(float(height))],
-            "footprint": [[round(px * 1e4) / 1e4, round(py * 1e4) / 1e4] for px, py in corners],  # as canonical rounds [x, y] rows
+            "footprint": round_points(corners),
         })
         return True
 

@@ -13,7 +13,8 @@ import orjson
 from sim.scene.config import SPEC_VERSION
 
 DECIMALS = 4
-assert 10.0 ** DECIMALS == 10000.0  # the scale the plain-float rounding paths below multiply by
+_SCALE = 10.0 ** DECIMALS
+assert _SCALE == 10000.0  # the scale the plain-float rounding paths below multiply by (literal there for speed)
 
 
 def _round(v: float) -> float:
@@ -40,9 +41,12 @@ def _round_slow(v: float) -> float:
     return 0.0 if r == 0 else r  # -0.0 and 0.0 must serialise alike
 
 
-def round_value(v: float) -> float:
-    """A float as `canonical` stores it (0.1 mm, never -0.0)."""
-    return _round(v)
+round_value = _round  # a float as `canonical` stores it (0.1 mm, never -0.0), for code that builds specs
+
+
+def round_points(rows: list[list[float]]) -> list[list[float]]:
+    """[x, y] rows of Python floats as `canonical` stores them (what `_float_rows` returns for them)."""
+    return [[round(x * _SCALE) / _SCALE, round(y * _SCALE) / _SCALE] for x, y in rows]
 
 
 def canonical(obj: Any) -> Any:
@@ -161,12 +165,18 @@ def dumps(spec: dict[str, Any]) -> str:
 def encode(spec: dict[str, Any]) -> str:
     """JSON text of a spec that is canonical already (as `generate_scene` returns it): sorted keys, no spaces.
 
-    orjson writes the same bytes as `json.dumps(spec, sort_keys=True, separators=(",", ":"))` for ASCII text
-    and finite floats (both print a float's shortest round-trip digits), about 6x faster; non-ASCII text is
-    written as UTF-8 instead of \\u escapes. `canonical` has already refused inf and nan, which orjson would
-    write as null.
+    orjson writes the same bytes as `json.dumps(spec, sort_keys=True, separators=(",", ":"))` for ASCII text,
+    64-bit integers and finite floats (both print a float's shortest round-trip digits), about 6x faster.
+    Anything else (non-ASCII text, which json escapes as \\u, or a huge integer) goes through json itself, so a
+    spec's bytes never depend on which encoder wrote them. `canonical` has already refused inf and nan.
     """
-    return orjson.dumps(spec, option=orjson.OPT_SORT_KEYS).decode("utf-8")
+    try:
+        text = orjson.dumps(spec, option=orjson.OPT_SORT_KEYS).decode("utf-8")
+    except TypeError:  # an integer beyond 64 bits
+        text = ""
+    if not text or not text.isascii():
+        text = json.dumps(spec, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return text
 
 
 def save(spec: dict[str, Any], path: str | Path, *, is_canonical: bool = False) -> Path:

@@ -10,6 +10,7 @@ import pytest
 
 from curbside.config import ConfigError
 from sim.scene import DEFAULT_CONFIG, dumps, generate_scene, load, save
+from sim.scene.spec import canonical
 
 
 def _quiet(cfg: dict, seed: int, catalog=None) -> dict:
@@ -136,8 +137,11 @@ def test_default_config_is_not_mutated() -> None:
 def test_fast_writer_matches_the_standard_json_encoder_and_refuses_non_finite(tmp_path: Path) -> None:
     spec = _quiet({"blocks": "SX", "preset": "metaurban12k"}, 3)
     text = dumps(spec)
-    # orjson (sim.scene.spec.encode) must write exactly what the standard library writes for a spec.
-    assert text == json.dumps(json.loads(text), sort_keys=True, separators=(",", ":"), allow_nan=False)
+    # orjson (sim.scene.spec.encode) must write exactly what the standard library writes for the same spec.
+    assert text == json.dumps(canonical(spec), sort_keys=True, separators=(",", ":"), allow_nan=False)
+    # Non-ASCII text and integers past 64 bits go through json too: the same bytes as json.dumps.
+    odd = {**spec, "catalog": "catálogos/ñ.duckdb", "seed": 2 ** 70}
+    assert dumps(odd) == json.dumps(canonical(odd), sort_keys=True, separators=(",", ":"), allow_nan=False)
     # The generator returns a canonical spec: saving it without re-rounding gives the same bytes.
     save(spec, tmp_path / "a.json")
     save(spec, tmp_path / "b.json", is_canonical=True)
