@@ -40,34 +40,33 @@ def _map_background(spec: dict, route_pts: np.ndarray, extent: tuple[float, floa
     import matplotlib.pyplot as plt
     from matplotlib.patches import Polygon as MplPolygon
 
-    from sim.palette import LANE_LINE, ROUTE, category_color
-    from sim.palette import SURFACE as COLORS
+    from sim.palette import LANE_LINE, ROUTE, SURFACE, category_color
 
     x0, y0, x1, y1 = extent
-    fig = plt.figure(figsize=(px / 100, px * (y1 - y0) / (x1 - x0) / 100), dpi=100, facecolor=COLORS["ground"][:3])
+    fig = plt.figure(figsize=(px / 100, px * (y1 - y0) / (x1 - x0) / 100), dpi=100, facecolor=SURFACE["ground"][:3])
     ax = fig.add_axes([0, 0, 1, 1])
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
-    ax.set_facecolor(COLORS["ground"][:3])
+    ax.set_facecolor(SURFACE["ground"][:3])
     ax.axis("off")
 
     def poly(pts, color, z):
         ax.add_patch(MplPolygon(np.asarray(pts), closed=True, facecolor=color[:3], edgecolor="none", zorder=z))
 
     for road in spec["roads"]:
-        poly(road["polygon"], COLORS["road"], 1)
+        poly(road["polygon"], SURFACE["road"], 1)
         for line in road.get("lane_lines", []):
             ln = np.asarray(line)
             ax.plot(ln[:, 0], ln[:, 1], color=LANE_LINE, lw=0.6, dashes=(4, 4), zorder=2)
     for sw in spec["sidewalks"]:
-        poly(sw["polygon"], COLORS["sidewalk"], 2)
+        poly(sw["polygon"], SURFACE["sidewalk"], 2)
         for zone in sw.get("zones", []):
             if zone.get("kind") == "building":
-                poly(zone["polygon"], COLORS["building"], 2)
+                poly(zone["polygon"], SURFACE["building"], 2)
     for cw in spec["crosswalks"]:
-        poly(cw["polygon"], COLORS["crosswalk"], 3)
+        poly(cw["polygon"], SURFACE["crosswalk"], 3)
         for ramp in cw.get("ramps", []):
-            poly(ramp["polygon"], COLORS["ramp"], 3)
+            poly(ramp["polygon"], SURFACE["ramp"], 3)
     for obj in spec["objects"]:
         poly(obj["footprint"], category_color(str(obj.get("category", "object"))), 4)
     ax.plot(route_pts[:, 0], route_pts[:, 1], color=ROUTE, lw=2.0, zorder=5)

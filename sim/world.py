@@ -18,14 +18,12 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon
 from shapely.geometry.polygon import orient
 
-from sim.meshes import extrusion_mesh, mesh_shape
+from sim.meshes import extrusion_mesh, mesh_shape, polygons
 from sim.palette import SURFACE, category_color
-from sim.meshes import polygons as _polys
 from sim.scene.config import SPEC_VERSION
 
 # Body kinds: what a contact with or a ray hit on that body means.
 SURFACE_KINDS = ("ground", "sidewalk", "ramp")
-COLORS = SURFACE  # the world's colours are the palette's (sim.palette)
 
 
 WALL_NZ = 0.5  # a contact whose normal is flatter than this is a wall (a curb side), not the ground
@@ -124,15 +122,15 @@ class World:
         cx, cy = 0.5 * (xmin + xmax), 0.5 * (ymin + ymax)
         hx, hy = 0.5 * (xmax - xmin) + 50.0, 0.5 * (ymax - ymin) + 50.0
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[hx, hy, 0.5], physicsClientId=c)
-        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[hx, hy, 0.5], rgbaColor=list(COLORS["ground"]), physicsClientId=c)
+        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[hx, hy, 0.5], rgbaColor=list(SURFACE["ground"]), physicsClientId=c)
         self.ground = self._add("ground", col, vis, (cx, cy, -0.5))
         # Painted surfaces on the road are visual only: the ground plane carries the wheels there.
         for road in spec["roads"]:
-            for poly in _polys(Polygon(road["polygon"]).buffer(0)):
-                self._mesh_body("road", *extrusion_mesh(poly, 0.0, 0.002, walls=False), COLORS["road"], collide=False)
+            for poly in polygons(Polygon(road["polygon"]).buffer(0)):
+                self._mesh_body("road", *extrusion_mesh(poly, 0.0, 0.002, walls=False), SURFACE["road"], collide=False)
         for cw in spec["crosswalks"]:
-            for poly in _polys(Polygon(cw["polygon"]).buffer(0)):
-                self._mesh_body("crosswalk", *extrusion_mesh(poly, 0.0, 0.004, walls=False), COLORS["crosswalk"], collide=False)
+            for poly in polygons(Polygon(cw["polygon"]).buffer(0)):
+                self._mesh_body("crosswalk", *extrusion_mesh(poly, 0.0, 0.004, walls=False), SURFACE["crosswalk"], collide=False)
         ramps_by_sidewalk: dict[str, list[Polygon]] = {}
         sidewalks = {sw["id"]: sw for sw in spec["sidewalks"]}
         for cw in spec["crosswalks"]:
@@ -146,15 +144,15 @@ class World:
             geom = Polygon(sw["polygon"]).buffer(0)
             for ramp in ramps_by_sidewalk.get(sw["id"], []):
                 geom = geom.difference(ramp.buffer(0.01, join_style="mitre"))
-            for poly in _polys(geom):
+            for poly in polygons(geom):
                 if poly.buffer(-0.05).is_empty:
                     continue  # a sliver left by the ramp cut-outs: a wheel would catch on it
-                self._mesh_body("sidewalk", *extrusion_mesh(poly, 0.0, h), COLORS["sidewalk"])
+                self._mesh_body("sidewalk", *extrusion_mesh(poly, 0.0, h), SURFACE["sidewalk"])
             for zone in sw.get("zones", []):
                 if zone.get("kind") == "building":
                     height = float(rng.uniform(6.0, 18.0))
-                    for poly in _polys(Polygon(zone["polygon"]).buffer(0)):
-                        self._mesh_body("building", *extrusion_mesh(poly, 0.0, height), COLORS["building"])
+                    for poly in polygons(Polygon(zone["polygon"]).buffer(0)):
+                        self._mesh_body("building", *extrusion_mesh(poly, 0.0, height), SURFACE["building"])
         for i, obj in enumerate(spec["objects"]):
             body = self._build_object(obj)
             self.object_ids.append(body)
@@ -199,7 +197,7 @@ class World:
         idx = []
         for k in range(1, len(pts) - 1):
             idx += [0, k, k + 1]
-        vis = mesh_shape(p.createVisualShape, top, idx, rgbaColor=list(COLORS[kind]), physicsClientId=self.client)
+        vis = mesh_shape(p.createVisualShape, top, idx, rgbaColor=list(SURFACE[kind]), physicsClientId=self.client)
         self._add(kind, col, vis)
 
     def _build_object(self, obj: Mapping[str, Any]) -> int:

@@ -112,9 +112,3 @@ class CategorySampler:
         c = (w / w.sum()).cumsum()
         c /= c[-1]
         return cats, c
-
-
-def category_info(category: str) -> dict[str, Any]:
-    """Class, zones and fallback size of `category`."""
-    cls, zones, size = CATEGORIES[category]
-    return {"object_class": cls, "zones": zones, "size": size}

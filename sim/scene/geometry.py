@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left
+from functools import cached_property
 
 import numpy as np
 import shapely
@@ -43,7 +44,7 @@ class Centerline:
         self.heading = hv
         # Left normals at the vertices, computed once: every band, zone and building strip offsets along them.
         self.normals = np.stack([-np.sin(hv), np.cos(hv)], axis=1)
-        # Plain-float copies for `point` (called for every placement candidate): list indexing and float
+        # Plain-float copies for `point_xy` (called for every placement candidate): list indexing and float
         # arithmetic give the same doubles as the numpy scalars, without their per-operation overhead.
         self._lists = (self.s.tolist(), self.pts[:, 0].tolist(), self.pts[:, 1].tolist(), hv.tolist())
 
@@ -64,21 +65,11 @@ class Centerline:
         d = np.asarray(d, dtype=np.float64)
         return p + d[..., None] * np.stack([-np.sin(h), np.cos(h)], axis=1), h
 
-    def point(self, s: float, d: float) -> tuple[np.ndarray, float]:
-        """Scalar fast path of `to_world`: the world point at (s, d) and the heading there."""
+    def point_xy(self, s: float, d: float) -> tuple[float, float, float]:
+        """World point (x, y) at road coordinates (s, d) and the heading there, as plain floats (`to_world`'s
+        interpolation for one point, clamped onto the centerline)."""
         sl, xl, yl, hl = self._lists
         i = min(max(bisect_left(sl, s) - 1, 0), len(sl) - 2)  # np.searchsorted(self.s, s) - 1, clamped
-        s0, s1 = sl[i], sl[i + 1]
-        t = min(max((s - s0) / (s1 - s0), 0.0), 1.0) if s1 > s0 else 0.0
-        x = xl[i] + t * (xl[i + 1] - xl[i])
-        y = yl[i] + t * (yl[i + 1] - yl[i])
-        h = hl[i] + t * (hl[i + 1] - hl[i])
-        return np.array([x - d * math.sin(h), y + d * math.cos(h)]), float(h)
-
-    def point_xy(self, s: float, d: float) -> tuple[float, float, float]:
-        """`point` as plain floats (x, y, heading): the same arithmetic, without building the array."""
-        sl, xl, yl, hl = self._lists
-        i = min(max(bisect_left(sl, s) - 1, 0), len(sl) - 2)
         s0, s1 = sl[i], sl[i + 1]
         t = min(max((s - s0) / (s1 - s0), 0.0), 1.0) if s1 > s0 else 0.0
         x = xl[i] + t * (xl[i + 1] - xl[i])
@@ -90,13 +81,10 @@ class Centerline:
         """Arc length of the closest centerline point to each of `xy`."""
         return shapely.line_locate_point(self.line, shapely.points(np.asarray(xy)))
 
-    @property
+    @cached_property
     def line(self) -> LineString:
         """The centerline as a shapely LineString (built once)."""
-        line = self.__dict__.get("_line")
-        if line is None:
-            line = self.__dict__["_line"] = LineString(self.pts)
-        return line
+        return LineString(self.pts)
 
 
 def straight(p: np.ndarray, h: float, length: float) -> Centerline:
@@ -140,19 +128,6 @@ def strip(cl: Centerline, d0: float, d1: float, s0: float | None = None, s1: flo
         ring = ring[::-1]
     # shapely.polygons(ring) without its argument handling: the same ring (closed by linearrings), no holes.
     return lib.polygons(lib.linearrings(ring, _ALLOW_NAN), _NO_HOLES)
-
-
-def corners(x: float, y: float, yaw: float, depth: float, width: float) -> list[list[float]]:
-    """`rectangle` as plain floats: the four corners (counter-clockwise) as [[x, y], ...] lists."""
-    c, s = math.cos(yaw), math.sin(yaw)
-    ax, ay = c * depth / 2, s * depth / 2
-    bx, by = -s * width / 2, c * width / 2
-    return [[x - ax - bx, y - ay - by], [x + ax - bx, y + ay - by], [x + ax + bx, y + ay + by], [x - ax + bx, y - ay + by]]
-
-
-def rectangle(center: np.ndarray, yaw: float, depth: float, width: float) -> np.ndarray:
-    """Four corners (counter-clockwise) of a depth x width rectangle centred at `center`, x axis at `yaw`."""
-    return np.array(corners(float(center[0]), float(center[1]), yaw, depth, width))
 
 
 def largest(geom: shapely.Geometry) -> Polygon | None:

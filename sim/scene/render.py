@@ -7,9 +7,6 @@ from typing import Any
 
 from sim.palette import OBJECT_CLASS, SURFACE, ZONE
 
-ZONE_COLORS = ZONE
-CLASS_COLORS = OBJECT_CLASS
-
 
 def render_scene(spec: dict[str, Any], out: str | Path, *, dpi: int = 150, title: str | None = None) -> Path:
     """Draw `spec` top-down to a PNG at `out` and return its path."""
@@ -31,7 +28,7 @@ def render_scene(spec: dict[str, Any], out: str | Path, *, dpi: int = 150, title
         ax.add_collection(PolyCollection(islands, facecolors="#81c784", edgecolors="#33691e", linewidths=0.5))
     lines = [ln for r in spec["roads"] for ln in r["lane_lines"]]
     ax.add_collection(LineCollection(lines, colors="white", linewidths=0.6, linestyles=(0, (4, 3))))
-    for kind, color in ZONE_COLORS.items():
+    for kind, color in ZONE.items():
         polys = [z["polygon"] for s in spec["sidewalks"] for z in s["zones"] if z["kind"] == kind]
         if polys:
             ax.add_collection(PolyCollection(polys, facecolors=color, edgecolors="#9e9e9e", linewidths=0.2))
@@ -41,7 +38,7 @@ def render_scene(spec: dict[str, Any], out: str | Path, *, dpi: int = 150, title
     ax.add_collection(PolyCollection(cws, facecolors="white", edgecolors="#212121", linewidths=0.5, hatch="||||"))
     ramps = [r["polygon"] for c in spec["crosswalks"] for r in c["ramps"]]
     ax.add_collection(PolyCollection(ramps, facecolors=[SURFACE["ramp"][:3]], edgecolors="#f9a825", linewidths=0.4))
-    for cls, color in CLASS_COLORS.items():
+    for cls, color in OBJECT_CLASS.items():
         if cls == "building":
             polys = [o["footprint"] for o in spec["objects"] if o["category"] == "building_facade"]
         else:
@@ -53,10 +50,10 @@ def render_scene(spec: dict[str, Any], out: str | Path, *, dpi: int = 150, title
     x0, y0 = xmin + 0.03 * w, ymin + 0.03 * h
     ax.add_patch(Rectangle((x0, y0), bar, max(h, w) * 0.006, color="black"))
     ax.text(x0 + bar / 2, y0 + max(h, w) * 0.015, f"{bar:.0f} m", ha="center", va="bottom", fontsize=8)
-    handles = [Patch(color=SURFACE["road"][:3], label="road")] + [Patch(color=c, label=k.replace("_", " ")) for k, c in ZONE_COLORS.items()]
+    handles = [Patch(color=SURFACE["road"][:3], label="road")] + [Patch(color=c, label=k.replace("_", " ")) for k, c in ZONE.items()]
     handles += [Patch(facecolor="white", edgecolor="black", hatch="||||", label="crosswalk"), Patch(color=SURFACE["ramp"][:3], label="curb ramp")]
     handles += [Patch(color=c, label=f"{k.replace('_', '-')} object" if k != "building" else "building facade")
-                for k, c in CLASS_COLORS.items()]
+                for k, c in OBJECT_CLASS.items()]
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
     ax.set_xlim(xmin - 2, xmax + 2)
     ax.set_ylim(ymin - 2, ymax + 2)
