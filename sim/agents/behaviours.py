@@ -25,7 +25,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from sim.agents.kinds import KIND_NAMES
-from sim.agents.navgrid import LEGEND_RAMP, LEGEND_SIDEWALK, NavGrid
+from sim.agents.navgrid import NavGrid
+from sim.scene.grid import RAMP, SIDEWALK
 
 if TYPE_CHECKING:  # pragma: no cover - typing only; crowd imports this module
     from sim.agents.crowd import AgentManager
@@ -74,7 +75,7 @@ class Crossings:
                 node = int(grid.nearest_node(target[None])[0])
                 xy = grid.node_xy(np.array([node]))[0]
                 i, j = (int(v[0]) for v in grid.cell_of(xy[None]))
-                if np.hypot(*(xy - target)) > CROSS_SNAP or grid.cells[i, j] not in (LEGEND_SIDEWALK, LEGEND_RAMP):
+                if np.hypot(*(xy - target)) > CROSS_SNAP or grid.cells[i, j] not in (SIDEWALK, RAMP):
                     continue
                 near.append(a - u * CROSS_BEYOND)
                 far.append(xy)
@@ -156,7 +157,7 @@ class Groups:
         slots = centres[cand][:, None, :] + offsets[None]  # [k, size, 2]
         flat = slots.reshape(-1, 2)
         i, j = g.cell_of(flat)
-        ok = (g.is_free(flat) & (g.cells[i, j] == LEGEND_SIDEWALK)).reshape(len(cand), -1).all(1)
+        ok = (g.is_free(flat) & (g.cells[i, j] == SIDEWALK)).reshape(len(cand), -1).all(1)
         others = np.setdiff1d(np.arange(m.n), members)
         if len(others):
             # Other agents (groups placed earlier included) keep the spawn clearance from every slot.

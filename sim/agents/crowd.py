@@ -27,19 +27,16 @@ import numpy as np
 
 from curbside.config import ConfigError, merge_strict
 from sim.agents.behaviours import Crossings, Groups
-from sim.agents.crowd_config import AGENT_DEFAULTS, BEHAVIOUR_RANGES, check_behaviour_config
-from sim.agents.crowd_goals import IDLE, RUNNING, WALKING, GoalFollowing
-from sim.agents.crowd_orca import EgoState, OrcaCrowd, _as_ego
+from sim.agents.crowd_config import AGENT_DEFAULTS, check_behaviour_config
+from sim.agents.crowd_goals import IDLE, WALKING, GoalFollowing
+from sim.agents.crowd_orca import EgoState, OrcaCrowd, as_ego
 from sim.agents.crowd_spawning import SPAWN_AREAS, AgentSpawning, sidewalk_length, spawn_region
 from sim.agents.deadlock import PushResolver
 from sim.agents.kinds import AGENT_KINDS, KIND_NAMES, agent_kind
 from sim.agents.navgrid import NavGrid, build_navgrid
 
-# The names other modules import from here, now defined in the crowd_* modules.
-__all__ = [
-    "AGENT_DEFAULTS", "AGENT_DTYPE", "BEHAVIOUR_RANGES", "IDLE", "RUNNING", "SPAWN_AREAS", "WALKING",
-    "AgentManager", "EgoState", "check_behaviour_config", "sidewalk_length", "spawn_region",
-]
+# Names other modules import from here, though the crowd_* modules define them.
+__all__ = ["AGENT_DEFAULTS", "AGENT_DTYPE", "SPAWN_AREAS", "AgentManager", "EgoState", "sidewalk_length"]
 
 AGENT_DTYPE = np.dtype([("x", "f8"), ("y", "f8"), ("vx", "f8"), ("vy", "f8"), ("radius", "f8"), ("kind", "U16")])
 
@@ -90,7 +87,7 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         self.radius = np.array([AGENT_KINDS[k].radius for k in kinds])
         self._template = np.zeros(n, dtype=AGENT_DTYPE)
         self._template["radius"], self._template["kind"] = self.radius, kinds
-        ego = _as_ego(ego)
+        ego = as_ego(ego)
         clear = list(keep_clear) + ([(ego.x, ego.y, ego.radius + 1.0)] if ego else [])
         self.pos = self._spawn_positions(rng, clear)
         self.vel = np.zeros((n, 2))
@@ -132,7 +129,7 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         if self.grid is None:
             raise RuntimeError("AgentManager.step called before reset(spec, rng)")
         g = self.grid
-        self._set_ego(_as_ego(ego))
+        self._set_ego(as_ego(ego))
         self.time += dt
         pref = np.zeros((self.n, 2))
         pinned = np.zeros(self.n, dtype=bool)

@@ -25,7 +25,8 @@ class EgoState:
     radius: float = 0.5
 
 
-def _as_ego(ego: EgoState | Mapping[str, float] | Sequence[float] | None) -> EgoState | None:
+def as_ego(ego: EgoState | Mapping[str, float] | Sequence[float] | None) -> EgoState | None:
+    """The ego as an EgoState, from one, a mapping of its fields or a sequence of them (None stays None)."""
     if ego is None or isinstance(ego, EgoState):
         return ego
     if isinstance(ego, Mapping):

@@ -16,12 +16,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 from shapely.geometry import Polygon
 
-from sim.scene.grid import CROSSWALK as LEGEND_CROSSWALK
-from sim.scene.grid import RAMP as LEGEND_RAMP
-from sim.scene.grid import SIDEWALK as LEGEND_SIDEWALK
-from sim.scene.grid import decode_walkable, grid_graph, obstacle_mask
-
-__all__ = ["JUMPS", "LEGEND_CROSSWALK", "LEGEND_RAMP", "LEGEND_SIDEWALK", "NavGrid", "boundary_segments", "build_navgrid"]
+from sim.scene.grid import SIDEWALK, decode_walkable, grid_graph, obstacle_mask
 
 
 def boundary_segments(mask: np.ndarray, origin: np.ndarray, res: float) -> list[tuple[tuple[float, float], tuple[float, float]]]:
@@ -232,7 +227,7 @@ def build_navgrid(spec: dict[str, Any], *, plan_radius: float = 0.5, n_sites: in
     _, idx = ndimage.distance_transform_edt(~free, return_indices=True)
     nearest_rc = idx.astype(np.int32)
 
-    sidewalk_nodes = np.flatnonzero(cells[node_rc[:, 0], node_rc[:, 1]] == LEGEND_SIDEWALK)
+    sidewalk_nodes = np.flatnonzero(cells[node_rc[:, 0], node_rc[:, 1]] == SIDEWALK)
     candidates = sidewalk_nodes if len(sidewalk_nodes) else np.arange(len(node_rc))
     sites = _spread_sites(node_rc[candidates].astype(np.float64), candidates, n_sites)
     return NavGrid(cells, origin, res, walkable, free, node_of, node_rc, graph, nearest_rc, sites)

@@ -11,7 +11,6 @@ import zlib
 from typing import Any
 
 import numpy as np
-
 from shapely.geometry import Polygon
 
 from sim.scene.grid import paint
