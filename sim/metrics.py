@@ -10,7 +10,6 @@ config (`measures`). Measures read the running episode as `env.episode` (`sim.en
 
 from __future__ import annotations
 
-from functools import partial
 from typing import Any, Callable, TypeVar
 
 from curbside.config import ConfigError
@@ -34,7 +33,7 @@ class Measure:
         raise NotImplementedError
 
 
-MEASURES: dict[str, Callable[[], Measure]] = {}
+MEASURES: dict[str, type[Measure]] = {}
 M = TypeVar("M", bound=type[Measure])
 
 
@@ -64,17 +63,16 @@ def make_measures(names: list[str], *, agents: bool = True) -> list[Measure]:
 
 
 class Readout(Measure):
-    """A measure read off the finished episode: one row of READOUTS."""
+    """A measure read off the finished episode by one function (a row of READOUTS)."""
 
-    def __init__(self, name: str) -> None:
-        self.name, self.__doc__ = name, READOUTS[name][0]
-        self._read = READOUTS[name][1]
+    read: Callable[[Any], dict[str, float]]
 
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
-        return self._read(env)
+        return self.read(env)
 
 
-# name -> (what it measures, its values at episode end from the env and its `episode`).
+# name -> (what it measures, its values at episode end from the env and its `episode`); each row is registered
+# as a Readout subclass of its own, so every measure in MEASURES is a class.
 READOUTS: dict[str, tuple[str, Callable[[Any], dict[str, float]]]] = {
     "success": ("1 when the episode completed >= success_completion of the route, else 0",
                 lambda env: {"success": float(env.episode.succeeded)}),
@@ -87,8 +85,8 @@ READOUTS: dict[str, tuple[str, Callable[[Any], dict[str, float]]]] = {
     "time": ("simulated episode duration in seconds, and the number of steps",
              lambda env: {"time": float(env.episode.steps * env.dt), "steps": float(env.episode.steps)}),
 }
-for _name in READOUTS:
-    MEASURES[_name] = partial(Readout, _name)
+for _name, (_doc, _read) in READOUTS.items():
+    register_measure(_name)(type(f"Readout_{_name}", (Readout,), {"__doc__": _doc, "read": staticmethod(_read)}))
 
 
 @register_measure("spl")

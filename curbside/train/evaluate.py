@@ -20,6 +20,7 @@ def evaluate_policy(act: Callable[[np.ndarray], np.ndarray], task: str, env_conf
 
     import sim  # noqa: F401
     from sim.eval import summarize
+    from sim.rollout import rollout
 
     cfg = split_config(env_config, split, num_scenes)
     cfg["scene_cache"] = 1  # evaluation visits each scene about once: no point keeping worlds
@@ -30,13 +31,9 @@ def evaluate_policy(act: Callable[[np.ndarray], np.ndarray], task: str, env_conf
         from rich.progress import track
         seeds = track(seeds, description=f"eval {task} {split}")
     try:
+        policy = lambda e, obs: np.asarray(act(obs), dtype=np.float32).reshape(2)  # noqa: E731
         for s in seeds:
-            obs, _ = env.reset(seed=s)
-            done = False
-            while not done:
-                obs, _, term, trunc, info = env.step(np.asarray(act(obs), dtype=np.float32).reshape(2))
-                done = term or trunc
-            rows.append(dict(info["metrics"]))
+            rows.append(rollout(env, policy, s))
     finally:
         env.close()
     summary = summarize(rows)

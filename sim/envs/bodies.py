@@ -17,8 +17,9 @@ PARKED = [0, 0, -20]  # where unused bodies wait, below the ground
 class CohabitantBodies:
     """Bodies for a crowd and its traffic in one Bullet client; their ids go into `collision_kinds` by kind."""
 
-    def __init__(self, client: int, collision_kinds: dict[int, str]) -> None:
+    def __init__(self, client: int, collision_kinds: dict[int, str], vehicle_size: tuple[float, float]) -> None:
         self.client = client
+        self.vehicle_size = vehicle_size  # (length, width) of every vehicle box
         self.collision_kinds = collision_kinds  # body id -> "agent" / "vehicle": the env classifies contacts by it
         self.agents: list[int] = []
         self.vehicles: list[int] = []
@@ -36,11 +37,10 @@ class CohabitantBodies:
         if self._xyz is not None:
             self._xyz = np.full_like(self._xyz, np.nan)
 
-    def sync(self, kind_idx: np.ndarray, pos: np.ndarray, base_heights: np.ndarray, vehicles: np.ndarray,
-             vehicle_size: tuple[float, float]) -> None:
+    def sync(self, kind_idx: np.ndarray, pos: np.ndarray, base_heights: np.ndarray, vehicles: np.ndarray) -> None:
         """Place the agent bodies at `pos` (on `base_heights`) and the vehicle bodies at `vehicles`' states."""
         c = self.client
-        self._ensure(kind_idx, len(vehicles), vehicle_size)
+        self._ensure(kind_idx, len(vehicles))
         if len(pos):
             xyz = np.empty((len(pos), 3))
             xyz[:, :2] = pos
@@ -71,7 +71,7 @@ class CohabitantBodies:
             self._kind_src = kind_idx
         return True
 
-    def _ensure(self, kind_idx: np.ndarray, n_vehicles: int, vehicle_size: tuple[float, float]) -> None:
+    def _ensure(self, kind_idx: np.ndarray, n_vehicles: int) -> None:
         c = self.client
         if not self._match(kind_idx):
             kinds = [KIND_NAMES[k] for k in kind_idx]
@@ -95,7 +95,7 @@ class CohabitantBodies:
             self._half_heights = np.array([max(AGENT_KINDS[k].height, 2.0 * AGENT_KINDS[k].radius) / 2 for k in kinds])
             self._xyz = np.full((len(kinds), 3), np.nan)  # nan != anything: every body moves on the first sync
         while len(self.vehicles) < n_vehicles:
-            half = [vehicle_size[0] / 2, vehicle_size[1] / 2, VEHICLE_HEIGHT / 2]
+            half = [self.vehicle_size[0] / 2, self.vehicle_size[1] / 2, VEHICLE_HEIGHT / 2]
             col, vis = self._shape("vehicle", lambda half=half: (
                 p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c),
                 p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[0.25, 0.25, 0.65, 1.0], physicsClientId=c)))

@@ -35,6 +35,7 @@ class EgoObservation:
         low[: self.num_beams + self.num_low_beams] = 0.0
         self.space = gym.spaces.Box(low, np.ones(n, dtype=np.float32), dtype=np.float32)
         self._wp_offsets = np.arange(1, w + 1, dtype=np.float64) * float(cfg["waypoint_spacing"])
+        self._wp_scale = 1.0 / (self._wp_offsets[-1])
         self.speed_scale = float(cfg["speed_scale"])
         self.lateral_scale = float(cfg["out_of_route_distance"])
 
@@ -52,7 +53,7 @@ class EgoObservation:
         c, s = math.cos(yaw), math.sin(yaw)
         wp = route.point_at(progress + self._wp_offsets)
         dx, dy = wp[:, 0] - x, wp[:, 1] - y
-        scale = 1.0 / (self._wp_offsets[-1])
+        scale = self._wp_scale
         ego = np.stack([(c * dx + s * dy) * scale, (-s * dx + c * dy) * scale], 1).ravel()
         gx, gy = route.goal[0] - x, route.goal[1] - y
         bearing = math.atan2(gy, gx) - yaw

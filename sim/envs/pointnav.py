@@ -91,7 +91,6 @@ class PointNavEnv(gym.Env):
         self.scenes = SceneSource(cfg)
         self.measures = make_measures(list(cfg["measures"]), agents=self.has_agents)
         self.observation = EgoObservation(cfg)
-        self.num_beams, self.num_low_beams = self.observation.num_beams, self.observation.num_low_beams
         self.observation_names = self.observation.names
         self.observation_space = self.observation.space
         self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
@@ -246,9 +245,8 @@ class PointNavEnv(gym.Env):
         s, lat = self.route.project(x, y, ep.progress)
         collided = bool(hits & self.cost_kinds)
         progress, new_progress = ep.advance((x0, y0), (x, y), s, lat, hits, collided)
-        off_walkable = self.config["terminate_off_walkable"] and self.planner.grid.label_at(x, y) == 0
         ep.succeeded, ep.out_of_route, ep.stuck = self.termination(
-            ep.steps, ep.max_progress, self.route.length, lat, off_walkable, bool(hits))
+            ep.steps, ep.max_progress, self.route.length, lat, lambda: self.planner.grid.label_at(x, y) != 0, bool(hits))
         d_steer = steer - ep.last_action[0]
         reward = self.reward_fn(progress, new_progress, lat, d_steer, m.speed, collided, ep.succeeded, ep.out_of_route,
                                 ep.stuck)

@@ -52,7 +52,7 @@ class SocialNavEnv(PointNavEnv):
         self._vehicle_states: np.ndarray | None = None  # the traffic's states of this tick, shared by sync and obs
 
     # -- hooks -------------------------------------------------------------------------------------
-    _WORLD_STATE = ("crowd", "traffic", "bodies", "_collision_kinds")
+    _WORLD_STATE = ("crowd", "traffic", "bodies")  # the world's collision kinds are its bodies' dict
 
     def _on_scene(self, spec: Mapping[str, Any]) -> None:
         # A new world in its client: no agent body or shape exists there yet. Crowd and traffic keep planners
@@ -60,7 +60,8 @@ class SocialNavEnv(PointNavEnv):
         self.crowd = AgentManager(self.config["agents"])
         self.traffic = VehicleManager(self.config["vehicles"])
         self._collision_kinds = {}
-        self.bodies = CohabitantBodies(self.client, self._collision_kinds)
+        size = (self.traffic.config["length"], self.traffic.config["width"])
+        self.bodies = CohabitantBodies(self.client, self._collision_kinds, size)
 
     def _park_bodies(self) -> None:
         # Last episode's agents and vehicles must not stand where the next start's surface height is probed.
@@ -75,6 +76,7 @@ class SocialNavEnv(PointNavEnv):
     def _load_scene_state(self, state: dict[str, Any]) -> None:
         for k in self._WORLD_STATE:
             setattr(self, k, state.get(k))
+        self._collision_kinds = self.bodies.collision_kinds
 
     def _on_reset(self, rng: np.random.Generator) -> None:
         spec = self.scene_spec
@@ -103,9 +105,8 @@ class SocialNavEnv(PointNavEnv):
     def _sync_bodies(self) -> None:
         vehicles = self._vehicle_states if self._vehicle_states is not None else self.vehicle_states()
         self._vehicle_states = None
-        crowd, cfg = self.crowd, self.traffic.config
-        self.bodies.sync(crowd.kind_idx, crowd.pos, self._agent_base_heights(crowd.pos), vehicles,
-                         (cfg["length"], cfg["width"]))
+        crowd = self.crowd
+        self.bodies.sync(crowd.kind_idx, crowd.pos, self._agent_base_heights(crowd.pos), vehicles)
 
     def _agent_base_heights(self, xy: np.ndarray) -> np.ndarray:
         g = self.crowd.grid

@@ -11,7 +11,7 @@ Two reward presets (docs/tasks.md explains each choice):
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -257,6 +257,7 @@ class Termination:
     stuck_distance: float
     stuck_steps: int
     collision_steps: int
+    off_walkable_ends: bool  # leaving the walkable area ends the episode as out of route
     mark: tuple[int, float] = (0, 0.0)  # (step, max progress) when progress last grew by stuck_distance
     contact_run: int = 0  # consecutive steps in contact
 
@@ -264,13 +265,14 @@ class Termination:
     def from_config(cls, cfg: Mapping[str, Any]) -> Termination:
         """A fresh detector for one episode of a task config."""
         return cls(float(cfg["success_completion"]), float(cfg["out_of_route_distance"]), float(cfg["stuck_distance"]),
-                   int(cfg["stuck_steps"]), int(cfg["collision_steps"]))
+                   int(cfg["stuck_steps"]), int(cfg["collision_steps"]), bool(cfg["terminate_off_walkable"]))
 
-    def __call__(self, steps: int, max_progress: float, route_length: float, lateral: float, off_walkable: bool,
-                 in_contact: bool) -> tuple[bool, bool, bool]:
-        """(succeeded, out_of_route, stuck) after step `steps`."""
+    def __call__(self, steps: int, max_progress: float, route_length: float, lateral: float,
+                 on_walkable: Callable[[], bool], in_contact: bool) -> tuple[bool, bool, bool]:
+        """(succeeded, out_of_route, stuck) after step `steps`; `on_walkable()` is asked only when it decides."""
         succeeded = max_progress >= self.success_completion * route_length
-        out_of_route = (not succeeded) and (abs(lateral) > self.out_of_route_distance or off_walkable)
+        out_of_route = (not succeeded) and (abs(lateral) > self.out_of_route_distance
+                                            or (self.off_walkable_ends and not on_walkable()))
         self.contact_run = self.contact_run + 1 if in_contact else 0
         if max_progress >= self.mark[1] + self.stuck_distance:
             self.mark = (steps, max_progress)
