@@ -9,6 +9,7 @@ from curbside.cli.errors import UsageError
 app = typer.Typer(help="Inspect the description pool from the distribution pipeline.", no_args_is_help=True)
 
 DEFAULT_POOL = "data/pool/pool.parquet"
+POOL_COLUMNS = ("cluster_id", "text", "category", "count", "n_members", "members", "sources", "country_counts")
 
 
 @app.command("show")
@@ -29,6 +30,10 @@ def show(
     if not Path(pool).exists():
         raise UsageError(f"{pool} not found; run `DVC_NO_ANALYTICS=1 dvc repro` first, or pass --pool PATH")
     df = pd.read_parquet(pool)
+    missing = [c for c in POOL_COLUMNS if c not in df.columns]
+    if missing:
+        raise UsageError(f"{pool} is not a description pool (no column {', '.join(missing)}); pass the pool.parquet "
+                         "that `DVC_NO_ANALYTICS=1 dvc repro` writes")
     counts = [json.loads(c) for c in df["country_counts"]]
     if country:
         try:
