@@ -12,6 +12,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import duckdb
 import numpy as np
@@ -97,6 +98,12 @@ def open_catalog(path: str | Path) -> duckdb.DuckDBPyConnection:
     return con
 
 
+_NONE = np.empty(0, dtype=np.int64)
+_NONE.setflags(write=False)
+_MAX_ANSWERS = 4096
+_SMALL = 64  # categories with at most this many assets are filtered in Python
+
+
 @dataclass(frozen=True)
 class AssetTable:
     """Column arrays of the assets table, sorted by asset_id for deterministic sampling."""
@@ -142,8 +149,15 @@ class CatalogReader:
         )
         categories = self.table.category.astype(str)
         self._by_category: dict[str, np.ndarray] = {
-            c: np.flatnonzero(categories == c) for c in np.unique(categories)
+            str(c): np.flatnonzero(categories == c) for c in np.unique(categories)
         }
+        # Per category: its sizes and, per zone, which of its assets allow it, so a query is a few array
+        # comparisons; answers are cached because the generator asks the same few questions thousands of times.
+        self._sizes = {c: self.table.size[ix] for c, ix in self._by_category.items()}
+        self._rows = {c: [(int(i), *map(float, self.table.size[i]), self.table.zones[i]) for i in ix]
+                      for c, ix in self._by_category.items() if len(ix) <= _SMALL}
+        self._in_zone: dict[tuple[str, str], np.ndarray] = {}
+        self._answers: dict[tuple[Any, ...], np.ndarray] = {}
 
     def __len__(self) -> int:
         return len(self.table)
@@ -168,18 +182,37 @@ class CatalogReader:
         max_width: float | None = None,
         max_height: float | None = None,
     ) -> np.ndarray:
-        """Indices (into `table`) of the assets of `category` that fit the zone and the size limits."""
+        """Indices (into `table`) of the assets of `category` that fit the zone and the size limits (read-only)."""
+        key = (category, zone, max_depth, max_width, max_height)
+        hit = self._answers.get(key)
+        if hit is not None:
+            return hit
         ix = self._by_category.get(category)
         if ix is None or len(ix) == 0:
-            return np.empty(0, dtype=np.int64)
-        keep = np.ones(len(ix), dtype=bool)
-        size = self.table.size[ix]
-        for axis, limit in enumerate((max_depth, max_width, max_height)):
-            if limit is not None:
-                keep &= size[:, axis] <= limit
-        if zone is not None:
-            keep &= np.array([zone in self.table.zones[i] for i in ix], dtype=bool)
-        return ix[keep]
+            return _NONE
+        if len(ix) <= _SMALL:
+            # A few assets: a Python filter costs less than building numpy masks.
+            out = np.array([i for i, d, w, h, zs in self._rows[category] if (zone is None or zone in zs) and (
+                max_depth is None or d <= max_depth) and (max_width is None or w <= max_width) and (
+                max_height is None or h <= max_height)], dtype=np.int64)
+        else:
+            keep = np.ones(len(ix), dtype=bool)
+            size = self._sizes[category]
+            for axis, limit in enumerate((max_depth, max_width, max_height)):
+                if limit is not None:
+                    keep &= size[:, axis] <= limit
+            if zone is not None:
+                in_zone = self._in_zone.get((category, zone))
+                if in_zone is None:
+                    in_zone = np.array([zone in self.table.zones[i] for i in ix], dtype=bool)
+                    self._in_zone[(category, zone)] = in_zone
+                keep &= in_zone
+            out = ix[keep]
+        out.setflags(write=False)  # shared by every caller asking the same question
+        if len(self._answers) >= _MAX_ANSWERS:
+            self._answers.clear()  # size limits vary per scene; a long dataset run must not grow without bound
+        self._answers[key] = out
+        return out
 
     def sample(
         self,

@@ -32,11 +32,13 @@ class Placer:
         self.refused: Counter[str] = Counter()
         self.fallback: list[str] = []
         self.z = round_value(float(cfg["curb_height"]))  # objects stand on the curb, stored at 0.1 mm
+        self._has = {c: catalog is not None and len(catalog.candidates(c)) > 0 for c in CATEGORIES}
         self.min_depth = {c: self._min_depth(c) for c in CATEGORIES}
         self._zones: dict[int, tuple[Polygon, tuple[float, float, float, float]]] = {}
 
     def _in_catalog(self, category: str) -> bool:
-        return self.catalog is not None and len(self.catalog.candidates(category)) > 0
+        has = self._has.get(category)
+        return has if has is not None else self.catalog is not None and len(self.catalog.candidates(category)) > 0
 
     def _min_depth(self, category: str) -> float:
         if self._in_catalog(category):
