@@ -100,7 +100,9 @@ def _one(seed: int) -> tuple[dict[str, Any], bool]:
         warnings.simplefilter("ignore")  # fallback categories are in each scene's stats; the CLI reports them once
         spec = generate_scene(_WORKER["cfg"], seed, _WORKER["catalog"])
     spec["catalog"] = _WORKER["name"]  # a str or None: the spec stays canonical
-    save(spec, path, is_canonical=True)  # atomic: a kill leaves the old file or none, never half a scene
+    # Atomic: a kill leaves the old file or none, never half a scene. No fsync: after a power loss a file that
+    # came back empty or torn fails `verified_scene` on the next run and is generated again.
+    save(spec, path, is_canonical=True, durable=False)
     return summarize(spec, name, _WORKER["split"]), True
 
 

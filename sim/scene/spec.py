@@ -179,24 +179,27 @@ def encode(spec: dict[str, Any]) -> str:
     return text
 
 
-def save(spec: dict[str, Any], path: str | Path, *, is_canonical: bool = False) -> Path:
+def save(spec: dict[str, Any], path: str | Path, *, is_canonical: bool = False, durable: bool = True) -> Path:
     """Write the canonical JSON of `spec` to `path` atomically (parents created).
 
-    `is_canonical=True` skips rounding a spec that `generate_scene` returned (its floats are rounded already).
+    `is_canonical=True` skips rounding a spec that `generate_scene` returned (its floats are rounded already);
+    `durable=False` skips the fsync (see `write_atomic`).
     """
     p = Path(path)
-    write_atomic(p, encode(spec) if is_canonical else dumps(spec))
+    write_atomic(p, encode(spec) if is_canonical else dumps(spec), durable=durable)
     return p
 
 
 TMP_SUFFIX = ".tmp"
 
 
-def write_atomic(path: str | Path, text: str) -> None:
+def write_atomic(path: str | Path, text: str, *, durable: bool = True) -> None:
     """Write `text` to a temporary file beside `path`, fsync it, then os.replace it into place.
 
     A run killed mid-write leaves the old file or none, never a truncated one (only a `.<name>.<pid>.tmp` file,
-    which `sim.scene.dataset.build_dataset` removes on its next run).
+    which `sim.scene.dataset.build_dataset` removes on its next run). `durable=False` skips the fsync, which only
+    guards against a power loss or OS crash (the file could then come back empty): for callers that verify every
+    file when they resume, as the dataset builder does, at ~4 ms a file saved.
     """
     import os
 
@@ -206,8 +209,9 @@ def write_atomic(path: str | Path, text: str) -> None:
     try:
         with open(tmp, "w", encoding="utf-8") as f:
             f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
+            if durable:
+                f.flush()
+                os.fsync(f.fileno())
         os.replace(tmp, p)
     except BaseException:
         tmp.unlink(missing_ok=True)
