@@ -1,4 +1,9 @@
-"""Simulator benchmark: PointNav env steps/s against the raw PyBullet floor, reset time, RSS growth."""
+"""Simulator benchmark: env steps/s against the raw PyBullet floor, reset time, scene build time, RSS growth.
+
+PointNav drives the machine in the bench scene (~150 static objects, 240 + 60 LiDAR beams); SocialNav adds 20
+agents (ORCA) and traffic (IDM) to the same scene. Steps are timed in CPU seconds of this process, so load from
+other processes does not count against the simulator; wall-clock figures are reported beside them.
+"""
 
 from __future__ import annotations
 
@@ -8,10 +13,13 @@ import time
 import warnings
 from typing import Any
 
-import numpy as np
 import pybullet as p
 
 BENCH_SCENE = {"blocks": 3, "object_density": 2.5}
+TASKS = ("PointNav", "SocialNav")
+# SocialNav's bench crowd: 20 agents of the usual kinds, plus vehicles at the default traffic density.
+SOCIALNAV_BENCH = {"agents": {"counts": {"pedestrian": 14, "cyclist": 2, "wheelchair_user": 2, "scooter_rider": 2}},
+                   "traffic": True}
 
 
 def bench_scene(target_objects: int = 200, seed: int = 0) -> dict[str, Any]:
@@ -37,44 +45,80 @@ def _rss_mb() -> float:
     return psutil.Process(os.getpid()).memory_info().rss / 2**20
 
 
-def run_bench(quick: bool = False, machine: str = "delivery_bot") -> dict[str, Any]:
-    """Measure env steps/s, the floor (physics substeps + one rayTestBatch per step), reset time, RSS growth."""
-    from sim.envs.pointnav import PointNavEnv
+def make_bench_env(task: str, config: dict[str, Any]) -> Any:
+    """The env of `task` ("PointNav" or "SocialNav", with the bench crowd and traffic) for `config`."""
+    if task not in TASKS:
+        raise ValueError(f"unknown bench task {task!r}; valid: {', '.join(TASKS)}")
+    if task == "PointNav":
+        from sim.envs.pointnav import PointNavEnv
+
+        return PointNavEnv(config)
+    from sim.envs.socialnav import SocialNavEnv
+
+    return SocialNavEnv({**SOCIALNAV_BENCH, **config})
+
+
+def _env_steps(env: Any, steps: int) -> tuple[int, float, float]:
+    """(steps, CPU seconds, wall seconds) of `steps` env steps under the expert's actions, step() only timed."""
     from sim.expert import PurePursuitExpert
 
-    steps = 1000 if quick else 5000
-    resets = 100 if quick else 1000
-    spec = bench_scene()
-    env = PointNavEnv({"scene_spec": spec, "machine": machine})
     expert = PurePursuitExpert()
-    env.reset(seed=0)
-    # CPU time (process_time), not wall time: on a shared machine other processes' load would otherwise
-    # count against the simulator. Wall-clock figures are reported next to them.
     clock = time.process_time
-    # Env: expert actions (the realistic case: the machine moves, turns, touches things); time step() only.
-    t_env, w_env, n, seed = 0.0, 0.0, 0, 0
+    cpu, wall, n, seed = 0.0, 0.0, 0, 0
+    env.reset(seed=seed)
     while n < steps:
+        # Expert actions are the realistic case: the machine moves, turns and touches things.
         action = expert.act(env)
         t0, w0 = clock(), time.perf_counter()
         _, _, term, trunc, _ = env.step(action)
-        t_env += clock() - t0
-        w_env += time.perf_counter() - w0
+        cpu += clock() - t0
+        wall += time.perf_counter() - w0
         n += 1
         if term or trunc:
             seed += 1
             env.reset(seed=seed)
-    steps_per_s = n / t_env
-    # Floor: the same world and machine; only Bullet's substeps and one 240-ray batch per step.
+    return n, cpu, wall
+
+
+def _floor(env: Any, steps: int) -> tuple[float, float]:
+    """(CPU, wall) steps/s of the raw floor: the same world's Bullet substeps and one 240-ray batch a step."""
     c, m, lid = env.client, env.machine, env.lidar
     x, y, z = m.position
     frm, to = lid.rays(x, y, z, m.yaw)
+    clock = time.process_time
     t0, w0 = clock(), time.perf_counter()
     for _ in range(steps):
         for _ in range(env.substeps):
             p.stepSimulation(physicsClientId=c)
         p.rayTestBatch(frm, to, physicsClientId=c)
-    floor = steps / (clock() - t0)
-    floor_wall = steps / (time.perf_counter() - w0)
+    return steps / (clock() - t0), steps / (time.perf_counter() - w0)
+
+
+def _new_scenes(task: str, count: int, machine: str) -> dict[str, float]:
+    """Reset time and RSS growth over `count` resets that each draw a new generated scene (8 worlds cached)."""
+    env = make_bench_env(task, {"machine": machine, "num_scenes": 1_000_000, "scene_cache": 8})
+    warm = min(20, count)
+    for k in range(warm):  # fill the world cache first: growth after that is what a long run would leak
+        env.reset(seed=100_000 + k)
+    rss0 = _rss_mb()
+    t0 = time.perf_counter()
+    for k in range(count):
+        env.reset(seed=k)
+    dt = time.perf_counter() - t0
+    rss1 = _rss_mb()
+    env.close()
+    return {"new_scene_reset_ms": round(1000 * dt / count, 1), "new_scenes": count,
+            "new_scenes_rss_growth_mb": round(rss1 - rss0, 2)}
+
+
+def run_bench(quick: bool = False, machine: str = "delivery_bot", task: str = "PointNav") -> dict[str, Any]:
+    """Measure env steps/s and the floor in the same run, reset and scene build time, RSS growth over resets."""
+    steps = 1000 if quick else 5000
+    resets = 100 if quick else 1000
+    spec = bench_scene()
+    env = make_bench_env(task, {"scene_spec": spec, "machine": machine})
+    n, cpu, wall = _env_steps(env, steps)
+    floor, floor_wall = _floor(env, steps)
     # Resets on the same scene (bodies reused) and the memory they hold on to.
     for k in range(20):
         env.reset(seed=10_000 + k)
@@ -86,25 +130,33 @@ def run_bench(quick: bool = False, machine: str = "delivery_bot") -> dict[str, A
     rss1 = _rss_mb()
     # A fresh scene (world build + planner) for reference.
     t0 = time.perf_counter()
-    env2 = PointNavEnv({"scene_spec": spec, "machine": machine})
+    env2 = make_bench_env(task, {"scene_spec": spec, "machine": machine})
     env2.reset(seed=0)
     build_s = time.perf_counter() - t0
     env2.close()
+    agents = len(env.crowd.states()) if task == "SocialNav" else 0
+    vehicles = len(env.vehicle_states()) if task == "SocialNav" else 0
+    lid = env.lidar
     env.close()
+    steps_per_s = n / cpu
     return {
+        "task": task,
         "machine": machine,
         "objects": len(spec["objects"]),
+        "agents": agents,
+        "vehicles": vehicles,
         "lidar_beams": lid.beams,
         "steps": n,
         "steps_per_s": round(steps_per_s, 1),
         "floor_steps_per_s": round(floor, 1),
         "ratio": round(steps_per_s / floor, 3),
-        "wall_steps_per_s": round(n / w_env, 1),
+        "wall_steps_per_s": round(n / wall, 1),
         "wall_floor_steps_per_s": round(floor_wall, 1),
         "reset_ms": round(1000 * reset_s, 2),
         "scene_build_ms": round(1000 * build_s, 1),
         "resets": resets,
         "rss_growth_mb": round(rss1 - rss0, 2),
+        **_new_scenes(task, 20 if quick else 1000, machine),
         "cpu_count": os.cpu_count() or 0,
         "loadavg_1min": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else math.nan,
     }

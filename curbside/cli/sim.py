@@ -107,15 +107,17 @@ def rollout_cmd(
 
 @app.command("bench")
 def bench_cmd(
-    quick: bool = typer.Option(False, "--quick", help="Smaller counts (seconds instead of a minute)."),
+    quick: bool = typer.Option(False, "--quick", help="Smaller counts (seconds instead of minutes)."),
+    task: Task = typer.Option("PointNav", "--task", help="PointNav, or SocialNav (20 agents + traffic)."),
     machine: MachineName = typer.Option("delivery_bot", help="Machine to drive."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
-    """PointNav env steps/s in a 3-block, ~200-object scene vs the raw PyBullet floor; reset time; RSS growth."""
+    """Env steps per CPU-second in the ~150-object bench scene vs the raw PyBullet floor measured in the same run;
+    reset and scene build time; RSS growth over resets on one scene and over new scenes."""
     import sim  # noqa: F401  (imports pybullet quietly)
     from sim.bench import run_bench
 
-    result = run_bench(quick=quick, machine=machine.value)
+    result = run_bench(quick=quick, machine=machine.value, task=task.value)
     if as_json:
         typer.echo(json.dumps(result, sort_keys=True))
         return
