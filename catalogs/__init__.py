@@ -3,8 +3,7 @@
 `catalogs.reader` imports only duckdb and numpy, so `sim` can read a catalog without heavy dependencies.
 """
 
+from catalogs.layout import DEFAULT_CATALOG
 from catalogs.schema import SCHEMA_VERSION, CatalogError
-
-DEFAULT_CATALOG = "catalogs/default.duckdb"
 
 __all__ = ["DEFAULT_CATALOG", "SCHEMA_VERSION", "CatalogError"]

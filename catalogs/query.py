@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import duckdb
 import numpy as np
 
+from catalogs.reader import read_meta
 from catalogs.schema import ASSET_TEXT_KIND
 
 
@@ -59,7 +60,7 @@ def search(
     filters = filters or QueryFilters()
     if int(limit) < 1:
         raise ValueError(f"limit must be at least 1, got {limit}")
-    meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
+    meta = read_meta(con)
     dim = int(meta["embedding_dim"])
     model = model or meta["embedding_model"]
     vec = np.asarray(query_vector, dtype=np.float32).reshape(-1)

@@ -17,6 +17,7 @@ from typing import Any
 import duckdb
 import numpy as np
 
+from catalogs.layout import resolve_stored
 from catalogs.records import AssetRecord
 from catalogs.schema import (
     ASSET_COLUMNS,
@@ -71,6 +72,32 @@ def catalog_errors(path: str | Path) -> Iterator[None]:
         raise catalog_error(e, path) from e
 
 
+def read_meta(con: duckdb.DuckDBPyConnection) -> dict[str, str]:
+    """The catalog's meta table as a dict (schema version, embedding model and width, build parameters)."""
+    return dict(con.execute("SELECT key, value FROM meta").fetchall())
+
+
+def asset_categories(con: duckdb.DuckDBPyConnection) -> dict[str, str]:
+    """Category of every asset, by asset id."""
+    return dict(con.execute("SELECT asset_id, category FROM assets ORDER BY asset_id").fetchall())
+
+
+def category_names(con: duckdb.DuckDBPyConnection) -> set[str]:
+    """The categories that have at least one asset."""
+    return {r[0] for r in con.execute("SELECT DISTINCT category FROM assets").fetchall()}
+
+
+def descriptions(con: duckdb.DuckDBPyConnection) -> list[tuple[str, str, str | None]]:
+    """(description_id, text, category) of the description pool, sorted by id."""
+    return con.execute("SELECT description_id, text, category FROM descriptions ORDER BY description_id").fetchall()
+
+
+def ranked_matches(con: duckdb.DuckDBPyConnection) -> list[tuple[str, str | None, float]]:
+    """(asset_id, description category, score) of every match, best first within each category (ties by id)."""
+    return con.execute("SELECT m.asset_id, d.category, m.score FROM matches m JOIN descriptions d USING "
+                       "(description_id) ORDER BY d.category, m.score DESC, m.asset_id").fetchall()
+
+
 def open_catalog(path: str | Path) -> duckdb.DuckDBPyConnection:
     """Open a catalog read-only after checking it exists and has this curbside's schema version."""
     p = Path(path)
@@ -83,7 +110,7 @@ def open_catalog(path: str | Path) -> duckdb.DuckDBPyConnection:
     con = None
     try:
         con = duckdb.connect(str(p), read_only=True)
-        meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
+        meta = read_meta(con)
     except duckdb.Error as e:
         if con is not None:
             con.close()
@@ -127,7 +154,7 @@ class CatalogReader:
         con = open_catalog(self.path)
         try:
             with catalog_errors(self.path):  # a damaged data block only shows when the rows are read
-                self.meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
+                self.meta = read_meta(con)
                 cols = ", ".join(ASSET_COLUMNS)
                 rows = con.execute(f"SELECT {cols} FROM assets ORDER BY asset_id").fetchall()
         finally:
@@ -232,7 +259,4 @@ class CatalogReader:
 
     def resolve(self, relative: str | None) -> Path | None:
         """Absolute path of a file recorded relative to the catalog's directory (None stays None)."""
-        if relative is None:
-            return None
-        p = Path(relative)
-        return p if p.is_absolute() else self.root / p
+        return resolve_stored(relative, self.root)

@@ -9,7 +9,10 @@ Conventions every writer follows (docs/catalog.md):
 from __future__ import annotations
 
 SCHEMA_VERSION = 1
-DEFAULT_EMBEDDING_DIM = 384  # all-MiniLM-L6-v2, the packaged default text encoder
+DEFAULT_TEXT_MODEL = "all-MiniLM-L6-v2"  # the packaged text encoder: catalogs embed with it unless told otherwise
+# What a model argument or a catalog's embedding_model may say to mean the packaged model.
+DEFAULT_TEXT_MODEL_NAMES = (None, "", DEFAULT_TEXT_MODEL, f"sentence-transformers/{DEFAULT_TEXT_MODEL}")
+DEFAULT_EMBEDDING_DIM = 384  # DEFAULT_TEXT_MODEL's width
 
 OBJECT_CLASSES = ("standard", "non_standard", "clutter")
 
@@ -17,6 +20,8 @@ OBJECT_CLASSES = ("standard", "non_standard", "clutter")
 ASSET_TEXT_KIND = "asset_text"
 ASSET_IMAGE_KIND = "asset_image"
 DESCRIPTION_KIND = "description"
+# The embeddings that belong to one asset: deleted with it.
+ASSET_KINDS = (ASSET_TEXT_KIND, ASSET_IMAGE_KIND)
 ZONES = ("near_road_buffer", "furnishing", "clear", "frontage_buffer", "frontage", "building")
 
 

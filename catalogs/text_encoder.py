@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-DEFAULT_TEXT_MODEL = "all-MiniLM-L6-v2"
-_DEFAULT_NAMES = (None, "", DEFAULT_TEXT_MODEL, f"sentence-transformers/{DEFAULT_TEXT_MODEL}")
+from catalogs.schema import DEFAULT_TEXT_MODEL, DEFAULT_TEXT_MODEL_NAMES
+
 # numpy dtypes of the safetensors dtype codes a BERT checkpoint uses (BF16 has no numpy dtype: unsupported).
 _ST_DTYPES = {"F32": np.float32, "F16": np.float16, "F64": np.float64, "I64": np.int64, "I32": np.int32}
 
@@ -37,7 +37,7 @@ def default_model_path() -> Path:
 
 def model_folder(model: str | None) -> Path:
     """The folder for a catalog's `embedding_model` value: the packaged MiniLM for its name, else the path."""
-    return default_model_path() if model in _DEFAULT_NAMES else Path(str(model))
+    return default_model_path() if model in DEFAULT_TEXT_MODEL_NAMES else Path(str(model))
 
 
 def supports(path: str | Path) -> bool:

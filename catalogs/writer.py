@@ -6,18 +6,22 @@ import json
 import os
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import duckdb
 import numpy as np
 import pyarrow as pa
 
-from catalogs.reader import catalog_error, catalog_errors
+from catalogs.reader import catalog_error, catalog_errors, descriptions, read_meta
 from catalogs.records import AssetRecord, DescriptionRecord, MatchRecord, RejectionRecord, ViewRecord
 from catalogs.schema import (
     ASSET_COLUMNS,
+    ASSET_IMAGE_KIND,
+    ASSET_KINDS,
+    ASSET_TEXT_KIND,
     DEFAULT_EMBEDDING_DIM,
+    DEFAULT_TEXT_MODEL,
     OBJECT_CLASSES,
     SCHEMA_VERSION,
     ZONES,
@@ -27,13 +31,17 @@ from catalogs.schema import (
     stored_version,
 )
 
-DEFAULT_EMBEDDING_MODEL = "all-MiniLM-L6-v2"
 
+@dataclass(frozen=True)
+class EmbeddedAsset:
+    """An asset with one of its embeddings: what near-duplicate detection compares."""
 
-def asset_root(catalog_path: str | Path) -> Path:
-    """Directory that holds the files (meshes, views) of the catalog at `catalog_path`."""
-    p = Path(catalog_path)
-    return p.parent / f"{p.stem}_assets"
+    asset_id: str
+    source: str
+    source_id: str
+    size: tuple[float, float, float]  # depth, width, height in metres
+    vector: np.ndarray
+    content_hash: str | None
 
 
 def check_asset(record: AssetRecord) -> None:
@@ -61,7 +69,7 @@ class CatalogWriter:
         path: str | Path,
         *,
         embedding_dim: int = DEFAULT_EMBEDDING_DIM,
-        embedding_model: str = DEFAULT_EMBEDDING_MODEL,
+        embedding_model: str = DEFAULT_TEXT_MODEL,
     ) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -80,7 +88,7 @@ class CatalogWriter:
     def _init_schema(self, embedding_dim: int, embedding_model: str) -> None:
         existing = {r[0] for r in self.con.execute("SELECT table_name FROM information_schema.tables").fetchall()}
         if "meta" in existing:
-            meta = dict(self.con.execute("SELECT key, value FROM meta").fetchall())
+            meta = read_meta(self.con)
             if stored_version(meta) != SCHEMA_VERSION:
                 raise CatalogSchemaError(
                     f"catalog {self.path} has schema version {meta.get('schema_version')}, this curbside writes "
@@ -237,6 +245,93 @@ class CatalogWriter:
             self.con.unregister("_batch")
         return n
 
+    def finished_hashes(self) -> dict[tuple[str, str], str | None]:
+        """Content hash of every asset in the catalog, by (source, source_id): what a resumed run may skip."""
+        rows = self.con.execute("SELECT source, source_id, content_hash FROM assets").fetchall()
+        return {(s, i): h for s, i, h in rows}
+
+    def rejection_details(self, config_hash: str, *,
+                          retried: Sequence[str] = ()) -> dict[tuple[str, str], str | None]:
+        """Detail of each rejection made under `config_hash`, by (source, source_id), but those of `retried` reasons."""
+        rows = self.con.execute(
+            "SELECT source, source_id, detail FROM rejections WHERE config_hash = ? AND NOT list_contains(?, reason)",
+            [config_hash, list(retried)]).fetchall()
+        return {(s, i): d for s, i, d in rows}
+
+    def descriptions(self) -> list[tuple[str, str, str | None]]:
+        """(description_id, text, category) of the description pool, sorted by id."""
+        return descriptions(self.con)
+
+    def embedded_assets(self, owner_kind: str = ASSET_IMAGE_KIND) -> list[EmbeddedAsset]:
+        """Every asset that has an embedding of `owner_kind` (any model), with it, sorted by asset id."""
+        rows = self.con.execute(
+            "SELECT a.asset_id, a.source, a.source_id, a.depth, a.width, a.height, e.vector, a.content_hash "
+            "FROM assets a JOIN embeddings e ON e.owner_id = a.asset_id AND e.owner_kind = ? ORDER BY a.asset_id",
+            [owner_kind]).fetchall()
+        return [EmbeddedAsset(r[0], r[1], r[2], (r[3], r[4], r[5]), np.asarray(r[6], dtype=np.float64), r[7])
+                for r in rows]
+
+    def delete_assets(self, asset_ids: Iterable[str]) -> None:
+        """Delete assets and everything of theirs (views, matches, asset embeddings) in one transaction."""
+        ids = list(asset_ids)
+        if not ids:
+            return
+        with self.transaction():
+            for table in ("matches", "views", "assets"):
+                self.con.execute(f"DELETE FROM {table} WHERE list_contains(?, asset_id)", [ids])
+            self.con.execute("DELETE FROM embeddings WHERE list_contains(?, owner_id) AND "
+                             "list_contains(?, owner_kind)", [ids, list(ASSET_KINDS)])
+
+    def reject_assets(self, rejected: Iterable[tuple[str, RejectionRecord]]) -> int:
+        """Record why assets (asset_id, rejection) were refused and delete any rows they had, in one transaction."""
+        pairs = list(rejected)
+        if not pairs:
+            return 0
+        with self.transaction():
+            # A file that changed and now fails must not leave its old rows behind.
+            self.delete_assets(aid for aid, _ in pairs)
+            return self.record_rejections(rec for _, rec in pairs)
+
+    def replace_asset(
+        self,
+        asset: AssetRecord,
+        views: Sequence[ViewRecord] = (),
+        matches: Sequence[MatchRecord] = (),
+        *,
+        text_embedding: np.ndarray | None = None,
+        image_embedding: np.ndarray | None = None,
+        image_model: str | None = None,
+    ) -> None:
+        """Write one finished asset in one transaction, replacing its earlier rows and any rejection of its item."""
+        aid = asset.asset_id
+        with self.transaction():
+            self.con.execute("DELETE FROM rejections WHERE source = ? AND source_id = ?",
+                             [asset.source, asset.source_id])
+            for table in ("views", "matches"):
+                self.con.execute(f"DELETE FROM {table} WHERE asset_id = ?", [aid])
+            self.upsert_views(views)
+            if text_embedding is not None:
+                self.upsert_embeddings(ASSET_TEXT_KIND, [aid], np.asarray(text_embedding)[None, :])
+            if image_embedding is not None:
+                self.upsert_embeddings(ASSET_IMAGE_KIND, [aid], np.asarray(image_embedding)[None, :],
+                                       model=image_model)
+            self.upsert_matches(matches)
+            # Last: a resumed run treats an asset row with its content hash as a finished asset.
+            self.upsert_assets([asset])
+
+    def rank_matches(self, top_k: int) -> int:
+        """Set each match's rank within its description (score, then asset id) and delete those past `top_k`."""
+        with self.transaction():
+            self.con.execute("""
+                UPDATE matches SET rank = r.rk FROM (
+                    SELECT asset_id, description_id,
+                           ROW_NUMBER() OVER (PARTITION BY description_id ORDER BY score DESC, asset_id) AS rk
+                    FROM matches) r
+                WHERE matches.asset_id = r.asset_id AND matches.description_id = r.description_id""")
+            n = self.con.execute("SELECT count(*) FROM matches WHERE rank > ?", [int(top_k)]).fetchone()[0]
+            self.con.execute("DELETE FROM matches WHERE rank > ?", [int(top_k)])
+        return int(n)
+
     def close(self) -> None:
         """Checkpoint and close the connection."""
         try:
@@ -256,7 +351,7 @@ def build_catalog(
     path: str | Path,
     *,
     embedding_dim: int = DEFAULT_EMBEDDING_DIM,
-    embedding_model: str = DEFAULT_EMBEDDING_MODEL,
+    embedding_model: str = DEFAULT_TEXT_MODEL,
 ) -> Iterator[CatalogWriter]:
     """Build a new catalog at `path` atomically: write a temporary file and rename it only on success."""
     path = Path(path)

@@ -7,11 +7,12 @@ from typing import Any
 
 import numpy as np
 
+from catalogs.schema import DEFAULT_TEXT_MODEL
 from curbside.reproducible import write_parquet
 from pipelines.common import load_params, progress, stage_cli, write_metrics
 
 DEFAULTS: dict[str, Any] = {
-    "model": "all-MiniLM-L6-v2",
+    "model": DEFAULT_TEXT_MODEL,
     "batch_size": 64,
     "descriptions": "data/describe/descriptions.parquet",
     "out_dir": "data/embed",

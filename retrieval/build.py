@@ -6,8 +6,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from catalogs.layout import asset_root, procedural_asset_dir
 from catalogs.schema import ASSET_TEXT_KIND
-from catalogs.writer import asset_root, build_catalog
+from catalogs.writer import build_catalog
 
 MAX_VARIANTS = 1000  # variants per category in one build; keeps the seeds of different build seeds disjoint
 
@@ -82,7 +83,7 @@ def build_procedural_catalog(
             bar.update(task, description=f"generating {category}")
             asset = generate(category, s)
             # One folder per asset, named like its id (procedural/<category>/<seed>).
-            exported = export_asset(asset, root / category / f"{s:04d}")
+            exported = export_asset(asset, procedural_asset_dir(root, category, s))
             records.append(to_record(asset, exported, path.parent))
             bar.advance(task)
         bar.update(task, description="embedding asset texts")

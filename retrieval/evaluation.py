@@ -11,9 +11,9 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-import duckdb
 import numpy as np
 
+from catalogs.reader import asset_categories, open_catalog, ranked_matches
 from retrieval.ingest import IngestConfig, ingest
 
 _NOISE = ("SM_{c}_low_v2", "{c} final FINAL", "untitled scan {k:02d}", "model_{k:04d}", "{c}", "Object{k}", "{c} 3d model free")
@@ -56,11 +56,11 @@ def evaluate(source, config: IngestConfig | None = None, ks: tuple[int, ...] = (
     with tempfile.TemporaryDirectory() as tmp:
         cat = Path(workdir or tmp) / "eval.duckdb"
         ingest(wrapped, cat, config or IngestConfig(), limit=limit, progress=False)
-        con = duckdb.connect(str(cat), read_only=True)
-        assets = dict(con.execute("SELECT asset_id, category FROM assets").fetchall())
-        matches = con.execute("SELECT asset_id, d.category, score FROM matches m JOIN descriptions d USING "
-                              "(description_id) ORDER BY d.category, score DESC, asset_id").fetchall()
-        con.close()
+        con = open_catalog(cat)
+        try:
+            assets, matches = asset_categories(con), ranked_matches(con)
+        finally:
+            con.close()
     labels = wrapped.labels
     acc = float(np.mean([assets.get(a) == c for a, c in labels.items()])) if labels else 0.0
     by_cat: dict[str, list[str]] = {}

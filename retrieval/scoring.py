@@ -15,11 +15,13 @@ zscore: the pool mean plus min_lift standard deviations).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
 
+from catalogs.schema import DEFAULT_TEXT_MODEL
 from curbside.config import check_choice
 
 IMAGE_ENCODERS = ("imagenet", "clip", "none")
@@ -44,9 +46,8 @@ def category_pool(categories: list[str]) -> DescriptionPool:
                            tuple(f"a photo of a {c.replace('_', ' ')}" for c in cats), tuple(cats), "category_prompts")
 
 
-def load_pool(con, categories: list[str]) -> DescriptionPool:  # noqa: ANN001 - duckdb connection
-    """The catalog's description pool when it has entries, else the category prompts."""
-    rows = con.execute("SELECT description_id, text, category FROM descriptions ORDER BY description_id").fetchall()
+def load_pool(rows: Sequence[tuple[str, str, str | None]], categories: list[str]) -> DescriptionPool:
+    """The catalog's description pool (CatalogWriter.descriptions rows) when it has entries, else the category prompts."""
     if not rows:
         return category_pool(categories)
     return DescriptionPool(tuple(r[0] for r in rows), tuple(r[1] for r in rows), tuple(r[2] for r in rows))
@@ -85,7 +86,7 @@ class ScoringConfig:
     def scorer_name(self) -> str:
         """Identifies the scorer in every MatchRecord (encoders, aggregate, weights)."""
         img = self.image_encoder if self.image_encoder != "clip" else f"clip[{str(self.clip_model).rstrip('/').split('/')[-1]}]"
-        text = (self.text_model or "all-MiniLM-L6-v2").rstrip("/").split("/")[-1]
+        text = (self.text_model or DEFAULT_TEXT_MODEL).rstrip("/").split("/")[-1]
         cal = {"softmax": f"sm{self.temperature:g}", "zscore": "z", "none": "raw"}[self.calibration]
         return f"{img}+{text}:{self.aggregate}:w{self.image_weight:g}/{self.text_weight:g}:{cal}"
 

@@ -1,8 +1,9 @@
 """The asset half as DVC stages: normalise -> render -> score -> curate, each a function over files.
 
-Each stage runs one step of `retrieval.steps` (the same code `ingest.process_item` fuses per asset) over every
-item and hands its state to the next stage through a folder and a parquet table, one row per asset; an asset
-rejected by a stage keeps its row (stage, reason, detail) so `curate` records it. Run one stage with
+The DVC driver of `retrieval.pipeline`: each stage runs one step (the same code `pipeline.process_item` fuses per
+asset) over every item, under the pipeline's guard, and hands its state to the next stage through a folder and a
+parquet table, one row per asset; an asset rejected by a stage keeps its row (stage, reason, detail) so `curate`
+records it. Run one stage with
 `python -m retrieval.stages <stage> --params retrieval/params.yaml [--root outputs/retrieval]`.
 """
 
@@ -12,8 +13,7 @@ import argparse
 import json
 import os
 import shutil
-import traceback
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -21,22 +21,27 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from curbside.config import ConfigError
-from curbside.reproducible import quiet_third_party, write_frame, write_parquet
-from retrieval.ingest import IngestConfig, ItemResult, config_from_dict
-from retrieval.normalize import AssetRejected, CanonicalMesh
-from retrieval.scoring import AssetScores, DescriptionPool
-from retrieval.sources import Source, SourceItem
-from retrieval.steps import (
+from catalogs.layout import asset_root, retrieved_asset_dir
+from curbside.reproducible import quiet_third_party, write_frame
+from retrieval.normalize import CanonicalMesh
+from retrieval.pipeline import (
+    IngestConfig,
+    ItemResult,
+    Rejection,
     Rendered,
-    asset_dir_for,
-    asset_id_for,
+    asset_id,
+    config_from_dict,
     curate_step,
+    guard,
     normalise_step,
+    prefiltered,
+    rejected,
     render_step,
     score_step,
     view_records,
 )
+from retrieval.scoring import AssetScores, DescriptionPool
+from retrieval.sources import Source, SourceItem
 
 # The params.yaml sections each stage reads; dvc.yaml lists exactly these (a test checks it).
 STAGE_PARAMS: dict[str, tuple[str, ...]] = {
@@ -45,7 +50,7 @@ STAGE_PARAMS: dict[str, tuple[str, ...]] = {
 # Which IngestConfig fields each section sets (normalise -> QualityLimits, score -> ScoringConfig).
 _SECTION_FIELDS = {"render": ("n_views", "n_informative", "image_size", "elevations"),
                    "curate": ("collision", "dedupe_threshold", "write_glb")}
-_REJECT_COLS = ("stage", "reason", "detail")
+_REJECT_COLS = tuple(Rejection.__dataclass_fields__)  # stage, reason, detail
 
 
 def config_for(params: dict[str, Any], stage: str | None = None) -> IngestConfig:
@@ -74,19 +79,6 @@ def stage_pool() -> DescriptionPool:
     return category_pool(sorted(load_size_priors()))
 
 
-def _guard(stage: str, fn: Callable[..., Any], *args: Any) -> tuple[Any, dict[str, str] | None]:
-    """Run one step; a bad asset becomes (None, rejection columns) instead of stopping the stage."""
-    try:
-        return fn(*args), None
-    except AssetRejected as rej:
-        return None, {"stage": stage, "reason": rej.reason, "detail": rej.detail}
-    except ConfigError:
-        raise  # wrong for every asset: stop the stage rather than reject them all
-    except Exception as exc:  # noqa: BLE001 - one broken asset must never stop the stage; the reason is kept
-        tb = traceback.format_exception_only(type(exc), exc)[-1].strip()
-        return None, {"stage": stage, "reason": "error", "detail": tb[:400]}
-
-
 def _item(row: dict[str, Any]) -> SourceItem:
     """The source item a manifest row was made from."""
     return SourceItem(**json.loads(row["item"]))
@@ -95,6 +87,11 @@ def _item(row: dict[str, Any]) -> SourceItem:
 def _rejected(row: dict[str, Any] | None) -> bool:
     """Whether a table row records a rejection (a null reason reads back as None or NaN)."""
     return row is not None and isinstance(row.get("reason"), str)
+
+
+def _rejection(row: dict[str, Any]) -> Rejection:
+    """The rejection a table row records."""
+    return Rejection(*(row[c] for c in _REJECT_COLS))
 
 
 def _live(df: pd.DataFrame) -> Iterator[dict[str, Any]]:
@@ -137,16 +134,14 @@ def normalise(source: Source, config: IngestConfig, out_dir: Path, manifest: Pat
     """Fetch every item and normalise it into `out_dir`; writes the manifest; returns the number kept."""
     rows = []
     for item in source.items(limit):
-        row: dict[str, Any] = {"asset_id": asset_id_for(item), "content_hash": item.content_hash(),
+        row: dict[str, Any] = {"asset_id": asset_id(item.source, item.source_id), "content_hash": item.content_hash(),
                                "item": json.dumps(asdict(item), sort_keys=True)}
-        if "rejected" in item.metadata:  # refused by the source's prefilter (licence, annotated size, download)
-            reason, detail = item.metadata["rejected"]
-            rows.append({**row, "stage": "fetch", "reason": reason, "detail": detail})
-            continue
-        out = asset_dir_for(item, out_dir)
-        norm, rej = _guard("normalize", normalise_step, item, config, out)
-        if rej:
-            rows.append({**row, **rej})
+        rej = prefiltered(item)
+        out = retrieved_asset_dir(out_dir, item.source, item.source_id)
+        if rej is None:
+            norm, rej = guard("normalize", normalise_step, item, config, out)
+        if rej is not None:
+            rows.append({**row, **asdict(rej)})
             continue
         _save_canon(norm.canon, out)
         rows.append({**row, "obj": norm.obj.relative_to(out_dir).as_posix(), "up_axis": norm.canon.up_axis,
@@ -159,11 +154,12 @@ def render(manifest: Path, normalised_dir: Path, config: IngestConfig, views_dir
     """Render every normalised asset into `views_dir`; writes the views table; returns the number kept."""
     rows = []
     for row in _live(pd.read_parquet(manifest)):
-        item, out = _item(row), asset_dir_for(_item(row), views_dir)
+        item = _item(row)
+        out = retrieved_asset_dir(views_dir, item.source, item.source_id)
         bounds = np.asarray(row["bounds"], dtype=np.float64).reshape(2, 3)
-        r, rej = _guard("render", render_step, item, normalised_dir / row["obj"], bounds, config, out)
+        r, rej = guard("render", render_step, item, normalised_dir / row["obj"], bounds, config, out)
         base = {"asset_id": row["asset_id"]}
-        rows.append({**base, **rej} if rej else {
+        rows.append({**base, **asdict(rej)} if rej else {
             **base, "files": [f.relative_to(views_dir).as_posix() for f in r.files], "azimuths": r.azimuths,
             "elevations": r.elevations, "selected": r.selected, "info": r.info})
     _write(rows, views)
@@ -188,10 +184,10 @@ def score(manifest: Path, views: Path, views_dir: Path, config: IngestConfig, sc
     items = {r["asset_id"]: _item(r) for r in pd.read_parquet(manifest).to_dict("records")}
     for row in _live(pd.read_parquet(views)):
         images = [np.asarray(Image.open(views_dir / row["files"][i]).convert("RGB")) for i in row["selected"]]
-        res, rej = _guard("score", score_step, items[row["asset_id"]], images, config, pool)
+        res, rej = guard("score", score_step, items[row["asset_id"]], images, config, pool)
         base = {"asset_id": row["asset_id"]}
         if rej:
-            rows.append({**base, **rej})
+            rows.append({**base, **asdict(rej)})
             continue
         s, top = res
         rows.append({**base, "fused": _vec(s.fused), "raw_fused": _vec(s.raw_fused), "image": _vec(s.image),
@@ -211,90 +207,57 @@ def _arr(v: Any, dtype: str | None = None) -> np.ndarray | None:
 def curate(manifest: Path, normalised_dir: Path, views: Path, views_dir: Path, scores: Path, config: IngestConfig,
            catalog_path: Path) -> tuple[int, int]:
     """Curate every scored asset into a fresh catalog, record every rejection, finalize; returns (written, rejected)."""
-    from catalogs.records import RejectionRecord
-    from catalogs.writer import CatalogWriter, asset_root
+    from catalogs.writer import CatalogWriter
     from retrieval.finalize import finalize
-    from retrieval.ingest import _write_result, record_pool
+    from retrieval.pipeline import record_pool, write_result
 
     catalog_path = Path(catalog_path)
     if catalog_path.exists() or asset_root(catalog_path).exists():
         raise FileExistsError(f"curate builds a fresh catalog: remove {catalog_path} and {asset_root(catalog_path)}")
     tables = [pd.read_parquet(p) for p in (manifest, views, scores)]
     by_stage = [{r["asset_id"]: r for r in t.to_dict("records")} for t in tables[1:]]
-    pool, written, rejected = stage_pool(), 0, 0
+    pool, n_written, n_rejected = stage_pool(), 0, 0
     with CatalogWriter(catalog_path) as writer:
         record_pool(writer, pool, config)
         for row in tables[0].to_dict("records"):
             item, h, aid = _item(row), row["content_hash"], row["asset_id"]
-            rej = next((r for r in (row, *(t.get(aid) for t in by_stage)) if _rejected(r)), None)
-            if rej is None:
+            earlier = next((r for r in (row, *(t.get(aid) for t in by_stage)) if _rejected(r)), None)
+            if earlier is None:
                 res = _curate_one(item, h, row, by_stage[0][aid], by_stage[1][aid], normalised_dir, views_dir, config,
                                   pool, catalog_path)
-                rej = res if isinstance(res, dict) else None
-            if rej is not None:
-                # Same detail as ingest's rejections: the content hash lets a later ingest skip the same bytes.
+            else:
                 # No config_hash: this stage saw only its own params sections, so a later ingest re-checks them.
-                rec = RejectionRecord(item.source, item.source_id, rej["stage"], rej["reason"],
-                                      f"{rej['detail']} [sha256:{h[:16]}]")
-                res = ItemResult(item.source, item.source_id, h, rejection=rec)
-            with writer.transaction():
-                _write_result(writer, res, config, catalog_path)
-            written, rejected = written + (rej is None), rejected + (rej is not None)
+                res = rejected(item, h, _rejection(earlier), None)
+            write_result(writer, res, config, catalog_path)
+            n_written, n_rejected = n_written + (res.rejection is None), n_rejected + (res.rejection is not None)
         finalize(writer, config)
-    return written, rejected
+    return n_written, n_rejected
 
 
 def _curate_one(item: SourceItem, h: str, row: dict, view_row: dict, score_row: dict, normalised_dir: Path,
-                views_dir: Path, config: IngestConfig, pool: DescriptionPool,
-                catalog_path: Path) -> ItemResult | dict[str, str]:
-    """Copy one asset's views into the catalog and curate it; returns its result or its rejection columns."""
-    from catalogs.writer import asset_root
-
-    out = asset_dir_for(item, asset_root(catalog_path))
-    src = asset_dir_for(item, views_dir)
+                views_dir: Path, config: IngestConfig, pool: DescriptionPool, catalog_path: Path) -> ItemResult:
+    """Copy one asset's views into the catalog and curate it; returns its result (or its rejection)."""
+    out = retrieved_asset_dir(asset_root(catalog_path), item.source, item.source_id)
+    src = retrieved_asset_dir(views_dir, item.source, item.source_id)
     shutil.copytree(src, out, dirs_exist_ok=True)  # views/ and contact_sheet.png, where ingest puts them
-    canon = _load_canon(asset_dir_for(item, normalised_dir), row["up_axis"], json.loads(row["params"]))
-    n = len(view_row["files"])
+    canon = _load_canon(retrieved_asset_dir(normalised_dir, item.source, item.source_id), row["up_axis"],
+                        json.loads(row["params"]))
     rendered = Rendered([], list(view_row["azimuths"]), list(view_row["elevations"]),
                         [int(i) for i in view_row["selected"]], list(view_row["info"]),
                         [out / Path(f).relative_to(src.relative_to(views_dir)) for f in view_row["files"]])
-    views = view_records(asset_id_for(item), rendered,
-                         [rendered.files[i].relative_to(catalog_path.parent).as_posix() for i in range(n)])
+    views = view_records(asset_id(item.source, item.source_id), rendered, catalog_path.parent)
     s = score_row
     scores = AssetScores(_arr(s["fused"]), _arr(s["image"]), _arr(s["text"]),
                          _arr(s["image_embedding"], s["image_embedding_dtype"]),
                          _arr(s["text_embedding"], s["text_embedding_dtype"]), raw_fused=_arr(s["raw_fused"]))
     top = [(int(i), float(x)) for i, x in zip(s["top_index"], s["top_score"])]
-    res, rej = _guard("curate", curate_step, item, h, canon, scores, top, rendered.selected, config, pool,
-                      out, catalog_path.parent)
-    if rej:
-        return rej
+    res, rej = guard("curate", curate_step, item, h, canon, scores, top, rendered.selected, config, pool,
+                     out, catalog_path.parent)
+    if rej is not None:
+        return rejected(item, h, rej, None)
     asset, matches = res
     return ItemResult(item.source, item.source_id, h, asset, views, matches, scores.image_embedding,
                       scores.text_embedding)
-
-
-def dump_catalog(catalog_path: Path, out_dir: Path) -> list[str]:
-    """Write every table of a catalog as `out_dir/<table>.parquet`, rows sorted: the catalog's bytes-stable record.
-
-    A DuckDB file is not byte-reproducible (each file gets a random identifier, and block contents vary), so DVC
-    tracks this dump instead of the .duckdb: equal catalogs give equal dumps. Returns the table names.
-    """
-    import duckdb
-
-    out_dir = Path(out_dir)
-    if out_dir.exists():
-        shutil.rmtree(out_dir)
-    out_dir.mkdir(parents=True)
-    con = duckdb.connect(str(catalog_path), read_only=True)
-    try:
-        names = sorted(r[0] for r in con.execute("SELECT table_name FROM information_schema.tables").fetchall())
-        for name in names:
-            write_parquet(con.sql(f'SELECT * FROM "{name}" ORDER BY ALL').to_arrow_table(),
-                          out_dir / f"{name}.parquet")
-    finally:
-        con.close()
-    return names
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -336,6 +299,8 @@ def main(argv: list[str] | None = None) -> None:
         for stale in (catalog, catalog.with_name(catalog.name + ".wal")):
             stale.unlink(missing_ok=True)
         written, rejected = curate(man, norm, vt, vdir, sc, config, catalog)
+        from catalogs.inspect import dump_catalog
+
         tables = dump_catalog(catalog, r / "catalog_tables")
         summary = (f"{written} assets written, {rejected} rejected -> {catalog} "
                    f"({len(tables)} tables dumped to {r / 'catalog_tables'})")

@@ -41,7 +41,7 @@ def _copy_catalog(src: Path, dst_dir: Path) -> Path:
     """Copy a catalog file and its asset folder into `dst_dir`; returns the new catalog path."""
     import shutil
 
-    from catalogs.writer import asset_root
+    from catalogs.layout import asset_root
 
     dst = dst_dir / src.name
     shutil.copy2(src, dst)

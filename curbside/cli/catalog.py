@@ -132,6 +132,7 @@ def query(
 ) -> None:
     """Search the catalog by meaning: text-embedding similarity computed in DuckDB, filters as SQL parameters."""
     from catalogs.query import QueryFilters, search
+    from catalogs.reader import category_names, read_meta
 
     if not text.strip():
         raise UsageError("the query text is empty; say what to look for, e.g. `curbside catalog query \"bench\"`")
@@ -142,10 +143,9 @@ def query(
     con = _open(catalog)
     # Checksum errors surface while blocks are read, not on open: the whole read maps to one error line.
     with _catalog_errors(catalog), contextlib.closing(con):
-        meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
-        vec = _embed_query(meta.get("embedding_model"), text)
+        vec = _embed_query(read_meta(con).get("embedding_model"), text)
         results = search(con, vec, filters, limit=limit)
-        known = {r[0] for r in con.execute("SELECT DISTINCT category FROM assets").fetchall()}
+        known = category_names(con)
     active = {k: v for k, v in vars(filters).items() if v is not None}
     hint = None
     if not results:

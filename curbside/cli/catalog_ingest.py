@@ -9,6 +9,7 @@ from pathlib import Path
 
 import typer
 
+from catalogs import DEFAULT_CATALOG  # light: only the schema constants
 from curbside.cli.errors import RunError, UsageError
 
 # Option choices as Enums and ranges, so click refuses a bad value before the catalog is touched: a bad value
@@ -41,7 +42,7 @@ def register(app: typer.Typer) -> None:
         executor: Executor = typer.Option(Executor.local.value, help="where the per-asset steps run"),
         address: str = typer.Option(None, help="Ray cluster address (with --executor ray)"),
         workers: int = typer.Option(None, min=1, help="worker processes (process/ray executors)"),
-        catalog: Path = typer.Option(Path("catalogs/default.duckdb"), help="catalog file (created if missing)"),
+        catalog: Path = typer.Option(Path(DEFAULT_CATALOG), help="catalog file (created if missing)"),
         scorer: Scorer = typer.Option(Scorer.imagenet.value, help="image encoder"),
         clip_model: str = typer.Option(None, help="CLIP weights folder (with --scorer clip)"),
         views: int = typer.Option(8, min=1, max=MAX_VIEWS, help="rendered views per asset"),

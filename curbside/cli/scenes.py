@@ -9,11 +9,10 @@ from pathlib import Path
 
 import typer
 
+from catalogs import DEFAULT_CATALOG  # light: only the schema constants
 from curbside.cli.errors import UsageError
 
 app = typer.Typer(help="Generate, render and collect urban scenes (scene specs as JSON).", no_args_is_help=True)
-
-DEFAULT_CATALOG = Path("catalogs/default.duckdb")
 
 
 # Choices as Enums so `--help` lists them and a typo fails before any work (names kept in sync by tests).
@@ -26,13 +25,13 @@ MAX_COUNT = 1_000_000  # splits start 1,000,000 seeds apart (sim.scene.dataset.M
 
 
 def _catalog(path: Path | None) -> str | None:
-    """The catalog to use: the given path, else catalogs/default.duckdb when present, else none (fallback boxes)."""
+    """The catalog to use: the given path, else DEFAULT_CATALOG when present, else none (fallback boxes)."""
     if path is not None:
         if not path.exists():
             raise UsageError(f"no catalog at {path}; build one with `curbside catalog build` or leave out --catalog")
         return str(path)
-    if DEFAULT_CATALOG.exists():
-        return str(DEFAULT_CATALOG)
+    if Path(DEFAULT_CATALOG).exists():
+        return DEFAULT_CATALOG
     typer.secho(
         f"warning: no catalog given and {DEFAULT_CATALOG} does not exist; objects are default-size boxes "
         "(build a catalog with `curbside catalog build`)", fg="yellow", err=True,
@@ -69,7 +68,7 @@ def generate(
     templates: str = typer.Option("abcdef", help="Sidewalk templates to draw from (a-g)."),
     object_density: float = typer.Option(1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."),
     country: str | None = typer.Option(None, help="ISO country code of the category distribution (default: uniform)."),
-    catalog: Path | None = typer.Option(None, help="Asset catalog (default: catalogs/default.duckdb if present)."),
+    catalog: Path | None = typer.Option(None, help=f"Asset catalog (default: {DEFAULT_CATALOG} if present)."),
     crosswalk_density: float = typer.Option(0.5, "--crosswalk-density",
                                             help="Fraction of crosswalk candidates built, in [0, 1]."),
 ) -> None:
@@ -125,7 +124,7 @@ def dataset(
     count: int = typer.Option(100, min=1, max=MAX_COUNT, help="Number of scenes."),
     blocks: str = typer.Option("3", help="Blocks per scene (count 1-64 or codes)."),
     object_density: float = typer.Option(1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."),
-    catalog: Path | None = typer.Option(None, help="Asset catalog (default: catalogs/default.duckdb if present)."),
+    catalog: Path | None = typer.Option(None, help=f"Asset catalog (default: {DEFAULT_CATALOG} if present)."),
     workers: int = typer.Option(1, min=1, max=256, help="Worker processes."),
     preset: Preset = typer.Option("metaurban12k", help="Scene preset: metaurban12k (the paper's density, the "
                                   "default) or none (the generator's plain defaults, sparser scenes)."),
@@ -140,7 +139,14 @@ def dataset(
     """
     import time
 
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     from sim.scene.config import resolve_config
     from sim.scene.dataset import build_dataset, split_config

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-DEFAULT_TEXT_MODEL = "all-MiniLM-L6-v2"
+from catalogs.schema import DEFAULT_TEXT_MODEL, DEFAULT_TEXT_MODEL_NAMES
 
 
 def default_model_path() -> str:
@@ -19,7 +19,7 @@ def default_model_path() -> str:
 
 def resolve_model_path(model: str | None) -> str:
     """Map None or the default model's name to the packaged path; anything else must be an existing path."""
-    if model in (None, "", DEFAULT_TEXT_MODEL, f"sentence-transformers/{DEFAULT_TEXT_MODEL}"):
+    if model in DEFAULT_TEXT_MODEL_NAMES:
         return default_model_path()
     if not Path(model).exists():
         raise FileNotFoundError(

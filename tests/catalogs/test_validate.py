@@ -6,8 +6,9 @@ from pathlib import Path
 
 import trimesh
 
+from catalogs.layout import asset_root
 from catalogs.validate import validate_catalog
-from catalogs.writer import asset_root, build_catalog
+from catalogs.writer import build_catalog
 
 
 def _box(path: Path, size: tuple[float, float, float], lift: float = 0.0) -> str:

@@ -7,10 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from catalogs.layout import asset_root
 from catalogs.reader import CatalogReader, open_catalog
 from catalogs.records import DescriptionRecord, MatchRecord, RejectionRecord, ViewRecord
 from catalogs.schema import CatalogError
-from catalogs.writer import CatalogWriter, asset_root, build_catalog
+from catalogs.writer import CatalogWriter, build_catalog
 
 
 def _count(path: Path, table: str) -> int:
@@ -124,3 +125,27 @@ def test_build_is_atomic_and_leaves_no_half_catalog(tmp_path: Path, make_asset) 
     with build_catalog(path) as w:
         w.upsert_assets([make_asset("new")])
     assert list(CatalogReader(path).table.asset_id) == ["new"]  # a build replaces, it does not merge
+
+
+def test_an_asset_is_replaced_rejected_and_deleted_across_every_table(tmp_path: Path, make_asset) -> None:
+    path = tmp_path / "c.duckdb"
+    vec = np.eye(384, dtype=np.float32)
+    with CatalogWriter(path) as w:
+        w.upsert_descriptions([DescriptionRecord("d0", "a bench")])
+        w.upsert_embeddings("description", ["d0"], vec[:1])  # not the asset's: survives its deletion
+        for aid, score in (("a", 0.9), ("b", 0.5)):
+            w.record_rejections([RejectionRecord("procedural", aid, "render", "error", "old", "h1")])
+            w.replace_asset(make_asset(aid), [ViewRecord(aid, 0, 0.0, 15.0, f"{aid}.png")],
+                            [MatchRecord(aid, "d0", score, "s")], text_embedding=vec[1], image_embedding=vec[2],
+                            image_model="imagenet")
+        assert w.finished_hashes() == {("procedural", "a"): None, ("procedural", "b"): None}
+        assert w.rejection_details("h1") == {}  # a finished asset clears its item's rejection
+        assert [e.asset_id for e in w.embedded_assets()] == ["a", "b"]
+        assert w.rank_matches(1) == 1  # b ranks second for d0
+        w.reject_assets([("a", RejectionRecord("procedural", "a", "curate", "near_duplicate", "of b", "h2"))])
+        assert w.rejection_details("h2", retried=("near_duplicate",)) == {}
+        assert w.rejection_details("h2") == {("procedural", "a"): "of b"}
+        w.delete_assets(["b"])
+    for table in ("assets", "views", "matches"):
+        assert _count(path, table) == 0, table
+    assert _count(path, "embeddings") == 1 and _count(path, "rejections") == 1
