@@ -1,0 +1,69 @@
+"""Vector envs: PointNav steps/s of one env in one process vs `gymnasium.make_vec(..., "async")` over N workers.
+
+Usage: python benchmarks/vector_envs.py [--task PointNav|SocialNav] [--envs N] [--steps S]
+Both sides run the bench scene (sim.bench.bench_scene) under the same fixed action cycle and count env steps per
+wall-clock second (the vector env spends its time in N processes). Target (issue 14): with N = cores the vector
+env reaches >= 1.8x one process on the 2-core dev machine. Run it on an otherwise idle machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import sim  # noqa: F401  (registers the env ids)
+from sim.bench import SOCIALNAV_BENCH, bench_scene
+
+ACTIONS = np.array([[0.8, 0.0], [0.6, 0.3], [0.8, 0.0], [0.5, -0.3]], dtype=np.float32)
+
+
+def _config(task: str, spec: dict) -> dict:
+    return {"scene_spec": spec, **(SOCIALNAV_BENCH if task == "SocialNav" else {})}
+
+
+def one_process(task: str, spec: dict, steps: int) -> float:
+    """Env steps per wall second of one env stepped in this process (resets included, as a vector env has them)."""
+    env = gym.make(f"curbside/{task}-v0", config=_config(task, spec))
+    env.reset(seed=0)
+    t0 = time.perf_counter()
+    for k in range(steps):
+        _, _, term, trunc, _ = env.step(ACTIONS[k % len(ACTIONS)])
+        if term or trunc:
+            env.reset()
+    rate = steps / (time.perf_counter() - t0)
+    env.close()
+    return rate
+
+
+def vector(task: str, spec: dict, steps: int, n: int) -> float:
+    """Env steps per wall second of an async vector env of `n` workers (steps counted over all workers)."""
+    venv = gym.make_vec(f"curbside/{task}-v0", num_envs=n, vectorization_mode="async",
+                        vector_kwargs={"context": "forkserver"}, config=_config(task, spec))
+    venv.reset(seed=0)
+    rounds = max(steps // n, 1)
+    t0 = time.perf_counter()
+    for k in range(rounds):
+        venv.step(np.repeat(ACTIONS[k % len(ACTIONS)][None], n, axis=0))
+    rate = rounds * n / (time.perf_counter() - t0)
+    venv.close()
+    return rate
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--task", choices=("PointNav", "SocialNav"), default="PointNav")
+    ap.add_argument("--envs", type=int, default=os.cpu_count() or 2)
+    ap.add_argument("--steps", type=int, default=4000)
+    args = ap.parse_args()
+    spec = bench_scene()
+    single = one_process(args.task, spec, args.steps)
+    vec = vector(args.task, spec, args.steps, args.envs)
+    result = {"task": args.task, "envs": args.envs, "steps": args.steps, "one_process_steps_per_s": round(single, 1),
+              "vector_steps_per_s": round(vec, 1), "speedup": round(vec / single, 2), "cpu_count": os.cpu_count(),
+              "loadavg_1min": round(os.getloadavg()[0], 2)}
+    print(json.dumps(result, sort_keys=True))
