@@ -118,7 +118,7 @@ def _cases(f: dict[str, Path]) -> list[list[str]]:
         cases += [[*cmd, "--scene-path", str(p)] for p in (f["missing"], f["dir"], f["garbage"], f["list"],
                                                           f["obj"], f["nan_scene"])]
     cases += [["sim", "eval", "--episodes", v] for v in ("0", "-1", "x")]
-    cases += [["sim", "bench", "--machine", "tank"]]
+    cases += [["sim", "bench", "--machine", "tank"], ["sim", "bench", "--task", "Fly"]]
     # Pool.
     cases += [["pool", "show", "--pool", str(p)] for p in (f["missing"], f["garbage"], f["dir"])]
     cases += [["pool", "show", "--top", v] for v in ("0", "-1")]
