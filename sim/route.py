@@ -14,6 +14,7 @@ from scipy.sparse import diags
 from scipy.sparse.csgraph import dijkstra
 
 from sim.scene.grid import SIDEWALK, decode_walkable, grid_graph, obstacle_mask
+from sim.scene.polyline import Polyline
 
 LONG_ROUTE = 120.0  # metres: longer routes are drawn as chained legs
 
@@ -27,17 +28,14 @@ def _no_route(min_length: float, max_length: float, tries: int) -> RouteError:
                       "(more blocks) or a shorter `route_length`")
 
 
-class Route:
-    """A smoothed reference polyline with arc length, projection and look-ahead queries."""
+class Route(Polyline):
+    """The ego's reference route: a smoothed polyline resampled every `spacing` metres, from `start` to `goal`."""
 
     def __init__(self, points: np.ndarray, spacing: float = 0.25) -> None:
         pts = _resample(np.asarray(points, dtype=float), spacing)
-        self.points = pts
         seg = np.diff(pts, axis=0)
-        self.seg = seg
-        self.seg_len = np.maximum(np.hypot(seg[:, 0], seg[:, 1]), 1e-9)
-        self.s = np.concatenate([[0.0], np.cumsum(self.seg_len)])
-        self.length = float(self.s[-1])
+        # Floored so that `locate` never divides by a zero-length segment.
+        super().__init__(pts, np.maximum(np.hypot(seg[:, 0], seg[:, 1]), 1e-9))
         self.spacing = spacing
 
     @property
@@ -49,34 +47,6 @@ class Route:
     def goal(self) -> np.ndarray:
         """Last point."""
         return self.points[-1]
-
-    def point_at(self, s: np.ndarray | float) -> np.ndarray:
-        """Point(s) at arc length `s` (clamped to the route)."""
-        s = np.clip(s, 0.0, self.length)
-        return np.stack([np.interp(s, self.s, self.points[:, 0]), np.interp(s, self.s, self.points[:, 1])], -1)
-
-    def heading_at(self, s: float) -> float:
-        """Direction of travel (radians) at arc length `s`."""
-        k = int(min(max(np.searchsorted(self.s, s, side="right") - 1, 0), len(self.seg) - 1))
-        return math.atan2(self.seg[k, 1], self.seg[k, 0])
-
-    def project(self, x: float, y: float, s_hint: float | None = None, window: tuple[float, float] = (3.0, 8.0)) -> tuple[float, float]:
-        """(arc length, signed lateral offset; left positive) of the closest route point, searched near s_hint."""
-        if s_hint is None:
-            k0, k1 = 0, len(self.seg)
-        else:
-            k0 = max(int(np.searchsorted(self.s, s_hint - window[0])) - 1, 0)
-            k1 = min(int(np.searchsorted(self.s, s_hint + window[1])) + 1, len(self.seg))
-        a = self.points[k0:k1]
-        d = self.seg[k0:k1]
-        qx, qy = x - a[:, 0], y - a[:, 1]
-        t = np.clip((qx * d[:, 0] + qy * d[:, 1]) / (self.seg_len[k0:k1] ** 2), 0.0, 1.0)
-        ex, ey = qx - t * d[:, 0], qy - t * d[:, 1]
-        dist2 = ex * ex + ey * ey
-        k = int(np.argmin(dist2))
-        cross = d[k, 0] * qy[k] - d[k, 1] * qx[k]
-        lateral = math.sqrt(float(dist2[k])) * (1.0 if cross >= 0 else -1.0)
-        return float(self.s[k0 + k] + t[k] * self.seg_len[k0 + k]), lateral
 
 
 def _resample(pts: np.ndarray, spacing: float) -> np.ndarray:

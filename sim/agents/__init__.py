@@ -2,9 +2,8 @@
 
 from sim.agents.crowd import AGENT_DEFAULTS, AGENT_DTYPE, AgentManager, EgoState
 from sim.agents.kinds import AGENT_KINDS, DEFAULT_MIX, KIND_NAMES, MOVEMENTS, AgentKind, agent_kind
-from sim.agents.toy import toy_street_spec
 
 __all__ = [
     "AGENT_DEFAULTS", "AGENT_DTYPE", "AGENT_KINDS", "DEFAULT_MIX", "KIND_NAMES", "MOVEMENTS",
-    "AgentKind", "AgentManager", "EgoState", "agent_kind", "toy_street_spec",
+    "AgentKind", "AgentManager", "EgoState", "agent_kind",
 ]

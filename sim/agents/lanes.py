@@ -15,36 +15,37 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from shapely.geometry import LineString, Polygon
 
+from sim.scene.polyline import Polyline
 
-@dataclass
-class Lane:
-    """One lane: its polyline, cumulative arc lengths and the crosswalk intervals [s_in, s_out] along it."""
 
-    points: np.ndarray
-    cum: np.ndarray
-    crossings: list[tuple[int, float, float]]  # (crosswalk index, s_in, s_out)
-    road: int = -1  # index of the spec road the lane belongs to
-    rank: int = 0  # 0 for the lane next to the centerline, 1 for the next one out, ...
-    src: int = -1  # connectors only: the lane it leaves ...
-    dst: int = -1  # ... and the lane it joins
+class Lane(Polyline):
+    """One lane: its polyline (arc lengths `s`), the crosswalk intervals [s_in, s_out] along it, its road and rank,
+    and for connectors the lanes it joins."""
+
+    def __init__(self, points: np.ndarray, crossings: list[tuple[int, float, float]] | None = None, road: int = -1,
+                 rank: int = 0, src: int = -1, dst: int = -1) -> None:
+        pts = np.asarray(points, dtype=np.float64)
+        # Lanes have always measured their segments with np.linalg.norm; Polyline's np.hypot differs in the
+        # last bit, and traffic would then drift from the episodes recorded so far.
+        super().__init__(pts, np.linalg.norm(np.diff(pts, axis=0), axis=1))
+        self.crossings = [] if crossings is None else crossings  # (crosswalk index, s_in, s_out)
+        self.road = road  # index of the spec road the lane belongs to
+        self.rank = rank  # 0 for the lane next to the centerline, 1 for the next one out, ...
+        self.src = src  # connectors only: the lane it leaves ...
+        self.dst = dst  # ... and the lane it joins
 
     @property
     def is_connector(self) -> bool:
         """Whether this lane is a path through an intersection between two road lanes."""
         return self.src >= 0
 
-    @property
-    def length(self) -> float:
-        """Lane length in metres."""
-        return float(self.cum[-1])
-
     def pose(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World positions [n, 2] and headings [n] at arc lengths `s` (clipped onto the lane)."""
         s = np.clip(s, 0.0, self.length)
-        k = np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, len(self.points) - 2)
-        seg = self.points[k + 1] - self.points[k]
-        seg_len = np.maximum(self.cum[k + 1] - self.cum[k], 1e-9)
-        xy = self.points[k] + seg * ((s - self.cum[k]) / seg_len)[:, None]
+        k = np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, len(self.points) - 2)
+        seg = self.seg[k]
+        seg_len = np.maximum(self.s[k + 1] - self.s[k], 1e-9)
+        xy = self.points[k] + seg * ((s - self.s[k]) / seg_len)[:, None]
         return xy, np.arctan2(seg[:, 1], seg[:, 0])
 
 
@@ -140,7 +141,7 @@ def connector_compatibility(lanes: list[Lane], width: float, margin: float = 0.3
     n = len(lanes)
     ok = np.ones((n, n), dtype=bool)
     conn = [i for i, ln in enumerate(lanes) if ln.is_connector]
-    swept = {i: LineString(lanes[i].points).buffer(0.5 * width + margin) for i in conn}
+    swept = {i: lanes[i].line.buffer(0.5 * width + margin) for i in conn}
     for i in conn:
         for j in conn:
             a, b = lanes[i], lanes[j]
@@ -152,9 +153,9 @@ def connector_compatibility(lanes: list[Lane], width: float, margin: float = 0.3
 
 
 def _lane(pts: np.ndarray, crosswalks: list[Polygon]) -> Lane:
-    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-    line = LineString(pts)
-    crossings = []
+    lane = Lane(pts)
+    line = lane.line
+    crossings = lane.crossings
     for ci, poly in enumerate(crosswalks):
         inter = line.intersection(poly)
         if inter.is_empty:
@@ -162,7 +163,7 @@ def _lane(pts: np.ndarray, crosswalks: list[Polygon]) -> Lane:
         coords = np.concatenate([np.asarray(g.coords) for g in getattr(inter, "geoms", [inter])])
         s = np.array([line.project(shapely.Point(c)) for c in coords])
         crossings.append((ci, float(s.min()), float(s.max())))
-    return Lane(pts, cum, crossings)
+    return lane
 
 
 def conflicts(axis_a: np.ndarray | float, axis_b: np.ndarray | float) -> np.ndarray:
@@ -176,7 +177,7 @@ def build_conflict_zones(lanes: list[Lane], width: float, merge: float = 12.0) -
     Each lane's interval around a crossing is grown so that a vehicle of `width` outside it cannot touch one
     inside the crossing lane's interval: half a width across the other lane, stretched by 1/sin of the angle.
     """
-    lines = [LineString(ln.points) for ln in lanes]
+    lines = [ln.line for ln in lanes]
     tree = shapely.STRtree(lines)
     pts: list[tuple[int, float, float, float, float]] = []  # lane, s, grow, x, y
     for a, b in zip(*tree.query(lines, predicate="crosses")):

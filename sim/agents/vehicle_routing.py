@@ -23,7 +23,7 @@ class LaneRouting:
         self.lane_len = lengths
         self.lane_off = np.concatenate([[0.0], np.cumsum(lengths + 1.0)])[:-1]
         self.all_pts = np.concatenate([ln.points for ln in self.lanes]) if self.lanes else np.zeros((0, 2))
-        self.all_cum = np.concatenate([ln.cum + o for ln, o in zip(self.lanes, self.lane_off)]) if self.lanes else np.zeros(0)
+        self.all_cum = np.concatenate([ln.s + o for ln, o in zip(self.lanes, self.lane_off)]) if self.lanes else np.zeros(0)
         self.crossings = [(li, ci, s_in) for li, ln in enumerate(self.lanes) for ci, s_in, _ in ln.crossings]
         # The lane continuing each road lane (starts within 1 m of its end, heading within 30 degrees), or -1;
         # a connector continues onto its target lane.

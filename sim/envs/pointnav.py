@@ -242,7 +242,7 @@ class PointNavEnv(gym.Env):
         self._on_step()
         x, y = m.position[0], m.position[1]
         ep = self.episode
-        s, lat = self.route.project(x, y, ep.progress)
+        s, lat = self.route.locate(x, y, ep.progress)
         collided = bool(hits & self.cost_kinds)
         progress, new_progress = ep.advance((x0, y0), (x, y), s, lat, hits, collided)
         ep.succeeded, ep.out_of_route, ep.stuck = self.termination(

@@ -140,7 +140,7 @@ def _generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any) -> d
         "roads": [
             {
                 "id": b.id, "block": b.code, "polygon": ring_coords(b.polygon),
-                "centerlines": [w.centerline.pts.tolist() for w in b.roadways if w.sides != (1,)],
+                "centerlines": [w.centerline.points.tolist() for w in b.roadways if w.sides != (1,)],
                 "roadway_ids": [w.id for w in b.roadways if w.sides != (1,)],
                 "lanes": b.lanes, "lane_width": b.lane_width,
                 "lane_lines": [ln for w in b.roadways for ln in lane_lines(w, b.lanes, b.lane_width)],

@@ -18,7 +18,7 @@ MIN_SHARED = 0.5  # m of common boundary for two sidewalks to count as joined (a
 def _ending_at(block: Block, p: np.ndarray) -> Roadway | None:
     """The two-sided roadway of `block` that ends at point `p` (the socket a child block was grown on)."""
     for w in block.roadways:
-        if w.sides != (1,) and float(np.hypot(*(w.centerline.pts[-1] - p))) < 1e-6:
+        if w.sides != (1,) and float(np.hypot(*(w.centerline.points[-1] - p))) < 1e-6:
             return w
     return None
 
@@ -43,7 +43,7 @@ def join_seams(blocks: list[Block], sidewalks: list[Sidewalk], roads: list[Polyg
         if b.parent is None:
             continue
         child_way = b.roadways[0]
-        p, h = child_way.centerline.pts[0], float(child_way.centerline.heading[0])
+        p, h = child_way.centerline.points[0], float(child_way.centerline.heading[0])
         parent_way = _ending_at(blocks[b.parent], p)
         if parent_way is None:
             continue

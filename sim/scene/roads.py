@@ -12,7 +12,8 @@ from shapely.geometry import Point, Polygon
 
 from curbside.config import ConfigError
 from sim.scene.config import max_sidewalk_width
-from sim.scene.geometry import Centerline, arc, arc_about, largest, straight, strip, unit
+from sim.scene.geometry import arc, arc_about, largest, straight, strip, unit
+from sim.scene.polyline import Polyline
 
 HALF_PI = math.pi / 2
 
@@ -22,7 +23,7 @@ class Roadway:
     """One carriageway: a centerline, its half width, and which sides carry sidewalks and crosswalk candidates."""
 
     id: str
-    centerline: Centerline
+    centerline: Polyline
     half_width: float
     sides: tuple[int, ...] = (1, -1)  # +1 left, -1 right of the direction of travel
     crosswalk_ends: tuple[str, ...] = ("start", "end")
@@ -64,13 +65,13 @@ def build_block(code: str, bid: str, p: np.ndarray, h: float, rng: np.random.Gen
     if code == "S":
         cl = straight(p, h, _u(rng, cfg["straight_length"]))
         ways.append(Roadway(f"{bid}.0", cl, hw))
-        sockets.append((cl.pts[-1], h))
+        sockets.append((cl.points[-1], h))
         through = cl.length
     elif code == "C":
         angle = math.radians(_u(rng, cfg["curve_angle"])) * (1 if rng.random() < 0.5 else -1)
         cl = arc(p, h, _u(rng, cfg["curve_radius"]), angle)
         ways.append(Roadway(f"{bid}.0", cl, hw))
-        sockets.append((cl.pts[-1], h + angle))
+        sockets.append((cl.points[-1], h + angle))
         through = cl.length
     elif code in ("X", "T"):
         la = _u(rng, cfg["arm_length"])

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import pytest
 
-from sim.tasks.toy_scene import straight_street
+from tests.scenes import street
 
 
 @pytest.fixture(scope="session")
 def spec() -> dict:
-    """The hand-built straight-road scene spec (no generator needed)."""
-    return straight_street()
+    """The hand-built straight-street scene spec (tests/scenes.py; no generator needed)."""
+    return street()
 
 
 @pytest.fixture(scope="session")

@@ -70,9 +70,9 @@ def test_route_planner_keeps_clear_of_obstacles(spec):
         assert all(grid.label_at(x, y) > 0 for x, y in route.points)
     route = planner.plan([10.0, 7.0], [20.0, 7.0])
     # The trash bin at (15, 7) sits on the straight line: the route bends around it.
-    s, lat = route.project(15.0, 7.0)
+    s, lat = route.locate(15.0, 7.0)
     assert abs(lat) > 0.6
-    s0, lat0 = route.project(*route.point_at(5.0))
+    s0, lat0 = route.locate(*route.point_at(5.0))
     assert s0 == pytest.approx(5.0, abs=0.05) and abs(lat0) < 1e-6
 
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from sim.tasks.toy_scene import straight_street
+from tests.scenes import street
 
 
 @pytest.fixture(scope="session")
 def spec() -> dict:
-    """The hand-built straight-road scene spec."""
-    return straight_street()
+    """The hand-built straight-street scene spec (tests/scenes.py)."""
+    return street()

@@ -11,9 +11,10 @@ import pytest
 from shapely.geometry import Polygon
 
 from curbside.config import ConfigError
-from sim.agents import AgentManager, toy_street_spec
+from sim.agents import AgentManager
 from sim.agents.crowd import sidewalk_length
 from sim.scene.grid import paint
+from tests.scenes import NARROW, street
 
 BAY = 4.0  # side of the square bays at both ends of the corridor
 
@@ -111,7 +112,7 @@ def test_corridor_swap_is_deterministic() -> None:
 
 @pytest.fixture(scope="module")
 def toy() -> dict:
-    return toy_street_spec(length=90.0, seed=3)
+    return street(90.0, seed=3, crosswalks=(8.0, 82.0), **NARROW)
 
 
 def test_standing_groups_stand_together(toy: dict) -> None:

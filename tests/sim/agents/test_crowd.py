@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from curbside.config import ConfigError
-from sim.agents import AGENT_DTYPE, AGENT_KINDS, AgentManager, EgoState, toy_street_spec
+from sim.agents import AGENT_DTYPE, AGENT_KINDS, AgentManager, EgoState
 from sim.agents.crowd import sidewalk_length
+from tests.scenes import NARROW, street
 
 STEPS = 500
 SEEDS = range(5)
@@ -34,7 +35,7 @@ def _run(spec: dict, seed: int, steps: int, config: dict | None = None, ego_path
 
 @pytest.fixture(scope="module")
 def toy() -> dict:
-    return toy_street_spec(length=90.0, seed=3)
+    return street(90.0, seed=3, crosswalks=(8.0, 82.0), **NARROW)
 
 
 @pytest.fixture(scope="module")

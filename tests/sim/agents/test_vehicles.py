@@ -8,13 +8,14 @@ import shapely
 from shapely.geometry import Polygon
 from shapely.ops import unary_union
 
-from sim.agents import toy_street_spec
 from sim.agents.vehicles import VEHICLE_DTYPE, VehicleManager
+from tests.scenes import NARROW
+from tests.scenes import street as street_spec
 
 
 @pytest.fixture(scope="module")
 def street() -> dict:
-    return toy_street_spec(length=120.0, seed=0)
+    return street_spec(120.0, seed=0, crosswalks=(8.0, 112.0), **NARROW)
 
 
 def test_vehicles_stay_on_roads_and_apart(street: dict) -> None:

@@ -11,13 +11,13 @@ from typer.testing import CliRunner
 
 from curbside.cli.scenes import app
 from sim.scene.paper_stats import PAPER_STATS, scene_figures
-from sim.tasks.toy_scene import straight_street
+from tests.scenes import street
 
 runner = CliRunner()
 
 
 def test_figures_of_a_hand_built_scene_are_what_its_spec_says() -> None:
-    spec = straight_street()
+    spec = street()
     figs = scene_figures(spec, np.random.default_rng(0), (10.0, 40.0))
     xmin, ymin, xmax, ymax = spec["bounds"]
     assert figs["objects_per_scene"] == len(spec["objects"])
