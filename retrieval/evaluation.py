@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,6 +16,8 @@ import numpy as np
 
 from catalogs.reader import asset_categories, open_catalog, ranked_matches
 from retrieval.ingest import IngestConfig, ingest
+from retrieval.pipeline import asset_id
+from retrieval.sources import Source, SourceItem
 
 _NOISE = ("SM_{c}_low_v2", "{c} final FINAL", "untitled scan {k:02d}", "model_{k:04d}", "{c}", "Object{k}", "{c} 3d model free")
 
@@ -38,19 +41,20 @@ class _Unlabelled:
 
     name = "eval"
 
-    def __init__(self, source, seed: int = 0) -> None:  # noqa: ANN001
+    def __init__(self, source: Source, seed: int = 0) -> None:
         self.source, self.labels, self.rng = source, {}, np.random.default_rng(seed)
 
-    def items(self, limit: int | None = None):  # noqa: ANN201
+    def items(self, limit: int | None = None) -> Iterator[SourceItem]:
+        """The source's items without their labels, under noisy names."""
         for k, it in enumerate(self.source.items(limit)):
-            self.labels[f"{it.source}:{it.source_id}"] = it.category
+            self.labels[asset_id(it.source, it.source_id)] = it.category
             tmpl = _NOISE[int(self.rng.integers(len(_NOISE)))]
             noisy = tmpl.format(c=it.category.replace("_", " ").title().replace(" ", "_"), k=k)
             yield dataclasses.replace(it, category=None, name=noisy, description=None, tags=[])
 
 
-def evaluate(source, config: IngestConfig | None = None, ks: tuple[int, ...] = (1, 5), limit: int | None = None,
-             workdir: str | Path | None = None) -> EvalReport:  # noqa: ANN001
+def evaluate(source: Source, config: IngestConfig | None = None, ks: tuple[int, ...] = (1, 5),
+             limit: int | None = None, workdir: str | Path | None = None) -> EvalReport:
     """Ingest `source` without its labels into a scratch catalog and score the matches against the labels."""
     wrapped = _Unlabelled(source)
     with tempfile.TemporaryDirectory() as tmp:

@@ -14,6 +14,7 @@ from pathlib import Path
 from catalogs.layout import asset_root
 from catalogs.writer import CatalogWriter
 from retrieval.pipeline import IngestConfig, config_hash, process_item, record_pool, write_result
+from retrieval.sources import Source
 
 __all__ = ["IngestConfig", "IngestReport", "TooManyRejections", "config_hash", "ingest"]
 
@@ -35,10 +36,10 @@ class IngestReport:
     reasons: dict[str, int] = field(default_factory=dict)
 
 
-def ingest(source, catalog_path: str | Path, config: IngestConfig | None = None, *, executor: str = "local",  # noqa: ANN001
+def ingest(source: Source, catalog_path: str | Path, config: IngestConfig | None = None, *, executor: str = "local",
            workers: int | None = None, address: str | None = None, limit: int | None = None,
            progress: bool = True) -> IngestReport:
-    """Run the stage for a source into the catalog at `catalog_path` (created if missing); resumable."""
+    """Run the pipeline on every item of `source` into the catalog at `catalog_path` (created if missing); resumable."""
     config = config or IngestConfig()
     catalog_path = Path(catalog_path)
     report = IngestReport()
@@ -66,8 +67,9 @@ def _remove_empty_catalog(catalog_path: Path) -> None:
         shutil.rmtree(root, ignore_errors=True)
 
 
-def _ingest_into(writer: CatalogWriter, source, catalog_path: Path, config: IngestConfig, report: IngestReport, *,  # noqa: ANN001
-                 executor: str, workers: int | None, address: str | None, limit: int | None, progress: bool) -> None:
+def _ingest_into(writer: CatalogWriter, source: Source, catalog_path: Path, config: IngestConfig,
+                 report: IngestReport, *, executor: str, workers: int | None, address: str | None,
+                 limit: int | None, progress: bool) -> None:
     """The body of `ingest` on an open writer; fills `report`."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
