@@ -1,4 +1,4 @@
-"""One palette for every picture of a scene: the 3D world, the rollout map, the agents' map and the spec plot.
+"""One palette for every picture of a scene: the 3D world and the top-down drawing (`sim/topdown.py`).
 
 Colours are RGB(A) floats in [0, 1]; `rgb255` converts for PIL. Surfaces are the world's colours, so a
 top-down map and a camera frame of the same street look alike.
@@ -26,11 +26,17 @@ ZONE = {  # sidewalk zones, drawn over the sidewalk in spec plots
 }
 OBJECT_CLASS = {"standard": (0.08, 0.40, 0.75), "non_standard": (0.90, 0.32, 0.0), "clutter": (0.76, 0.09, 0.36),
                 "building": (0.38, 0.49, 0.55)}
-OBJECT = (0.55, 0.39, 0.24)  # an object of any category, where the map does not tell categories apart
+OBJECT = (0.55, 0.39, 0.24)  # an object whose spec names no object class
 LANE_LINE = (0.9, 0.85, 0.3)
+ISLAND = (0.51, 0.78, 0.52)  # planted median islands
+EDGE = (0.26, 0.26, 0.26)  # curb lines and outlines of crosswalks, zones and objects in the scene plot
+CLEAR_PATH = (0.56, 0.64, 0.68)  # the dotted centre line of a sidewalk's clear path
 ROUTE = (0.1, 0.8, 0.3)
+TRAJECTORY = (0.12, 0.43, 1.0)
 EGO = (1.0, 0.55, 0.0)
+COLLISION = (1.0, 0.24, 0.24)  # the ego while it touches something
 VEHICLE = (0.24, 0.24, 0.63)
+OUTLINE = (0.0, 0.0, 0.0)
 
 
 def category_color(category: str) -> tuple[float, float, float, float]:

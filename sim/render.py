@@ -1,4 +1,4 @@
-"""Rendering: TinyRenderer camera frames (top-down, chase) and a matplotlib top-down map for GIFs."""
+"""Rendering: TinyRenderer camera frames (top-down, chase) and rollout GIFs over the top-down map (`sim/topdown.py`)."""
 
 from __future__ import annotations
 
@@ -31,52 +31,6 @@ def camera_image(env: Any, camera: str = "top_down", width: int = 128, height: i
     return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
 
 
-def _map_background(spec: dict, route_pts: np.ndarray, extent: tuple[float, float, float, float],
-                    px: int) -> np.ndarray:
-    """A top-down matplotlib drawing of the scene's surfaces, objects and the route, as an RGB array."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Polygon as MplPolygon
-
-    from sim.palette import LANE_LINE, ROUTE, SURFACE, category_color
-
-    x0, y0, x1, y1 = extent
-    fig = plt.figure(figsize=(px / 100, px * (y1 - y0) / (x1 - x0) / 100), dpi=100, facecolor=SURFACE["ground"][:3])
-    ax = fig.add_axes([0, 0, 1, 1])
-    ax.set_xlim(x0, x1)
-    ax.set_ylim(y0, y1)
-    ax.set_facecolor(SURFACE["ground"][:3])
-    ax.axis("off")
-
-    def poly(pts, color, z):
-        ax.add_patch(MplPolygon(np.asarray(pts), closed=True, facecolor=color[:3], edgecolor="none", zorder=z))
-
-    for road in spec["roads"]:
-        poly(road["polygon"], SURFACE["road"], 1)
-        for line in road.get("lane_lines", []):
-            ln = np.asarray(line)
-            ax.plot(ln[:, 0], ln[:, 1], color=LANE_LINE, lw=0.6, dashes=(4, 4), zorder=2)
-    for sw in spec["sidewalks"]:
-        poly(sw["polygon"], SURFACE["sidewalk"], 2)
-        for zone in sw.get("zones", []):
-            if zone.get("kind") == "building":
-                poly(zone["polygon"], SURFACE["building"], 2)
-    for cw in spec["crosswalks"]:
-        poly(cw["polygon"], SURFACE["crosswalk"], 3)
-        for ramp in cw.get("ramps", []):
-            poly(ramp["polygon"], SURFACE["ramp"], 3)
-    for obj in spec["objects"]:
-        poly(obj["footprint"], category_color(str(obj.get("category", "object"))), 4)
-    ax.plot(route_pts[:, 0], route_pts[:, 1], color=ROUTE, lw=2.0, zorder=5)
-    ax.plot(*route_pts[-1], marker="*", color=ROUTE, markersize=14, zorder=6)
-    fig.canvas.draw()
-    img = np.asarray(fig.canvas.buffer_rgba())[:, :, :3].copy()
-    plt.close(fig)
-    return img
-
-
 def rollout_gif(env_id: str, policy: str, out: Any, config: dict | None = None, *, seed: int = 0,
                 chase: bool = True, map_px: int = 480, fps: int = 10) -> dict[str, float]:
     """Run one episode and write a GIF (map with route and growing trajectory, plus chase camera); return metrics."""
@@ -84,10 +38,12 @@ def rollout_gif(env_id: str, policy: str, out: Any, config: dict | None = None, 
 
     import gymnasium as gym
     import imageio.v2 as imageio
-    from PIL import Image, ImageDraw
+    from PIL import Image
 
     from sim.envs import register_envs
+    from sim.palette import COLLISION, EGO, TRAJECTORY
     from sim.rollout import make_policy, rollout
+    from sim.topdown import Canvas, draw_ego, draw_route, draw_scene
 
     register_envs()
 
@@ -104,26 +60,21 @@ def rollout_gif(env_id: str, policy: str, out: Any, config: dict | None = None, 
         side = max(x1 - x0, y1 - y0)  # square view keeps the map undistorted
         cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
         extent = (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2)
-        view.update(side=side, extent=extent, bg=_map_background(u.scene_spec, pts, extent, map_px))
+        # The scene and route are drawn once an episode, so supersampled; each frame draws only what moves.
+        c = Canvas(extent, map_px / side, ss=3)
+        draw_scene(c, u.scene_spec)
+        draw_route(c, pts, 3.0, goal=True)
+        view.update(extent=extent, px_per_m=map_px / side, bg=c.image())
 
     def draw_frame(env: Any, done: bool) -> None:
-        side, extent, bg = view["side"], view["extent"], view["bg"]
+        bg = view["bg"]
         h, w = bg.shape[:2]
-
-        def to_px(x: float, y: float) -> tuple[float, float]:
-            return ((x - extent[0]) / side * w, (extent[3] - y) / side * h)
-
-        frame = Image.fromarray(bg)
-        draw = ImageDraw.Draw(frame)
-        traj = [to_px(x, y) for x, y in u.episode.trajectory]
-        if len(traj) > 1:
-            draw.line(traj, fill=(30, 110, 255), width=3)
-        ex, ey = traj[-1]
-        r = max(3.0, u.machine.spec.length / side * w)
-        color = (255, 60, 60) if u.episode.step_collisions else (255, 150, 20)
-        draw.ellipse([ex - r, ey - r, ex + r, ey + r], fill=color)
-        hx, hy = to_px(u.machine.position[0] + 2.0 * np.cos(u.machine.yaw), u.machine.position[1] + 2.0 * np.sin(u.machine.yaw))
-        draw.line([(ex, ey), (hx, hy)], fill=(20, 20, 20), width=2)
+        c = Canvas(view["extent"], view["px_per_m"], background=bg)
+        c.line(u.episode.trajectory, TRAJECTORY, 3.0)
+        m = u.machine
+        draw_ego(c, m.position[0], m.position[1], m.yaw, m.spec.length, m.spec.width,
+                 COLLISION if u.episode.step_collisions else EGO, min_px=12.0)
+        frame = Image.fromarray(c.image())
         if chase and (u.episode.steps % 2 == 1 or done):
             view["cam"] = Image.fromarray(camera_image(u, "chase", 160, 160)).resize((h, h), Image.NEAREST)
         if chase:
