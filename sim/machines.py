@@ -1,4 +1,4 @@
-"""Mobile machines: MetaUrban's parameters (docs/design.md), PyBullet bodies, and their drive models.
+"""Mobile machines: MetaUrban's parameters (`machines.csv`, docs/design.md), PyBullet bodies, and their drive models.
 
 Wheeled machines are rigid chassis bodies with four wheel contact spheres. Their longitudinal and yaw
 dynamics come from a kinematic-bicycle force model (engine, brake, rolling resistance, drag, grade,
@@ -11,9 +11,11 @@ acceleration limits (a fixed locomotion layer), through the same body and contac
 
 from __future__ import annotations
 
+import csv
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, fields, replace
+from importlib import resources
 from typing import Any
 
 import numpy as np
@@ -26,27 +28,31 @@ G = 9.81
 
 @dataclass(frozen=True)
 class MachineSpec:
-    """Parameters of one mobile machine (SI units; forces in N, angles in degrees as in the paper's table)."""
+    """Parameters of one mobile machine (SI units; forces in N, angles in degrees as in the paper's table).
+
+    The built-in machines are the rows of `machines.csv` beside this module (its header gives units and sources);
+    a custom machine is one of them with some fields replaced (`machine_spec`).
+    """
 
     name: str
-    kind: str = "wheeled"  # "wheeled" (force model) or "legged" (velocity limits)
-    v_max_kmh: float = 30.0
-    steer_max_deg: float = 40.0
-    friction: float = 0.7
-    engine_force: tuple[float, float] = (350.0, 550.0)
-    brake_force: tuple[float, float] = (35.0, 80.0)  # per wheel, four wheels
-    wheelbase: float = 0.45
-    wheel_radius: float = 0.10
-    wheel_width: float = 0.10
-    mass: float = 80.0
-    length: float = 0.70
-    width: float = 0.50
-    height: float = 0.55
-    drag_area: float = 0.3  # Cd * A in m^2
-    rolling_resistance: float = 0.015
-    accel_max: float = 1.5  # legged only: m/s^2
-    yaw_rate_max: float = 1.5  # legged only: rad/s
-    color: tuple[float, float, float, float] = field(default=(0.95, 0.55, 0.1, 1.0))
+    kind: str  # "wheeled" (force model) or "legged" (velocity limits)
+    v_max_kmh: float
+    steer_max_deg: float
+    friction: float
+    engine_force: tuple[float, float]
+    brake_force: tuple[float, float]  # per wheel, four wheels
+    wheelbase: float
+    wheel_radius: float
+    wheel_width: float
+    mass: float
+    length: float
+    width: float
+    height: float
+    drag_area: float  # Cd * A in m^2
+    rolling_resistance: float
+    accel_max: float  # legged only: m/s^2
+    yaw_rate_max: float  # legged only: rad/s
+    color: tuple[float, float, float, float]
 
     @property
     def v_max(self) -> float:
@@ -64,34 +70,21 @@ class MachineSpec:
         return 0.5 * self.width
 
 
-_WHEELED_DEFAULTS = dict(kind="wheeled", friction=0.7, brake_force=(35.0, 80.0))
+def _load_machines() -> dict[str, MachineSpec]:
+    """The machines table `machines.csv` beside this module: one MachineSpec a row, in row order."""
+    with resources.files("sim").joinpath("machines.csv").open(encoding="utf-8") as f:
+        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+    types = {f.name: str(f.type) for f in fields(MachineSpec)}
 
-MACHINES: dict[str, MachineSpec] = {
-    "delivery_bot": MachineSpec("delivery_bot", v_max_kmh=30, steer_max_deg=40, engine_force=(350, 550),
-                                wheelbase=0.45, wheel_radius=0.10, wheel_width=0.10, mass=80, length=0.70,
-                                width=0.50, height=0.55, **_WHEELED_DEFAULTS),
-    "delivery_bot_mod1": MachineSpec("delivery_bot_mod1", v_max_kmh=10, steer_max_deg=40, engine_force=(350, 550),
-                                     wheelbase=0.45, wheel_radius=0.10, wheel_width=0.10, mass=80, length=0.70,
-                                     width=0.50, height=0.55, **_WHEELED_DEFAULTS),
-    "delivery_bot_mod2": MachineSpec("delivery_bot_mod2", v_max_kmh=30, steer_max_deg=10, engine_force=(350, 550),
-                                     wheelbase=0.45, wheel_radius=0.10, wheel_width=0.10, mass=80, length=0.70,
-                                     width=0.50, height=0.55, **_WHEELED_DEFAULTS),
-    "wheelchair": MachineSpec("wheelchair", v_max_kmh=5, steer_max_deg=5, engine_force=(100, 200),
-                              wheelbase=0.50, wheel_radius=0.15, wheel_width=0.10, mass=120, length=0.80,
-                              width=0.65, height=1.2, color=(0.2, 0.45, 0.9, 1.0), **_WHEELED_DEFAULTS),
-    "mobility_scooter": MachineSpec("mobility_scooter", v_max_kmh=45, steer_max_deg=45, engine_force=(450, 650),
-                                    wheelbase=0.60, wheel_radius=0.20, wheel_width=0.15, mass=150, length=1.20,
-                                    width=0.65, height=1.1, color=(0.8, 0.15, 0.2, 1.0), **_WHEELED_DEFAULTS),
-    "robot_dog": MachineSpec("robot_dog", kind="legged", v_max_kmh=5.4, steer_max_deg=0, engine_force=(0, 0),
-                             brake_force=(0, 0), wheelbase=0.40, wheel_radius=0.08, wheel_width=0.05, mass=30,
-                             length=0.70, width=0.35, height=0.45, accel_max=2.0, yaw_rate_max=2.0,
-                             color=(0.3, 0.3, 0.3, 1.0)),
-    "humanoid": MachineSpec("humanoid", kind="legged", v_max_kmh=5.0, steer_max_deg=0, engine_force=(0, 0),
-                            brake_force=(0, 0), wheelbase=0.30, wheel_radius=0.08, wheel_width=0.05, mass=65,
-                            length=0.35, width=0.50, height=1.7, accel_max=1.2, yaw_rate_max=1.5,
-                            color=(0.5, 0.3, 0.7, 1.0)),
-}
+    def cell(key: str, text: str) -> Any:
+        if types[key].startswith("tuple"):
+            return tuple(float(v) for v in text.split())  # forces (low high) and colours (r g b a)
+        return float(text) if types[key] == "float" else text
 
+    return {r["name"]: MachineSpec(**{k: cell(k, v) for k, v in r.items()}) for r in rows}
+
+
+MACHINES: dict[str, MachineSpec] = _load_machines()
 WHEELED = tuple(n for n, m in MACHINES.items() if m.kind == "wheeled")
 
 

@@ -24,14 +24,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sim.agents.kinds import KIND_NAMES
+from sim.agents.kinds import IDLE, KIND_NAMES
 from sim.agents.navgrid import NavGrid
 from sim.scene.grid import RAMP, SIDEWALK
 
 if TYPE_CHECKING:  # pragma: no cover - typing only; crowd imports this module
     from sim.agents.crowd import AgentManager
 
-IDLE = 0
 GROUP_KINDS = ("pedestrian", "wheelchair_user")
 CROSS_BEYOND = 2.0  # metres past a crosswalk end (over the curb ramp) where a crossing goal lies
 CROSS_SNAP = 1.5  # a crossing site must be a planning cell this close to that point

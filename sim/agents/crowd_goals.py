@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
+from sim.agents.kinds import AGENT_KINDS, IDLE, KIND_NAMES, RUNNING, WALKING
 from sim.agents.navgrid import JUMPS
-
-IDLE, WALKING, RUNNING = 0, 1, 2
 
 
 class GoalFollowing:

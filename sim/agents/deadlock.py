@@ -34,12 +34,11 @@ import numpy as np
 from scipy import ndimage
 from scipy.sparse.csgraph import dijkstra
 
-from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
+from sim.agents.kinds import AGENT_KINDS, IDLE, KIND_NAMES
 
 if TYPE_CHECKING:  # pragma: no cover - typing only; crowd imports this module
     from sim.agents.crowd import AgentManager
 
-IDLE = 0
 FRONT_COS = 0.5  # "in front": within 60 degrees of the path direction
 REACH_GAP = 0.5  # metres between ORCA discs that still count as face to face
 PASS_MARGIN = 0.1  # metres of room beyond touching between the yielder and the other's path

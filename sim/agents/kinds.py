@@ -15,6 +15,7 @@ from importlib import resources
 import numpy as np
 
 MOVEMENTS: tuple[str, ...] = ("idle", "walking", "running")
+IDLE, WALKING, RUNNING = range(len(MOVEMENTS))  # an agent's `movement` code is its index in MOVEMENTS
 
 
 @dataclass(frozen=True)
