@@ -9,6 +9,7 @@ from typer.testing import CliRunner
 from catalogs.reader import CatalogReader
 from curbside.cli.main import app
 from retrieval.build import asset_text, variant_seeds
+from tests.helpers import cli, one_error_line
 
 runner = CliRunner()
 
@@ -39,14 +40,9 @@ def test_build_variants_seeds_and_determinism(tmp_path: Path) -> None:
 
 
 def test_build_refuses_unknown_category_and_keeps_nothing(tmp_path: Path, capfd) -> None:
-    import typer
-
-    from curbside.cli.errors import run
-
     cat = tmp_path / "c.duckdb"
-    code = run(typer.main.get_command(app), ["catalog", "build", "--catalog", str(cat), "--category", "spaceship"])
-    err = capfd.readouterr().err
-    assert code == 2 and "spaceship" in err and "fire_hydrant" in err and len(err.strip().splitlines()) == 1
+    line = one_error_line(*cli(["catalog", "build", "--catalog", str(cat), "--category", "spaceship"], capfd))
+    assert "spaceship" in line and "fire_hydrant" in line
     assert not cat.exists()
 
 

@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 
 from catalogs.reader import CatalogReader
 from curbside.cli.main import app
+from tests.helpers import cli, one_error_line
 
 runner = CliRunner()
 REPO = Path(__file__).resolve().parents[2]
@@ -22,17 +23,6 @@ REPO = Path(__file__).resolve().parents[2]
 def run(*args: str):
     """Invoke `curbside catalog ARGS` in-process (the MiniLM model stays loaded between calls)."""
     return runner.invoke(app, ["catalog", *args])
-
-
-def run_console(capsys: pytest.CaptureFixture, *args: str) -> tuple[int, str, str]:
-    """Invoke `curbside catalog ARGS` as the console script does (errors.run); returns (code, stdout, stderr)."""
-    import typer
-
-    from curbside.cli.errors import run as run_with_errors
-
-    code = run_with_errors(typer.main.get_command(app), ["catalog", *args])
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def query_json(catalog: Path, text: str, *extra: str) -> dict:
@@ -101,10 +91,9 @@ def test_bad_filter_values_are_explained(small_catalog: Path) -> None:
 @pytest.mark.parametrize("cmd", [["query", "bench"], ["stats"], ["show", "x"], ["export"], ["validate"]])
 def test_missing_catalog_names_the_build_command(capsys, tmp_path: Path, cmd: list[str]) -> None:
     missing = tmp_path / "none.duckdb"
-    code, out, err = run_console(capsys, *cmd, "--catalog", str(missing))
-    assert code == 2  # a missing file the user named is bad input
-    assert f"curbside catalog build --catalog {missing}" in err and len(err.strip().splitlines()) == 1
-    assert out == ""
+    code, out, err = cli(["catalog", *cmd, "--catalog", str(missing)], capsys)
+    line = one_error_line(code, out, err)  # exit 2: a missing file the user named is bad input
+    assert f"curbside catalog build --catalog {missing}" in line and out == ""
 
 
 def test_stats(small_catalog: Path) -> None:
@@ -128,8 +117,8 @@ def test_show(capsys, small_catalog: Path) -> None:
     doc = json.loads(res.stdout)
     assert doc["asset_id"] == asset_id and doc["category"] == "fire_hydrant"
     assert Path(doc["mesh_path_resolved"]).is_file()
-    code, _, err = run_console(capsys, "show", "no/such/asset", "--catalog", str(small_catalog))
-    assert code == 2 and "no/such/asset" in err and "catalog query" in err
+    line = one_error_line(*cli(["catalog", "show", "no/such/asset", "--catalog", str(small_catalog)], capsys))
+    assert "no/such/asset" in line and "catalog query" in line
 
 
 @pytest.mark.parametrize("fmt", ["parquet", "csv", "jsonl"])

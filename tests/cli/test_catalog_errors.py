@@ -14,28 +14,11 @@ from pathlib import Path
 import duckdb
 import numpy as np
 import pytest
-import typer
 
-from curbside.cli.errors import run
-from curbside.cli.main import app
+from tests.helpers import cli, one_error_line
 
 BLOCK = 256 * 1024  # DuckDB's block size; data blocks follow a 12 KiB header and start with their checksum
 HEADER = 3 * 4096
-
-
-def cli(capsys: pytest.CaptureFixture, *argv: str) -> tuple[int, str, str]:
-    """Run `curbside ARGV` as the console script does; returns (exit code, stdout, stderr)."""
-    code = run(typer.main.get_command(app), list(argv))
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
-def one_error_line(err: str) -> str:
-    """The single `error: ...` line of stderr (asserts there is exactly one line and no traceback)."""
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert "Traceback" not in err
-    assert len(lines) == 1 and lines[0].startswith("error: "), err
-    return lines[0]
 
 
 @pytest.fixture(scope="module")
@@ -114,23 +97,23 @@ def corrupt(synthetic_catalog: Path, tmp_path_factory: pytest.TempPathFactory) -
 @pytest.mark.parametrize("cmd", [["stats"], ["stats", "--json"], ["export", "--format", "csv"], ["show", "a001"]])
 def test_corrupt_catalog_is_one_line_naming_the_rebuild(capsys, corrupt, where: str, cmd: list[str]) -> None:
     path = corrupt[where]
-    code, out, err = cli(capsys, "catalog", *cmd, "--catalog", str(path))
-    line = one_error_line(err)
-    assert code == 2 and out == ""
+    code, out, err = cli(["catalog", *cmd, "--catalog", str(path)], capsys)
+    line = one_error_line(code, out, err)
+    assert out == ""
     assert "corrupt" in line and str(path) in line and f"curbside catalog build --catalog {path}" in line
     assert "locked" not in line
 
 
 @pytest.mark.parametrize("where", ["open", "embeddings"])
 def test_corrupt_catalog_query(capsys, corrupt, where: str) -> None:
-    code, out, err = cli(capsys, "catalog", "query", "bench", "--catalog", str(corrupt[where]), "--json")
-    line = one_error_line(err)
-    assert code == 2 and out == "" and "corrupt" in line and "checksum" in line
+    code, out, err = cli(["catalog", "query", "bench", "--catalog", str(corrupt[where]), "--json"], capsys)
+    line = one_error_line(code, out, err)
+    assert out == "" and "corrupt" in line and "checksum" in line
 
 
 @pytest.mark.parametrize("where", ["open", "assets", "embeddings"])
 def test_validate_reports_corruption(capsys, corrupt, where: str) -> None:
-    code, out, err = cli(capsys, "catalog", "validate", "--catalog", str(corrupt[where]), "--json")
+    code, out, err = cli(["catalog", "validate", "--catalog", str(corrupt[where]), "--json"], capsys)
     assert code == 1 and "Traceback" not in err
     doc = json.loads(out)
     assert doc["ok"] is False
@@ -141,14 +124,12 @@ def test_validate_reports_corruption(capsys, corrupt, where: str) -> None:
 def test_not_a_duckdb_file_and_not_a_catalog(capsys, tmp_path: Path) -> None:
     junk = tmp_path / "junk.duckdb"
     junk.write_text("hello")
-    code, _, err = cli(capsys, "catalog", "stats", "--catalog", str(junk))
-    assert code == 2 and "not a DuckDB database file" in one_error_line(err)
+    assert "not a DuckDB database file" in one_error_line(*cli(["catalog", "stats", "--catalog", str(junk)], capsys))
     other = tmp_path / "other.duckdb"
     con = duckdb.connect(str(other))
     con.execute("CREATE TABLE t (x INTEGER)")
     con.close()
-    code, _, err = cli(capsys, "catalog", "stats", "--catalog", str(other))
-    assert code == 2 and "not a curbside catalog" in one_error_line(err)
+    assert "not a curbside catalog" in one_error_line(*cli(["catalog", "stats", "--catalog", str(other)], capsys))
 
 
 HOLD = """
@@ -179,19 +160,19 @@ def test_locked_catalog_says_locked_not_rebuild(capsys, locked, tmp_path: Path, 
     path, pid = locked
     (tmp_path / "meshes").mkdir()
     cmd = [c.format(dir=tmp_path / "meshes") for c in cmd]
-    code, out, err = cli(capsys, "catalog", *cmd, "--catalog", str(path))
-    line = one_error_line(err)
-    assert code == 1 and out == ""
+    code, out, err = cli(["catalog", *cmd, "--catalog", str(path)], capsys)
+    line = one_error_line(code, out, err, exit_code=1)
+    assert out == ""
     assert "locked" in line and f"process {pid}" in line and "retry" in line
     assert "rebuild" not in line and "corrupt" not in line and "catalog build" not in line
     # The holder's file is untouched: once it lets go, the catalog reads normally.
 
 
 def test_export_to_an_existing_directory(capsys, synthetic_catalog: Path, tmp_path: Path) -> None:
-    code, _, err = cli(capsys, "catalog", "export", "--catalog", str(synthetic_catalog), "--out", str(tmp_path))
-    line = one_error_line(err)
-    assert code == 2 and "is a directory" in line and str(tmp_path / "assets.parquet") in line
-    code, _, err = cli(capsys, "catalog", "export", "--catalog", str(synthetic_catalog), "--format", "xlsx")
+    export = ["catalog", "export", "--catalog", str(synthetic_catalog)]
+    line = one_error_line(*cli([*export, "--out", str(tmp_path)], capsys))
+    assert "is a directory" in line and str(tmp_path / "assets.parquet") in line
+    code, _, err = cli([*export, "--format", "xlsx"], capsys)
     assert code == 2 and "parquet" in err and "Traceback" not in err
 
 
@@ -217,8 +198,8 @@ def mesh_dir(tmp_path: Path) -> Path:
 def test_ingest_bad_option_is_refused_before_the_catalog(capsys, mesh_dir: Path, tmp_path: Path, option: str,
                                                          value: str, words: str) -> None:
     cat = tmp_path / "c.duckdb"
-    code, out, err = cli(capsys, "catalog", "ingest", "--source", f"local:{mesh_dir}", "--catalog", str(cat),
-                         option, value)
+    code, _, err = cli(["catalog", "ingest", "--source", f"local:{mesh_dir}", "--catalog", str(cat),
+                        option, value], capsys)
     assert code == 2 and words in err and "Traceback" not in err
     assert not cat.exists()  # the old code created it and recorded every asset as rejected (--views 0)
 
@@ -233,10 +214,10 @@ def test_cli_view_limit_is_the_renderer_limit() -> None:
 def test_ingest_objaverse_offline_is_one_line_and_leaves_no_catalog(capsys, tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setenv("CURBSIDE_OBJAVERSE_URL", "http://127.0.0.1:9")  # refuses connections, like no network
     cat = tmp_path / "c.duckdb"
-    code, out, err = cli(capsys, "catalog", "ingest", "--source", "objaverse", "--objaverse-cache",
-                         str(tmp_path / "cache"), "--catalog", str(cat), "--scorer", "none")
-    line = one_error_line(err)
-    assert code == 1 and "objaverse needs network access" in line and "--source local:DIR" in line
+    code, out, err = cli(["catalog", "ingest", "--source", "objaverse", "--objaverse-cache",
+                          str(tmp_path / "cache"), "--catalog", str(cat), "--scorer", "none"], capsys)
+    line = one_error_line(code, out, err, exit_code=1)
+    assert "objaverse needs network access" in line and "--source local:DIR" in line
     assert not cat.exists() and not list(tmp_path.glob("c.duckdb*")) and not (tmp_path / "c_assets").exists()
 
 
@@ -249,8 +230,8 @@ def test_ingest_truncated_objaverse_annotations_names_the_file(capsys, tmp_path:
     full = gzip.compress(json.dumps({"bench": [f"uid{i:05d}" for i in range(2000)]}).encode())
     lvis.write_bytes(full[: len(full) // 2])
     cat = tmp_path / "c.duckdb"
-    code, out, err = cli(capsys, "catalog", "ingest", "--source", "objaverse", "--objaverse-cache",
-                         str(tmp_path / "cache"), "--catalog", str(cat), "--scorer", "none")
-    line = one_error_line(err)
-    assert code == 1 and str(lvis) in line and "delete it" in line and "aborted" not in line.lower()
+    code, out, err = cli(["catalog", "ingest", "--source", "objaverse", "--objaverse-cache",
+                          str(tmp_path / "cache"), "--catalog", str(cat), "--scorer", "none"], capsys)
+    line = one_error_line(code, out, err, exit_code=1)
+    assert str(lvis) in line and "delete it" in line and "aborted" not in line.lower()
     assert not cat.exists()

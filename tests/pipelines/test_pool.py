@@ -10,6 +10,7 @@ import pytest
 from pipelines.cluster import build_pool, write_pool_to_catalog
 from pipelines.distribution import compute_distribution, load_distribution
 from pipelines.embed import embed_texts, load_embeddings, save_embeddings
+from tests.helpers import cli, one_error_line
 
 ROWS = [
     ("a green trash bin", "trash_bin", "images", "JP", 3), ("a green rubbish bin", "trash_bin", "osm", "JP", 2),
@@ -85,21 +86,12 @@ def test_pool_show_cli(descriptions, embedded, tmp_path):
 
 def test_pool_show_country_absent_from_the_pool(descriptions, embedded, tmp_path, capsys):
     """A valid country the pool lacks is an error naming the countries present, not an empty table (issue 12)."""
-    import typer
-
-    from curbside.cli.errors import run
-    from curbside.cli.main import app
-
     texts, vecs, _ = embedded
     build_pool(descriptions, texts, vecs, eps=0.3, min_samples=2).to_parquet(tmp_path / "p.parquet")
     argv = ["pool", "show", "--pool", str(tmp_path / "p.parquet")]
     for bad, words in ((["--country", "US"], "countries present: FI, JP"), (["--country", "XX"], "ISO 3166-1"),
                        (["--pool", str(tmp_path / "none.parquet")], "dvc repro")):
-        code = run(typer.main.get_command(app), [*argv, *bad])
-        err = capsys.readouterr().err
-        lines = err.strip().splitlines()
-        assert code == 2 and len(lines) == 1 and lines[0].startswith("error: ") and words in err, err
-        assert "Traceback" not in err
+        assert words in one_error_line(*cli([*argv, *bad], capsys))
 
 
 def test_dvc_yaml_stages_match_modules_and_params():

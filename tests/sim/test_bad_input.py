@@ -20,33 +20,15 @@ from pathlib import Path
 
 import gymnasium as gym
 import pytest
-import typer
 
 import sim  # noqa: F401  (registers the env ids)
-from curbside.cli.errors import run
-from curbside.cli.main import app
 from curbside.config import ConfigError
+from tests.helpers import cli, one_error_line
 
 REPO = Path(__file__).resolve().parents[2]
 CURBSIDE = Path(sys.executable).with_name("curbside")
 POINTNAV = "curbside/PointNav-v0"
 SOCIALNAV = "curbside/SocialNav-v0"
-
-
-def cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    """Run the `curbside` command in-process as the console script does: (exit code, stdout, stderr)."""
-    code = run(typer.main.get_command(app), argv)
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def one_error_line(code: int, out: str, err: str, exit_code: int = 2) -> str:
-    """The single `error: ...` line of a failed command (asserting the exit code, one line, no traceback)."""
-    assert code == exit_code, (code, out, err)
-    assert "Traceback" not in out + err
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), err
-    return lines[0]
 
 
 def usage_error(code: int, out: str, err: str, option: str) -> str:

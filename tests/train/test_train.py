@@ -5,19 +5,16 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
-from curbside.cli.main import app
 from curbside.train.demos import collect_demos, load_demos
 from curbside.train.evaluate import evaluate_policy
 from curbside.train.policies import ALGOS, load_policy
 from curbside.train.run import train
+from tests.helpers import cli, one_error_line
 
-runner = CliRunner()
 CFG = {"lidar": {"beams": 24, "low_beams": 8}, "route_length": [5.0, 25.0], "scene": {"blocks": 1}}
 TINY_PPO = {"n_steps": 64, "batch_size": 64, "n_epochs": 1, "net_arch": [32, 32]}
 
@@ -101,59 +98,37 @@ def test_resume_continues_from_the_latest_checkpoint(tmp_path) -> None:
     assert PPO.load(tmp_path / "policy.zip").num_timesteps == 256
 
 
-def _invoke(argv: list[str]) -> SimpleNamespace:
-    """Run the `curbside` command as the console script does (errors.run): exit code and everything printed."""
-    import contextlib
-    import io
-
-    import typer
-
-    from curbside.cli.errors import run
-
-    buf = io.StringIO()
-    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(buf):
-        code = run(typer.main.get_command(app), argv)
-    return SimpleNamespace(exit_code=code, output=buf.getvalue())
-
-
-def _one_error_line(res) -> str:
-    assert res.exit_code == 2, res.output
-    lines = [ln for ln in res.output.strip().splitlines() if ln.strip()]
-    assert len(lines) == 1 and "Traceback" not in res.output, res.output
-    return lines[0]
-
-
-def test_unknown_algorithm_is_one_line_exit_2(tmp_path) -> None:
-    line = _one_error_line(_invoke(["train", "run", "--algo", "dqn", "--out", str(tmp_path)]))
+def test_unknown_algorithm_is_one_line_exit_2(tmp_path, capsys) -> None:
+    line = one_error_line(*cli(["train", "run", "--algo", "dqn", "--out", str(tmp_path)], capsys))
     assert "unknown algorithm 'dqn'" in line and "ppo, ppo_lag" in line
 
 
-def test_missing_demo_file_is_one_line_exit_2(tmp_path) -> None:
-    line = _one_error_line(_invoke(["train", "run", "--algo", "bc", "--demos", str(tmp_path / "nope"),
-                                               "--out", str(tmp_path / "run")]))
+def test_missing_demo_file_is_one_line_exit_2(tmp_path, capsys) -> None:
+    line = one_error_line(*cli(["train", "run", "--algo", "bc", "--demos", str(tmp_path / "nope"),
+                                "--out", str(tmp_path / "run")], capsys))
     assert "no demonstration dataset" in line and "curbside demos collect" in line
-    line = _one_error_line(_invoke(["train", "run", "--algo", "iql", "--out", str(tmp_path / "run")]))
+    line = one_error_line(*cli(["train", "run", "--algo", "iql", "--out", str(tmp_path / "run")], capsys))
     assert "--demos" in line
 
 
-def test_a_split_with_no_scenes_is_one_line_exit_2(tmp_path) -> None:
+def test_a_split_with_no_scenes_is_one_line_exit_2(tmp_path, capsys) -> None:
     from sim.scene.dataset import build_dataset
 
     build_dataset("test", 1, tmp_path / "scenes", base={"blocks": 1})
     cfg = json.dumps({"scene_dir": str(tmp_path / "scenes"), "num_scenes": None})
-    line = _one_error_line(_invoke(["train", "run", "--config", cfg, "--out", str(tmp_path / "run")]))
+    line = one_error_line(*cli(["train", "run", "--config", cfg, "--out", str(tmp_path / "run")], capsys))
     assert "split 'train' has no scenes" in line and "curbside scenes dataset --split train" in line
 
 
-def test_eval_of_a_folder_that_is_not_a_run_is_one_line_exit_2(tmp_path) -> None:
-    line = _one_error_line(_invoke(["train", "eval", str(tmp_path)]))
+def test_eval_of_a_folder_that_is_not_a_run_is_one_line_exit_2(tmp_path, capsys) -> None:
+    line = one_error_line(*cli(["train", "eval", str(tmp_path)], capsys))
     assert "not a training run" in line and "curbside train run" in line
 
 
-def test_bad_config_json_is_one_line_exit_2(tmp_path) -> None:
-    line = _one_error_line(_invoke(["train", "run", "--config", "{bad", "--out", str(tmp_path)]))
+def test_bad_config_json_is_one_line_exit_2(tmp_path, capsys) -> None:
+    line = one_error_line(*cli(["train", "run", "--config", "{bad", "--out", str(tmp_path)], capsys))
     assert "--config is not valid JSON" in line
-    line = _one_error_line(_invoke(["demos", "collect", "--config", '{"bogus": 1}', "--out", str(tmp_path)]))
+    line = one_error_line(*cli(["demos", "collect", "--config", '{"bogus": 1}', "--out", str(tmp_path)], capsys))
     assert "unknown key 'bogus'" in line
 
 

@@ -9,6 +9,7 @@ from typer.testing import CliRunner
 
 from curbside.cli.scenes import app
 from sim.scene import load
+from tests.helpers import cli, one_error_line
 
 runner = CliRunner()
 
@@ -38,13 +39,8 @@ def test_generate_render_dataset_stats(tmp_path: Path) -> None:
 
 
 def test_bad_block_code_exits_with_the_valid_codes(tmp_path: Path, capsys) -> None:
-    import typer
-
-    from curbside.cli.errors import run
-
-    code = run(typer.main.get_command(app), ["generate", "--blocks", "SQ", "--out", str(tmp_path / "x.json")])
-    err = capsys.readouterr().err
-    assert code == 2 and "valid: S (straight)" in err and len(err.strip().splitlines()) == 1
+    line = one_error_line(*cli(["scenes", "generate", "--blocks", "SQ", "--out", str(tmp_path / "x.json")], capsys))
+    assert "valid: S (straight)" in line
 
 
 def test_train_and_unseen_splits_differ_in_templates_and_categories() -> None:
