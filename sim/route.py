@@ -13,8 +13,9 @@ from scipy import ndimage
 from scipy.sparse import diags
 from scipy.sparse.csgraph import dijkstra
 
-from sim.scene.grid import SIDEWALK, decode_walkable, grid_graph, obstacle_mask
+from sim.scene.grid import SIDEWALK, grid_graph, obstacle_mask
 from sim.scene.polyline import Polyline
+from sim.scene.scene import Scene, as_scene
 
 LONG_ROUTE = 120.0  # metres: longer routes are drawn as chained legs
 
@@ -76,10 +77,11 @@ def _chaikin(pts: np.ndarray, iterations: int) -> np.ndarray:
 class RoutePlanner:
     """Grid planner for one scene and one machine width: samples start/goal pairs and plans smoothed routes."""
 
-    def __init__(self, spec: Mapping[str, Any], half_width: float, margin: float = 0.25, comfort: float = 0.75) -> None:
-        self.grid = decode_walkable(spec)
-        g = self.grid
-        blocked = (g.mask == 0) | obstacle_mask(g, spec.get("objects", []))
+    def __init__(self, scene: Scene | Mapping[str, Any], half_width: float, margin: float = 0.25,
+                 comfort: float = 0.75) -> None:
+        self.scene = as_scene(scene)  # a dict is parsed (checked) here, once
+        self.grid = g = self.scene.walkable
+        blocked = (g.mask == 0) | obstacle_mask(g, self.scene.objects)
         # Distance from each cell centre to the nearest blocked cell's edge, in metres.
         clearance = ndimage.distance_transform_edt(~blocked) * g.resolution - 0.5 * g.resolution
         free = clearance >= half_width + margin

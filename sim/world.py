@@ -1,5 +1,5 @@
-"""Scene spec (`curbside.scene/1`) -> static PyBullet world: ground, roads, raised sidewalks with curbs,
-curb ramps, crosswalks, buildings and static objects.
+"""Scene (`sim.scene.Scene`, a parsed `curbside.scene/1` spec) -> static PyBullet world: ground, roads, raised
+sidewalks with curbs, curb ramps, crosswalks, buildings and static objects.
 
 Surfaces are static concave triangle meshes (extruded polygons: a constrained Delaunay triangulation of
 the top plus side walls, which are the curbs); ramps are convex wedges; objects get box collision from
@@ -20,7 +20,7 @@ from shapely.geometry.polygon import orient
 
 from sim.meshes import extrusion_mesh, mesh_shape, polygons
 from sim.palette import SURFACE, category_color
-from sim.scene.config import SPEC_VERSION
+from sim.scene.scene import Scene, SceneError, as_scene
 
 # Body kinds: what a contact with or a ray hit on that body means.
 SURFACE_KINDS = ("ground", "sidewalk", "ramp")
@@ -43,25 +43,6 @@ def touching(client: int, body: int, kinds: Mapping[int, str], extra: Mapping[in
             hits.add(kind)
 
 
-class SceneError(ValueError):
-    """A scene spec this simulator cannot build (wrong version, missing or malformed fields)."""
-
-
-def check_spec(spec: Mapping[str, Any]) -> None:
-    """Raise SceneError unless `spec` is a `curbside.scene/1` document with the fields the simulator needs."""
-    if not isinstance(spec, Mapping):
-        raise SceneError(f"a scene spec must be a JSON object (dict), got {type(spec).__name__}")
-    version = spec.get("version")
-    if version != SPEC_VERSION:
-        raise SceneError(
-            f"scene spec version {version!r} is not supported; this simulator reads {SPEC_VERSION!r}: "
-            "regenerate the scene with `curbside scenes generate` (see docs/scene_spec.md)"
-        )
-    missing = [k for k in ("bounds", "roads", "sidewalks", "crosswalks", "objects", "walkable") if k not in spec]
-    if missing:
-        raise SceneError(f"scene spec lacks {missing}; see docs/scene_spec.md for the required fields")
-
-
 def _obj_vertices(path: str) -> np.ndarray:
     """Vertex positions of a Wavefront OBJ file (enough for a convex hull)."""
     out = []
@@ -75,21 +56,20 @@ def _obj_vertices(path: str) -> np.ndarray:
 
 
 class World:
-    """The static PyBullet world built from one scene spec; `kinds` maps body id -> what it is."""
+    """The static PyBullet world built from one scene; `kinds` maps body id -> what it is."""
 
-    def __init__(self, spec: Mapping[str, Any], *, client: int | None = None, gui: bool = False,
+    def __init__(self, scene: Scene | Mapping[str, Any], *, client: int | None = None, gui: bool = False,
                  collision: str = "box", catalog: Any = None, visual_meshes: bool = False,
                  physics_dt: float = 0.02) -> None:
-        check_spec(spec)
+        self.scene = as_scene(scene)  # a dict is parsed (checked) here, once
         if collision not in ("box", "convex"):
             raise SceneError(f"unknown collision {collision!r}; valid: box, convex")
-        self.spec = spec
-        self.curb_height = float(spec.get("curb_height", 0.15))
+        self.curb_height = self.scene.curb_height
         self.owns_client = client is None
         self.client = p.connect(p.GUI if gui else p.DIRECT) if client is None else client
         self.kinds: dict[int, str] = {}
         self.object_ids: list[int] = []
-        self.object_index: dict[int, int] = {}  # body id -> index into spec["objects"]
+        self.object_index: dict[int, int] = {}  # body id -> index into scene.objects
         self._collision = collision
         self._catalog = catalog
         self._visual_meshes = visual_meshes
@@ -117,30 +97,30 @@ class World:
         return self._add(kind, col, vis)
 
     def _build(self) -> None:
-        spec, c, h = self.spec, self.client, self.curb_height
-        xmin, ymin, xmax, ymax = (float(v) for v in spec["bounds"])
+        scene, c, h = self.scene, self.client, self.curb_height
+        xmin, ymin, xmax, ymax = scene.bounds
         cx, cy = 0.5 * (xmin + xmax), 0.5 * (ymin + ymax)
         hx, hy = 0.5 * (xmax - xmin) + 50.0, 0.5 * (ymax - ymin) + 50.0
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[hx, hy, 0.5], physicsClientId=c)
         vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[hx, hy, 0.5], rgbaColor=list(SURFACE["ground"]), physicsClientId=c)
         self.ground = self._add("ground", col, vis, (cx, cy, -0.5))
         # Painted surfaces on the road are visual only: the ground plane carries the wheels there.
-        for road in spec["roads"]:
+        for road in scene.roads:
             for poly in polygons(Polygon(road["polygon"]).buffer(0)):
                 self._mesh_body("road", *extrusion_mesh(poly, 0.0, 0.002, walls=False), SURFACE["road"], collide=False)
-        for cw in spec["crosswalks"]:
+        for cw in scene.crosswalks:
             for poly in polygons(Polygon(cw["polygon"]).buffer(0)):
                 self._mesh_body("crosswalk", *extrusion_mesh(poly, 0.0, 0.004, walls=False), SURFACE["crosswalk"], collide=False)
         ramps_by_sidewalk: dict[str, list[Polygon]] = {}
-        sidewalks = {sw["id"]: sw for sw in spec["sidewalks"]}
-        for cw in spec["crosswalks"]:
+        sidewalks = {sw["id"]: sw for sw in scene.sidewalks}
+        for cw in scene.crosswalks:
             for ramp in cw.get("ramps", []):
                 # Slightly grown, so no sliver of raised sidewalk survives between the ramp and the curb line.
                 poly = Polygon(ramp["polygon"]).buffer(0.05, join_style="mitre")
                 cuts = self._build_ramp(poly, sidewalks.get(ramp["sidewalk_id"]))
                 ramps_by_sidewalk.setdefault(ramp["sidewalk_id"], []).extend(cuts)
-        rng = np.random.default_rng(int(spec.get("seed", 0)))
-        for sw in spec["sidewalks"]:
+        rng = np.random.default_rng(scene.seed)
+        for sw in scene.sidewalks:
             geom = Polygon(sw["polygon"]).buffer(0)
             for ramp in ramps_by_sidewalk.get(sw["id"], []):
                 geom = geom.difference(ramp.buffer(0.01, join_style="mitre"))
@@ -153,7 +133,7 @@ class World:
                     height = float(rng.uniform(6.0, 18.0))
                     for poly in polygons(Polygon(zone["polygon"]).buffer(0)):
                         self._mesh_body("building", *extrusion_mesh(poly, 0.0, height), SURFACE["building"])
-        for i, obj in enumerate(spec["objects"]):
+        for i, obj in enumerate(scene.objects):
             body = self._build_object(obj)
             self.object_ids.append(body)
             self.object_index[body] = i
@@ -165,7 +145,7 @@ class World:
         if sidewalk is not None and len(sidewalk.get("edge", [])) >= 2:
             curb = LineString(sidewalk["edge"])
         else:
-            curb = shapely.union_all([Polygon(r["polygon"]) for r in self.spec["roads"]]).boundary
+            curb = shapely.union_all([Polygon(r["polygon"]) for r in self.scene.roads]).boundary
         d = np.array([curb.distance(Point(x, y)) for x, y in pts])
         # The vertices on the curb line sit at road level; the rest rise to the sidewalk over the ramp.
         z = np.where(d < max(0.1, 0.25 * float(d.max())), 0.0, h)
@@ -239,6 +219,11 @@ class World:
         return str(path)
 
     # -- queries ------------------------------------------------------------------------------------
+    @property
+    def spec(self) -> Mapping[str, Any]:
+        """The raw spec dict of the scene (read it, never write it), for code that still reads dicts."""
+        return self.scene.spec
+
     def surface_height(self, x: float, y: float) -> float:
         """Height of the driving surface under (x, y), from a vertical ray (objects excluded by the caller)."""
         hits = p.rayTestBatch([[x, y, 30.0]], [[x, y, -1.0]], physicsClientId=self.client)
@@ -250,7 +235,7 @@ class World:
     def object_category(self, body: int) -> str:
         """Category of the static object whose body id is `body` ('object' when unknown)."""
         i = self.object_index.get(body)
-        return "object" if i is None else str(self.spec["objects"][i].get("category", "object"))
+        return "object" if i is None else str(self.scene.objects[i].get("category", "object"))
 
     def close(self) -> None:
         """Disconnect from PyBullet when this world owns the client."""

@@ -101,20 +101,12 @@ def render(
     dpi: int = typer.Option(150, min=10, max=1200, help="Resolution (dots per inch)."),
 ) -> None:
     """Render a scene spec top-down to PNG."""
-    import json
-
-    from sim.scene import load
-    from sim.scene.config import check_scene_spec
+    from sim.scene import Scene
     from sim.scene.render import render_scene
 
     _file_out(out, "scene.png")
-    try:
-        spec = load(scene)
-    except json.JSONDecodeError as e:
-        raise UsageError(f"{scene} is not a scene spec JSON file ({e.msg} at line {e.lineno}); "
-                         "regenerate it with `curbside scenes generate`") from None
-    check_scene_spec(spec, source=str(scene))
-    typer.echo(str(render_scene(spec, out, dpi=dpi)))
+    # Scene.load names a file that is not JSON, or the field that is wrong, as a one-line error (exit 2).
+    typer.echo(str(render_scene(Scene.load(scene).spec, out, dpi=dpi)))
 
 
 @app.command()

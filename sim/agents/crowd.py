@@ -34,6 +34,7 @@ from sim.agents.crowd_spawning import SPAWN_AREAS, AgentSpawning, sidewalk_lengt
 from sim.agents.deadlock import PushResolver
 from sim.agents.kinds import AGENT_KINDS, KIND_NAMES, agent_kind
 from sim.agents.navgrid import NavGrid, build_navgrid
+from sim.scene.scene import Scene, as_scene
 
 # Names other modules import from here, though the crowd_* modules define them.
 __all__ = ["AGENT_DEFAULTS", "AGENT_DTYPE", "SPAWN_AREAS", "AgentManager", "EgoState", "sidewalk_length"]
@@ -58,7 +59,7 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         if self.config["lookahead_cells"] not in (1, 2, 4, 8):
             raise ConfigError(f"agents config lookahead_cells must be 1, 2, 4 or 8, got {self.config['lookahead_cells']}")
         self.grid: NavGrid | None = None
-        self._scene: Any = None  # the spec the cached grid and ORCA obstacles belong to
+        self._scene: Scene | None = None  # the scene the cached grid and ORCA obstacles belong to
         self.n = 0
         self.time = 0.0
         self.push = PushResolver(self.config["push_window"])
@@ -66,22 +67,24 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         self.crossings = Crossings()
 
     # ------------------------------------------------------------------ reset
-    def reset(self, spec: dict[str, Any], rng: np.random.Generator, ego: EgoState | None = None,
+    def reset(self, scene: Scene | Mapping[str, Any], rng: np.random.Generator, ego: EgoState | None = None,
               keep_clear: Sequence[tuple[float, float, float]] = (), route: np.ndarray | None = None) -> np.ndarray:
-        """Build the planner for `spec`, spawn agents away from `keep_clear` discs (x, y, r) and return states().
+        """Build the planner for `scene` (a dict is parsed), spawn agents away from `keep_clear` discs (x, y, r)
+        and return states().
 
         `route` (N, 2): the ego's route, for `spawn_area: "route"` (agents per 100 m of route, along it).
         """
         c = self.config
         self.rng = rng
-        fresh = spec is not self._scene
+        scene = as_scene(scene, self._scene)
+        fresh = scene is not self._scene
         if fresh:
-            self.grid = build_navgrid(spec, plan_radius=c["plan_radius"], n_sites=c["n_goal_sites"])
-            self.crossings.setup(spec, self.grid)
-        self._area = spawn_region(spec, c, route)
+            self.grid = build_navgrid(scene, plan_radius=c["plan_radius"], n_sites=c["n_goal_sites"])
+            self.crossings.setup(scene.spec, self.grid)  # behaviours.py still reads the dict
+        self._area = spawn_region(scene, c, route)
         if route is not None and len(route) >= 2:
             self._route_length = float(np.linalg.norm(np.diff(np.asarray(route)[:, :2], axis=0), axis=1).sum())
-        kinds = self._draw_kinds(spec, rng)
+        kinds = self._draw_kinds(scene, rng)
         self.n = n = len(kinds)
         self.kind_idx = np.array([KIND_NAMES.index(k) for k in kinds], dtype=np.int16)
         self.radius = np.array([AGENT_KINDS[k].radius for k in kinds])
@@ -107,9 +110,9 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         self.push.window = float(c["push_window"])
         self.push.reset()
         self.groups.reset(self, rng, clear)
-        self._build_orca(spec, fresh)
+        self._build_orca(scene, fresh)
         self._orca_radius = self.radius + c["safety_margin"]
-        self._scene = spec
+        self._scene = scene
         nodes = self.grid.nearest_node(self.pos)
         for i in range(n):
             if self.groups.of[i] >= 0:
@@ -127,7 +130,7 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
     def step(self, dt: float, ego: EgoState | Mapping[str, float] | Sequence[float] | None = None) -> np.ndarray:
         """Advance every agent by `dt` seconds around the ego (None: no ego) and return states()."""
         if self.grid is None:
-            raise RuntimeError("AgentManager.step called before reset(spec, rng)")
+            raise RuntimeError("AgentManager.step called before reset(scene, rng)")
         g = self.grid
         self._set_ego(as_ego(ego))
         self.time += dt

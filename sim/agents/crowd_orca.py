@@ -12,6 +12,7 @@ import pyrvo
 from sim.agents.behaviours import STAND_MARGIN
 from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
 from sim.agents.navgrid import boundary_segments
+from sim.scene.scene import Scene
 
 
 @dataclass(frozen=True)
@@ -37,10 +38,10 @@ def as_ego(ego: EgoState | Mapping[str, float] | Sequence[float] | None) -> EgoS
 class OrcaCrowd:
     """AgentManager's ORCA part: builds and reuses pyrvo simulators, parks unused slots, places the ego."""
 
-    def _build_orca(self, spec: dict[str, Any], fresh: bool) -> None:
+    def _build_orca(self, scene: Scene, fresh: bool) -> None:
         c = self.config
         if fresh:
-            self._obstacles = self._orca_obstacles(spec)
+            self._obstacles = self._orca_obstacles(scene)
             self._sims: dict[int, Any] = {}
         # Processing the scene's obstacles (object footprints, walkable boundary) costs ~0.2 s, more than a short
         # episode: each scene keeps one simulator per agent capacity (a power of two) and reuses it. RVO2's
@@ -76,10 +77,10 @@ class OrcaCrowd:
             sim.set_agent_radius(i, radius)
             sim.set_agent_max_speed(i, top)
 
-    def _orca_obstacles(self, spec: dict[str, Any]) -> list[list[tuple[float, float]]]:
+    def _orca_obstacles(self, scene: Scene) -> list[list[tuple[float, float]]]:
         """ORCA obstacles of a scene: object footprints (counter-clockwise) and walkable-boundary segments."""
         out = []
-        for o in spec.get("objects", []):
+        for o in scene.objects:
             pts = np.asarray(o.get("footprint") or [], dtype=np.float64)
             if len(pts) >= 3:
                 area2 = np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])

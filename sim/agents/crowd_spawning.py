@@ -9,11 +9,12 @@ import numpy as np
 
 from curbside.config import ConfigError
 from sim.agents.kinds import KIND_NAMES
+from sim.scene.scene import Scene, as_scene
 
 SPAWN_AREAS = ("sidewalks", "intersections", "route")
 
 
-def spawn_region(spec: dict[str, Any], config: Mapping[str, Any], route: np.ndarray | None) -> Any:
+def spawn_region(scene: Scene, config: Mapping[str, Any], route: np.ndarray | None) -> Any:
     """The polygon agents spawn in (None: every sidewalk): around intersections, or along the ego's route."""
     from shapely.geometry import LineString, Polygon
     from shapely.ops import unary_union
@@ -22,17 +23,17 @@ def spawn_region(spec: dict[str, Any], config: Mapping[str, Any], route: np.ndar
     if area == "sidewalks":
         return None
     if area == "intersections":
-        roads = [Polygon(r["polygon"]) for r in spec.get("roads", []) if r.get("block") in ("X", "T", "O")]
+        roads = [Polygon(r["polygon"]) for r in scene.roads if r.get("block") in ("X", "T", "O")]
         return unary_union(roads).buffer(float(config["intersection_margin"])) if roads else Polygon()
     if route is None or len(route) < 2:
         raise ConfigError("agents spawn_area 'route' needs the ego's route (SocialNav passes it at reset)")
     return LineString(np.asarray(route)[:, :2]).buffer(float(config["route_band"]))
 
 
-def sidewalk_length(spec: dict[str, Any]) -> float:
+def sidewalk_length(scene: Scene | Mapping[str, Any]) -> float:
     """Total sidewalk length in metres (clear-path polylines, else curb edges) used by dynamic_density."""
     total = 0.0
-    for sw in spec.get("sidewalks", []):
+    for sw in as_scene(scene).sidewalks:
         line = np.asarray(sw.get("clear_path") or sw.get("edge") or [], dtype=np.float64)
         if len(line) >= 2:
             total += float(np.linalg.norm(np.diff(line, axis=0), axis=1).sum())
@@ -42,12 +43,12 @@ def sidewalk_length(spec: dict[str, Any]) -> float:
 class AgentSpawning:
     """AgentManager's spawning part: draws the agents' kinds and places them apart on the walkable grid."""
 
-    def _draw_kinds(self, spec: dict[str, Any], rng: np.random.Generator) -> list[str]:
+    def _draw_kinds(self, scene: Scene, rng: np.random.Generator) -> list[str]:
         c = self.config
         if c["counts"]:
             kinds = [k for k in KIND_NAMES for _ in range(int(c["counts"].get(k, 0)))]
         else:
-            n = int(round(c["dynamic_density"] * self._area_length(spec) / 100.0))
+            n = int(round(c["dynamic_density"] * self._area_length(scene) / 100.0))
             names = list(c["mix"])
             p = np.array([c["mix"][k] for k in names], dtype=np.float64)
             kinds = list(rng.choice(names, size=n, p=p / p.sum())) if n else []
@@ -56,16 +57,16 @@ class AgentSpawning:
                               "lower dynamic_density/counts or raise max_agents")
         return [str(k) for k in kinds]
 
-    def _area_length(self, spec: dict[str, Any]) -> float:
+    def _area_length(self, scene: Scene) -> float:
         """Metres of sidewalk (or route) the spawn count scales with: dynamic_density agents per 100 m of it."""
         if self._area is None:
-            return sidewalk_length(spec)
+            return sidewalk_length(scene)
         if self.config["spawn_area"] == "route":
             return float(self._route_length)
         from shapely.geometry import LineString
 
         total = 0.0
-        for sw in spec.get("sidewalks", []):
+        for sw in scene.sidewalks:
             line = sw.get("clear_path") or sw.get("edge") or []
             if len(line) >= 2:
                 total += LineString(line).intersection(self._area).length

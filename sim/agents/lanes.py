@@ -6,6 +6,7 @@ connectors that carry vehicles through intersections (straight on, left and righ
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -16,6 +17,7 @@ from scipy.sparse.csgraph import connected_components
 from shapely.geometry import LineString, Polygon
 
 from sim.scene.polyline import Polyline
+from sim.scene.scene import Scene, as_scene
 
 
 class Lane(Polyline):
@@ -61,11 +63,12 @@ class ConflictZones:
     n_zones: int
 
 
-def build_lanes(spec: dict[str, Any]) -> list[Lane]:
-    """Lane polylines of every road in `spec`, with the crosswalks each one crosses."""
-    crosswalks = [Polygon(c["polygon"]) for c in spec.get("crosswalks", [])]
+def build_lanes(scene: Scene | Mapping[str, Any]) -> list[Lane]:
+    """Lane polylines of every road in `scene` (a dict is parsed), with the crosswalks each one crosses."""
+    scene = as_scene(scene)
+    crosswalks = [Polygon(c["polygon"]) for c in scene.crosswalks]
     lanes = []
-    for ri, road in enumerate(spec.get("roads", [])):
+    for ri, road in enumerate(scene.roads):
         lw, n = float(road["lane_width"]), int(road["lanes"])
         for line in road.get("centerlines", []):
             base = LineString(line)
@@ -86,15 +89,17 @@ def build_lanes(spec: dict[str, Any]) -> list[Lane]:
 JUNCTIONS = ("X", "T")
 
 
-def build_connectors(spec: dict[str, Any], lanes: list[Lane], max_turn: float = math.radians(100.0)) -> list[Lane]:
+def build_connectors(scene: Scene | Mapping[str, Any], lanes: list[Lane],
+                     max_turn: float = math.radians(100.0)) -> list[Lane]:
     """Paths through every intersection and T-junction: from each lane ending at the junction's box to each lane
     of another arm starting there (straight on, left, right; no U-turns), as cubic Bezier curves tangent to both.
 
     A lane end and a lane start belong to the junction when both lie within a metre of the box's circumscribed
     circle and the start lies ahead of the end; lane k (counted from the centerline) joins lane k.
     """
-    crosswalks = [Polygon(c["polygon"]) for c in spec.get("crosswalks", [])]
-    roads = spec.get("roads", [])
+    scene = as_scene(scene)
+    crosswalks = [Polygon(c["polygon"]) for c in scene.crosswalks]
+    roads = scene.roads
     out: list[Lane] = []
     for ri, road in enumerate(roads):
         if road.get("block") not in JUNCTIONS:

@@ -7,6 +7,7 @@ site share the field, so planning 100 agents costs at most `n_sites` Dijkstra ru
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -16,7 +17,8 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 from shapely.geometry import Polygon
 
-from sim.scene.grid import SIDEWALK, decode_walkable, grid_graph, obstacle_mask
+from sim.scene.grid import SIDEWALK, grid_graph, obstacle_mask
+from sim.scene.scene import Scene, as_scene
 
 
 def boundary_segments(mask: np.ndarray, origin: np.ndarray, res: float) -> list[tuple[tuple[float, float], tuple[float, float]]]:
@@ -197,15 +199,17 @@ class NavGrid:
 JUMPS = [1, 2, 4, 8]
 
 
-def build_navgrid(spec: dict[str, Any], *, plan_radius: float = 0.5, n_sites: int = 32) -> NavGrid:
-    """Build the planning grid of a scene spec: object footprints inflated by `plan_radius`, goal sites spread out.
+def build_navgrid(scene: Scene | Mapping[str, Any], *, plan_radius: float = 0.5, n_sites: int = 32) -> NavGrid:
+    """Build the planning grid of a scene (a dict is parsed): object footprints inflated by `plan_radius`, goal
+    sites spread out.
 
-    A pure function of the spec, so one grid (and its distance fields) serves every episode in a scene.
+    A pure function of the scene, so one grid (and its distance fields) serves every episode in a scene.
     """
-    g = decode_walkable(spec)
+    scene = as_scene(scene)
+    g = scene.walkable
     cells, origin, res = g.mask, np.asarray(g.origin, dtype=np.float64), g.resolution
     surface = cells > 0
-    footprints = [Polygon(o["footprint"]) for o in spec.get("objects", []) if o.get("footprint")]
+    footprints = [Polygon(f) for f in scene.footprints()]
     # Agents keep the cells of objects thinner than a cell (cover_thin=False): ORCA sees those as obstacles.
     objects = obstacle_mask(g, footprints, cover_thin=False)
     walkable = surface & ~objects

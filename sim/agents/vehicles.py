@@ -41,6 +41,7 @@ from sim.agents.lanes import (
 from sim.agents.vehicle_idm import CarFollowing
 from sim.agents.vehicle_junctions import JunctionControl
 from sim.agents.vehicle_routing import LaneRouting
+from sim.scene.scene import Scene, as_scene
 
 __all__ = ["VEHICLE_DEFAULTS", "VEHICLE_DTYPE", "Lane", "VehicleManager", "build_lanes"]
 
@@ -73,25 +74,27 @@ class VehicleManager(LaneRouting, CarFollowing, JunctionControl):
     def __init__(self, config: Mapping[str, Any] | None = None) -> None:
         self.config = merge_strict(VEHICLE_DEFAULTS, config, name="vehicles config")
         self.n = 0
-        self._scene: Any = None
+        self._scene: Scene | None = None
 
-    def reset(self, spec: dict[str, Any], rng: np.random.Generator) -> np.ndarray:
-        """Spawn `traffic_density` vehicles per 100 m of lane, spaced at least one IDM jam gap apart."""
+    def reset(self, scene: Scene | Mapping[str, Any], rng: np.random.Generator) -> np.ndarray:
+        """Spawn `traffic_density` vehicles per 100 m of lane on `scene` (a dict is parsed), at least one IDM jam
+        gap apart."""
         c = self.config
         self.rng = rng
-        if spec is not self._scene:  # lanes, crossings and zones are pure functions of the spec: build once
-            road = build_lanes(spec)
+        scene = as_scene(scene, self._scene)
+        if scene is not self._scene:  # lanes, crossings and zones are pure functions of the scene: build once
+            road = build_lanes(scene)
             self.n_road = len(road)
-            self.lanes = road + (build_connectors(spec, road) if c["turning"] else [])
+            self.lanes = road + (build_connectors(scene, road) if c["turning"] else [])
             self.is_connector = np.array([ln.is_connector for ln in self.lanes], dtype=bool)
             self.compatible = connector_compatibility(self.lanes, c["width"])
-            self.crosswalks = [Polygon(cw["polygon"]).buffer(c["crosswalk_margin"]) for cw in spec.get("crosswalks", [])]
+            self.crosswalks = [Polygon(cw["polygon"]).buffer(c["crosswalk_margin"]) for cw in scene.crosswalks]
             for cw in self.crosswalks:
                 shapely.prepare(cw)
             self._cw_bounds = np.array([cw.bounds for cw in self.crosswalks]).reshape(-1, 4)
             self.zones: ConflictZones = build_conflict_zones(road, c["width"])
             self._index_lanes()
-            self._scene = spec
+            self._scene = scene
         lane_id, s = [], []
         spacing = c["length"] + c["min_gap"] + 2.0
         for li, lane in enumerate(self.lanes[:self.n_road]):  # nobody starts inside a junction box

@@ -18,9 +18,10 @@ from sim.envs.scenes import SceneCache, SceneSlot, SceneSource, build_slot
 from sim.machines import Machine, machine_spec
 from sim.metrics import make_measures
 from sim.route import RoutePlanner
+from sim.scene.scene import Scene
 from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, Termination, check_config, make_reward,
                                 resolve_task_config)
-from sim.world import World, check_spec, touching
+from sim.world import World, touching
 
 STATIC_COLLISION_KINDS = ("object", "building", "curb")  # with "agent" and "vehicle": sim.tasks.pointnav.COLLISION_KINDS
 
@@ -64,7 +65,7 @@ class PointNavEnv(gym.Env):
     `path_length`, `time`, ...) and `info["metrics"]` as a dict (there `cost` is the episode's total).
 
     ## Subclass hooks
-    `_on_scene(spec)`, `_on_reset(rng)`, `_on_step()`, `_scene_state()`, `_load_scene_state(state)`,
+    `_on_scene(scene)`, `_on_reset(rng)`, `_on_step()`, `_scene_state()`, `_load_scene_state(state)`,
     `_collision_kinds`, `collision_kinds_all`, `_episode_metrics()`: see docs/simulator.md.
     """
 
@@ -86,9 +87,7 @@ class PointNavEnv(gym.Env):
         self.dt = float(cfg["dt"])
         self.substeps = int(cfg["physics_substeps"])
         self.cost_kinds = frozenset(cfg["cost_kinds"])
-        if cfg["scene_spec"] is not None:
-            check_spec(cfg["scene_spec"])
-        self.scenes = SceneSource(cfg)
+        self.scenes = SceneSource(cfg)  # parses and checks a given scene_spec / scene_path now
         self.measures = make_measures(list(cfg["measures"]), agents=self.has_agents)
         self.observation = EgoObservation(cfg)
         self.observation_names = self.observation.names
@@ -123,7 +122,7 @@ class PointNavEnv(gym.Env):
             try:
                 build_slot(slot, load(), self.config, self.spec_machine)
                 self._use(slot)
-                self._on_scene(slot.world.spec)
+                self._on_scene(slot.scene)
             except BaseException:
                 self.cache.discard(key)
                 self.slot = self.route = None
@@ -139,13 +138,18 @@ class PointNavEnv(gym.Env):
         self.kinds = dict(slot.world.kinds)
 
     @property
+    def scene(self) -> Scene:
+        """The scene (parsed once, when it was loaded) the current episode runs in."""
+        assert self.slot is not None and self.slot.scene is not None, "call reset() first"
+        return self.slot.scene
+
+    @property
     def scene_spec(self) -> dict[str, Any]:
-        """The spec of the scene the current episode runs in."""
-        assert self.world is not None, "call reset() first"
-        return self.world.spec  # type: ignore[return-value]
+        """The raw spec dict of the current scene (`scene.spec`; read it, never write it)."""
+        return self.scene.spec  # type: ignore[return-value]
 
     # -- hooks -------------------------------------------------------------------------------------
-    def _on_scene(self, spec: Mapping[str, Any]) -> None:
+    def _on_scene(self, scene: Scene) -> None:
         """Called after a new scene's world is built (subclasses add their bodies here)."""
         self._collision_kinds = {}
 

@@ -19,7 +19,8 @@ import pybullet as p
 from curbside.config import ConfigError
 from sim.machines import Machine
 from sim.route import RoutePlanner
-from sim.scene.config import check_scene_spec, resolve_config
+from sim.scene.config import resolve_config
+from sim.scene.scene import Scene
 from sim.sensors import Lidar
 from sim.tasks.pointnav import MAX_SEED
 from sim.tasks.scenes import dataset_scenes, generator_config, load_scene, read_scene, split_seed_offset
@@ -32,6 +33,7 @@ class SceneSlot:
 
     key: Any
     client: int
+    scene: Scene | None = None
     world: Any = None
     machine: Any = None
     lidar: Any = None
@@ -52,13 +54,11 @@ class SceneSource:
         if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < MAX_SEED:
             raise ConfigError(f"config.scene_seed must be an integer in [0, {MAX_SEED}), got {seed!r}")
         self.files: list[Path] = []
-        # Scene problems fail here, at construction, not at the first reset.
-        if config["scene_spec"] is not None:
+        self.fixed: Scene | None = None
+        # Scene problems fail here, at construction, not at the first reset; a fixed scene is parsed only here.
+        if config["scene_spec"] is not None or config["scene_path"] is not None:
             self.kind = "fixed"
-            check_scene_spec(config["scene_spec"], source="config.scene_spec")
-        elif config["scene_path"] is not None:
-            self.kind = "fixed"
-            read_scene(config["scene_path"])
+            self.fixed = load_scene(config, 0)
         elif config["scene_dir"] is not None:
             self.kind = "dir"
             self.files = dataset_scenes(config["scene_dir"], config["split"])
@@ -80,11 +80,12 @@ class SceneSource:
         """How many distinct scenes episodes draw from."""
         return {"fixed": 1, "dir": len(self.files)}.get(self.kind, int(self.config["num_scenes"] or 1))
 
-    def draw(self, rng: np.random.Generator) -> tuple[Any, Callable[[], dict[str, Any]]]:
-        """(cache key, spec loader) of the next episode's scene; uses `rng` only when there is a choice."""
+    def draw(self, rng: np.random.Generator) -> tuple[Any, Callable[[], Scene]]:
+        """(cache key, scene loader) of the next episode's scene; uses `rng` only when there is a choice."""
         cfg = self.config
         if self.kind == "fixed":
-            return ("fixed",), lambda: load_scene(cfg, 0)
+            fixed = self.fixed
+            return ("fixed",), lambda: fixed
         k = int(rng.integers(self.count)) if self.count > 1 else 0
         if self.kind == "dir":
             path = self.files[k]
@@ -143,14 +144,15 @@ class SceneCache:
         self._spare = []
 
 
-def build_slot(slot: SceneSlot, spec: dict[str, Any], cfg: Mapping[str, Any], machine: Any) -> None:
-    """Build a scene into `slot`: its world, the machine of spec `machine`, both LiDARs and the route planner."""
+def build_slot(slot: SceneSlot, scene: Scene, cfg: Mapping[str, Any], machine: Any) -> None:
+    """Build `scene` into `slot`: its world, the machine of spec `machine`, both LiDARs and the route planner."""
     catalog = None
     if cfg["catalog"] is not None and (cfg["collision"] == "convex" or cfg["visual_meshes"]):
         from catalogs.reader import CatalogReader
         catalog = CatalogReader(cfg["catalog"])
     dt = float(cfg["dt"])
-    slot.world = World(spec, client=slot.client, collision=cfg["collision"], catalog=catalog,
+    slot.scene = scene
+    slot.world = World(scene, client=slot.client, collision=cfg["collision"], catalog=catalog,
                        visual_meshes=bool(cfg["visual_meshes"]), physics_dt=dt / int(cfg["physics_substeps"]))
     slot.machine = Machine(slot.client, machine)
     lid = cfg["lidar"]
@@ -159,5 +161,5 @@ def build_slot(slot: SceneSlot, spec: dict[str, Any], cfg: Mapping[str, Any], ma
                        start_radius=r0, encoding=lid["encoding"])
     slot.low_lidar = (Lidar(slot.client, beams=int(lid["low_beams"]), range_m=max(float(lid["low_range"]), r0 + 0.1),
                             height=float(lid["low_height"]), start_radius=r0) if int(lid["low_beams"]) else None)
-    slot.planner = RoutePlanner(spec, machine.half_width, margin=float(cfg["route_margin"]))
+    slot.planner = RoutePlanner(scene, machine.half_width, margin=float(cfg["route_margin"]))
     slot.state = {}

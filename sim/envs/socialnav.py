@@ -13,6 +13,7 @@ from sim.agents.render import draw_top_down
 from sim.agents.vehicles import VehicleManager
 from sim.envs.bodies import CohabitantBodies
 from sim.envs.pointnav import PointNavEnv
+from sim.scene.scene import Scene
 from sim.tasks.socialnav import CONFIG_TABLE, DEFAULT_CONFIG, PRESETS, SPLIT_AGENT_BEHAVIOUR
 
 
@@ -54,7 +55,7 @@ class SocialNavEnv(PointNavEnv):
     # -- hooks -------------------------------------------------------------------------------------
     _WORLD_STATE = ("crowd", "traffic", "bodies")  # the world's collision kinds are its bodies' dict
 
-    def _on_scene(self, spec: Mapping[str, Any]) -> None:
+    def _on_scene(self, scene: Scene) -> None:
         # A new world in its client: no agent body or shape exists there yet. Crowd and traffic keep planners
         # built for one scene (navigation grid, lanes), so each cached world has its own.
         self.crowd = AgentManager(self.config["agents"])
@@ -79,14 +80,14 @@ class SocialNavEnv(PointNavEnv):
         self._collision_kinds = self.bodies.collision_kinds
 
     def _on_reset(self, rng: np.random.Generator) -> None:
-        spec = self.scene_spec
+        scene = self.scene
         start = self.route.start
         goal = self.route.goal
-        self.crowd.reset(spec, rng, ego=self._ego_state(), keep_clear=[(float(goal[0]), float(goal[1]), 1.0),
+        self.crowd.reset(scene, rng, ego=self._ego_state(), keep_clear=[(float(goal[0]), float(goal[1]), 1.0),
                                                                    (float(start[0]), float(start[1]), 2.0)],
                         route=self.route.points)
         if self.config["traffic"]:
-            self.traffic.reset(spec, rng)
+            self.traffic.reset(scene, rng)
         else:
             self.traffic.n = 0
         self._sync_bodies()
@@ -113,7 +114,7 @@ class SocialNavEnv(PointNavEnv):
         if not len(xy):
             return np.zeros(0)
         i, j = g.cell_of(xy)
-        curb = float(self.scene_spec.get("curb_height", 0.15))
+        curb = self.scene.curb_height
         # Legend: sidewalk on the curb, crosswalk on the road, ramps half way.
         return np.choose(np.minimum(g.cells[i, j], 3), [curb, curb, 0.0, curb / 2])
 

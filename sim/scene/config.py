@@ -8,8 +8,6 @@ from typing import Any
 from curbside.config import ConfigError, merge_strict
 from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule, check_table
 
-SPEC_VERSION = "curbside.scene/1"
-
 BLOCK_CODES = {"S": "straight", "C": "curve", "X": "intersection", "T": "T-junction", "O": "roundabout"}
 
 # Zones from the road outward with (min, max) widths in metres (MetaUrban's composition, docs/design.md).
@@ -174,69 +172,3 @@ def resolve_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
 def max_sidewalk_width(templates: str) -> float:
     """Widest possible sidewalk (all zones at their maximum) over `templates`."""
     return max(sum(z[2] for z in TEMPLATES[t]) for t in templates)
-
-
-_SPEC_FIELDS = ("bounds", "roads", "sidewalks", "crosswalks", "objects", "walkable")
-_REGENERATE = "regenerate it with `curbside scenes generate` (docs/scene_spec.md describes the fields)"
-
-
-def _finite(value: Any, n: int | None = None) -> bool:
-    """Whether `value` is an array-like of finite numbers (n of them when n is given; [k, 2] points when n is 0)."""
-    import numpy as np
-
-    try:
-        a = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        return False
-    if n == 0:
-        return a.ndim == 2 and a.shape[1] == 2 and a.shape[0] > 0 and bool(np.isfinite(a).all())
-    return a.ndim == 1 and (n is None or a.shape[0] == n) and bool(np.isfinite(a).all())
-
-
-def check_scene_spec(spec: Any, source: str = "scene spec") -> None:
-    """Raise ConfigError unless `spec` is a `curbside.scene/1` document whose geometry is all finite numbers.
-
-    Catches what json.loads lets through (NaN, Infinity, strings, missing fields) where the spec is read, before a
-    world is built: Bullet and shapely would otherwise drop such objects silently.
-    """
-    if not isinstance(spec, Mapping):
-        raise ConfigError(f"{source} must be a JSON object, got {type(spec).__name__}; {_REGENERATE}")
-    if spec.get("version") != SPEC_VERSION:
-        raise ConfigError(f"{source} has version {spec.get('version')!r}; this curbside reads {SPEC_VERSION!r}: {_REGENERATE}")
-    missing = [k for k in _SPEC_FIELDS if k not in spec]
-    if missing:
-        raise ConfigError(f"{source} lacks {', '.join(missing)}; {_REGENERATE}")
-    b = spec["bounds"]
-    if not _finite(b, 4) or b[0] > b[2] or b[1] > b[3]:
-        raise ConfigError(f"{source} bounds must be 4 finite numbers [xmin, ymin, xmax, ymax], got {b!r}; {_REGENERATE}")
-    ch = spec.get("curb_height", 0.15)
-    if not _finite([ch], 1) or not 0.0 <= ch <= 1.0:
-        raise ConfigError(f"{source} curb_height must be a finite number in [0, 1] m, got {ch!r}; {_REGENERATE}")
-    for key in ("roads", "sidewalks", "crosswalks", "objects"):
-        if not isinstance(spec[key], list):
-            raise ConfigError(f"{source} {key} must be a list, got {type(spec[key]).__name__}; {_REGENERATE}")
-    for key in ("roads", "sidewalks", "crosswalks"):
-        for k, item in enumerate(spec[key]):
-            if not isinstance(item, Mapping) or not _finite(item.get("polygon"), 0):
-                raise ConfigError(f"{source} {key}[{k}] needs a polygon of finite [x, y] points; {_REGENERATE}")
-    for k, o in enumerate(spec["objects"]):
-        if not isinstance(o, Mapping):
-            raise ConfigError(f"{source} objects[{k}] must be a JSON object; {_REGENERATE}")
-        what = f"{source} objects[{k}] (id {o.get('id')!r})"
-        for field, n in (("position", 3), ("size", 3)):
-            if not _finite(o.get(field), n):
-                raise ConfigError(f"{what} {field} must be {n} finite numbers, got {o.get(field)!r}; {_REGENERATE}")
-        if min(o["size"]) < 0:
-            raise ConfigError(f"{what} size must be >= 0, got {o['size']!r}; {_REGENERATE}")
-        if not _finite([o.get("yaw", 0.0)], 1):
-            raise ConfigError(f"{what} yaw must be a finite number, got {o.get('yaw')!r}; {_REGENERATE}")
-        if "footprint" in o and not _finite(o["footprint"], 0):
-            raise ConfigError(f"{what} footprint must be finite [x, y] points; {_REGENERATE}")
-    w = spec["walkable"]
-    shape = w.get("shape") if isinstance(w, Mapping) else None
-    if (not isinstance(w, Mapping) or not _finite(w.get("origin"), 2) or not _finite([w.get("resolution")], 1)
-            or not w["resolution"] > 0 or not (isinstance(shape, list) and len(shape) == 2
-                                               and all(isinstance(v, int) and v > 0 for v in shape))
-            or not isinstance(w.get("cells"), str)):
-        raise ConfigError(f"{source} walkable must hold a finite origin, a resolution > 0, a [rows, cols] shape "
-                          f"and encoded cells; {_REGENERATE}")

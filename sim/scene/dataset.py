@@ -68,13 +68,11 @@ def verified_scene(path: Path, seed: int, config: dict[str, Any], catalog: str |
     Files are written atomically, so a file that parses is whole; the seed, config and catalog checks make a
     rerun with other settings regenerate instead of mixing scenes of two configs in one dataset.
     """
-    from curbside.config import ConfigError
-    from sim.scene.config import check_scene_spec
+    from sim.scene.scene import Scene
 
     try:
-        spec = json.loads(path.read_text(encoding="utf-8"))
-        check_scene_spec(spec, source=str(path))
-    except (OSError, ValueError, ConfigError):
+        spec = Scene.load(path).spec
+    except (OSError, ValueError):  # SceneError is a ValueError
         return None
     if spec.get("seed") != seed or spec.get("config") != config or spec.get("catalog") != catalog:
         return None

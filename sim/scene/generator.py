@@ -12,12 +12,13 @@ import numpy as np
 import shapely
 
 from sim.scene.categories import CategorySampler, load_distribution
-from sim.scene.config import SPEC_VERSION, resolve_config
+from sim.scene.config import resolve_config
 from sim.scene.geometry import ring_coords
 from sim.scene.grid import CROSSWALK, RAMP, SIDEWALK, encode_walkable, rasterize
 from sim.scene.occupancy import corridor
 from sim.scene.placement import Placer
 from sim.scene.roads import generate_network, lane_lines
+from sim.scene.scene import SPEC_VERSION
 from sim.scene.sidewalks import build_crosswalks, build_sidewalks
 from sim.scene.spec import canonical
 

@@ -15,11 +15,13 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from sim.scene.scene import Scene, as_scene
 
 # MetaUrban-12K (Wu et al., ICLR 2025, appendix): ">= 300" is a minimum, not a mean; the others are means.
 PAPER_STATS: dict[str, tuple[float, str]] = {
@@ -42,18 +44,19 @@ LOWER_BOUNDS = ("objects_per_scene", "episodes_over_800_steps")  # ">= 300 per s
 EXPERT_SPEED = 2.5  # m/s: the built-in expert's cruise speed (sim.expert.PurePursuitExpert)
 
 
-def scene_figures(spec: dict[str, Any], rng: np.random.Generator, route_length: tuple[float, float],
+def scene_figures(spec: Scene | Mapping[str, Any], rng: np.random.Generator, route_length: tuple[float, float],
                   agents: dict[str, Any] | None = None) -> dict[str, float]:
-    """The per-scene figures of the table above for one scene spec."""
+    """The per-scene figures of the table above for one scene (a dict is parsed)."""
     import shapely
     from shapely.geometry import Polygon
 
     from sim.agents.crowd import AGENT_DEFAULTS, sidewalk_length
     from sim.route import RouteError, RoutePlanner
 
-    objs = [o for o in spec.get("objects", []) if len(o.get("footprint") or []) >= 3]
+    scene = as_scene(spec)
+    objs = [o for o in scene.objects if len(o.get("footprint") or []) >= 3]
     polys = [Polygon(o["footprint"]) for o in objs]
-    xmin, ymin, xmax, ymax = (float(v) for v in spec["bounds"])
+    xmin, ymin, xmax, ymax = scene.bounds
     area = (xmax - xmin) * (ymax - ymin)
     gaps = []
     if len(polys) > 1:
@@ -65,18 +68,18 @@ def scene_figures(spec: dict[str, Any], rng: np.random.Generator, route_length: 
                 if idx:
                     gaps.append(min(poly.distance(polys[j]) for j in idx))
                     break
-    blocks = max(len(spec.get("roads", [])), 1)  # one road polygon per block
+    blocks = max(len(scene.roads), 1)  # one road polygon per block
     density = float((agents or {}).get("dynamic_density", AGENT_DEFAULTS["dynamic_density"]))
     out = {
-        "objects_per_scene": float(len(spec.get("objects", []))),
-        "objects_per_m2": len(spec.get("objects", [])) / area,
+        "objects_per_scene": float(len(scene.objects)),
+        "objects_per_m2": len(scene.objects) / area,
         "nearest_object_m": float(np.mean(gaps)) if gaps else float("nan"),
         "occupied_area_m2": float(sum(p.area for p in polys)),
         "scene_area_m2": area,
-        "agents_per_block": round(density * sidewalk_length(spec) / 100.0) / blocks,
+        "agents_per_block": round(density * sidewalk_length(scene) / 100.0) / blocks,
     }
     try:
-        route = RoutePlanner(spec, 0.3).sample(rng, *route_length)
+        route = RoutePlanner(scene, 0.3).sample(rng, *route_length)
         out["route_length_m"] = route.length
     except RouteError:
         out["route_length_m"] = float("nan")

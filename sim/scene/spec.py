@@ -10,8 +10,6 @@ from typing import Any
 import numpy as np
 import orjson
 
-from sim.scene.config import SPEC_VERSION
-
 DECIMALS = 4
 _SCALE = 10.0 ** DECIMALS
 assert _SCALE == 10000.0  # the scale the plain-float rounding paths below multiply by (literal there for speed)
@@ -219,15 +217,7 @@ def write_atomic(path: str | Path, text: str, *, durable: bool = True) -> None:
 
 
 def load(path: str | Path) -> dict[str, Any]:
-    """Read a scene spec, refusing a missing file or another spec version."""
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"no scene spec at {p}; create one with `curbside scenes generate --out {p}`")
-    spec = json.loads(p.read_text(encoding="utf-8"))
-    version = spec.get("version") if isinstance(spec, dict) else None
-    if version != SPEC_VERSION:
-        raise ValueError(
-            f"{p} is a scene spec of version {version!r}; this curbside reads {SPEC_VERSION!r}: "
-            "regenerate it with `curbside scenes generate`"
-        )
-    return spec
+    """Read a scene spec JSON file as a dict, checked by `Scene.load` (version, fields, finiteness)."""
+    from sim.scene.scene import Scene
+
+    return Scene.load(path).spec  # type: ignore[return-value]

@@ -2,19 +2,19 @@
 
 from __future__ import annotations
 
-import json
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from curbside.config import ConfigError
+from sim.scene.scene import Scene
 
 
-def load_scene(config: Mapping[str, Any], seed: int) -> dict[str, Any]:
-    """The scene spec an episode runs in: `scene_spec`, else `scene_path`, else generated with `seed`."""
+def load_scene(config: Mapping[str, Any], seed: int) -> Scene:
+    """The scene an episode runs in, parsed once: `scene_spec`, else `scene_path`, else generated with `seed`."""
     if config["scene_spec"] is not None:
-        return dict(config["scene_spec"])
+        return Scene.parse(dict(config["scene_spec"]), source="config.scene_spec")
     if config["scene_path"] is not None:
         return read_scene(config["scene_path"])
     try:
@@ -27,7 +27,7 @@ def load_scene(config: Mapping[str, Any], seed: int) -> dict[str, Any]:
     with warnings.catch_warnings():
         # Without a catalog the generator warns once per category; the env says it once per process instead.
         warnings.filterwarnings("ignore", message="no catalog was given")
-        return generate_scene(scene_cfg, seed, config["catalog"])
+        return Scene.parse(generate_scene(scene_cfg, seed, config["catalog"]), source=f"generated scene (seed {seed})")
 
 
 def generator_config(config: Mapping[str, Any]) -> dict[str, Any]:
@@ -39,19 +39,9 @@ def generator_config(config: Mapping[str, Any]) -> dict[str, Any]:
     return scene_cfg
 
 
-def read_scene(path: str | Path) -> dict[str, Any]:
-    """A scene spec from a JSON file, with a clear error when it is missing, not JSON or holds bad geometry."""
-    from sim.scene.config import check_scene_spec
-
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no scene spec at {path}; write one with `curbside scenes generate --out {path}`")
-    try:
-        spec = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise ConfigError(f"{path} is not a scene spec JSON file ({e}); regenerate it with `curbside scenes generate`") from e
-    check_scene_spec(spec, source=str(path))
-    return spec
+def read_scene(path: str | Path) -> Scene:
+    """A scene from a JSON file, with a clear error when it is missing, not JSON or holds bad geometry."""
+    return Scene.load(path)
 
 
 def split_seed_offset(split: str | None) -> int:

@@ -9,6 +9,7 @@ from shapely.geometry import Polygon
 from shapely.ops import unary_union
 
 from sim.agents.vehicles import VEHICLE_DTYPE, VehicleManager
+from sim.scene.grid import encode_walkable
 from tests.scenes import NARROW
 from tests.scenes import street as street_spec
 
@@ -68,7 +69,10 @@ def _cross_spec(arm: float = 60.0, split: bool = False) -> dict:
 
     xs = [[[-arm, 0.0], [0.0, 0.0]], [[0.0, 0.0], [arm, 0.0]]] if split else [[[-arm, 0.0], [arm, 0.0]]]
     roads = [road(f"h{k}", line) for k, line in enumerate(xs)] + [road("v", [[0.0, -arm], [0.0, arm]])]
-    return {"roads": roads, "crosswalks": []}
+    # A whole scene spec (VehicleManager parses it), with no sidewalk: only the roads matter here.
+    return {"version": "curbside.scene/1", "seed": 0, "bounds": [-arm - 4.0, -arm - 4.0, arm + 4.0, arm + 4.0],
+            "roads": roads, "sidewalks": [], "crosswalks": [], "objects": [],
+            "walkable": encode_walkable(np.zeros((1, 1), dtype=np.uint8), (-arm, -arm), 1.0)}
 
 
 def _boxes(st: np.ndarray) -> list[Polygon]:
