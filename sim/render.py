@@ -62,7 +62,7 @@ def rollout_gif(env_id: str, policy: str, out: Any, config: dict | None = None, 
         extent = (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2)
         # The scene and route are drawn once an episode, so supersampled; each frame draws only what moves.
         c = Canvas(extent, map_px / side, ss=3)
-        draw_scene(c, u.scene_spec)
+        draw_scene(c, u.scene)
         draw_route(c, pts, 3.0, goal=True)
         view.update(extent=extent, px_per_m=map_px / side, bg=c.image())
 

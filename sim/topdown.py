@@ -10,7 +10,7 @@ rollout GIF (`sim.render.rollout_gif`).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, Protocol
 
 import numpy as np
@@ -31,6 +31,7 @@ from sim.palette import (
     ZONE,
     rgb255,
 )
+from sim.scene.scene import Scene
 
 Colour = tuple[float, ...]  # RGB(A) floats in [0, 1], as in sim/palette.py
 
@@ -113,12 +114,14 @@ def object_colour(obj: dict[str, Any]) -> Colour:
     return OBJECT_CLASS.get(str(obj.get("object_class")), OBJECT)
 
 
-def draw_scene(c: Surface, spec: dict[str, Any], *, zones: bool = False) -> None:
+def draw_scene(c: Surface, scene: Scene | Mapping[str, Any], *, zones: bool = False) -> None:
     """Roads, islands, lane lines, sidewalks, crosswalks, ramps and objects; `zones` colours every sidewalk zone.
 
     Without `zones` (the frames) a sidewalk is one surface with its buildings; with it (the scene plot) each
     zone has its colour and curbs, clear paths and outlines are drawn.
     """
+    # The records only are drawn: a dict is read as it is, never parsed, since frames redraw it every step.
+    spec = scene.spec if isinstance(scene, Scene) else scene
     edge = EDGE if zones else None
     for road in spec.get("roads", []):
         c.polygon(road["polygon"], SURFACE["road"])

@@ -106,7 +106,7 @@ def render(
 
     _file_out(out, "scene.png")
     # Scene.load names a file that is not JSON, or the field that is wrong, as a one-line error (exit 2).
-    typer.echo(str(render_scene(Scene.load(scene).spec, out, dpi=dpi)))
+    typer.echo(str(render_scene(Scene.load(scene), out, dpi=dpi)))
 
 
 @app.command()

@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from sim.agents.kinds import AGENT_KINDS
+from sim.scene.scene import Scene
 from sim.topdown import Canvas, draw_agents, draw_ego, draw_route, draw_scene, draw_vehicles
 
 
-def draw_top_down(spec: dict[str, Any], centre: tuple[float, float], *, agents: np.ndarray | None = None,
+def draw_top_down(scene: Scene | Mapping[str, Any], centre: tuple[float, float], *, agents: np.ndarray | None = None,
                   trails: np.ndarray | None = None, vehicles: np.ndarray | None = None,
                   ego: tuple[float, float, float, float, float] | None = None, route: np.ndarray | None = None,
                   size: int = 256, view: float = 40.0) -> np.ndarray:
@@ -18,7 +20,7 @@ def draw_top_down(spec: dict[str, Any], centre: tuple[float, float], *, agents: 
     cx, cy = centre
     # Drawn once a step: no supersampling, so a frame costs a few milliseconds and agents keep their exact colour.
     c = Canvas((cx - view / 2, cy - view / 2, cx + view / 2, cy + view / 2), size / view)
-    draw_scene(c, spec)
+    draw_scene(c, scene)
     if route is not None and len(route) > 1:
         draw_route(c, route, max(1.0, 0.15 * c.px_per_m))
     if vehicles is not None:

@@ -157,7 +157,7 @@ class SocialNavEnv(PointNavEnv):
             return super().render()
         m = self.machine
         x, y, _ = m.position
-        return draw_top_down(self.scene_spec, (x, y), agents=self.crowd.states(), trails=self.crowd.trail,
+        return draw_top_down(self.scene, (x, y), agents=self.crowd.states(), trails=self.crowd.trail,
                              vehicles=self.vehicle_states(), ego=(x, y, m.yaw, m.spec.length, m.spec.width),
                              route=self.route.point_at(np.linspace(0.0, self.route.length, 100)),
                              size=int(r["width"]), view=float(r["top_down_height"]) * 1.6)

@@ -6,12 +6,14 @@ upsampled to a 1200 dpi figure costs gigabytes, vectors stay sharp and small at 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sim.palette import EDGE, OBJECT_CLASS, SURFACE, ZONE
+from sim.scene.scene import Scene, as_scene
 from sim.topdown import Colour, dashes, draw_scene
 
 
@@ -68,21 +70,22 @@ def _rgba(c: Colour | None) -> tuple[float, float, float, float]:
     return (0.0, 0.0, 0.0, 0.0) if c is None else (c[0], c[1], c[2], 1.0)
 
 
-def render_scene(spec: dict[str, Any], out: str | Path, *, dpi: int = 150, title: str | None = None) -> Path:
-    """Draw `spec` top-down to a PNG at `out` and return its path."""
+def render_scene(spec: Scene | Mapping[str, Any], out: str | Path, *, dpi: int = 150, title: str | None = None) -> Path:
+    """Draw a scene (a dict is parsed) top-down to a PNG at `out` and return its path."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.patches import Patch, Rectangle
 
-    xmin, ymin, xmax, ymax = spec["bounds"]
+    scene = as_scene(spec)
+    xmin, ymin, xmax, ymax = scene.bounds
     w, h = xmax - xmin, ymax - ymin
     scale = 12.0 / max(w, h)  # inches a metre
     fig, ax = plt.subplots(figsize=(max(w * scale, 4) + 2.5, max(h * scale, 4)))
     ax.set_facecolor(SURFACE["ground"][:3])
     c = PlotCanvas(ax, dpi * scale)
-    draw_scene(c, spec, zones=True)
+    draw_scene(c, scene, zones=True)
     c.finish()
     bar = 10.0 if max(w, h) < 150 else 50.0
     x0, y0 = xmin + 0.03 * w, ymin + 0.03 * h
@@ -99,8 +102,8 @@ def render_scene(spec: dict[str, Any], out: str | Path, *, dpi: int = 150, title
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    st = spec.get("stats", {})
-    ax.set_title(title or f"seed {spec['seed']} · blocks {st.get('blocks', '')} · {st.get('objects', 0)} objects", fontsize=9)
+    st = scene.stats
+    ax.set_title(title or f"seed {scene.seed} · blocks {st.get('blocks', '')} · {st.get('objects', 0)} objects", fontsize=9)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
