@@ -20,13 +20,14 @@ the far end (one site per crosswalk end, added to the navigation grid after the 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sim.agents.kinds import IDLE, KIND_NAMES
 from sim.agents.navgrid import NavGrid
 from sim.scene.grid import RAMP, SIDEWALK
+from sim.scene.scene import Scene
 
 if TYPE_CHECKING:  # pragma: no cover - typing only; crowd imports this module
     from sim.agents.crowd import AgentManager
@@ -58,10 +59,10 @@ class Crossings:
         self.far = np.zeros((0, 2))  # goal point past the far end
         self.sites = np.zeros(0, dtype=np.int64)
 
-    def setup(self, spec: dict[str, Any], grid: NavGrid) -> None:
-        """Add one goal site 2 m past each end of every crosswalk of `spec` (skipped where no sidewalk is there)."""
+    def setup(self, scene: Scene, grid: NavGrid) -> None:
+        """Add one goal site 2 m past each end of every crosswalk of `scene` (skipped where no sidewalk is there)."""
         near, far, sites = [], [], []
-        for cw in spec.get("crosswalks", []):
+        for cw in scene.crosswalks:
             ends = np.asarray(cw.get("ends") or [], dtype=np.float64)
             if ends.shape != (2, 2) or not np.isfinite(ends).all():
                 continue

@@ -80,7 +80,7 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         fresh = scene is not self._scene
         if fresh:
             self.grid = build_navgrid(scene, plan_radius=c["plan_radius"], n_sites=c["n_goal_sites"])
-            self.crossings.setup(scene.spec, self.grid)  # behaviours.py still reads the dict
+            self.crossings.setup(scene, self.grid)
         self._area = spawn_region(scene, c, route)
         if route is not None and len(route) >= 2:
             self._route_length = float(np.linalg.norm(np.diff(np.asarray(route)[:, :2], axis=0), axis=1).sum())
