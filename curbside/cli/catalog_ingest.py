@@ -18,6 +18,8 @@ Executor = Enum("Executor", {e: e for e in ("local", "process", "ray")}, type=st
 Scorer = Enum("Scorer", {e: e for e in ("imagenet", "clip", "none")}, type=str)  # retrieval.scoring.IMAGE_ENCODERS
 Calibration = Enum("Calibration", {e: e for e in ("softmax", "zscore", "none")}, type=str)  # scoring.CALIBRATIONS
 MAX_VIEWS = 20  # retrieval.render.MAX_VIEWS, not imported so `--help` stays light (a test checks they agree)
+# --views, --scorer, --calibration and --per-category defaults equal IngestConfig / ScoringConfig / ProceduralSource's
+# (retrieval imports numpy and trimesh, so not imported here): tests/cli/test_cli_defaults.py keeps them equal.
 
 
 @contextlib.contextmanager

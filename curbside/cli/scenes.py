@@ -22,6 +22,9 @@ Preset = Enum("Preset", {"metaurban12k": "metaurban12k", "none": "none"}, type=s
 RoutePreset = Enum("RoutePreset", {k: k for k in ("short", "metaurban12k")}, type=str)  # type: ignore[misc]
 MAX_SEED = 2**32 - 1
 MAX_COUNT = 1_000_000  # splits start 1,000,000 seeds apart (sim.scene.dataset.MAX_COUNT)
+# Option defaults (--blocks, --templates, --object-density, --crosswalk-density, --country, --workers) are literals
+# equal to sim.scene.config.DEFAULT_CONFIG / build_dataset's: importing sim would load pybullet on `--help`;
+# tests/cli/test_cli_defaults.py keeps them equal.
 
 
 def _catalog(path: Path | None) -> str | None:

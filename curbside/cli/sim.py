@@ -20,6 +20,8 @@ POLICIES = ("expert", "random")
 MACHINE_NAMES = ("delivery_bot", "delivery_bot_mod1", "delivery_bot_mod2", "wheelchair", "mobility_scooter",
                  "robot_dog", "humanoid")
 MAX_SEED = 2**31 - 1  # episode seeds seed..seed+N-1 must stay valid numpy seeds
+# bench --machine/--task defaults equal sim.tasks.pointnav.DEFAULT_CONFIG's machine and run_bench's (literals so
+# `--help` does not import sim): tests/cli/test_cli_defaults.py keeps them equal.
 
 Task = Enum("Task", {k: k for k in TASKS}, type=str)  # type: ignore[misc]
 Policy = Enum("Policy", {k: k for k in POLICIES}, type=str)  # type: ignore[misc]
