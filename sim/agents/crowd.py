@@ -28,11 +28,11 @@ import numpy as np
 from curbside.config import ConfigError, merge_strict
 from sim.agents.behaviours import Crossings, Groups
 from sim.agents.crowd_config import AGENT_DEFAULTS, check_behaviour_config
-from sim.agents.crowd_goals import IDLE, WALKING, GoalFollowing
+from sim.agents.crowd_goals import GoalFollowing
 from sim.agents.crowd_orca import EgoState, OrcaCrowd, as_ego
 from sim.agents.crowd_spawning import SPAWN_AREAS, AgentSpawning, sidewalk_length, spawn_region
 from sim.agents.deadlock import PushResolver
-from sim.agents.kinds import AGENT_KINDS, KIND_NAMES, agent_kind
+from sim.agents.kinds import AGENT_KINDS, IDLE, KIND_NAMES, WALKING, agent_kind
 from sim.agents.navgrid import NavGrid, build_navgrid
 from sim.scene.scene import Scene, as_scene
 
