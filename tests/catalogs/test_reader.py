@@ -72,3 +72,25 @@ def test_reader_imports_only_duckdb_and_numpy() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+def test_candidates_match_a_plain_filter_for_small_and_large_categories(tmp_path: Path, make_asset) -> None:
+    # 10 benches take the small-category (Python) filter, 100 bins the numpy one: both must equal a plain filter.
+    rng = np.random.default_rng(3)
+    zones = (["furnishing"], ["frontage"], ["furnishing", "frontage"])
+    records = [make_asset(f"{cat}-{i:03d}", category=cat, zones=list(zones[i % 3]), depth=float(rng.uniform(0.2, 1.2)),
+                          width=float(rng.uniform(0.2, 2.0)), height=float(rng.uniform(0.3, 2.5)))
+               for cat, n in (("bench", 10), ("trash_bin", 100)) for i in range(n)]
+    with build_catalog(tmp_path / "c.duckdb") as w:
+        w.upsert_assets(records)
+    reader = CatalogReader(tmp_path / "c.duckdb")
+    for cat in ("bench", "trash_bin"):
+        for zone in (None, "furnishing", "frontage", "clear"):
+            for limits in ((None, None, None), (0.7, None, None), (0.9, 1.2, None), (None, None, 1.5), (1.0, 1.0, 1.0)):
+                got = reader.candidates(cat, zone=zone, max_depth=limits[0], max_width=limits[1], max_height=limits[2])
+                want = [i for i, r in enumerate(reader.table.asset_id) if reader.get(r).category == cat
+                        and (zone is None or zone in reader.get(r).zones)
+                        and all(lim is None or v <= lim for v, lim in zip(reader.table.size[i], limits))]
+                assert got.tolist() == want, (cat, zone, limits)
+                again = reader.candidates(cat, zone=zone, max_depth=limits[0], max_width=limits[1], max_height=limits[2])
+                assert again is got and not got.flags.writeable  # the cached answer, shared read-only
