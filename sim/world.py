@@ -219,11 +219,6 @@ class World:
         return str(path)
 
     # -- queries ------------------------------------------------------------------------------------
-    @property
-    def spec(self) -> Mapping[str, Any]:
-        """The raw spec dict of the scene (read it, never write it), for code that still reads dicts."""
-        return self.scene.spec
-
     def surface_height(self, x: float, y: float) -> float:
         """Height of the driving surface under (x, y), from a vertical ray (objects excluded by the caller)."""
         hits = p.rayTestBatch([[x, y, 30.0]], [[x, y, -1.0]], physicsClientId=self.client)

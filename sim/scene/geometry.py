@@ -23,10 +23,6 @@ def unit(angle: float) -> np.ndarray:
     return np.array([math.cos(angle), math.sin(angle)])
 
 
-# A road's centerline is a `Polyline` read in road coordinates (s, d); the old name stays importable.
-Centerline = Polyline
-
-
 def straight(p: np.ndarray, h: float, length: float) -> Polyline:
     """Straight centerline from `p` along heading `h`."""
     return Polyline(np.stack([p, p + length * unit(h)]))
