@@ -1,4 +1,4 @@
-"""Vector envs: PointNav steps/s of one env in one process vs `gymnasium.make_vec(..., "async")` over N workers.
+"""Vector envs: env steps/s of one env in one process vs `gymnasium.make_vec(..., "async")` over N workers.
 
 Usage: python benchmarks/vector_envs.py [--task PointNav|SocialNav] [--envs N] [--steps S]
 Both sides run the bench scene (sim.bench.bench_scene) under the same fixed action cycle and count env steps per

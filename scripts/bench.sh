@@ -12,7 +12,6 @@ bench() {  # bench NAME SCRIPT ARGS...: run one benchmark, print and keep its ou
   local name=$1
   shift
   echo "== bench: $name (python $*)"
-  set -o pipefail
   python "$@" 2>&1 | tee "$OUT/$name.txt"
 }
 

@@ -135,12 +135,12 @@ def test_an_asset_is_replaced_rejected_and_deleted_across_every_table(tmp_path: 
         w.upsert_embeddings("description", ["d0"], vec[:1])  # not the asset's: survives its deletion
         for aid, score in (("a", 0.9), ("b", 0.5)):
             w.record_rejections([RejectionRecord("procedural", aid, "render", "error", "old", "h1")])
-            w.replace_asset(make_asset(aid), [ViewRecord(aid, 0, 0.0, 15.0, f"{aid}.png")],
+            w.replace_asset(make_asset(aid, content_hash=f"hash-{aid}"), [ViewRecord(aid, 0, 0.0, 15.0, f"{aid}.png")],
                             [MatchRecord(aid, "d0", score, "s")], text_embedding=vec[1], image_embedding=vec[2],
                             image_model="imagenet")
-        assert w.finished_hashes() == {("procedural", "a"): None, ("procedural", "b"): None}
+        assert w.finished_hashes() == {("procedural", "a"): "hash-a", ("procedural", "b"): "hash-b"}
         assert w.rejection_details("h1") == {}  # a finished asset clears its item's rejection
-        assert [e.asset_id for e in w.embedded_assets()] == ["a", "b"]
+        assert [(e.asset_id, e.content_hash) for e in w.embedded_assets()] == [("a", "hash-a"), ("b", "hash-b")]
         assert w.rank_matches(1) == 1  # b ranks second for d0
         w.reject_assets([("a", RejectionRecord("procedural", "a", "curate", "near_duplicate", "of b", "h2"))])
         assert w.rejection_details("h2", retried=("near_duplicate",)) == {}
