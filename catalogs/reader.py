@@ -185,6 +185,7 @@ class CatalogReader:
                       for c, ix in self._by_category.items() if len(ix) <= _SMALL}
         self._in_zone: dict[tuple[str, str], np.ndarray] = {}
         self._answers: dict[tuple[Any, ...], np.ndarray] = {}
+        self._fits: dict[tuple[tuple[str, ...], str | None], tuple[np.ndarray, np.ndarray]] = {}
 
     def __len__(self) -> int:
         return len(self.table)
@@ -256,6 +257,25 @@ class CatalogReader:
         if len(ix) == 0:
             return None
         return self._records[self.table.asset_id[ix[int(rng.integers(len(ix)))]]]
+
+    def by_depth(self, categories: tuple[str, ...], zone: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Per category of `categories`, its assets allowed in `zone` sorted by depth: table indices [C, M] (-1 pads)
+        and sizes [C, M, 3] (inf pads), so "the assets no deeper than d" is a prefix of each row (read-only)."""
+        hit = self._fits.get((categories, zone))
+        if hit is not None:
+            return hit
+        rows = [self.candidates(c, zone=zone) for c in categories]
+        m = max([len(r) for r in rows] + [1])
+        index = np.full((len(categories), m), -1, dtype=np.int64)
+        size = np.full((len(categories), m, 3), np.inf)
+        for k, r in enumerate(rows):
+            r = r[np.argsort(self.table.size[r, 0], kind="stable")]  # ties keep the table's (asset id) order
+            index[k, : len(r)] = r
+            size[k, : len(r)] = self.table.size[r]
+        index.setflags(write=False)
+        size.setflags(write=False)
+        self._fits[(categories, zone)] = (index, size)
+        return index, size
 
     def resolve(self, relative: str | None) -> Path | None:
         """Absolute path of a file recorded relative to the catalog's directory (None stays None)."""

@@ -85,18 +85,26 @@ class CategorySampler:
 
     def draw(self, rng: np.random.Generator, object_class: str, allowed: list[str] | None = None) -> str | None:
         """One category of `object_class` (restricted to `allowed` when given); None when none is allowed."""
+        made = self._cdf_of(object_class, allowed)
+        if made is None:
+            return None
+        # What rng.choice(len(cats), p=w / w.sum()) does, without its per-call validation (the placer draws
+        # thousands of categories per scene): one uniform draw searched in the normalised CDF.
+        return made[0][bisect_right(made[2], rng.random())]
+
+    def cdf(self, object_class: str, allowed: tuple[str, ...] | None = None) -> tuple[list[str], np.ndarray] | None:
+        """(categories, normalised CDF) that `draw` searches one uniform draw in; None when none is allowed."""
+        made = self._cdf_of(object_class, allowed)
+        return None if made is None else (made[0], made[1])
+
+    def _cdf_of(self, object_class: str, allowed: Any) -> tuple[list[str], np.ndarray, list[float]] | None:
         key = (object_class, None if allowed is None else allowed if type(allowed) is tuple else tuple(allowed))
         cdf = self._cdf.get(key)
         if cdf is None:
             made = self._make_cdf(object_class, allowed)
-            # The CDF as plain floats: bisect_right on them is c.searchsorted(u, side="right").
-            cdf = self._cdf[key] = made if made is False else (made[0], made[1].tolist())
-        if cdf is False:
-            return None
-        cats, c = cdf
-        # What rng.choice(len(cats), p=w / w.sum()) does, without its per-call validation (the placer draws
-        # thousands of categories per scene): one uniform draw searched in the normalised CDF.
-        return cats[bisect_right(c, rng.random())]
+            # The CDF also as plain floats: bisect_right on them is c.searchsorted(u, side="right").
+            cdf = self._cdf[key] = False if made is False else (made[0], made[1], made[1].tolist())
+        return cdf or None
 
     def _make_cdf(self, object_class: str, allowed: list[str] | None) -> tuple[list[str], np.ndarray] | bool:
         cats, w = self.weights[object_class]

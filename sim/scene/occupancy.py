@@ -46,6 +46,16 @@ def rect(x: float, y: float, c: float, s: float, depth: float, width: float) -> 
             (min(px, qx, rx, tx), min(py, qy, ry, ty), max(px, qx, rx, tx), max(py, qy, ry, ty)))
 
 
+def rects(x: np.ndarray, y: np.ndarray, c: np.ndarray, s: np.ndarray, depth: np.ndarray,
+          width: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`rect` for n rectangles at once: corners [n, 4, 2] in the same order and doubles, and bounds [n, 4]."""
+    ax, ay = c * depth / 2, s * depth / 2
+    bx, by = -s * width / 2, c * width / 2
+    xs = np.stack([x - ax - bx, x + ax - bx, x + ax + bx, x - ax + bx], axis=1)
+    ys = np.stack([y - ay - by, y + ay - by, y + ay + by, y - ay + by], axis=1)
+    return np.stack([xs, ys], axis=2), np.stack([xs.min(1), ys.min(1), xs.max(1), ys.max(1)], axis=1)
+
+
 def corridor(sw: Sidewalk, width: float, extend: float = 4.0) -> Polygon:
     """Keep-out band of `width` along the clear path, extended past both ends so corners stay open."""
     pts = np.asarray(sw.clear_path.coords)
@@ -73,6 +83,7 @@ class Occupancy:
         self.keep_polys: list[Polygon] = []
         self.keep_bounds: list[Bounds] = []
         self.keep_cells: dict[tuple[int, int], list[int]] = {}
+        self.keep_tree: shapely.STRtree | None = None
 
     def set_keep_out(self, polys: list[Polygon]) -> None:
         """Areas no object may touch (clear-path corridors, ramp approaches)."""
@@ -81,6 +92,7 @@ class Occupancy:
             shapely.prepare(polys)
         self.keep_bounds = [tuple(map(float, b)) for b in shapely.bounds(np.asarray(polys, dtype=object))] if polys else []
         self.keep_cells = {}
+        self.keep_tree = shapely.STRtree(polys) if polys else None
         for k, b in enumerate(self.keep_bounds):
             for cell in _cells(b):
                 self.keep_cells.setdefault(cell, []).append(k)
@@ -100,8 +112,32 @@ class Occupancy:
             p = self.polys[k] = quad_polygon(self.corners[k])
         return p
 
+    def keep_out_hits(self, polys: np.ndarray) -> np.ndarray:
+        """Which of the footprints `polys` meet a keep-out (one bulk query; the predicate `free` applies one by one)."""
+        hit = np.zeros(len(polys), dtype=bool)
+        if self.keep_tree is not None and len(polys):
+            hit[self.keep_tree.query(polys, predicate="intersects")[0]] = True
+        return hit
+
     def free(self, poly: Polygon, pb: Bounds, check: list[list[float]], cb: Bounds, keep_out: bool) -> bool:
         """No placed footprint meets `check` and (with `keep_out`) no keep-out meets the footprint `poly`."""
+        if not self.clear_of_placed(check, cb):
+            return False
+        if not keep_out or not self.keep_polys:
+            return True
+        x0, y0, x1, y1 = pb
+        kb, kc, kp = self.keep_bounds, self.keep_cells, self.keep_polys
+        for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
+            for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
+                for k in kc.get((i, j), ()):
+                    b = kb[k]
+                    # Keep-outs whose bounds meet the footprint's get the exact (prepared) GEOS predicate.
+                    if not (b[2] < x0 or b[0] > x1 or b[3] < y0 or b[1] > y1) and _intersects_scalar(kp[k], poly):
+                        return False
+        return True
+
+    def clear_of_placed(self, check: list[list[float]], cb: Bounds) -> bool:
+        """No placed footprint meets the grown footprint with corners `check` and bounds `cb`."""
         x0, y0, x1, y1 = cb
         cells, bounds = self.cells, self.bounds
         cp = None
@@ -119,16 +155,5 @@ class Occupancy:
                     if cp is None:
                         cp = quad_polygon(check)
                     if _intersects_scalar(cp, self._poly(k)):
-                        return False
-        if not keep_out or not self.keep_polys:
-            return True
-        x0, y0, x1, y1 = pb
-        kb, kc, kp = self.keep_bounds, self.keep_cells, self.keep_polys
-        for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
-            for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
-                for k in kc.get((i, j), ()):
-                    b = kb[k]
-                    # Keep-outs whose bounds meet the footprint's get the exact (prepared) GEOS predicate.
-                    if not (b[2] < x0 or b[0] > x1 or b[3] < y0 or b[1] > y1) and _intersects_scalar(kp[k], poly):
                         return False
         return True

@@ -12,8 +12,9 @@ import shapely
 from shapely import lib
 from shapely.geometry import Polygon
 
-from sim.scene.categories import CATEGORIES, CLUTTER_ZONES, CategorySampler
+from sim.scene.categories import ALL_CATEGORIES, CATEGORIES, CLUTTER_ZONES, CategorySampler
 from sim.scene.occupancy import GAP, Occupancy, quad_polygon, rect
+from sim.scene.rows import Fits, Row, fill_rows
 from sim.scene.sidewalks import Sidewalk, Zone
 from sim.scene.spec import round_points, round_value
 
@@ -35,12 +36,14 @@ class Placer:
         self._has = {c: catalog is not None and len(catalog.candidates(c)) > 0 for c in CATEGORIES}
         self.min_depth = {c: self._min_depth(c) for c in CATEGORIES}
         self._zones: dict[int, tuple[Polygon, tuple[float, float, float, float]]] = {}
+        self._fits: dict[str, Fits] = {}
 
-    def _in_catalog(self, category: str) -> bool:
+    def in_catalog(self, category: str) -> bool:
+        """Whether the catalog holds an asset of `category` (asked once per category)."""
         return self._has.get(category, False)  # every category the placer asks for is in CATEGORIES
 
     def _min_depth(self, category: str) -> float:
-        if self._in_catalog(category):
+        if self.in_catalog(category):
             return float(self.catalog.table.size[self.catalog.candidates(category), 0].min())
         return CATEGORIES[category][2][0]
 
@@ -50,19 +53,34 @@ class Placer:
 
     def asset(self, category: str, zone: str, max_depth: float, max_width: float | None = None) -> tuple[str | None, list[float]] | None:
         """(asset_id, size) of an asset of `category` that fits, a fallback box, or None when nothing fits."""
-        if self._in_catalog(category):
+        if self.in_catalog(category):
             rec = self.catalog.sample(self.rng, category, zone=zone, max_depth=max_depth, max_width=max_width)
             if rec is None:
                 rec = self.catalog.sample(self.rng, category, max_depth=max_depth, max_width=max_width)
             return None if rec is None else (rec.asset_id, [float(v) for v in rec.size])
-        if category not in self.fallback:
-            self.fallback.append(category)
-            src = "no catalog was given" if self.catalog is None else f"catalog {self.catalog.path} has no {category!r} asset"
-            warnings.warn(f"{src}; placing default-size boxes for category {category!r}", stacklevel=4)
+        self._note_fallback(category)
         size = list(CATEGORIES[category][2])
         return None if size[0] > max_depth or (max_width is not None and size[1] > max_width) else (None, size)
 
-    def _zone(self, zone: Zone) -> tuple[Polygon, tuple[float, float, float, float]]:
+    def _note_fallback(self, category: str) -> None:
+        if category not in self.fallback:
+            self.fallback.append(category)
+            src = "no catalog was given" if self.catalog is None else f"catalog {self.catalog.path} has no {category!r} asset"
+            warnings.warn(f"{src}; placing default-size boxes for category {category!r}", stacklevel=5)
+
+    def note_fallback(self, categories: np.ndarray) -> None:
+        """Record (and warn once about) the categories, by ALL_CATEGORIES index, placed as fallback boxes."""
+        for k in np.unique(categories).tolist():
+            self._note_fallback(ALL_CATEGORIES[k])
+
+    def fits(self, zone: str) -> Fits:
+        """The assets per category that may stand in `zone`, by depth (built once per zone kind)."""
+        f = self._fits.get(zone)
+        if f is None:
+            f = self._fits[zone] = Fits(self, zone)
+        return f
+
+    def zone_shape(self, zone: Zone) -> tuple[Polygon, tuple[float, float, float, float]]:
         """The zone's polygon (prepared) and its bounds, computed once per polygon."""
         zp = zone.polygon
         ent = self._zones.get(id(zp))
@@ -83,7 +101,7 @@ class Placer:
         corners, pb = rect(x, y, c, sn, depth, width)
         ent = self._zones.get(id(zone.polygon))
         if ent is None or ent[0] is not zone.polygon:
-            ent = self._zone(zone)
+            ent = self.zone_shape(zone)
         zp, (zx0, zy0, zx1, zy1) = ent
         # A corner outside the zone's bounds is outside the zone: most refusals end here, without shapely.
         # (The zone containing the footprint implies every corner lies in the zone, so no separate corner test.)
@@ -208,57 +226,22 @@ class Placer:
             return
         gap_mean = float(self.cfg["fill_gap"]) * gap_scale / rho
         p_clutter = float(self.cfg["fill_clutter"])
+        rows = []
         for zone in sw.zones:
             if zone.kind == "clear":
                 # Parked scooters, bicycles and bags along the edges of the walkway, outside the kept corridor.
                 margin = 0.5 * (zone.width - float(self.cfg["min_clear_width"]))
                 if margin >= 0.45:
-                    self._fill_row(sw, zone, zone.d0, zone.d0 + margin, 2.0 * gap_mean, 1.0)
-                    self._fill_row(sw, zone, zone.d1 - margin, zone.d1, 2.0 * gap_mean, 1.0)
+                    rows += [Row(zone, zone.d0, zone.d0 + margin, 2.0 * gap_mean, 1.0),
+                             Row(zone, zone.d1 - margin, zone.d1, 2.0 * gap_mean, 1.0)]
                 continue
             if zone.kind not in FILL_ZONES:
                 continue
             # Wide zones (frontage of commercial templates) hold several rows, as cafe seating and displays do.
-            rows = max(1, int(zone.width // float(self.cfg["fill_row_width"])))
-            band = zone.width / rows
-            for r in range(rows):
-                self._fill_row(sw, zone, zone.d0 + r * band, zone.d0 + (r + 1) * band, gap_mean, p_clutter)
-
-    def _fill_row(self, sw: Sidewalk, zone: Zone, d0: float, d1: float, gap_mean: float, p_clutter: float) -> None:
-        cl, side = sw.roadway.centerline, sw.side
-        zkind = "furnishing" if zone.kind == "near_road_buffer" else zone.kind
-        width = d1 - d0
-        # Tuples: the sampler keys its CDFs by them, without copying them on every draw.
-        allowed = tuple(c for c, (k, zs, _) in CATEGORIES.items() if k != "clutter" and zkind in zs
-                        and c != "building_facade" and self.min_depth[c] <= width - 0.05)
-        ns = tuple(c for c in allowed if CATEGORIES[c][0] == "non_standard")
-        s, s1 = sw.s_range[0] + float(self.rng.uniform(0.0, gap_mean)), sw.s_range[1]
-        # rng.uniform(lo, hi) for finite lo <= hi is lo + (hi - lo) * rng.random() (numpy's random_uniform:
-        # low + range * next_double, the same draw and the same two roundings), without its argument handling.
-        rng = self.rng
-        rnd, gamma, draw, asset, try_place = rng.random, rng.gamma, self.sampler.draw, self.asset, self.try_place
-        point_xy = cl.point_xy
-        while s < s1:
-            clutter = not allowed or rnd() < p_clutter
-            if clutter:
-                cat = draw(rng, "clutter")
-            else:
-                cat = draw(rng, "non_standard" if ns else "standard", ns or allowed)
-            a = asset(cat, zone.kind, width - 0.05) if cat is not None else None
-            if a is None:
-                s += gap_mean
-                continue
-            depth, wid = a[1][0], a[1][1]
-            along = wid if not clutter else max(depth, wid)
-            half = (max(depth, wid) if clutter else depth) / 2
-            lo, hi = d0 + half + 0.02, d1 - half - 0.02
-            if hi >= lo:
-                x, y, h = point_xy(s + along / 2, side * (lo + (hi - lo) * rnd()))
-                yaw = (-math.pi + (math.pi - -math.pi) * rnd()) if clutter else (
-                    h + side * math.pi / 2 * (1 if zkind == "furnishing" else -1))
-                if not try_place(sw, zone, cat, a, (x, y), yaw):
-                    self.refused[cat] += 1
-            s += along + float(gamma(2.0, gap_mean / 2.0))
+            n = max(1, int(zone.width // float(self.cfg["fill_row_width"])))
+            band = zone.width / n
+            rows += [Row(zone, zone.d0 + r * band, zone.d0 + (r + 1) * band, gap_mean, p_clutter) for r in range(n)]
+        fill_rows(self, sw, rows)
 
     def buildings(self, sw: Sidewalk) -> int:
         """Building facades side by side along the building zone; returns how many spots were skipped."""
@@ -274,7 +257,7 @@ class Placer:
         fill = self.cfg["density_model"] == "paper"
         while s < s_end - 4.0:
             want = float(self.rng.uniform(8.0, 20.0))
-            a = None if fill and not self._in_catalog("building_facade") else self.asset("building_facade", "building", zone.width, want)
+            a = None if fill and not self.in_catalog("building_facade") else self.asset("building_facade", "building", zone.width, want)
             if a is None and not fill:
                 skipped += 1
                 s += 3.0

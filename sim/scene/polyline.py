@@ -98,6 +98,20 @@ class Polyline:
         h = hl[i] + t * (hl[i + 1] - hl[i])
         return float(x - d * math.sin(h)), float(y + d * math.cos(h)), float(h)
 
+    def points_xy(self, s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`point_xy` for arrays of road coordinates: x, y and the heading there (math's sin and cos, so the
+        doubles do not depend on which SIMD kernels numpy picks on this CPU)."""
+        i = np.clip(np.searchsorted(self.s, s) - 1, 0, len(self.s) - 2)
+        s0, s1 = self.s[i], self.s[i + 1]
+        span = s1 - s0
+        t = np.where(span > 0, np.clip((s - s0) / np.where(span > 0, span, 1.0), 0.0, 1.0), 0.0)
+        p0, p1 = self.points[i], self.points[i + 1]
+        h = self.heading[i] + t * (self.heading[i + 1] - self.heading[i])
+        hl = h.tolist()
+        sin = np.array([math.sin(v) for v in hl])
+        cos = np.array([math.cos(v) for v in hl])
+        return p0[:, 0] + t * (p1[:, 0] - p0[:, 0]) - d * sin, p0[:, 1] + t * (p1[:, 1] - p0[:, 1]) + d * cos, h
+
     def project(self, xy: np.ndarray) -> np.ndarray:
         """Arc length of the closest point of the line to each of the points `xy` [n, 2] (shapely, all at once)."""
         return shapely.line_locate_point(self.line, shapely.points(np.asarray(xy)))

@@ -42,6 +42,24 @@ def _round_slow(v: float) -> float:
 round_value = _round  # a float as `canonical` stores it (0.1 mm, never -0.0), for code that builds specs
 
 
+def round_array(v: np.ndarray, *, rows: bool = False) -> list[Any]:
+    """A float array as `canonical` stores it, as (nested) Python float lists: every element as `round_value`
+    rounds it, or with `rows` as `round_points` rounds coordinate rows (ties left to rint)."""
+    y = np.asarray(v, dtype=np.float64) * 10000.0
+    r = np.rint(y)  # round half to even, as Python's round(y)
+    out = r / 10000.0 + 0.0  # + 0.0 turns -0.0 into 0.0, as the int round(y) does
+    if rows:
+        if not np.isfinite(y).all():
+            raise ValueError("scene specs hold finite numbers only, got a coordinate list with inf or nan")
+        return out.tolist()
+    slow = ~(np.abs(y - r) < 0.499)  # near a tie, huge or not finite: round(v, 4) decides (and raises on nan)
+    if slow.any():
+        flat, vals = out.reshape(-1), np.asarray(v, dtype=np.float64).reshape(-1)
+        for i in np.flatnonzero(slow.reshape(-1)).tolist():
+            flat[i] = _round_slow(float(vals[i]))
+    return out.tolist()
+
+
 def round_points(rows: list[list[float]]) -> list[list[float]]:
     """[x, y] rows of Python floats as `canonical` stores them (what `_float_rows` returns for them)."""
     return [[round(x * _SCALE) / _SCALE, round(y * _SCALE) / _SCALE] for x, y in rows]

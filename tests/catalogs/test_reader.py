@@ -94,3 +94,20 @@ def test_candidates_match_a_plain_filter_for_small_and_large_categories(tmp_path
                 assert got.tolist() == want, (cat, zone, limits)
                 again = reader.candidates(cat, zone=zone, max_depth=limits[0], max_width=limits[1], max_height=limits[2])
                 assert again is got and not got.flags.writeable  # the cached answer, shared read-only
+
+
+def test_by_depth_lists_each_categorys_zone_assets_shallowest_first(tmp_path: Path, make_asset) -> None:
+    path = tmp_path / "d.duckdb"
+    depths = [0.9, 0.4, 0.7, 0.4, 0.5]
+    with build_catalog(path) as w:
+        w.upsert_assets([make_asset(f"bench-{i}", depth=d, zones=["furnishing"] if i != 2 else ["frontage"])
+                         for i, d in enumerate(depths)])
+    reader = CatalogReader(path)
+    index, size = reader.by_depth(("bench", "tree"), "furnishing")
+    assert [reader.table.asset_id[i] for i in index[0] if i >= 0] == ["bench-1", "bench-3", "bench-4", "bench-0"]
+    assert size[0, :, 0].tolist() == [0.4, 0.4, 0.5, 0.9] and index.shape == (2, 4) and size.shape == (2, 4, 3)
+    assert (index[1] == -1).all() and np.isinf(size[1]).all()  # no tree in the catalog: a row of padding
+    assert reader.by_depth(("bench", "tree"), "furnishing")[0] is index  # answered once
+    with pytest.raises(ValueError):
+        index[0, 0] = 3  # shared: read-only
+    assert len([i for i in reader.by_depth(("bench",))[0][0] if i >= 0]) == 5  # any zone
