@@ -14,7 +14,7 @@ from shapely.geometry import Polygon
 
 from sim.scene.categories import ALL_CATEGORIES, CATEGORIES, CLUTTER_ZONES, CategorySampler
 from sim.scene.occupancy import GAP, Occupancy, quad_polygon, rect
-from sim.scene.rows import Fits, Row, fill_rows
+from sim.scene.rows import Row, fill_rows
 from sim.scene.sidewalks import Sidewalk, Zone
 from sim.scene.spec import round_points, round_value
 
@@ -36,7 +36,6 @@ class Placer:
         self._has = {c: catalog is not None and len(catalog.candidates(c)) > 0 for c in CATEGORIES}
         self.min_depth = {c: self._min_depth(c) for c in CATEGORIES}
         self._zones: dict[int, tuple[Polygon, tuple[float, float, float, float]]] = {}
-        self._fits: dict[str, Fits] = {}
 
     def in_catalog(self, category: str) -> bool:
         """Whether the catalog holds an asset of `category` (asked once per category)."""
@@ -72,13 +71,6 @@ class Placer:
         """Record (and warn once about) the categories, by ALL_CATEGORIES index, placed as fallback boxes."""
         for k in np.unique(categories).tolist():
             self._note_fallback(ALL_CATEGORIES[k])
-
-    def fits(self, zone: str) -> Fits:
-        """The assets per category that may stand in `zone`, by depth (built once per zone kind)."""
-        f = self._fits.get(zone)
-        if f is None:
-            f = self._fits[zone] = Fits(self, zone)
-        return f
 
     def zone_shape(self, zone: Zone) -> tuple[Polygon, tuple[float, float, float, float]]:
         """The zone's polygon (prepared) and its bounds, computed once per polygon."""

@@ -10,8 +10,9 @@ test against what is already placed runs object by object, in row order.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import shapely
@@ -22,6 +23,7 @@ from sim.scene.sidewalks import Sidewalk, Zone
 from sim.scene.spec import round_array
 
 if TYPE_CHECKING:
+    from catalogs.reader import CatalogReader
     from sim.scene.placement import Placer
 
 _INDEX = {c: k for k, c in enumerate(ALL_CATEGORIES)}
@@ -33,23 +35,20 @@ _MAX_BATCH = 256
 class Fits:
     """Per category (ALL_CATEGORIES order), the assets that may stand in a zone sorted by depth, with the
     catalog-wide ones for categories the zone has none of; categories without catalog assets get their
-    fallback box (index -1)."""
+    fallback box (index -1). Built once per catalog and zone kind (`fits_for`)."""
 
-    def __init__(self, placer: Placer, zone: str) -> None:
-        catalog = placer.catalog
+    def __init__(self, catalog: CatalogReader | None, zone: str) -> None:
         n = len(ALL_CATEGORIES)
         if catalog is None:
             self.zone_index = self.any_index = np.full((n, 1), -1, dtype=np.int64)
             self.zone_size = self.any_size = _FALLBACK[:, None, :].copy()
-            self.fallback = np.ones(n, dtype=bool)
             return
         zi, zs = catalog.by_depth(ALL_CATEGORIES, zone)
         ai, as_ = catalog.by_depth(ALL_CATEGORIES, None)
         m = max(zi.shape[1], ai.shape[1])
         self.zone_index, self.zone_size = _pad(zi, zs, m)
         self.any_index, self.any_size = _pad(ai, as_, m)
-        self.fallback = np.array([not placer.in_catalog(c) for c in ALL_CATEGORIES], dtype=bool)
-        for k in np.flatnonzero(self.fallback).tolist():
+        for k in np.flatnonzero(self.any_index[:, 0] < 0).tolist():  # not in the catalog: the fallback box
             for index, size in ((self.zone_index, self.zone_size), (self.any_index, self.any_size)):
                 index[k] = -1
                 size[k] = np.inf
@@ -68,6 +67,21 @@ class Fits:
         index = np.where(use_zone, self.zone_index[cat, j], self.any_index[cat, j])
         size = np.where(use_zone[:, None], self.zone_size[cat, j], self.any_size[cat, j])
         return count > 0, index, size
+
+
+_FITS: weakref.WeakKeyDictionary[Any, dict[str, Fits]] = weakref.WeakKeyDictionary()
+_FITS_NO_CATALOG: dict[str, Fits] = {}
+
+
+def fits_for(catalog: CatalogReader | None, zone: str) -> Fits:
+    """The `Fits` of `catalog` (None: fallback boxes only) for `zone`, built on first use and kept with the catalog."""
+    per_zone = _FITS_NO_CATALOG if catalog is None else _FITS.setdefault(catalog, {})
+    f = per_zone.get(zone)
+    if f is None:
+        f = per_zone[zone] = Fits(catalog, zone)
+        for a in (f.zone_index, f.zone_size, f.any_index, f.any_size):
+            a.setflags(write=False)  # shared by every scene drawn from this catalog
+    return f
 
 
 def _pad(index: np.ndarray, size: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -168,7 +182,7 @@ def _pick(placer: Placer, kinds: list[str], row: np.ndarray, cat: np.ndarray, u:
     kind_of = np.array([sorted(set(kinds)).index(k) for k in kinds], dtype=np.int64)[row]
     for g, kind in enumerate(sorted(set(kinds))):
         m = kind_of == g
-        found[m], index[m], size[m] = placer.fits(kind).pick(cat[m], u[m], max_depth[m])
+        found[m], index[m], size[m] = fits_for(placer.catalog, kind).pick(cat[m], u[m], max_depth[m])
     return found, index, size
 
 

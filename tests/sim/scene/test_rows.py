@@ -19,7 +19,7 @@ from sim.scene.config import MIN_FILL_GAP, resolve_config
 from sim.scene.occupancy import corridor, rect, rects
 from sim.scene.placement import Placer
 from sim.scene.roads import generate_network
-from sim.scene.rows import place_many
+from sim.scene.rows import fits_for, place_many
 from sim.scene.sidewalks import build_crosswalks, build_sidewalks
 from sim.scene.spec import round_array, round_points, round_value
 
@@ -105,9 +105,8 @@ def test_array_geometry_equals_the_scalar_geometry() -> None:
 
 def test_assets_are_drawn_uniformly_among_those_that_fit_the_zone_else_anywhere(tiny_catalog: Path) -> None:
     catalog = CatalogReader(tiny_catalog)
-    placer, _ = _placer(0, catalog)
     bench, facade = ALL_CATEGORIES.index("bench"), ALL_CATEGORIES.index("building_facade")
-    fits = placer.fits("frontage")
+    fits = fits_for(catalog, "frontage")
     u = (np.arange(1000) + 0.5) / 1000
     found, index, size = fits.pick(np.full(1000, bench), u, np.full(1000, 1.0))
     assert found.all() and set(catalog.table.asset_id[index]) == {"test/bench/0000", "test/bench/0001"}
