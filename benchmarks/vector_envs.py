@@ -12,11 +12,13 @@ import argparse
 import json
 import os
 import time
+from functools import partial
 
 import gymnasium as gym
 import numpy as np
 
 import sim  # noqa: F401  (registers the env ids)
+from curbside.train.vec import single_thread_worker
 from sim.bench import SOCIALNAV_BENCH, bench_scene
 
 ACTIONS = np.array([[0.8, 0.0], [0.6, 0.3], [0.8, 0.0], [0.5, -0.3]], dtype=np.float32)
@@ -41,9 +43,10 @@ def one_process(task: str, spec: dict, steps: int) -> float:
 
 
 def vector(task: str, spec: dict, steps: int, n: int) -> float:
-    """Env steps per wall second of an async vector env of `n` workers (steps counted over all workers)."""
-    venv = gym.make_vec(f"curbside/{task}-v0", num_envs=n, vectorization_mode="async",
-                        vector_kwargs={"context": "forkserver"}, config=_config(task, spec))
+    """Env steps per wall second of an async vector env of `n` workers (steps counted over all workers), built as
+    the training harness builds it (curbside.train.envs.make_vec_env: forkserver, BLAS single-threaded workers)."""
+    fn = single_thread_worker(partial(gym.make, f"curbside/{task}-v0", config=_config(task, spec)))
+    venv = gym.vector.AsyncVectorEnv([fn] * n, context="forkserver", autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
     venv.reset(seed=0)
     rounds = max(steps // n, 1)
     t0 = time.perf_counter()

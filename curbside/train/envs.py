@@ -60,10 +60,21 @@ def env_fns(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, 
 def make_vec_env(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, *, split: str = "train",
                  subprocess: bool = True, seed: int = 0,
                  wrappers: tuple[Callable[[gym.Env], gym.Env], ...] = ()) -> Any:
-    """An SB3 VecEnv (SubprocVecEnv unless `subprocess` is False) over `n_envs` sharded workers."""
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+    """An SB3 VecEnv over `n_envs` sharded workers: Gymnasium's async vector env (one process per env, BLAS
+    single-threaded, resetting in the same step as SB3 expects) unless `subprocess` is False (SB3's DummyVecEnv)."""
+    from stable_baselines3.common.monitor import Monitor
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from curbside.train.vec import VectorEnvAdapter, single_thread_worker
 
     fns = env_fns(task, config, n_envs, num_scenes, split, wrappers)
-    vec = SubprocVecEnv(fns, start_method="forkserver") if subprocess and n_envs > 1 else DummyVecEnv(fns)
+    if subprocess and n_envs > 1:
+        from gymnasium.vector import AsyncVectorEnv, AutoresetMode
+
+        venv = AsyncVectorEnv([single_thread_worker(f) for f in fns], context="forkserver",
+                              autoreset_mode=AutoresetMode.SAME_STEP)
+        vec = VectorEnvAdapter(venv, wrappers=(Monitor,))
+    else:
+        vec = DummyVecEnv(fns)
     vec.seed(seed)
     return vec
