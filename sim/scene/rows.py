@@ -161,7 +161,7 @@ def fill_rows(placer: Placer, sw: Sidewalk, rows: list[Row]) -> None:
         last = np.maximum(first + n - 1, 0)
         done = (n == 0) | ~inside[last]
         at = np.where(done, s1, start[last] + step[last])
-        active = ~done
+        active = at < s1  # a row whose last step started inside but ended past its end is done too
         lo, hi = d0[row] + half + 0.02, d1[row] - half - 0.02
         ok = np.flatnonzero(inside & found & (hi >= lo))
         if not len(ok):

@@ -134,3 +134,15 @@ def test_the_tightest_rows_keep_their_objects_apart(tiny_catalog: Path) -> None:
     tree = shapely.STRtree(polys)
     a, b = tree.query(polys, predicate="intersects")
     assert not (a < b).any()  # no two footprints meet
+
+
+def test_a_row_that_ends_inside_a_batch_is_done() -> None:
+    # Seed 311 of this 1-block train config has a clear-zone row whose batch of steps ended past the row's end:
+    # the row stayed active and its next batch had no steps (an IndexError before the fix).
+    from sim.scene.dataset import split_config
+
+    cfg, _ = split_config("train", {"preset": "metaurban12k", "blocks": 1})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for seed in (311, 312, 313):
+            assert generate_scene(cfg, seed)["stats"]["objects"] > 0
