@@ -244,8 +244,10 @@ class Placer:
         ends = cl.project(np.asarray(zone.polygon.exterior.coords))
         s, s_end = float(ends.min()), float(ends.max())
         skipped = 0
-        # The paper model lines the street with buildings: boxes sized to the zone (no catalog facade needed) and,
-        # on curves, shallower and narrower ones until they fit the bent zone.
+        # The paper model lines the street with buildings that fill the zone: a catalog facade (its look and
+        # height) or a box, stretched to the zone's depth and the drawn width (the world fits a mesh into its
+        # spec box), and on curves shallower and narrower until it fits the bent zone. A catalog facade is
+        # 4-12 m deep, the zone 18-26 m: at its own depth the street would lose a third of its built area.
         fill = self.cfg["density_model"] == "paper"
         while s < s_end - 4.0:
             want = float(self.rng.uniform(8.0, 20.0))
@@ -254,12 +256,15 @@ class Placer:
                 skipped += 1
                 s += 3.0
                 continue
-            if a is None or a[0] is None:
+            if fill:
+                height = a[1][2] if a is not None and a[0] is not None else float(self.rng.uniform(6.0, 30.0))
+                a = (None if a is None else a[0], [zone.width, want, height])
+            elif a[0] is None:
                 a = (None, [zone.width, want, float(self.rng.uniform(6.0, 30.0))])
             placed = False
-            # Only fallback boxes may be narrowed; a catalog mesh keeps its real size.
-            shapes = [(1.0, 1.0), (1.0, 0.6), (1.0, 0.35)] if a[0] is None else [(1.0, 1.0)]
-            if fill and a[0] is None:
+            # Outside the paper model only fallback boxes may be narrowed; a catalog mesh keeps its real size.
+            shapes = [(1.0, 1.0), (1.0, 0.6), (1.0, 0.35)] if fill or a[0] is None else [(1.0, 1.0)]
+            if fill:
                 shapes += [(0.8, 0.6), (0.8, 0.35), (0.6, 0.35), (0.6, 0.2)]
             for deep, shrink in shapes:
                 size = [a[1][0] * deep, max(a[1][1] * shrink, 3.0), a[1][2]]

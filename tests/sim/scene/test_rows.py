@@ -146,3 +146,18 @@ def test_a_row_that_ends_inside_a_batch_is_done() -> None:
         warnings.simplefilter("ignore")
         for seed in (311, 312, 313):
             assert generate_scene(cfg, seed)["stats"]["objects"] > 0
+
+
+def test_paper_model_buildings_fill_their_zone_with_the_catalog_facade(tiny_catalog: Path) -> None:
+    # The tiny catalog's facade is 7.5 m deep; the preset's building zone is 18-26 m deep. At its own depth the
+    # street would lose most of its built area (the paper's occupied area counts buildings).
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        spec = generate_scene({"blocks": 2, "preset": "metaurban12k"}, 0, tiny_catalog)
+    zones = {(sw["id"], z["kind"]): z["width"] for sw in spec["sidewalks"] for z in sw["zones"]}
+    buildings = [o for o in spec["objects"] if o["category"] == "building_facade"]
+    from_catalog = [o for o in buildings if o["asset_id"] == "test/building_facade/0000"]
+    assert len(from_catalog) >= 0.5 * len(buildings) > 0
+    full = [o for o in from_catalog if abs(o["size"][0] - zones[(o["sidewalk_id"], "building")]) < 1e-3]
+    assert len(full) >= 0.5 * len(from_catalog)  # straight stretches: the whole zone depth (curves: shallower)
+    assert all(o["size"][2] == 15.0 for o in from_catalog)  # the facade's own height
