@@ -1,9 +1,11 @@
 """Vector envs: env steps/s of one env in one process vs `gymnasium.make_vec(..., "async")` over N workers.
 
-Usage: python benchmarks/vector_envs.py [--task PointNav|SocialNav] [--envs N] [--steps S]
+Usage: python benchmarks/vector_envs.py [--task PointNav|SocialNav] [--envs N] [--steps S] [--per-worker K]
 Both sides run the bench scene (sim.bench.bench_scene) under the same fixed action cycle and count env steps per
 wall-clock second (the vector env spends its time in N processes). Target (issue 14): with N = cores the vector
-env reaches >= 1.8x one process on the 2-core dev machine. Run it on an otherwise idle machine.
+env reaches >= 1.8x one process on the 2-core dev machine. Also measured: N workers stepping K envs each
+(curbside.train.sharded.ShardedVectorEnv, the harness default), which pays one pipe round trip per K env steps.
+Run it on an otherwise idle machine.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import gymnasium as gym
 import numpy as np
 
 import sim  # noqa: F401  (registers the env ids)
+from curbside.train.sharded import ShardedVectorEnv
 from curbside.train.vec import single_thread_worker
 from sim.bench import SOCIALNAV_BENCH, bench_scene
 
@@ -57,16 +60,35 @@ def vector(task: str, spec: dict, steps: int, n: int) -> float:
     return rate
 
 
+def sharded(task: str, spec: dict, steps: int, workers: int, per_worker: int) -> float:
+    """Env steps per wall second of `workers` processes stepping `per_worker` envs each (ShardedVectorEnv)."""
+    fn = single_thread_worker(partial(gym.make, f"curbside/{task}-v0", config=_config(task, spec)))
+    n = workers * per_worker
+    venv = ShardedVectorEnv([fn] * n, workers=workers)
+    venv.reset(seed=0)
+    rounds = max(steps // n, 1)
+    t0 = time.perf_counter()
+    for k in range(rounds):
+        venv.step(np.repeat(ACTIONS[k % len(ACTIONS)][None], n, axis=0))
+    rate = rounds * n / (time.perf_counter() - t0)
+    venv.close()
+    return rate
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--task", choices=("PointNav", "SocialNav"), default="PointNav")
     ap.add_argument("--envs", type=int, default=os.cpu_count() or 2)
     ap.add_argument("--steps", type=int, default=4000)
+    ap.add_argument("--per-worker", type=int, default=4, help="envs per worker of the sharded vector env")
     args = ap.parse_args()
     spec = bench_scene()
     single = one_process(args.task, spec, args.steps)
     vec = vector(args.task, spec, args.steps, args.envs)
+    shard = sharded(args.task, spec, args.steps, args.envs, args.per_worker)
     result = {"task": args.task, "envs": args.envs, "steps": args.steps, "one_process_steps_per_s": round(single, 1),
-              "vector_steps_per_s": round(vec, 1), "speedup": round(vec / single, 2), "cpu_count": os.cpu_count(),
+              "vector_steps_per_s": round(vec, 1), "speedup": round(vec / single, 2),
+              "sharded_envs_per_worker": args.per_worker, "sharded_steps_per_s": round(shard, 1),
+              "sharded_speedup": round(shard / single, 2), "cpu_count": os.cpu_count(),
               "loadavg_1min": round(os.getloadavg()[0], 2)}
     print(json.dumps(result, sort_keys=True))

@@ -58,22 +58,23 @@ def env_fns(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, 
 
 
 def make_vec_env(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, *, split: str = "train",
-                 subprocess: bool = True, seed: int = 0,
+                 subprocess: bool = True, seed: int = 0, workers: int | None = None,
                  wrappers: tuple[Callable[[gym.Env], gym.Env], ...] = ()) -> Any:
-    """An SB3 VecEnv over `n_envs` sharded workers: Gymnasium's async vector env (one process per env, BLAS
-    single-threaded, resetting in the same step as SB3 expects) unless `subprocess` is False (SB3's DummyVecEnv)."""
+    """An SB3 VecEnv over `n_envs` sharded envs: `workers` processes (default: one per core, at most n_envs) that
+    each step n_envs / workers envs with BLAS single-threaded (curbside.train.sharded), reset in the same step as
+    SB3 expects; SB3's DummyVecEnv in this process when `subprocess` is False."""
+    import os
+
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
 
+    from curbside.train.sharded import ShardedVectorEnv
     from curbside.train.vec import VectorEnvAdapter, single_thread_worker
 
     fns = env_fns(task, config, n_envs, num_scenes, split, wrappers)
-    if subprocess and n_envs > 1:
-        from gymnasium.vector import AsyncVectorEnv, AutoresetMode
-
-        venv = AsyncVectorEnv([single_thread_worker(f) for f in fns], context="forkserver",
-                              autoreset_mode=AutoresetMode.SAME_STEP)
-        vec = VectorEnvAdapter(venv, wrappers=(Monitor,))
+    workers = min(n_envs, workers or os.cpu_count() or 1)
+    if subprocess and n_envs > 1 and workers > 1:
+        vec = VectorEnvAdapter(ShardedVectorEnv([single_thread_worker(f) for f in fns], workers), wrappers=(Monitor,))
     else:
         vec = DummyVecEnv(fns)
     vec.seed(seed)
