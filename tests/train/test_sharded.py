@@ -31,6 +31,8 @@ def test_sharded_steps_like_sync_vector_env() -> None:
         o1, i1 = ours.reset(seed=5)
         o2, i2 = ref.reset(seed=5)
         np.testing.assert_array_equal(o1, o2)
+        for ia, ib in zip(unbatch(i1, 4), unbatch(i2, 4)):
+            _equal(ia, ib)
         rng = np.random.default_rng(0)
         ended = 0
         for _ in range(100):
