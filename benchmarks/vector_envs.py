@@ -45,11 +45,9 @@ def one_process(task: str, spec: dict, steps: int) -> float:
     return rate
 
 
-def vector(task: str, spec: dict, steps: int, n: int) -> float:
-    """Env steps per wall second of an async vector env of `n` workers (steps counted over all workers), built as
-    the training harness builds it (curbside.train.envs.make_vec_env: forkserver, BLAS single-threaded workers)."""
-    fn = single_thread_worker(partial(gym.make, f"curbside/{task}-v0", config=_config(task, spec)))
-    venv = gym.vector.AsyncVectorEnv([fn] * n, context="forkserver", autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
+def _rate(venv: gym.vector.VectorEnv, steps: int) -> float:
+    """Env steps per wall second of `venv` under the fixed action cycle (steps counted over all its envs)."""
+    n = venv.num_envs
     venv.reset(seed=0)
     rounds = max(steps // n, 1)
     t0 = time.perf_counter()
@@ -58,21 +56,20 @@ def vector(task: str, spec: dict, steps: int, n: int) -> float:
     rate = rounds * n / (time.perf_counter() - t0)
     venv.close()
     return rate
+
+
+def vector(task: str, spec: dict, steps: int, n: int) -> float:
+    """Env steps per wall second of Gymnasium's async vector env of `n` workers (BLAS single-threaded)."""
+    fn = single_thread_worker(partial(gym.make, f"curbside/{task}-v0", config=_config(task, spec)))
+    return _rate(gym.vector.AsyncVectorEnv([fn] * n, context="forkserver",
+                                           autoreset_mode=gym.vector.AutoresetMode.SAME_STEP), steps)
 
 
 def sharded(task: str, spec: dict, steps: int, workers: int, per_worker: int) -> float:
-    """Env steps per wall second of `workers` processes stepping `per_worker` envs each (ShardedVectorEnv)."""
+    """Env steps per wall second of `workers` processes stepping `per_worker` envs each (ShardedVectorEnv, as the
+    training harness builds it: curbside.train.envs.make_vec_env)."""
     fn = single_thread_worker(partial(gym.make, f"curbside/{task}-v0", config=_config(task, spec)))
-    n = workers * per_worker
-    venv = ShardedVectorEnv([fn] * n, workers=workers)
-    venv.reset(seed=0)
-    rounds = max(steps // n, 1)
-    t0 = time.perf_counter()
-    for k in range(rounds):
-        venv.step(np.repeat(ACTIONS[k % len(ACTIONS)][None], n, axis=0))
-    rate = rounds * n / (time.perf_counter() - t0)
-    venv.close()
-    return rate
+    return _rate(ShardedVectorEnv([fn] * (workers * per_worker), workers=workers), steps)
 
 
 if __name__ == "__main__":
