@@ -15,6 +15,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass
 from typing import Any
 
+import numpy as np
+
 from curbside.config import ConfigError, merge_strict
 from sim.metrics import POINTNAV_MEASURES
 from sim.scene.dataset import SPLITS
@@ -124,20 +126,21 @@ class Reward:
     def __call__(self, progress: float, new_progress: float, lateral: float, d_steer: float, speed: float,
                  collided: bool, succeeded: bool, out_of_route: bool, stuck: bool) -> float:
         """One step's reward from progress along the route, the offset, steering change and events."""
+        return float(self.batch(progress, new_progress, lateral, d_steer, speed, collided, succeeded, out_of_route, stuck))
+
+    def batch(self, progress: Any, new_progress: Any, lateral: Any, d_steer: Any, speed: Any, collided: Any,
+              succeeded: Any, out_of_route: Any, stuck: Any) -> np.ndarray:
+        """The rewards of many steps at once (arrays or numbers; `sim.batched` steps many envs through it). Every
+        branch is an np.where that picks what the scalar max/if would, so one step's double is the same either way."""
         disp = new_progress if self.progress == "max" else progress
-        r = (self.disp * disp - self.lateral * max(0.0, abs(lateral) - self.lateral_free)
-             - self.steering * abs(d_steer) * abs(speed))
-        if collided:
-            r -= self.crash
+        over = np.abs(lateral) - self.lateral_free
+        r = (self.disp * disp - self.lateral * np.where(over > 0.0, over, 0.0)
+             - self.steering * np.abs(d_steer) * np.abs(speed))
+        r = np.where(collided, r - self.crash, r)
         if self.floor:
-            r = max(r, 0.0)
-        if succeeded:
-            r += self.success
-        elif out_of_route:
-            r += self.out_of_route
-        elif stuck:
-            r += self.stuck
-        return float(r)
+            r = np.where(0.0 > r, 0.0, r)
+        bonus = np.where(succeeded, self.success, np.where(out_of_route, self.out_of_route, self.stuck))
+        return np.where(np.logical_or(np.logical_or(succeeded, out_of_route), stuck), r + bonus, r)
 
 
 REWARD_PRESETS: dict[str, dict[str, Any]] = {

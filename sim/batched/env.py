@@ -1,0 +1,279 @@
+"""BatchedPointNav: `num_envs` PointNav envs stepped together in numpy (a `gymnasium.vector.VectorEnv`).
+
+Machines drive on flat ground (`sim.batched.kinematics`), the LiDARs trace precomputed distance grids
+(`sim.batched.lidar`), collisions are a footprint test against the body grid; observations, rewards
+(`Reward.batch`), episode ends and the reset draws are PointNav's. docs/batched.md says what differs from the
+PyBullet env (the reference, and the env for terrain and contact-rich work) and by how much.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from curbside.config import ConfigError
+from sim.batched.atlas import Atlas
+from sim.batched.episodes import KIND_BITS, Episodes
+from sim.batched.grids import CROSSWALK, KIND_NAMES, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
+from sim.batched.kinematics import Drive
+from sim.batched.lidar import lidar_pair
+from sim.batched.routes import RouteBatch
+from sim.batched.scenes import BuiltScene, SceneStore
+from sim.envs.observation import GOAL_LOG_SCALE, EgoObservation
+from sim.envs.scenes import SceneSource
+from sim.machines import machine_spec
+from sim.schema import Float, Int
+from sim.tasks.pointnav import CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward, resolve_task_config
+
+BATCHED_DEFAULTS: dict[str, Any] = {
+    **DEFAULT_CONFIG,
+    "lidar_resolution": 0.05,  # metres per cell of the distance grids the LiDARs trace (and collisions test)
+    "route_pool": 0,           # routes kept per scene and drawn from once full (0: plan every reset, as PointNav)
+}
+BATCHED_TABLE: dict[str, Any] = {**CONFIG_TABLE, "lidar_resolution": Float(0.01, 0.5, hint="metres"),
+                                 "route_pool": Int(0, 1_000_000)}
+# PointNav keys the batched env cannot honour: (key, the value it needs, why).
+PYBULLET_ONLY = (("gui", False, "there is no PyBullet world to show"),
+                 ("collision", "box", "objects are their spec boxes; convex hulls need the PyBullet env"),
+                 ("visual_meshes", False, "there is nothing to render"))
+
+
+class BatchedPointNav(VectorEnv):
+    """`num_envs` PointNav episodes in one numpy pass; `config` as PointNavEnv's plus `lidar_resolution`, `route_pool`.
+
+    Autoreset is SAME_STEP (as curbside.train.sharded): a finished env is reset within `step`; its last observation is
+    `info["final_obs"][i]` and its last info (with the episode's metrics) is `info["final_info"]` under mask
+    `info["_final_info"]`. Per-step info: `cost`, `route_completion`, `out_of_route`, `stuck`, and `collisions`
+    (bit mask of the kinds touched: `sim.batched.episodes.KIND_BITS`).
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
+
+    def __init__(self, num_envs: int = 1, config: Mapping[str, Any] | None = None, render_mode: str | None = None,
+                 **kwargs: Any) -> None:
+        if kwargs:
+            raise ConfigError(f"unknown BatchedPointNav argument(s) {sorted(kwargs)}; valid: num_envs, config")
+        if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
+            raise ConfigError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        if render_mode is not None:
+            raise ConfigError("BatchedPointNav does not render; use the PyBullet env (curbside/PointNav-v0) for images")
+        self.config = cfg = resolve_task_config(BATCHED_DEFAULTS, config, TASK_PRESETS)
+        check_config(cfg, BATCHED_TABLE, BATCHED_DEFAULTS)
+        for key, need, why in PYBULLET_ONLY:
+            if cfg[key] != need:
+                raise ConfigError(f"config.{key} must be {need!r} in the batched env: {why}")
+        self.num_envs = n = num_envs
+        self.render_mode = None
+        self.spec_machine = machine_spec(cfg["machine"])
+        self.reward_fn = make_reward(cfg["reward_preset"], cfg["reward"])
+        self.dt = float(cfg["dt"])
+        self.substeps = int(cfg["physics_substeps"])
+        self.observation = EgoObservation(cfg)
+        self.observation_names = self.observation.names
+        self.single_observation_space = self.observation.space
+        self.single_action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        self.observation_space = batch_space(self.single_observation_space, n)
+        self.action_space = batch_space(self.single_action_space, n)
+        self.sources = SceneSource(cfg)
+        self.atlas = Atlas(float(cfg["lidar_resolution"]))
+        self.store = SceneStore(cfg, self.spec_machine, self.atlas)
+        self.drive = Drive(self.spec_machine, n)
+        self.lidar, self.low_lidar = lidar_pair(cfg, self.drive.bounding_radius)
+        self.routes = RouteBatch(n)
+        self.episodes = Episodes(n, cfg)
+        self.rngs = [np.random.default_rng() for _ in range(n)]
+        self.built: list[BuiltScene | None] = [None] * n
+        self.slots = np.zeros(n, dtype=np.int64)
+        self.level = np.zeros(n, dtype=np.int64)
+        self.labels = np.zeros(n, dtype=np.int64)
+        self._started = False
+        hl, hw = 0.5 * self.spec_machine.length, 0.5 * self.spec_machine.width
+        res = self.atlas.resolution
+        u, w = np.meshgrid(np.linspace(-hl, hl, int(math.ceil(2 * hl / res)) + 1),
+                           np.linspace(-hw, hw, int(math.ceil(2 * hw / res)) + 1))
+        self._body_u, self._body_w = u.ravel(), w.ravel()  # points covering the footprint, a cell apart at most
+
+    # -- resets --------------------------------------------------------------------------------------
+    def reset(self, *, seed: int | Sequence[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset every env: `seed` an int gives env i seed + i (the draws of PointNavEnv.reset(seed=seed + i));
+        options {"start": [x, y], "goal": [x, y]} (or one pair per env) plan that route in every env."""
+        seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, int) else (
+            list(seed) if seed is not None else [None] * self.num_envs)
+        if len(seeds) != self.num_envs:
+            raise ValueError(f"reset got {len(seeds)} seeds for {self.num_envs} envs")
+        for i, s in enumerate(seeds):
+            if s is not None or not self._started:
+                self.rngs[i] = np.random.default_rng(s)
+        self._started = True
+        info = self._reset_envs(np.arange(self.num_envs), options)
+        return self._observe(), info
+
+    def _reset_envs(self, envs: np.ndarray, options: Mapping[str, Any] | None) -> dict[str, Any]:
+        cfg = self.config
+        lengths, horizons = np.zeros(self.num_envs), np.zeros(self.num_envs, dtype=np.int64)
+        for k in envs.tolist():
+            rng = self.rngs[k]
+            key, load = self.sources.draw(rng)
+            old = self.built[k]
+            if old is not None:
+                self.store.release(old)
+            b = self.built[k] = self.store.acquire(key, load)
+            self.slots[k] = b.slot
+            route = self.store.route(b, rng, options, k)
+            yaw = route.heading_at(0.0)
+            self.drive.reset(k, float(route.start[0]), float(route.start[1]), yaw, rng)
+            horizon = int(cfg["horizon"])
+            if cfg["horizon_min_speed"] is not None:
+                horizon = min(horizon, max(int(math.ceil(route.length / cfg["horizon_min_speed"] / self.dt)), 1))
+            self.episodes.reset(k, horizon)
+            self.routes.set(k, route)
+            lengths[k], horizons[k] = route.length, horizon
+        self._locate_level(envs)
+        mask = np.zeros(self.num_envs, dtype=bool)
+        mask[envs] = True
+        return {"route_length": lengths, "_route_length": mask, "horizon": horizons, "_horizon": mask.copy()}
+
+    def _locate_level(self, envs: np.ndarray | None = None) -> None:
+        """Walkable labels under the machines (off-walkable ends, which level the machine is on)."""
+        d = self.drive
+        for b in {id(b): b for b in self.built if b is not None}.values():
+            k = np.nonzero(self.slots == b.slot)[0]
+            if envs is not None:
+                k = np.intersect1d(k, envs)
+            self.labels[k] = walkable_labels(b.scene.walkable, d.x[k], d.y[k])
+        self.level = np.where(self.labels == CROSSWALK, ROAD_LEVEL, SIDEWALK_LEVEL)
+
+    # -- stepping ------------------------------------------------------------------------------------
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Advance every env by dt (config, 0.1 s): drive, collide, sense, reward; finished envs reset in place."""
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        a = np.asarray(actions, dtype=np.float64)
+        if a.shape != (self.num_envs, 2):
+            raise ValueError(f"actions must have shape ({self.num_envs}, 2) [steering, throttle_brake], got {a.shape}")
+        bad = ~np.isfinite(a).all(axis=1)
+        if bad.any():
+            raise ValueError(f"actions of env(s) {np.nonzero(bad)[0].tolist()} hold NaN or inf; policies must output "
+                             "finite values in [-1, 1]")
+        a = np.clip(a, -1.0, 1.0)
+        steer, throttle = a[:, 0], a[:, 1]
+        d, ep = self.drive, self.episodes
+        x0, y0 = d.x.copy(), d.y.copy()
+        sub_dt = self.dt / self.substeps
+        hits = np.zeros(self.num_envs, dtype=np.int64)
+        every = np.arange(self.num_envs)
+        for _ in range(self.substeps):
+            v, w = d.command(steer, throttle, sub_dt)
+            x, y, yaw = d.integrate(v, w, sub_dt)
+            blocked, kinds = self._collide(every, x, y, yaw)
+            hits |= kinds
+            if blocked.any():
+                self._back_off(np.nonzero(blocked)[0], x, y, yaw)
+            d.store(x, y, yaw, v, w, sub_dt, blocked)
+        s, lat = self.routes.locate(d.x, d.y, ep.progress)
+        progress, new_progress, collided = ep.advance(d.x - x0, d.y - y0, s, lat, hits)
+        self._locate_level()
+        succeeded, out, stuck = ep.end(self.routes.length, self.labels != 0, hits != 0)
+        reward = self.reward_fn.batch(progress, new_progress, lat, steer - ep.last_action[:, 0], d.speed, collided,
+                                      succeeded, out, stuck).astype(np.float64)
+        ep.last_action = a
+        terminated = succeeded | out | stuck
+        truncated = ~terminated & (ep.steps >= ep.horizon)
+        obs = self._observe()
+        on = np.ones(self.num_envs, dtype=bool)
+        info: dict[str, Any] = {
+            "cost": collided.astype(np.float64), "route_completion": np.minimum(ep.max_progress / self.routes.length, 1.0),
+            "out_of_route": out, "stuck": stuck, "collisions": hits}
+        info.update({f"_{k}": on for k in list(info)})
+        done = terminated | truncated
+        if done.any():
+            envs = np.nonzero(done)[0]
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            for k in envs.tolist():
+                final_obs[k] = obs[k].copy()
+            final_info = self._final_info(info, done, succeeded)
+            info.update(self._reset_envs(envs, None))
+            obs[envs] = self._observe()[envs]
+            info.update({"final_obs": final_obs, "_final_obs": done, "final_info": final_info, "_final_info": done})
+        return obs, reward, terminated, truncated, info
+
+    def _final_info(self, info: dict[str, Any], done: np.ndarray, succeeded: np.ndarray) -> dict[str, Any]:
+        """The last step's info of the finished envs plus their episode's metrics (masks: `done`)."""
+        ep = self.episodes
+        out = {k: v.copy() for k, v in info.items() if not k.startswith("_")}
+        out.update({"is_success": succeeded.copy(), "success": succeeded.astype(np.float64),
+                    "episode_cost": ep.cost_total.astype(np.float64), "path_length": ep.path_length.copy(),
+                    "time": ep.steps * self.dt, "steps": ep.steps.copy()})
+        out.update({f"collisions_{k}": c.copy() for k, c in ep.collision_counts.items()})
+        out.update({f"_{k}": done for k in list(out)})
+        return out
+
+    def _collide(self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(blocked, kind bits) of envs `envs` with footprints at (x, y, yaw) (arrays over `envs`): blocked when a
+        point of the footprint lies on an occupied cell of the body grid; the bits say what those cells hold."""
+        blocked = np.zeros(envs.size, dtype=bool)
+        bits = np.zeros(envs.size, dtype=np.int64)
+        frame = self.atlas.frames(self.slots[envs], self.level[envs], "body")
+        centre = self.atlas.lookup(frame, x[:, None], y[:, None])[:, 0].astype(np.float64)
+        near = np.nonzero(centre * self.atlas.resolution <= self.drive.bounding_radius + 2.0 * self.atlas.resolution)[0]
+        if near.size == 0:
+            return blocked, bits
+        c, s = np.cos(yaw[near])[:, None], np.sin(yaw[near])[:, None]
+        px = x[near, None] + c * self._body_u - s * self._body_w
+        py = y[near, None] + s * self._body_u + c * self._body_w
+        occupied = self.atlas.lookup({key: v[near] for key, v in frame.items()}, px, py) == 0
+        hit = occupied.any(axis=1)
+        if hit.any():
+            kinds = self.atlas.lookup(self.atlas.frames(self.slots[envs[near]], self.level[envs[near]], "kinds"), px, py)
+            for code, name in KIND_NAMES.items():
+                bits[near] |= np.where((occupied & (kinds == code)).any(axis=1), KIND_BITS[name], 0)
+            blocked[near] = hit
+        return blocked, bits
+
+    def _back_off(self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray, rounds: int = 5) -> None:
+        """Move blocked envs' new poses (in place) back along the substep to the last free fraction of it (bisection:
+        within 1/32 of the substep's motion), where Bullet would leave a machine that ran into something."""
+        d = self.drive
+        x0, y0, yaw0 = d.x[envs], d.y[envs], d.yaw[envs]
+        dx, dy = x[envs] - x0, y[envs] - y0
+        dyaw = (yaw[envs] - yaw0 + np.pi) % (2.0 * np.pi) - np.pi
+        lo, hi = np.zeros(envs.size), np.ones(envs.size)
+        for _ in range(rounds):
+            mid = 0.5 * (lo + hi)
+            blocked, _ = self._collide(envs, x0 + mid * dx, y0 + mid * dy, yaw0 + mid * dyaw)
+            hi = np.where(blocked, mid, hi)
+            lo = np.where(blocked, lo, mid)
+        x[envs], y[envs], yaw[envs] = x0 + lo * dx, y0 + lo * dy, yaw0 + lo * dyaw
+
+    # -- observation ---------------------------------------------------------------------------------
+    def _observe(self) -> np.ndarray:
+        """Every env's observation (the layout of `EgoObservation`, PointNavEnv's table)."""
+        d, ep, r, o = self.drive, self.episodes, self.routes, self.observation
+        parts = [self.lidar.scan(self.atlas, self.slots, self.level, d.x, d.y, d.yaw)]
+        if self.low_lidar is not None:
+            parts.append(self.low_lidar.scan(self.atlas, self.slots, self.level, d.x, d.y, d.yaw))
+        heading_err = (d.yaw - r.heading_at(ep.progress) + np.pi) % (2.0 * np.pi) - np.pi
+        c, s = np.cos(d.yaw)[:, None], np.sin(d.yaw)[:, None]
+        wp = r.point_at(ep.progress[:, None] + o._wp_offsets[None])
+        dx, dy = wp[..., 0] - d.x[:, None], wp[..., 1] - d.y[:, None]
+        ego = np.stack([(c * dx + s * dy) * o._wp_scale, (-s * dx + c * dy) * o._wp_scale], -1).reshape(self.num_envs, -1)
+        gx, gy = r.goal[:, 0] - d.x, r.goal[:, 1] - d.y
+        bearing = np.arctan2(gy, gx) - d.yaw
+        state = np.stack([d.speed / o.speed_scale, d.yaw_rate / 2.0, heading_err / np.pi, ep.lateral / o.lateral_scale,
+                          ep.last_action[:, 0], ep.last_action[:, 1]], 1)
+        tail = np.stack([np.log1p(np.hypot(gx, gy)) / GOAL_LOG_SCALE, np.sin(bearing), np.cos(bearing)], 1)
+        obs = np.concatenate([*parts, state.astype(np.float32), ego.astype(np.float32), tail.astype(np.float32)], 1)
+        np.clip(obs, -1.0, 1.0, out=obs)
+        return obs
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Drop the scenes' grids."""
+        self.store.built.clear()
+        self.atlas = Atlas(self.atlas.resolution)

@@ -1,0 +1,91 @@
+"""The scenes the batched envs run in: built once each (distance grids in the atlas, route planner, route pool),
+kept while any env uses them, and otherwise up to `scene_cache` least recently used ones.
+
+Scene choice is the PyBullet env's: `sim.envs.scenes.SceneSource.draw` with the sub-env's generator, so sub-env i
+reset with seed s draws the scene and route `PointNavEnv.reset(seed=s)` draws (with `route_pool` 0).
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from sim.batched.atlas import Atlas
+from sim.batched.grids import build_grids
+from sim.machines import MachineSpec
+from sim.route import Route, RoutePlanner
+from sim.scene.scene import Scene
+
+
+@dataclass
+class BuiltScene:
+    """One scene's batched structures: its atlas slot, walkable grid and planner, and its pool of routes."""
+
+    key: Any
+    scene: Scene
+    slot: int
+    planner: RoutePlanner
+    pool: list[Route] = field(default_factory=list)
+    users: int = 0  # envs whose episode runs in it now
+
+
+class SceneStore:
+    """Built scenes by key; `acquire` builds or reuses one for an env, `release` when the env leaves it."""
+
+    def __init__(self, cfg: Mapping[str, Any], spec: MachineSpec, atlas: Atlas) -> None:
+        self.cfg = cfg
+        self.spec = spec
+        self.atlas = atlas
+        self.size = int(cfg["scene_cache"])
+        self.pool_size = int(cfg["route_pool"])
+        self.built: OrderedDict[Any, BuiltScene] = OrderedDict()
+        self.by_slot: dict[int, BuiltScene] = {}
+
+    def acquire(self, key: Any, load: Callable[[], Scene]) -> BuiltScene:
+        """The built scene of `key` (built now if new), counted as used by one more env."""
+        b = self.built.get(key)
+        if b is None:
+            self._evict()
+            scene = load()
+            grids = build_grids(scene, resolution=float(self.cfg["lidar_resolution"]), lidar=self.cfg["lidar"],
+                                body_height=self.spec.height)
+            planner = RoutePlanner(scene, self.spec.half_width, margin=float(self.cfg["route_margin"]))
+            b = BuiltScene(key=key, scene=scene, slot=self.atlas.add(grids), planner=planner)
+            self.built[key] = b
+            self.by_slot[b.slot] = b
+        self.built.move_to_end(key)
+        b.users += 1
+        return b
+
+    def release(self, b: BuiltScene) -> None:
+        """One env fewer runs in `b`."""
+        b.users -= 1
+
+    def _evict(self) -> None:
+        """Drop least recently used scenes no env uses while the store holds `size` or more."""
+        while len(self.built) >= self.size:
+            idle = next((k for k, b in self.built.items() if b.users == 0), None)
+            if idle is None:
+                return  # every kept scene is in use: the store grows past `size`
+            b = self.built.pop(idle)
+            del self.by_slot[b.slot]
+            self.atlas.remove(b.slot)
+
+    def route(self, b: BuiltScene, rng: np.random.Generator, options: Mapping[str, Any] | None, k: int) -> Route:
+        """Env k's next route in `b`: between given points, drawn as PointNavEnv draws it, or from the pool."""
+        if options and ("start" in options or "goal" in options):
+            if not ("start" in options and "goal" in options):
+                raise ValueError("reset options need both 'start' and 'goal' ([x, y] each, or one per env), or neither")
+            start, goal = (np.asarray(options[key], dtype=np.float64) for key in ("start", "goal"))
+            return b.planner.plan(start[k] if start.ndim == 2 else start, goal[k] if goal.ndim == 2 else goal)
+        lo, hi = (float(v) for v in self.cfg["route_length"])
+        if self.pool_size == 0:
+            return b.planner.sample(rng, lo, hi)
+        if len(b.pool) < self.pool_size:
+            b.pool.append(b.planner.sample(rng, lo, hi))
+            return b.pool[-1]
+        return b.pool[int(rng.integers(len(b.pool)))]

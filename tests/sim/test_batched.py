@@ -1,0 +1,210 @@
+"""The batched numpy env (sim.batched) against the PyBullet PointNav env, its reference, and its VectorEnv API.
+
+The match: on the hand-built street (tests/scenes.py), the same start, goal and action sequence (the expert's actions
+driving the PyBullet env, 100 steps along the left sidewalk and around the trash bin on it) give observations and
+rewards within TOL (docs/batched.md says why each bound is what it is); the same check fails for a perturbed action
+sequence.
+"""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import sim  # noqa: F401  (registers the env ids)
+from curbside.config import ConfigError
+from sim.batched import BatchedPointNav
+from sim.envs.pointnav import PointNavEnv
+from sim.expert import PurePursuitExpert
+from tests.scenes import street
+
+ROUTE = {"start": [3.0, 7.0], "goal": [40.0, 7.0]}  # left sidewalk, swerving around the trash bin at x = 15
+STEPS = 100
+B, L = 240, 60  # high and low beams (PointNav defaults)
+# Tolerances (docs/batched.md): LiDAR in metres at PyBullet's own poses; the rest over the replay of 100 steps.
+TOL = {
+    "lidar_far_frac": 0.05,   # at most this fraction of beams more than 2 cells (0.1 m) off at the same pose
+    "lidar_median": 0.03,     # median beam error (m) at the same pose
+    "position": 0.15,         # m (Bullet's triangle-edge contacts on the sidewalk mesh slow it a little)
+    "yaw": 0.02,              # rad
+    "state": 0.02,            # speed, yaw rate, heading error, lateral offset (normalised observation values)
+    "nav": 0.03,              # waypoints and goal (normalised observation values)
+    "reward": 0.01,           # per step
+    "replay_lidar_median": 0.05,  # median beam error (m) in the replay (its poses are up to `position` off)
+}
+
+
+def _decode(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """LiDAR distances (m) of an observation: the log-encoded 50 m scan and the linear 5 m low scan."""
+    high = np.expm1(obs[:B].astype(np.float64) * math.log1p(50.0))
+    return high, obs[B:B + L].astype(np.float64) * 5.0
+
+
+@pytest.fixture(scope="module")
+def reference():
+    """The PyBullet run: actions, observations, rewards, end flags, poses and raw scans at every step."""
+    env = PointNavEnv({"scene_spec": street()})
+    expert = PurePursuitExpert()
+    env.reset(seed=0, options=ROUTE)
+    out = {"actions": [], "obs": [], "rewards": [], "ends": [], "poses": [], "scans": []}
+    for _ in range(STEPS):
+        a = np.asarray(expert.act(env), dtype=np.float64)
+        obs, r, term, trunc, _ = env.step(a)
+        m = env.machine
+        out["actions"].append(a)
+        out["obs"].append(obs)
+        out["rewards"].append(r)
+        out["ends"].append((term, trunc))
+        out["poses"].append((m.position[0], m.position[1], m.yaw))
+        env.lidar.scan(*m.position, m.yaw)
+        out["scans"].append((env.lidar.distances.astype(np.float64) * env.lidar.range_m,
+                             env.low_lidar.scan(*m.position, m.yaw).astype(np.float64) * env.low_lidar.range_m))
+        assert not (term or trunc), "the reference run must last STEPS steps"
+    env.close()
+    return out
+
+
+def _replay(actions: list[np.ndarray]) -> dict[str, list]:
+    env = BatchedPointNav(1, {"scene_spec": street()})
+    env.reset(seed=0, options=ROUTE)
+    out = {"obs": [], "rewards": [], "ends": [], "poses": []}
+    for a in actions:
+        obs, r, term, trunc, info = env.step(np.asarray(a)[None])
+        out["obs"].append(info["final_obs"][0] if term[0] or trunc[0] else obs[0])
+        out["rewards"].append(float(r[0]))
+        out["ends"].append((bool(term[0]), bool(trunc[0])))
+        out["poses"].append((env.drive.x[0], env.drive.y[0], env.drive.yaw[0]))
+    return out
+
+
+def mismatches(ref: dict[str, list], run: dict[str, list]) -> list[str]:
+    """Where a batched run leaves TOL of the PyBullet run (empty: it matches)."""
+    bad = []
+    for k, (o_ref, o, r_ref, r, e_ref, e, p_ref, p) in enumerate(zip(
+            ref["obs"], run["obs"], ref["rewards"], run["rewards"], ref["ends"], run["ends"], ref["poses"], run["poses"])):
+        checks = {
+            "position": math.hypot(p[0] - p_ref[0], p[1] - p_ref[1]),
+            "yaw": abs((p[2] - p_ref[2] + math.pi) % (2 * math.pi) - math.pi),
+            "state": float(np.abs(o[B + L:B + L + 4] - o_ref[B + L:B + L + 4]).max()),
+            "nav": float(np.abs(o[B + L + 4:] - o_ref[B + L + 4:]).max()),
+            "reward": abs(r - r_ref),
+            "replay_lidar_median": float(np.median(np.abs(_decode(o)[0] - _decode(o_ref)[0]))),
+        }
+        bad += [f"step {k}: {name} off by {v:.4f} > {TOL[name]}" for name, v in checks.items() if v > TOL[name]]
+        if e != e_ref:
+            bad.append(f"step {k}: (terminated, truncated) {e} != PyBullet's {e_ref}")
+    return bad
+
+
+def test_lidar_matches_pybullet_at_the_same_poses(reference):
+    env = BatchedPointNav(1, {"scene_spec": street()})
+    env.reset(seed=0, options=ROUTE)
+    for k, ((x, y, yaw), (high_ref, low_ref)) in enumerate(zip(reference["poses"], reference["scans"])):
+        env.drive.x[0], env.drive.y[0], env.drive.yaw[0] = x, y, yaw
+        env._locate_level()
+        high, low = _decode(env._observe()[0])
+        for name, err in (("high", np.abs(high - high_ref)), ("low", np.abs(low - low_ref))):
+            assert (err > 0.1).mean() <= TOL["lidar_far_frac"], (k, name, np.nonzero(err > 0.1)[0])
+            assert np.median(err) <= TOL["lidar_median"], (k, name, np.median(err))
+
+
+def test_replay_matches_pybullet_and_a_perturbed_one_does_not(reference):
+    assert mismatches(reference, _replay(reference["actions"])) == []
+    steer_off = [a + np.array([0.1, 0.0]) for a in reference["actions"]]
+    assert any("position" in m for m in mismatches(reference, _replay(steer_off)))
+    slower = [a - np.array([0.0, 0.05]) for a in reference["actions"]]
+    assert mismatches(reference, _replay(slower)) != []
+
+
+def test_running_into_an_object_stops_and_costs_as_in_pybullet():
+    cfg = {"scene_spec": street(), "collision_steps": 0, "stuck_steps": 0}
+    route = {"start": [8.0, 7.0], "goal": [30.0, 7.0]}  # straight at the trash bin
+    ref, env = PointNavEnv(cfg), BatchedPointNav(1, cfg)
+    ref.reset(seed=0, options=route)
+    env.reset(seed=0, options=route)
+    for _ in range(40):
+        _, r_ref, *_, info_ref = ref.step([0.0, 0.5])
+        _, r, *_, info = env.step(np.array([[0.0, 0.5]]))
+    assert info_ref["collision_kinds"] == ["object"] and info["collisions"][0] == 2  # KIND_BITS["object"]
+    assert info["cost"][0] == info_ref["cost"] == 1.0
+    assert abs(r[0] - r_ref) < TOL["reward"]
+    assert env.drive.speed[0] == 0.0
+    assert abs(env.drive.x[0] - ref.machine.position[0]) < 0.1  # stops where its footprint meets the bin
+    ref.close()
+
+
+def test_vector_env_api_and_same_step_autoreset():
+    env = BatchedPointNav(3, {"scene_spec": street(), "horizon": 6, "horizon_min_speed": None})
+    assert env.metadata["autoreset_mode"] == gym.vector.AutoresetMode.SAME_STEP
+    assert env.single_observation_space.shape == (329,) and env.observation_space.shape == (3, 329)
+    assert env.action_space.shape == (3, 2)
+    obs, info = env.reset(seed=1)
+    assert obs.dtype == np.float32 and obs in env.observation_space
+    assert info["_route_length"].all() and (info["route_length"] > 0).all()
+    rng = np.random.default_rng(0)
+    for k in range(6):
+        obs, reward, term, trunc, info = env.step(rng.uniform(-1, 1, (3, 2)))
+        assert obs.shape == (3, 329) and obs.dtype == np.float32 and obs in env.observation_space
+        assert reward.shape == (3,) and reward.dtype == np.float64 and term.dtype == trunc.dtype == bool
+    assert (term | trunc).all() and info["_final_obs"].all()  # the horizon ends every episode at step 6
+    final = np.stack(info["final_obs"])
+    assert final.shape == (3, 329) and not np.array_equal(final, obs)
+    assert info["final_info"]["_steps"].all() and (info["final_info"]["steps"] == 6).all()
+    assert info["_route_length"].all()  # the new episodes' reset info
+    obs, *_ = env.step(np.zeros((3, 2)))  # the reset envs run on
+    assert obs in env.observation_space
+
+
+def test_same_seed_same_arrays_and_pointnav_draws():
+    def run(seed: int) -> list[np.ndarray]:
+        env = BatchedPointNav(2, {"scene_spec": street(), "num_waypoints": 4})
+        out = [env.reset(seed=seed)[0]]
+        rng = np.random.default_rng(seed)
+        for _ in range(30):
+            obs, r, term, trunc, _ = env.step(rng.uniform(-1, 1, (2, 2)))
+            out += [obs, r, term, trunc]
+        return out
+
+    a, b, c = run(3), run(3), run(4)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+    assert not all(np.array_equal(x, y) for x, y in zip(a, c))
+    # Sub-env i reset with seed s draws the route and forces PointNavEnv.reset(seed=s + i) draws.
+    env = BatchedPointNav(2, {"scene_spec": street()})
+    env.reset(seed=7)
+    ref = PointNavEnv({"scene_spec": street()})
+    for i in range(2):
+        ref.reset(seed=7 + i)
+        assert np.array_equal(env.routes.routes[i].points, ref.route.points)
+        assert env.drive.engine_force[i] == ref.machine.engine_force
+    ref.close()
+
+
+def test_bad_input_fails_clearly():
+    env = BatchedPointNav(2, {"scene_spec": street()})
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros((2, 2)))
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"env\(s\) \[1\] hold NaN"):
+        env.step(np.array([[0.0, 0.5], [np.nan, 0.5]]))
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros(2))
+    with pytest.raises(ConfigError, match="valid keys: .*lidar_resolution"):
+        BatchedPointNav(2, {"scene_spec": street(), "lidar_resolutoin": 0.1})
+    with pytest.raises(ConfigError, match="lidar_resolution"):
+        BatchedPointNav(2, {"lidar_resolution": float("nan")})
+    with pytest.raises(ConfigError, match="gui"):
+        BatchedPointNav(2, {"gui": True})
+    with pytest.raises(ConfigError, match="num_envs"):
+        BatchedPointNav(0)
+
+
+def test_make_vec_gives_the_batched_env():
+    envs = gym.make_vec("curbside/PointNav-v0", num_envs=3, vectorization_mode="vector_entry_point",
+                        config={"scene_spec": street()})
+    assert isinstance(envs.unwrapped, BatchedPointNav) and envs.num_envs == 3
+    obs, _ = envs.reset(seed=0)
+    assert obs.shape == (3, 329)
+    envs.close()
