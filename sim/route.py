@@ -195,22 +195,27 @@ class RoutePlanner:
         raise _no_route(min_length, max_length, tries)
 
     def _without_recent(self, chain: list[int], cur: int, radius_m: float = 8.0) -> Any:
-        """The graph without the half disc of `radius_m` behind the chain's end (its last 3 m give the heading).
+        """The graph without the cells within `radius_m` behind the chain's end, "behind" judged against both the
+        heading of its last 1 m and of its last 3 m.
 
         A leg drawn on it cannot start by turning back: a wheeled machine without reverse cannot U-turn beside
-        obstacles. Cells just beside the end (within 0.5 m behind it) stay, so the end keeps its neighbours.
+        obstacles. One heading is not enough: a chain that ends with a 1 m hook (north after north-west) lets the
+        next leg leave south-west, at right angles to the 3 m heading but 135 degrees from the hook. Cells just
+        beside the end (within 0.5 m behind it) stay, so the end keeps its neighbours.
         """
-        k = min(len(chain) - 1, int(3.0 / self.grid.resolution))
-        a, b = chain[-1 - k], chain[-1]
-        heading = np.array([self.cols[b] - self.cols[a], self.rows[b] - self.rows[a]], dtype=float)
-        heading /= max(float(np.hypot(*heading)), 1e-9)
         r = int(round(radius_m / self.grid.resolution))
         i0, j0 = int(self.rows[cur]), int(self.cols[cur])
         n_i, n_j = self.node.shape
         sl = (slice(max(i0 - r, 0), min(i0 + r + 1, n_i)), slice(max(j0 - r, 0), min(j0 + r + 1, n_j)))
         ii, jj = np.mgrid[sl]
-        behind = ((ii - i0) ** 2 + (jj - j0) ** 2 <= r * r) & (
-            (jj - j0) * heading[0] + (ii - i0) * heading[1] < -0.5 / self.grid.resolution)
+        behind = np.zeros(ii.shape, dtype=bool)
+        for back_m in (1.0, 3.0):
+            k = min(len(chain) - 1, int(back_m / self.grid.resolution))
+            a, b = chain[-1 - k], chain[-1]
+            heading = np.array([self.cols[b] - self.cols[a], self.rows[b] - self.rows[a]], dtype=float)
+            heading /= max(float(np.hypot(*heading)), 1e-9)
+            behind |= (jj - j0) * heading[0] + (ii - i0) * heading[1] < -0.5 / self.grid.resolution
+        behind &= (ii - i0) ** 2 + (jj - j0) ** 2 <= r * r
         nodes = self.node[sl][behind]
         keep = np.ones(self.graph.shape[0])
         keep[nodes[nodes >= 0]] = 0.0
