@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pybullet as p
-
 
 ENCODINGS = ("linear", "log")
 
@@ -67,3 +67,63 @@ class Lidar:
             return self.distances
         d = self.distances.astype(np.float64) * self.range_m
         return (np.log1p(d) / math.log1p(self.range_m)).astype(np.float32)
+
+
+class GridLidar:
+    """The planar LiDAR of `Lidar` with the static scene traced through distance grids (`sim.raycast`), not Bullet.
+
+    The grids hold the world's static bodies (buildings, object boxes, raised sidewalks) at the scan's height for
+    a machine on the sidewalk and on the road; a scan takes the level nearer the machine's base height `z`. Bodies
+    that move (SocialNav's agents and vehicles) are not in the grids: `moving(x, y, h, cos, sin, start, range_m)` (the
+    env's hook, or None) returns their distances (m, inf for none) and body ids per beam; the nearer hit wins. Distances
+    match Bullet's ray test to within the grid's rasterisation (docs/raycast.md); `hit_ids` holds a moving body's
+    id, STATIC_HIT for a grid hit, -1 for none.
+    """
+
+    STATIC_HIT = -2
+
+    def __init__(self, grids: Any, what: str, beams: int = 240, range_m: float = 50.0, height: float = 0.4,
+                 start_radius: float = 0.5, encoding: str = "linear") -> None:
+        if beams < 1 or not range_m > start_radius or not math.isfinite(range_m):
+            raise ValueError(f"lidar needs beams >= 1 and a finite range_m > {start_radius}, got beams={beams}, range_m={range_m}")
+        if encoding not in ENCODINGS:
+            raise ValueError(f"unknown lidar encoding {encoding!r}; valid: {', '.join(ENCODINGS)}")
+        from sim.raycast.grids import ROAD_LEVEL, SIDEWALK_LEVEL, WHAT
+        from sim.raycast.march import trace
+
+        self._trace = trace
+        self._levels = (SIDEWALK_LEVEL, ROAD_LEVEL)
+        self.grids = grids
+        self.table = WHAT.index(what)
+        self.encoding = encoding
+        self.beams = beams
+        self.range_m = float(range_m)
+        self.height = float(height)
+        self.start_radius = float(start_radius)
+        self.angles = np.linspace(0.0, 2.0 * math.pi, beams, endpoint=False)
+        self.distances = np.ones(beams, dtype=np.float32)
+        self.hit_ids = -np.ones(beams, dtype=np.int64)
+        self.moving: Any = None
+        # Per level: the flat table and the one-env frame `sim.raycast.march.trace` reads.
+        self._frames = [(tables[self.table].ravel(), {
+            "x0": np.array([grids.origin[0]]), "y0": np.array([grids.origin[1]]),
+            "cols": np.array([grids.shape[1]]), "offset": np.zeros(1, dtype=np.int64)}) for tables in grids.tables]
+
+    def scan(self, x: float, y: float, z: float, yaw: float) -> np.ndarray:
+        """Normalised distances (beams,) in [0, 1]; also stores `hit_ids`."""
+        level = self._levels[0] if z > 0.5 * self.grids.curb_height else self._levels[1]
+        flat, frame = self._frames[level]
+        a = self.angles + yaw
+        d = self._trace(flat, frame, np.array([x]), np.array([y]), a[None], self.start_radius, self.range_m,
+                  self.grids.resolution)[0]
+        ids = np.where(d < self.range_m, self.STATIC_HIT, -1)
+        if self.moving is not None:
+            dm, idm = self.moving(x, y, z + self.height, np.cos(a), np.sin(a), self.start_radius, self.range_m)
+            nearer = dm < d
+            d = np.where(nearer, dm, d)
+            ids = np.where(nearer, idm, ids)
+        self.hit_ids = ids
+        self.distances = (d / self.range_m).astype(np.float32)
+        return self.distances
+
+    encoded = Lidar.encoded

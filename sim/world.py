@@ -111,22 +111,12 @@ class World:
         for cw in scene.crosswalks:
             for poly in polygons(Polygon(cw["polygon"]).buffer(0)):
                 self._mesh_body("crosswalk", *extrusion_mesh(poly, 0.0, 0.004, walls=False), SURFACE["crosswalk"], collide=False)
-        ramps_by_sidewalk: dict[str, list[Polygon]] = {}
-        sidewalks = {sw["id"]: sw for sw in scene.sidewalks}
-        for cw in scene.crosswalks:
-            for ramp in cw.get("ramps", []):
-                # Slightly grown, so no sliver of raised sidewalk survives between the ramp and the curb line.
-                poly = Polygon(ramp["polygon"]).buffer(0.05, join_style="mitre")
-                cuts = self._build_ramp(poly, sidewalks.get(ramp["sidewalk_id"]))
-                ramps_by_sidewalk.setdefault(ramp["sidewalk_id"], []).extend(cuts)
+        slabs, wedges = sidewalk_solids(scene, h)
+        for pts, z in wedges:
+            self._wedge("ramp", pts, z)
         rng = np.random.default_rng(scene.seed)
         for sw in scene.sidewalks:
-            geom = Polygon(sw["polygon"]).buffer(0)
-            for ramp in ramps_by_sidewalk.get(sw["id"], []):
-                geom = geom.difference(ramp.buffer(0.01, join_style="mitre"))
-            for poly in polygons(geom):
-                if poly.buffer(-0.05).is_empty:
-                    continue  # a sliver left by the ramp cut-outs: a wheel would catch on it
+            for poly in slabs[sw["id"]]:
                 self._mesh_body("sidewalk", *extrusion_mesh(poly, 0.0, h), SURFACE["sidewalk"])
             for zone in sw.get("zones", []):
                 if zone.get("kind") == "building":
@@ -137,38 +127,6 @@ class World:
             body = self._build_object(obj)
             self.object_ids.append(body)
             self.object_index[body] = i
-
-    def _build_ramp(self, poly: Polygon, sidewalk: Mapping[str, Any] | None) -> list[Polygon]:
-        """Build a ramp wedge plus flared sides; return the footprints to cut from the sidewalk."""
-        h = self.curb_height
-        pts = np.asarray(orient(poly, 1.0).exterior.coords)[:-1]
-        if sidewalk is not None and len(sidewalk.get("edge", [])) >= 2:
-            curb = LineString(sidewalk["edge"])
-        else:
-            curb = shapely.union_all([Polygon(r["polygon"]) for r in self.scene.roads]).boundary
-        d = np.array([curb.distance(Point(x, y)) for x, y in pts])
-        # The vertices on the curb line sit at road level; the rest rise to the sidewalk over the ramp.
-        z = np.where(d < max(0.1, 0.25 * float(d.max())), 0.0, h)
-        if z.max() == 0.0:
-            z = np.full(len(pts), h)
-        self._wedge("ramp", pts, z)
-        cuts = [poly]
-        centre = pts.mean(0)
-        n = len(pts)
-        for k in range(n):
-            a, b = k, (k + 1) % n
-            if z[a] == z[b]:
-                continue
-            lo, hi = (a, b) if z[a] < z[b] else (b, a)
-            side = pts[hi] - pts[lo]
-            out = np.array([side[1], -side[0]]) / max(np.hypot(*side), 1e-9)
-            if np.dot(out, pts[lo] - centre) < 0:
-                out = -out
-            # A flare (sloped side) as curb ramps have: without it a wheel on the ramp meets a bare step.
-            tri = np.array([pts[lo], pts[hi], pts[lo] + out * max(np.hypot(*side), 0.5)])
-            self._wedge("ramp", tri, np.array([0.0, h, h]))
-            cuts.append(Polygon(tri))
-        return cuts
 
     def _wedge(self, kind: str, pts: np.ndarray, z: np.ndarray) -> None:
         top = [[float(x), float(y), float(zz)] for (x, y), zz in zip(pts, z)]
@@ -240,3 +198,58 @@ class World:
             except p.error:
                 pass
             self.client = None
+
+
+def sidewalk_solids(scene: Scene, h: float) -> tuple[dict[str, list[Polygon]], list[tuple[np.ndarray, np.ndarray]]]:
+    """The raised parts of a scene's sidewalks: per sidewalk id the slabs (polygons from 0 to the curb height `h`),
+    and every curb ramp's wedges as (footprint vertices [k, 2], their heights [k]). The world builds these bodies
+    and the grid LiDAR (sim.raycast.grids) rasterises the same solids."""
+    cuts: dict[str, list[Polygon]] = {}
+    sidewalks = {sw["id"]: sw for sw in scene.sidewalks}
+    wedges: list[tuple[np.ndarray, np.ndarray]] = []
+    for cw in scene.crosswalks:
+        for ramp in cw.get("ramps", []):
+            # Slightly grown, so no sliver of raised sidewalk survives between the ramp and the curb line.
+            poly = Polygon(ramp["polygon"]).buffer(0.05, join_style="mitre")
+            ramp_parts = ramp_wedges(scene, poly, sidewalks.get(ramp["sidewalk_id"]), h)
+            wedges += ramp_parts
+            cuts.setdefault(ramp["sidewalk_id"], []).extend(Polygon(pts) for pts, _ in ramp_parts)
+    slabs: dict[str, list[Polygon]] = {}
+    for sw in scene.sidewalks:
+        geom = Polygon(sw["polygon"]).buffer(0)
+        for cut in cuts.get(sw["id"], []):
+            geom = geom.difference(cut.buffer(0.01, join_style="mitre"))
+        # A sliver left by the ramp cut-outs is dropped: a wheel would catch on it.
+        slabs[sw["id"]] = [poly for poly in polygons(geom) if not poly.buffer(-0.05).is_empty]
+    return slabs, wedges
+
+
+def ramp_wedges(scene: Scene, poly: Polygon, sidewalk: Mapping[str, Any] | None, h: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """A curb ramp's wedges as (footprint vertices [k, 2], their heights [k]): the ramp, rising from the road (vertices
+    on the curb line) to the sidewalk top `h`, and a sloped flare on each side (the grid LiDAR rasterises the same)."""
+    pts = np.asarray(orient(poly, 1.0).exterior.coords)[:-1]
+    if sidewalk is not None and len(sidewalk.get("edge", [])) >= 2:
+        curb = LineString(sidewalk["edge"])
+    else:
+        curb = shapely.union_all([Polygon(r["polygon"]) for r in scene.roads]).boundary
+    d = np.array([curb.distance(Point(x, y)) for x, y in pts])
+    # The vertices on the curb line sit at road level; the rest rise to the sidewalk over the ramp.
+    z = np.where(d < max(0.1, 0.25 * float(d.max())), 0.0, h)
+    if z.max() == 0.0:
+        z = np.full(len(pts), h)
+    wedges = [(pts, z)]
+    centre = pts.mean(0)
+    n = len(pts)
+    for k in range(n):
+        a, b = k, (k + 1) % n
+        if z[a] == z[b]:
+            continue
+        lo, hi = (a, b) if z[a] < z[b] else (b, a)
+        side = pts[hi] - pts[lo]
+        out = np.array([side[1], -side[0]]) / max(np.hypot(*side), 1e-9)
+        if np.dot(out, pts[lo] - centre) < 0:
+            out = -out
+        # A flare (sloped side) as curb ramps have: without it a wheel on the ramp meets a bare step.
+        tri = np.array([pts[lo], pts[hi], pts[lo] + out * max(np.hypot(*side), 0.5)])
+        wedges.append((tri, np.array([0.0, h, h])))
+    return wedges

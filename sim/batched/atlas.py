@@ -1,5 +1,5 @@
 """The grids of every scene the envs use, packed in one flat uint8 array with per-scene offsets and frames, so that
-one numpy gather reads any env's cells whatever its scene (`sim.batched.lidar` traces through it, the env's
+one numpy gather reads any env's cells whatever its scene (`sim.batched.lidar` traces through it via `sim.raycast.march`, the env's
 collision test reads the body and kind grids through it).
 """
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.batched.grids import WHAT, SceneGrids
+from sim.raycast.grids import WHAT, SceneGrids
 
 KINDS = len(WHAT)  # the kind grid's index after the level tables
 
@@ -65,7 +65,7 @@ class Atlas:
                     at += table.size
         if at >= 2**31:
             raise MemoryError(f"the scenes' grids hold {at} cells, past the 2**31 the tracer indexes; use fewer scenes "
-                              "(scene_cache) or a coarser lidar_resolution")
+                              "(scene_cache) or a coarser lidar.resolution")
         self.flat = np.concatenate(parts) if parts else np.zeros(0, dtype=np.uint8)
 
     def frames(self, slots: np.ndarray, level: np.ndarray, what: str) -> dict[str, np.ndarray]:

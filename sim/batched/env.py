@@ -1,7 +1,7 @@
 """BatchedPointNav: `num_envs` PointNav envs stepped together in numpy (a `gymnasium.vector.VectorEnv`).
 
 Machines drive on flat ground (`sim.batched.kinematics`), the LiDARs trace precomputed distance grids
-(`sim.batched.lidar`), collisions are a footprint test against the body grid; observations, rewards
+(`sim.raycast.march`), collisions are a footprint test against the body grid; observations, rewards
 (`Reward.batch`), episode ends and the reset draws are PointNav's. docs/batched.md says what differs from the
 PyBullet env (the reference, and the env for terrain and contact-rich work) and by how much.
 """
@@ -20,7 +20,6 @@ from gymnasium.vector.utils import batch_space
 from curbside.config import ConfigError
 from sim.batched.atlas import Atlas
 from sim.batched.episodes import KIND_BITS, Episodes
-from sim.batched.grids import CROSSWALK, KIND_NAMES, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
 from sim.batched.kinematics import Drive
 from sim.batched.lidar import lidar_pair
 from sim.batched.routes import RouteBatch
@@ -28,16 +27,22 @@ from sim.batched.scenes import BuiltScene, SceneStore
 from sim.envs.observation import GOAL_LOG_SCALE, EgoObservation
 from sim.envs.scenes import SceneSource
 from sim.machines import machine_spec
-from sim.schema import Float, Int
-from sim.tasks.pointnav import CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward, resolve_task_config
+from sim.raycast.grids import CROSSWALK, KIND_NAMES, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
+from sim.schema import Int
+from sim.tasks.pointnav import (
+    CONFIG_TABLE,
+    DEFAULT_CONFIG,
+    TASK_PRESETS,
+    check_config,
+    make_reward,
+    resolve_task_config,
+)
 
 BATCHED_DEFAULTS: dict[str, Any] = {
     **DEFAULT_CONFIG,
-    "lidar_resolution": 0.05,  # metres per cell of the distance grids the LiDARs trace (and collisions test)
     "route_pool": 0,           # routes kept per scene and drawn from once full (0: plan every reset, as PointNav)
 }
-BATCHED_TABLE: dict[str, Any] = {**CONFIG_TABLE, "lidar_resolution": Float(0.01, 0.5, hint="metres"),
-                                 "route_pool": Int(0, 1_000_000)}
+BATCHED_TABLE: dict[str, Any] = {**CONFIG_TABLE, "route_pool": Int(0, 1_000_000)}
 # PointNav keys the batched env cannot honour: (key, the value it needs, why).
 PYBULLET_ONLY = (("gui", False, "there is no PyBullet world to show"),
                  ("collision", "box", "objects are their spec boxes; convex hulls need the PyBullet env"),
@@ -45,7 +50,9 @@ PYBULLET_ONLY = (("gui", False, "there is no PyBullet world to show"),
 
 
 class BatchedPointNav(VectorEnv):
-    """`num_envs` PointNav episodes in one numpy pass; `config` as PointNavEnv's plus `lidar_resolution`, `route_pool`.
+    """`num_envs` PointNav episodes in one numpy pass; `config` as PointNavEnv's plus `route_pool`.
+
+    The LiDARs and the collision test read the scene's distance grids at `lidar.resolution` (sim.raycast.grids).
 
     Autoreset is SAME_STEP (as curbside.train.sharded): a finished env is reset within `step`; its last observation is
     `info["final_obs"][i]` and its last info (with the episode's metrics) is `info["final_info"]` under mask
@@ -81,7 +88,10 @@ class BatchedPointNav(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, n)
         self.action_space = batch_space(self.single_action_space, n)
         self.sources = SceneSource(cfg)
-        self.atlas = Atlas(float(cfg["lidar_resolution"]))
+        if cfg["lidar"]["static"] == "bullet":
+            raise ConfigError("config.lidar.static must be 'grid' (or 'auto') in the batched env: there is no Bullet "
+                              "world to ray-test")
+        self.atlas = Atlas(float(cfg["lidar"]["resolution"]))
         self.store = SceneStore(cfg, self.spec_machine, self.atlas)
         self.drive = Drive(self.spec_machine, n)
         self.lidar, self.low_lidar = lidar_pair(cfg, self.drive.bounding_radius)

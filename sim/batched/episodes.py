@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.batched.grids import KIND_NAMES
+from sim.raycast.grids import KIND_NAMES
 
 KIND_BITS = {name: 1 << k for k, name in KIND_NAMES.items()}  # object 2, building 4, curb 8
 

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from sim.batched.atlas import Atlas
-from sim.batched.grids import build_grids
 from sim.machines import MachineSpec
+from sim.raycast.grids import build_grids
 from sim.route import Route, RoutePlanner
 from sim.scene.scene import Scene
 
@@ -51,7 +51,7 @@ class SceneStore:
         if b is None:
             self._evict()
             scene = load()
-            grids = build_grids(scene, resolution=float(self.cfg["lidar_resolution"]), lidar=self.cfg["lidar"],
+            grids = build_grids(scene, resolution=float(self.cfg["lidar"]["resolution"]), lidar=self.cfg["lidar"],
                                 body_height=self.spec.height)
             planner = RoutePlanner(scene, self.spec.half_width, margin=float(self.cfg["route_margin"]))
             b = BuiltScene(key=key, scene=scene, slot=self.atlas.add(grids), planner=planner)

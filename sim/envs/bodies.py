@@ -27,7 +27,9 @@ class CohabitantBodies:
         self._kind_idx = self._kind_src = np.zeros(0, dtype=np.int16)
         self._vehicles_shown = -1
         self._half_heights = np.zeros(0)
+        self._radii = np.zeros(0)
         self._xyz: np.ndarray | None = None
+        self._vehicle_poses = np.zeros((0, 3))  # x, y, yaw of the vehicles shown
 
     def park(self) -> None:
         """Move every body out of the way (below the ground), e.g. while the next start's height is probed."""
@@ -36,6 +38,7 @@ class CohabitantBodies:
         self._vehicles_shown = -1
         if self._xyz is not None:
             self._xyz = np.full_like(self._xyz, np.nan)
+        self._vehicle_poses = np.zeros((0, 3))
 
     def sync(self, kind_idx: np.ndarray, pos: np.ndarray, base_heights: np.ndarray, vehicles: np.ndarray) -> None:
         """Place the agent bodies at `pos` (on `base_heights`) and the vehicle bodies at `vehicles`' states."""
@@ -50,6 +53,8 @@ class CohabitantBodies:
             for k, at in zip(moved.tolist(), xyz[moved].tolist()):
                 p.resetBasePositionAndOrientation(self.agents[k], at, (0, 0, 0, 1), physicsClientId=c)
             self._xyz = xyz
+        self._vehicle_poses = np.stack([vehicles["x"], vehicles["y"], vehicles["yaw"]], 1) if len(vehicles) else \
+            np.zeros((0, 3))
         if len(vehicles):
             half_yaw = (0.5 * vehicles["yaw"]).tolist()
             for body, x, y, h in zip(self.vehicles, vehicles["x"].tolist(), vehicles["y"].tolist(), half_yaw):
@@ -93,6 +98,7 @@ class CohabitantBodies:
                 self.collision_kinds[body] = "agent"
             self._kind_idx = self._kind_src = kind_idx
             self._half_heights = np.array([max(AGENT_KINDS[k].height, 2.0 * AGENT_KINDS[k].radius) / 2 for k in kinds])
+            self._radii = np.array([AGENT_KINDS[k].radius for k in kinds])
             self._xyz = np.full((len(kinds), 3), np.nan)  # nan != anything: every body moves on the first sync
         while len(self.vehicles) < n_vehicles:
             half = [self.vehicle_size[0] / 2, self.vehicle_size[1] / 2, VEHICLE_HEIGHT / 2]
@@ -106,3 +112,55 @@ class CohabitantBodies:
             for body in self.vehicles[n_vehicles:]:
                 p.resetBasePositionAndOrientation(body, PARKED, [0, 0, 0, 1], physicsClientId=c)
             self._vehicles_shown = n_vehicles
+
+    def ray_hits(self, x: float, y: float, h: float, cos: np.ndarray, sin: np.ndarray, start: float,
+                 range_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """(distance in m, body id) per horizontal ray from (x, y) at height `h` along (cos, sin), starting `start` m
+        out: the first agent capsule or vehicle box it meets within `range_m` (inf and -1 for none).
+
+        The bodies' own shapes, intersected exactly (a capsule at height h is a circle, a vehicle an oriented
+        rectangle up to VEHICLE_HEIGHT): what Bullet's ray test of these bodies returns, for `sim.sensors.GridLidar`,
+        whose grids hold only the static scene.
+        """
+        dist = np.full(cos.shape, np.inf)
+        ids = -np.ones(cos.shape, dtype=np.int64)
+        if self._xyz is not None and len(self._xyz):
+            shaft = np.maximum(self._half_heights - self._radii, 0.0)  # half the straight part
+            dz = np.maximum(np.abs(h - self._xyz[:, 2]) - shaft, 0.0)  # nan for parked bodies: no hit
+            rho2 = self._radii ** 2 - dz ** 2
+            near = np.flatnonzero(rho2 > 0.0)
+            if near.size:
+                ox, oy = self._xyz[near, 0] - x, self._xyz[near, 1] - y
+                b = cos[:, None] * ox + sin[:, None] * oy  # [beams, bodies]
+                disc = b * b - (ox * ox + oy * oy - rho2[near])
+                with np.errstate(invalid="ignore"):
+                    root = np.sqrt(disc)
+                t_in, t_out = b - root, b + root
+                t = np.where((disc >= 0.0) & (t_out >= start) & (t_in <= range_m), np.maximum(t_in, start), np.inf)
+                self._nearest(t, np.asarray(self.agents)[near], dist, ids)
+        if len(self._vehicle_poses) and 0.0 <= h <= VEHICLE_HEIGHT:
+            vx, vy, vyaw = self._vehicle_poses.T
+            c, s = np.cos(vyaw), np.sin(vyaw)
+            ox, oy = x - vx, y - vy
+            # Ray origin and direction in each vehicle's frame, then the slab test of its rectangle.
+            px, py = c * ox + s * oy, -s * ox + c * oy
+            dx = cos[:, None] * c + sin[:, None] * s
+            dy = -cos[:, None] * s + sin[:, None] * c
+            half = (0.5 * self.vehicle_size[0], 0.5 * self.vehicle_size[1])
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ax = np.stack([(-half[0] - px) / dx, (half[0] - px) / dx])
+                ay = np.stack([(-half[1] - py) / dy, (half[1] - py) / dy])
+            lo = np.maximum(np.nan_to_num(ax.min(0), nan=-np.inf), np.nan_to_num(ay.min(0), nan=-np.inf))
+            hi = np.minimum(np.nan_to_num(ax.max(0), nan=np.inf), np.nan_to_num(ay.max(0), nan=np.inf))
+            t = np.where((hi >= np.maximum(lo, start)) & (lo <= range_m), np.maximum(lo, start), np.inf)
+            self._nearest(t, np.asarray(self.vehicles[:len(vx)]), dist, ids)
+        return dist, ids
+
+    @staticmethod
+    def _nearest(t: np.ndarray, bodies: np.ndarray, dist: np.ndarray, ids: np.ndarray) -> None:
+        """Fold hits t [beams, bodies] into the per-beam nearest (dist, ids), in place."""
+        k = np.argmin(t, axis=1)
+        best = t[np.arange(len(t)), k]
+        closer = best < dist
+        dist[closer] = best[closer]
+        ids[closer] = bodies[k[closer]]

@@ -21,8 +21,8 @@ from sim.machines import Machine
 from sim.route import RoutePlanner
 from sim.scene.config import resolve_config
 from sim.scene.scene import Scene
-from sim.sensors import Lidar
-from sim.tasks.pointnav import MAX_SEED
+from sim.sensors import GridLidar, Lidar
+from sim.tasks.pointnav import MAX_SEED, static_lidar
 from sim.tasks.scenes import dataset_scenes, generator_config, load_scene, read_scene, split_seed_offset
 from sim.world import World
 
@@ -157,9 +157,18 @@ def build_slot(slot: SceneSlot, scene: Scene, cfg: Mapping[str, Any], machine: A
     slot.machine = Machine(slot.client, machine)
     lid = cfg["lidar"]
     r0 = slot.machine.bounding_radius + 0.05
-    slot.lidar = Lidar(slot.client, beams=int(lid["beams"]), range_m=float(lid["range"]), height=float(lid["height"]),
-                       start_radius=r0, encoding=lid["encoding"])
-    slot.low_lidar = (Lidar(slot.client, beams=int(lid["low_beams"]), range_m=max(float(lid["low_range"]), r0 + 0.1),
-                            height=float(lid["low_height"]), start_radius=r0) if int(lid["low_beams"]) else None)
+    high = {"beams": int(lid["beams"]), "range_m": float(lid["range"]), "height": float(lid["height"]),
+            "start_radius": r0, "encoding": lid["encoding"]}
+    low = ({"beams": int(lid["low_beams"]), "range_m": max(float(lid["low_range"]), r0 + 0.1),
+            "height": float(lid["low_height"]), "start_radius": r0} if int(lid["low_beams"]) else None)
+    if static_lidar(cfg) == "grid":
+        from sim.raycast.grids import build_grids
+
+        grids = build_grids(scene, resolution=float(lid["resolution"]), lidar=lid, body_height=None)
+        slot.lidar = GridLidar(grids, "high", **high)
+        slot.low_lidar = GridLidar(grids, "low", **low) if low else None
+    else:
+        slot.lidar = Lidar(slot.client, **high)
+        slot.low_lidar = Lidar(slot.client, **low) if low else None
     slot.planner = RoutePlanner(scene, machine.half_width, margin=float(cfg["route_margin"]))
     slot.state = {}

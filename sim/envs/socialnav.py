@@ -14,6 +14,7 @@ from sim.agents.vehicles import VehicleManager
 from sim.envs.bodies import CohabitantBodies
 from sim.envs.pointnav import PointNavEnv
 from sim.scene.scene import Scene
+from sim.sensors import GridLidar
 from sim.tasks.socialnav import CONFIG_TABLE, DEFAULT_CONFIG, PRESETS, SPLIT_AGENT_BEHAVIOUR
 
 
@@ -63,6 +64,9 @@ class SocialNavEnv(PointNavEnv):
         self._collision_kinds = {}
         size = (self.traffic.config["length"], self.traffic.config["width"])
         self.bodies = CohabitantBodies(self.client, self._collision_kinds, size)
+        for lidar in (self.lidar, self.low_lidar):
+            if isinstance(lidar, GridLidar):  # the grids hold the static scene only: the bodies trace themselves
+                lidar.moving = self.bodies.ray_hits
 
     def _park_bodies(self) -> None:
         # Last episode's agents and vehicles must not stand where the next start's surface height is probed.

@@ -51,7 +51,10 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "collision_steps": 30,            # end the episode after this many consecutive steps in contact (0: never)
     "cost_kinds": ["object", "building"],  # contacts that cost (the paper: objects and buildings, not curbs)
     "lidar": {"beams": 240, "range": 50.0, "height": 0.4, "encoding": "log",
-              "low_beams": 60, "low_range": 5.0, "low_height": 0.08},
+              "low_beams": 60, "low_range": 5.0, "low_height": 0.08,
+              # Static geometry: "grid" traces distance grids of `resolution` m (sim.raycast; 10x cheaper than
+              # Bullet's rays), "bullet" ray-tests the Bullet world; "auto" is grid with box collision, else bullet.
+              "static": "auto", "resolution": 0.05},
     "speed_scale": 5.0,               # m/s that maps to 1 in the `speed` observation (clipped)
     "num_waypoints": 10,
     "waypoint_spacing": 1.0,          # metres between the observed route waypoints
@@ -159,6 +162,7 @@ MAX_SEED = 1_000_000  # splits start 1,000,000 seeds apart: scene_seed + num_sce
 LIDAR_TABLE = {
     "beams": Int(1, 4096), "range": Pos(1000.0), "height": Pos(10.0), "encoding": Choice("linear", "log"),
     "low_beams": Int(0, 4096), "low_range": Pos(1000.0), "low_height": Pos(10.0),
+    "static": Choice("auto", "grid", "bullet"), "resolution": Float(0.01, 0.5, hint="metres per grid cell"),
 }
 RENDER_TABLE = {
     "camera": Choice("top_down", "chase"), "width": Int(16, 4096), "height": Int(16, 4096),
@@ -242,6 +246,17 @@ def check_config(cfg: Mapping[str, Any], table: Mapping[str, Any] | None = None,
     check_table(cfg, CONFIG_TABLE if table is None else table, name="config",
                 defaults=DEFAULT_CONFIG if defaults is None else defaults)
     check_machine(cfg["machine"])
+    if cfg["lidar"]["static"] == "grid" and cfg["collision"] != "box":
+        raise ConfigError("config.lidar.static 'grid' traces the objects' boxes, but config.collision is "
+                          f"{cfg['collision']!r}; use lidar.static 'bullet' (or 'auto') to ray-test the mesh hulls")
+
+
+def static_lidar(cfg: Mapping[str, Any]) -> str:
+    """Which backend traces the static scene: "grid" or "bullet" (`lidar.static`, "auto" resolved by `collision`)."""
+    choice = cfg["lidar"]["static"]
+    if choice == "auto":
+        return "grid" if cfg["collision"] == "box" else "bullet"
+    return choice
 
 
 def make_reward(preset: str, overrides: Mapping[str, Any] | None) -> Reward:

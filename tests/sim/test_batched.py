@@ -191,10 +191,12 @@ def test_bad_input_fails_clearly():
         env.step(np.array([[0.0, 0.5], [np.nan, 0.5]]))
     with pytest.raises(ValueError, match="shape"):
         env.step(np.zeros(2))
-    with pytest.raises(ConfigError, match="valid keys: .*lidar_resolution"):
-        BatchedPointNav(2, {"scene_spec": street(), "lidar_resolutoin": 0.1})
-    with pytest.raises(ConfigError, match="lidar_resolution"):
-        BatchedPointNav(2, {"lidar_resolution": float("nan")})
+    with pytest.raises(ConfigError, match="valid keys: .*route_pool"):
+        BatchedPointNav(2, {"scene_spec": street(), "route_pol": 8})
+    with pytest.raises(ConfigError, match="lidar.resolution"):
+        BatchedPointNav(2, {"lidar": {"resolution": float("nan")}})
+    with pytest.raises(ConfigError, match="lidar.static must be 'grid'"):
+        BatchedPointNav(2, {"scene_spec": street(), "lidar": {"static": "bullet"}})
     with pytest.raises(ConfigError, match="gui"):
         BatchedPointNav(2, {"gui": True})
     with pytest.raises(ConfigError, match="num_envs"):

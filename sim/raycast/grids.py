@@ -6,14 +6,19 @@ curb height, minus the curb ramps) when H <= curb height. Roads and crosswalks a
 every ray. The machine's base sits on the sidewalk top (the curb height) or on the road (0), its `level`; the high
 scan runs at base + `lidar.height`, the low scan at base + `lidar.low_height`, and the body spans base to base +
 the machine's height. Each (level, what) is an occupancy grid at `resolution` whose cells hold the distance to the
-nearest occupied cell in cells (Euclidean, `scipy.ndimage.distance_transform_edt`; 0 = occupied, capped at 254);
-a one-cell ring around the grid holds 255, the value rays read once they leave the scene (`sim.batched.lidar`).
+nearest occupied cell in cells (chessboard, `scipy.ndimage.distance_transform_cdt`: never more than the Euclidean
+distance, so a march step stays safe, and 5x faster to build; 0 = occupied, capped at 254); a ring of RING cells
+around the grid holds 255, the value rays read once they leave the scene (`sim.raycast.march`).
+
+The batched env uses all three grids of both levels; the PyBullet env's `sim.sensors.GridLidar` the two scans only
+(`body_height` None).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import combinations
 from typing import Any
 
 import numpy as np
@@ -22,6 +27,7 @@ from shapely.geometry import Polygon
 
 from sim.scene.grid import CROSSWALK, WalkableGrid, obstacle_mask, paint_many
 from sim.scene.scene import Scene
+from sim.world import sidewalk_solids
 
 FREE, OBJECT, BUILDING, CURB = 0, 1, 2, 3
 KIND_NAMES = {OBJECT: "object", BUILDING: "building", CURB: "curb"}
@@ -29,7 +35,7 @@ SIDEWALK_LEVEL, ROAD_LEVEL = 0, 1
 WHAT = ("high", "low", "body")  # the grids of one level: high scan, low scan, the machine's body
 MARGIN = 2.0  # metres of free grid around the scene's bounds
 FAR = 255  # the ring's value: beyond the scene
-RING = 48  # cells of FAR around the grid: deeper than any step (`sim.batched.lidar.MAX_STEP`), so no ray passes it
+RING = 48  # cells of FAR around the grid: deeper than any step (`sim.raycast.march.MAX_STEP`), so no ray passes it
 
 
 @dataclass
@@ -45,8 +51,8 @@ class SceneGrids:
     curb_height: float
 
 
-def _footprints(scene: Scene) -> tuple[list[Polygon], list[tuple[float, float]], list[Polygon], list[Polygon]]:
-    """(object footprints, their (base, top) heights, building footprints, raised sidewalk footprints)."""
+def _footprints(scene: Scene) -> tuple[list[Polygon], list[tuple[float, float]], list[Polygon], list[Polygon], list]:
+    """(object footprints, their (base, top) heights, building footprints, raised sidewalk slabs, ramp wedges)."""
     objects = [Polygon(o["footprint"]) for o in scene.objects]
     spans = []
     for o in scene.objects:
@@ -54,14 +60,37 @@ def _footprints(scene: Scene) -> tuple[list[Polygon], list[tuple[float, float]],
         spans.append((z, z + max(float(o["size"][2]), 0.02)))
     buildings = [Polygon(z["polygon"]).buffer(0) for sw in scene.sidewalks for z in sw.get("zones", [])
                  if z.get("kind") == "building"]
-    ramps = [Polygon(r["polygon"]).buffer(0.06, join_style="mitre") for cw in scene.crosswalks for r in cw.get("ramps", [])]
-    raised = []
-    for sw in scene.sidewalks:
-        geom = Polygon(sw["polygon"]).buffer(0)
-        for ramp in ramps:
-            geom = geom.difference(ramp)
-        raised.append(geom)
-    return objects, spans, buildings, raised
+    slabs, wedges = sidewalk_solids(scene, float(scene.curb_height))
+    return objects, spans, buildings, [poly for polys in slabs.values() for poly in polys], wedges
+
+
+def _ramp_tops(grid: WalkableGrid, wedges: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """Per cell, the height of the ramp surface above it (-inf where there is no ramp).
+
+    A wedge is Bullet's convex hull of its top vertices (and their feet): its top over a point is the largest
+    interpolation of the vertex heights over any triangle of vertices that holds the point."""
+    top = np.full(grid.mask.shape, -np.inf, dtype=np.float32)
+    res, (x0, y0) = grid.resolution, grid.origin
+    for pts, z in wedges:
+        for tri in combinations(range(len(pts)), 3):
+            p3, z3 = pts[list(tri)], z[list(tri)]
+            m = np.column_stack([p3, np.ones(3)])
+            if abs(np.linalg.det(m)) < 1e-9:
+                continue
+            plane = np.linalg.solve(m, z3)
+            c0, r0 = (int(math.floor((v - o) / res)) - 1 for v, o in ((p3[:, 0].min(), x0), (p3[:, 1].min(), y0)))
+            c1, r1 = (int(math.ceil((v - o) / res)) + 1 for v, o in ((p3[:, 0].max(), x0), (p3[:, 1].max(), y0)))
+            r0, c0 = max(r0, 0), max(c0, 0)
+            r1, c1 = min(r1, top.shape[0]), min(c1, top.shape[1])
+            if r1 <= r0 or c1 <= c0:
+                continue
+            window = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+            paint_many(window, (x0 + c0 * res, y0 + r0 * res), res, [Polygon(p3)], True)
+            rr, cc = np.nonzero(window)
+            h = plane[0] * (x0 + (cc + c0 + 0.5) * res) + plane[1] * (y0 + (rr + r0 + 0.5) * res) + plane[2]
+            view = top[r0:r1, c0:c1]
+            view[rr, cc] = np.maximum(view[rr, cc], h)
+    return top
 
 
 def _distance(occupied: np.ndarray) -> np.ndarray:
@@ -72,22 +101,25 @@ def _distance(occupied: np.ndarray) -> np.ndarray:
     free = ~occupied
     free[0, :] = free[-1, :] = False
     free[:, 0] = free[:, -1] = False
-    d = ndimage.distance_transform_edt(free)
-    d = np.minimum(np.floor(d), FAR - 1).astype(np.uint8)
+    # Chessboard distance: never more than the Euclidean one, so steps stay safe, and 5x faster to compute.
+    d = ndimage.distance_transform_cdt(free, metric="chessboard")
+    d = np.minimum(d, FAR - 1).astype(np.uint8)
     d[0, :] = d[-1, :] = 1  # the edge cells themselves are free
     d[:, 0] = d[:, -1] = 1
     d[occupied] = 0
     return np.pad(d, RING, constant_values=FAR)
 
 
-def build_grids(scene: Scene, *, resolution: float, lidar: dict[str, Any], body_height: float) -> SceneGrids:
-    """The grids of `scene` for LiDAR heights `lidar["height"]`, `lidar["low_height"]` and a body `body_height` tall."""
+def build_grids(scene: Scene, *, resolution: float, lidar: dict[str, Any], body_height: float | None) -> SceneGrids:
+    """The grids of `scene` for LiDAR heights `lidar["height"]`, `lidar["low_height"]` and (unless None) a body
+    `body_height` tall."""
     xmin, ymin, xmax, ymax = scene.bounds
     x0 = math.floor((xmin - MARGIN) / resolution) * resolution
     y0 = math.floor((ymin - MARGIN) / resolution) * resolution
     shape = (int(math.ceil((ymax + MARGIN - y0) / resolution)), int(math.ceil((xmax + MARGIN - x0) / resolution)))
     grid = WalkableGrid(mask=np.zeros(shape, dtype=np.uint8), origin=(x0, y0), resolution=resolution)
-    objects, spans, buildings, raised = _footprints(scene)
+    objects, spans, buildings, raised, wedges = _footprints(scene)
+    ramp_top = _ramp_tops(grid, wedges)
     kinds = np.zeros(shape, dtype=np.uint8)
     raised_mask = np.zeros(shape, dtype=bool)
     paint_many(raised_mask, grid.origin, resolution, raised, True)
@@ -102,6 +134,8 @@ def build_grids(scene: Scene, *, resolution: float, lidar: dict[str, Any], body_
         occ = building_mask.copy()
         if lo <= curb:
             occ |= raised_mask
+        if lo == hi:  # a scan: the ramps' slopes stop it where they are higher; a body drives up them
+            occ |= ramp_top >= lo
         chosen = [p for p, (b, t) in zip(objects, spans) if b <= hi and lo <= t]
         if chosen:
             occ |= obstacle_mask(grid, chosen)
@@ -111,9 +145,12 @@ def build_grids(scene: Scene, *, resolution: float, lidar: dict[str, Any], body_
     for base in (curb, 0.0):  # SIDEWALK_LEVEL, ROAD_LEVEL
         high = base + float(lidar["height"])
         low = base + float(lidar["low_height"])
-        # The body rests on the surface: a raised sidewalk under a sidewalk-level machine is its floor, not a wall.
-        body = occupied(base + 1e-3, base + body_height)
-        tables.append([_distance(occupied(high, high)), _distance(occupied(low, low)), _distance(body)])
+        # The body rests on the surface (from base + 1 mm): a raised sidewalk under a sidewalk-level machine is its
+        # floor, not a wall.
+        level = [_distance(occupied(high, high)), _distance(occupied(low, low))]
+        if body_height is not None:
+            level.append(_distance(occupied(base + 1e-3, base + body_height)))
+        tables.append(level)
     objects_mask = obstacle_mask(grid, objects) if objects else np.zeros(shape, dtype=bool)
     kinds[objects_mask] = OBJECT
     return SceneGrids(origin=(x0 - RING * resolution, y0 - RING * resolution),
