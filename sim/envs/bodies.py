@@ -9,6 +9,7 @@ import numpy as np
 import pybullet as p
 
 from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
+from sim.raycast.shapes import box_hits, circle_hits
 
 VEHICLE_HEIGHT = 1.5
 PARKED = [0, 0, -20]  # where unused bodies wait, below the ground
@@ -123,44 +124,21 @@ class CohabitantBodies:
         whose grids hold only the static scene.
         """
         dist = np.full(cos.shape, np.inf)
-        ids = -np.ones(cos.shape, dtype=np.int64)
+        which = -np.ones(cos.shape, dtype=np.int64)
         if self._xyz is not None and len(self._xyz):
             shaft = np.maximum(self._half_heights - self._radii, 0.0)  # half the straight part
             dz = np.maximum(np.abs(h - self._xyz[:, 2]) - shaft, 0.0)  # nan for parked bodies: no hit
             rho2 = self._radii ** 2 - dz ** 2
             near = np.flatnonzero(rho2 > 0.0)
             if near.size:
-                ox, oy = self._xyz[near, 0] - x, self._xyz[near, 1] - y
-                b = cos[:, None] * ox + sin[:, None] * oy  # [beams, bodies]
-                disc = b * b - (ox * ox + oy * oy - rho2[near])
-                with np.errstate(invalid="ignore"):
-                    root = np.sqrt(disc)
-                t_in, t_out = b - root, b + root
-                t = np.where((disc >= 0.0) & (t_out >= start) & (t_in <= range_m), np.maximum(t_in, start), np.inf)
-                self._nearest(t, np.asarray(self.agents)[near], dist, ids)
+                circle_hits(x, y, cos, sin, self._xyz[near, 0], self._xyz[near, 1], np.sqrt(rho2[near]), start,
+                            range_m, dist, which)
+                which = np.where(which >= 0, np.asarray(self.agents)[near][np.maximum(which, 0)], -1)
         if len(self._vehicle_poses) and 0.0 <= h <= VEHICLE_HEIGHT:
-            vx, vy, vyaw = self._vehicle_poses.T
-            c, s = np.cos(vyaw), np.sin(vyaw)
-            ox, oy = x - vx, y - vy
-            # Ray origin and direction in each vehicle's frame, then the slab test of its rectangle.
-            px, py = c * ox + s * oy, -s * ox + c * oy
-            dx = cos[:, None] * c + sin[:, None] * s
-            dy = -cos[:, None] * s + sin[:, None] * c
-            half = (0.5 * self.vehicle_size[0], 0.5 * self.vehicle_size[1])
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ax = np.stack([(-half[0] - px) / dx, (half[0] - px) / dx])
-                ay = np.stack([(-half[1] - py) / dy, (half[1] - py) / dy])
-            lo = np.maximum(np.nan_to_num(ax.min(0), nan=-np.inf), np.nan_to_num(ay.min(0), nan=-np.inf))
-            hi = np.minimum(np.nan_to_num(ax.max(0), nan=np.inf), np.nan_to_num(ay.max(0), nan=np.inf))
-            t = np.where((hi >= np.maximum(lo, start)) & (lo <= range_m), np.maximum(lo, start), np.inf)
-            self._nearest(t, np.asarray(self.vehicles[:len(vx)]), dist, ids)
-        return dist, ids
+            vx, vy, vyaw = (np.ascontiguousarray(v) for v in self._vehicle_poses.T)
+            k = -np.ones(cos.shape, dtype=np.int64)
+            box_hits(x, y, cos, sin, vx, vy, vyaw, 0.5 * self.vehicle_size[0], 0.5 * self.vehicle_size[1], start,
+                     range_m, dist, k)
+            which = np.where(k >= 0, np.asarray(self.vehicles[:len(vx)])[np.maximum(k, 0)], which)
+        return dist, which
 
-    @staticmethod
-    def _nearest(t: np.ndarray, bodies: np.ndarray, dist: np.ndarray, ids: np.ndarray) -> None:
-        """Fold hits t [beams, bodies] into the per-beam nearest (dist, ids), in place."""
-        k = np.argmin(t, axis=1)
-        best = t[np.arange(len(t)), k]
-        closer = best < dist
-        dist[closer] = best[closer]
-        ids[closer] = bodies[k[closer]]
