@@ -1,4 +1,5 @@
-"""LiDAR: one `rayTestBatch` per step over a horizontal fan of beams in the ego frame."""
+"""LiDAR: a horizontal fan of beams in the ego frame, traced by Bullet (`Lidar`) or through the scene's distance
+grids (`GridLidar`, the default; docs/raycast.md)."""
 
 from __future__ import annotations
 
@@ -11,25 +12,25 @@ import pybullet as p
 ENCODINGS = ("linear", "log")
 
 
-class Lidar:
+class PlanarLidar:
     """A planar 360-degree LiDAR: `beams` rays of length `range_m` at `height` above the machine's base.
 
     A scan at 0.4 m passes over curbs (0.15 m) and small clutter; PointNav adds a second, short-range scan
     a few centimetres above the ground for those.
 
     Rays start just outside the machine's bounding circle, so the ego never sees itself; distances are
-    still measured from the machine's centre. `scan` returns distances normalised by `range_m` (1 = no hit)
-    and the body ids hit (-1 for none), which lets the caller tell objects, buildings and agents apart.
+    still measured from the machine's centre. `scan(x, y, z, yaw)` returns distances normalised by `range_m`
+    (1 = no hit) and stores the body ids hit in `hit_ids` (-1 for none), which lets the caller tell objects,
+    buildings and agents apart.
     """
 
-    def __init__(self, client: int, beams: int = 240, range_m: float = 50.0, height: float = 0.4,
-                 start_radius: float = 0.5, encoding: str = "linear") -> None:
+    def __init__(self, beams: int = 240, range_m: float = 50.0, height: float = 0.4, start_radius: float = 0.5,
+                 encoding: str = "linear") -> None:
         if beams < 1 or not range_m > start_radius or not math.isfinite(range_m):
             raise ValueError(f"lidar needs beams >= 1 and a finite range_m > {start_radius}, got beams={beams}, range_m={range_m}")
         if encoding not in ENCODINGS:
             raise ValueError(f"unknown lidar encoding {encoding!r}; valid: {', '.join(ENCODINGS)}")
         self.encoding = encoding
-        self.client = client
         self.beams = beams
         self.range_m = float(range_m)
         self.height = float(height)
@@ -37,6 +38,26 @@ class Lidar:
         self.angles = np.linspace(0.0, 2.0 * math.pi, beams, endpoint=False)
         self.distances = np.ones(beams, dtype=np.float32)
         self.hit_ids = -np.ones(beams, dtype=np.int64)
+
+    def encoded(self) -> np.ndarray:
+        """The last scan as observed: `linear` d / range, or `log` log(1 + d) / log(1 + range) (both 1 = no hit).
+
+        The log encoding gives the near field room: with a 50 m range, 0.5-5 m spans 0.10-0.46 instead of
+        0.01-0.10, which is where obstacles decide what to do next.
+        """
+        if self.encoding == "linear":
+            return self.distances
+        d = self.distances.astype(np.float64) * self.range_m
+        return (np.log1p(d) / math.log1p(self.range_m)).astype(np.float32)
+
+
+class Lidar(PlanarLidar):
+    """The planar LiDAR as one Bullet `rayTestBatch` a scan: every body of the world (`lidar.static: bullet`)."""
+
+    def __init__(self, client: int, beams: int = 240, range_m: float = 50.0, height: float = 0.4,
+                 start_radius: float = 0.5, encoding: str = "linear") -> None:
+        super().__init__(beams, range_m, height, start_radius, encoding)
+        self.client = client
 
     def rays(self, x: float, y: float, z: float, yaw: float) -> tuple[list, list]:
         """World-frame ray start and end points for a machine at (x, y, z) heading `yaw`."""
@@ -57,55 +78,33 @@ class Lidar:
         self.distances = ((r0 + frac * (self.range_m - r0)) / self.range_m).astype(np.float32)
         return self.distances
 
-    def encoded(self) -> np.ndarray:
-        """The last scan as observed: `linear` d / range, or `log` log(1 + d) / log(1 + range) (both 1 = no hit).
 
-        The log encoding gives the near field room: with a 50 m range, 0.5-5 m spans 0.10-0.46 instead of
-        0.01-0.10, which is where obstacles decide what to do next.
-        """
-        if self.encoding == "linear":
-            return self.distances
-        d = self.distances.astype(np.float64) * self.range_m
-        return (np.log1p(d) / math.log1p(self.range_m)).astype(np.float32)
+class GridLidar(PlanarLidar):
+    """The planar LiDAR with the static scene traced through distance grids (`sim.raycast`), not Bullet.
 
-
-class GridLidar:
-    """The planar LiDAR of `Lidar` with the static scene traced through distance grids (`sim.raycast`), not Bullet.
-
-    The grids hold the world's static bodies (buildings, object boxes, raised sidewalks) at the scan's height for
-    a machine on the sidewalk and on the road; a scan takes the level nearer the machine's base height `z`. Bodies
-    that move (SocialNav's agents and vehicles) are not in the grids: `moving(x, y, h, cos, sin, start, range_m)` (the
-    env's hook, or None) returns their distances (m, inf for none) and body ids per beam; the nearer hit wins. Distances
-    match Bullet's ray test to within the grid's rasterisation (docs/raycast.md); `hit_ids` holds a moving body's
-    id, STATIC_HIT for a grid hit, -1 for none.
+    The grids hold the world's static solids (buildings, object boxes, sidewalk slabs and curb ramps) at the scan's
+    height for a machine on the sidewalk and on the road; a scan takes the level nearer the machine's base height
+    `z`. Bodies that move (SocialNav's agents and vehicles) are not in the grids: `moving(x, y, h, cos, sin, start,
+    range_m)` (the env's hook, or None) returns their distances (m, inf for none) and body ids per beam; the nearer
+    hit wins. Distances match Bullet's ray test to within the grid's rasterisation (docs/raycast.md); `hit_ids`
+    holds a moving body's id, STATIC_HIT for a grid hit, -1 for none.
     """
 
     STATIC_HIT = -2
 
     def __init__(self, grids: Any, what: str, beams: int = 240, range_m: float = 50.0, height: float = 0.4,
                  start_radius: float = 0.5, encoding: str = "linear") -> None:
-        if beams < 1 or not range_m > start_radius or not math.isfinite(range_m):
-            raise ValueError(f"lidar needs beams >= 1 and a finite range_m > {start_radius}, got beams={beams}, range_m={range_m}")
-        if encoding not in ENCODINGS:
-            raise ValueError(f"unknown lidar encoding {encoding!r}; valid: {', '.join(ENCODINGS)}")
+        super().__init__(beams, range_m, height, start_radius, encoding)
         from sim.raycast.grids import ROAD_LEVEL, SIDEWALK_LEVEL, WHAT
         from sim.raycast.march import trace
 
         self._trace = trace
         self._levels = (SIDEWALK_LEVEL, ROAD_LEVEL)
         self.grids = grids
-        self.table = WHAT.index(what)
-        self.encoding = encoding
-        self.beams = beams
-        self.range_m = float(range_m)
-        self.height = float(height)
-        self.start_radius = float(start_radius)
-        self.angles = np.linspace(0.0, 2.0 * math.pi, beams, endpoint=False)
-        self.distances = np.ones(beams, dtype=np.float32)
-        self.hit_ids = -np.ones(beams, dtype=np.int64)
         self.moving: Any = None
+        table = WHAT.index(what)
         # Per level: the flat table and the one-env frame `sim.raycast.march.trace` reads.
-        self._frames = [(tables[self.table].ravel(), {
+        self._frames = [(tables[table].ravel(), {
             "x0": np.array([grids.origin[0]]), "y0": np.array([grids.origin[1]]),
             "cols": np.array([grids.shape[1]]), "offset": np.zeros(1, dtype=np.int64)}) for tables in grids.tables]
 
@@ -115,7 +114,7 @@ class GridLidar:
         flat, frame = self._frames[level]
         a = self.angles + yaw
         d = self._trace(flat, frame, np.array([x]), np.array([y]), a[None], self.start_radius, self.range_m,
-                  self.grids.resolution)[0]
+                        self.grids.resolution)[0]
         ids = np.where(d < self.range_m, self.STATIC_HIT, -1)
         if self.moving is not None:
             dm, idm = self.moving(x, y, z + self.height, np.cos(a), np.sin(a), self.start_radius, self.range_m)
@@ -125,5 +124,3 @@ class GridLidar:
         self.hit_ids = ids
         self.distances = (d / self.range_m).astype(np.float32)
         return self.distances
-
-    encoded = Lidar.encoded
