@@ -29,14 +29,8 @@ from sim.envs.scenes import SceneSource
 from sim.machines import machine_spec
 from sim.raycast.grids import CROSSWALK, KIND_NAMES, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
 from sim.schema import Int
-from sim.tasks.pointnav import (
-    CONFIG_TABLE,
-    DEFAULT_CONFIG,
-    TASK_PRESETS,
-    check_config,
-    make_reward,
-    resolve_task_config,
-)
+from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward,
+                                resolve_task_config)
 
 BATCHED_DEFAULTS: dict[str, Any] = {
     **DEFAULT_CONFIG,

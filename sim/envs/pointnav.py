@@ -19,15 +19,8 @@ from sim.machines import Machine, machine_spec
 from sim.metrics import make_measures
 from sim.route import RoutePlanner
 from sim.scene.scene import Scene
-from sim.tasks.pointnav import (
-    CONFIG_TABLE,
-    DEFAULT_CONFIG,
-    TASK_PRESETS,
-    Termination,
-    check_config,
-    make_reward,
-    resolve_task_config,
-)
+from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, Termination, check_config, make_reward,
+                                resolve_task_config)
 from sim.world import World, touching
 
 STATIC_COLLISION_KINDS = ("object", "building", "curb")  # with "agent" and "vehicle": sim.tasks.pointnav.COLLISION_KINDS
