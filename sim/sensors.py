@@ -4,12 +4,28 @@ grids (`GridLidar`, the default; docs/raycast.md)."""
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Callable
 
 import numpy as np
 import pybullet as p
 
+from sim.raycast.grids import ROAD_LEVEL, SIDEWALK_LEVEL, WHAT, SceneGrids
+from sim.raycast.march import trace
+
 ENCODINGS = ("linear", "log")
+# (x, y, height, cos, sin, start, range_m) -> (distances in m, inf for none; body ids): GridLidar's moving bodies.
+MovingHits = Callable[[float, float, float, np.ndarray, np.ndarray, float, float], tuple[np.ndarray, np.ndarray]]
+
+
+def encode(d: np.ndarray, range_m: float, encoding: str) -> np.ndarray:
+    """Distances `d` (m) as observed: `linear` d / range, or `log` log(1 + d) / log(1 + range) (both 1 = no hit).
+
+    The log encoding gives the near field room: with a 50 m range, 0.5-5 m spans 0.10-0.46 instead of
+    0.01-0.10, which is where obstacles decide what to do next.
+    """
+    if encoding == "log":
+        return (np.log1p(d) / math.log1p(range_m)).astype(np.float32)
+    return (d / range_m).astype(np.float32)
 
 
 class PlanarLidar:
@@ -19,9 +35,8 @@ class PlanarLidar:
     a few centimetres above the ground for those.
 
     Rays start just outside the machine's bounding circle, so the ego never sees itself; distances are
-    still measured from the machine's centre. `scan(x, y, z, yaw)` returns distances normalised by `range_m`
-    (1 = no hit) and stores the body ids hit in `hit_ids` (-1 for none), which lets the caller tell objects,
-    buildings and agents apart.
+    still measured from the machine's centre. A subclass's `scan(x, y, z, yaw)` returns distances normalised by
+    `range_m` (1 = no hit) and stores what each beam hit in `hit_ids` (-1 for none).
     """
 
     def __init__(self, beams: int = 240, range_m: float = 50.0, height: float = 0.4, start_radius: float = 0.5,
@@ -39,20 +54,20 @@ class PlanarLidar:
         self.distances = np.ones(beams, dtype=np.float32)
         self.hit_ids = -np.ones(beams, dtype=np.int64)
 
-    def encoded(self) -> np.ndarray:
-        """The last scan as observed: `linear` d / range, or `log` log(1 + d) / log(1 + range) (both 1 = no hit).
+    def scan(self, x: float, y: float, z: float, yaw: float) -> np.ndarray:
+        """Normalised distances (beams,) in [0, 1] for a machine at (x, y, z) heading `yaw`; stores `hit_ids`."""
+        raise NotImplementedError
 
-        The log encoding gives the near field room: with a 50 m range, 0.5-5 m spans 0.10-0.46 instead of
-        0.01-0.10, which is where obstacles decide what to do next.
-        """
+    def encoded(self) -> np.ndarray:
+        """The last scan as observed (`encode`: linear d / range, or log)."""
         if self.encoding == "linear":
             return self.distances
-        d = self.distances.astype(np.float64) * self.range_m
-        return (np.log1p(d) / math.log1p(self.range_m)).astype(np.float32)
+        return encode(self.distances.astype(np.float64) * self.range_m, self.range_m, self.encoding)
 
 
 class Lidar(PlanarLidar):
-    """The planar LiDAR as one Bullet `rayTestBatch` a scan: every body of the world (`lidar.static: bullet`)."""
+    """The planar LiDAR as one Bullet `rayTestBatch` a scan: every body of the world (`lidar.static: bullet`);
+    `hit_ids` holds the body ids, which tell objects, buildings and agents apart."""
 
     def __init__(self, client: int, beams: int = 240, range_m: float = 50.0, height: float = 0.4,
                  start_radius: float = 0.5, encoding: str = "linear") -> None:
@@ -92,16 +107,11 @@ class GridLidar(PlanarLidar):
 
     STATIC_HIT = -2
 
-    def __init__(self, grids: Any, what: str, beams: int = 240, range_m: float = 50.0, height: float = 0.4,
+    def __init__(self, grids: SceneGrids, what: str, beams: int = 240, range_m: float = 50.0, height: float = 0.4,
                  start_radius: float = 0.5, encoding: str = "linear") -> None:
         super().__init__(beams, range_m, height, start_radius, encoding)
-        from sim.raycast.grids import ROAD_LEVEL, SIDEWALK_LEVEL, WHAT
-        from sim.raycast.march import trace
-
-        self._trace = trace
-        self._levels = (SIDEWALK_LEVEL, ROAD_LEVEL)
         self.grids = grids
-        self.moving: Any = None
+        self.moving: MovingHits | None = None
         table = WHAT.index(what)
         # Per level: the flat table and the one-env frame `sim.raycast.march.trace` reads.
         self._frames = [(tables[table].ravel(), {
@@ -110,10 +120,10 @@ class GridLidar(PlanarLidar):
 
     def scan(self, x: float, y: float, z: float, yaw: float) -> np.ndarray:
         """Normalised distances (beams,) in [0, 1]; also stores `hit_ids`."""
-        level = self._levels[0] if z > 0.5 * self.grids.curb_height else self._levels[1]
+        level = SIDEWALK_LEVEL if z > 0.5 * self.grids.curb_height else ROAD_LEVEL
         flat, frame = self._frames[level]
         a = self.angles + yaw
-        d = self._trace(flat, frame, np.array([x]), np.array([y]), a[None], self.start_radius, self.range_m,
+        d = trace(flat, frame, np.array([x]), np.array([y]), a[None], self.start_radius, self.range_m,
                         self.grids.resolution)[0]
         ids = np.where(d < self.range_m, self.STATIC_HIT, -1)
         if self.moving is not None:

@@ -115,8 +115,8 @@ class World:
         for pts, z in wedges:
             self._wedge("ramp", pts, z)
         rng = np.random.default_rng(scene.seed)
-        for sw in scene.sidewalks:
-            for poly in slabs[sw["id"]]:
+        for sw, sw_slabs in zip(scene.sidewalks, slabs):
+            for poly in sw_slabs:
                 self._mesh_body("sidewalk", *extrusion_mesh(poly, 0.0, h), SURFACE["sidewalk"])
             for zone in sw.get("zones", []):
                 if zone.get("kind") == "building":
@@ -200,8 +200,9 @@ class World:
             self.client = None
 
 
-def sidewalk_solids(scene: Scene, h: float) -> tuple[dict[str, list[Polygon]], list[tuple[np.ndarray, np.ndarray]]]:
-    """The raised parts of a scene's sidewalks: per sidewalk id the slabs (polygons from 0 to the curb height `h`),
+def sidewalk_solids(scene: Scene, h: float) -> tuple[list[list[Polygon]], list[tuple[np.ndarray, np.ndarray]]]:
+    """The raised parts of a scene's sidewalks: per sidewalk (in `scene.sidewalks` order) its slabs (polygons from 0
+    to the curb height `h`),
     and every curb ramp's wedges as (footprint vertices [k, 2], their heights [k]). The world builds these bodies
     and the grid LiDAR (sim.raycast.grids) rasterises the same solids."""
     cuts: dict[str, list[Polygon]] = {}
@@ -214,13 +215,13 @@ def sidewalk_solids(scene: Scene, h: float) -> tuple[dict[str, list[Polygon]], l
             ramp_parts = ramp_wedges(scene, poly, sidewalks.get(ramp["sidewalk_id"]), h)
             wedges += ramp_parts
             cuts.setdefault(ramp["sidewalk_id"], []).extend(Polygon(pts) for pts, _ in ramp_parts)
-    slabs: dict[str, list[Polygon]] = {}
+    slabs: list[list[Polygon]] = []
     for sw in scene.sidewalks:
         geom = Polygon(sw["polygon"]).buffer(0)
         for cut in cuts.get(sw["id"], []):
             geom = geom.difference(cut.buffer(0.01, join_style="mitre"))
         # A sliver left by the ramp cut-outs is dropped: a wheel would catch on it.
-        slabs[sw["id"]] = [poly for poly in polygons(geom) if not poly.buffer(-0.05).is_empty]
+        slabs.append([poly for poly in polygons(geom) if not poly.buffer(-0.05).is_empty])
     return slabs, wedges
 
 

@@ -10,6 +10,7 @@ import numpy as np
 
 from sim.batched.atlas import Atlas
 from sim.raycast.march import trace
+from sim.sensors import encode
 
 
 class BatchLidar:
@@ -29,9 +30,7 @@ class BatchLidar:
         frame = atlas.frames(scene_ids, level, self.what)
         d = trace(atlas.flat, frame, x, y, yaw[:, None] + self.angles[None], self.start_radius, self.range_m,
                   atlas.resolution)
-        if self.encoding == "log":
-            return (np.log1p(d) / math.log1p(self.range_m)).astype(np.float32)
-        return (d / self.range_m).astype(np.float32)
+        return encode(d, self.range_m, self.encoding)
 
 
 def lidar_pair(cfg: dict[str, Any], bounding_radius: float) -> tuple[BatchLidar, BatchLidar | None]:

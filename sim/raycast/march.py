@@ -1,13 +1,15 @@
-"""Static 2D LiDAR rays: sphere tracing through the distance grids of `sim.raycast.grids`.
+"""Static 2D LiDAR rays: marching through the distance grids of `sim.raycast.grids`.
 
-Every ray (of one env or of many) marches from the machine's bounding circle (`Lidar.start_radius`) in a numba kernel (one
-loop over rays, on every core when a call has PARALLEL_RAYS or more; each ray's march is independent, so the result
-does not depend on the thread count): a step as long as the grid's distance to the nearest obstacle (less a cell, at
-least half a cell),
-until it lands in an occupied cell, reaches the range, or leaves the scene (the FAR ring). A hit's distance is then
-bisected between the last free point and the first occupied one. The error against PyBullet's exact ray test is the
-rasterisation's (a cell is occupied when its centre is inside a footprint: +-half a cell along a face, up to a
-cell at corners) plus what the bisection leaves (an eighth of the last step); docs/raycast.md gives the tolerance.
+Every ray (of one env or of many) marches from the machine's bounding circle (`Lidar.start_radius`) in a numba
+kernel (one loop over rays, on every core when a call has PARALLEL_RAYS or more; each ray's march is independent, so
+the result does not depend on the thread count). Away from obstacles a ray jumps by its cell's distance less one
+cell: no cell it passes can be occupied (a point anywhere in its cell is at least that far from any occupied cell).
+Next to an obstacle (distance 1) it walks cell by cell across the grid lines (Amanatides and Woo's traversal), so
+it never steps over a thin object however closely it grazes a wall. It ends in the first occupied cell it enters,
+when it reaches the range, or when it leaves the scene (the FAR ring). The hit is the point where the ray enters
+that cell: exact after a cell walk, bisected to within TOLERANCE cells after a jump. The error against PyBullet's
+exact ray test is the rasterisation's (a cell is occupied when its centre is inside a footprint: +-half a cell along
+a face, up to a cell at corners); docs/raycast.md gives the tolerance.
 
 `trace` reads grids from one flat array with per-ray offsets: the batched env packs every scene's grids in it
 (`sim.batched.atlas.Atlas`), so that envs in different scenes trace in the same call; the PyBullet env's
@@ -19,54 +21,32 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from sim.raycast.grids import FAR, RING
+from sim.raycast.grids import FAR
 
-MAX_ITERS = 120  # every beam ends well before (the least step grows after FINE_ITERS)
-FINE_ITERS = 16  # iterations at the finest least step (half a cell)
-GROWTH = 1.25  # then the least step grows by this factor an iteration
-TOLERANCE = 0.25  # cells: a hit is bisected to within this
+TOLERANCE = 0.25  # cells: a hit reached by a jump is bisected to within this
 PARALLEL_RAYS = 4096  # rays per call from which the march runs on every core (numba threads; each ray alone)
-MAX_STEP = 32.0  # cells: the largest least step (below grids.RING, so no ray passes the ring)
-assert MAX_STEP < RING
-
-
-def _step_table(min_step: float) -> np.ndarray:
-    """Step (cells) for each table value: 0 on an occupied cell and in the FAR ring (the ray stays), else the
-    distance less one cell (a point anywhere in its cell is that far from any occupied cell), at least `min_step`."""
-    e = np.arange(256, dtype=np.float32)
-    lut = np.maximum(e - 1.0, np.float32(min_step))
-    lut[0] = lut[FAR] = 0.0
-    return lut
-
-
-# The step tables of every iteration (the least step is a function of the iteration only).
-STEP_TABLES = [_step_table(min(0.5 * GROWTH ** max(it - FINE_ITERS + 1, 0), MAX_STEP)) for it in range(MAX_ITERS)]
+NUDGE = 1e-6  # cells past a grid line, so that a walk step lands inside the next cell
 
 
 def trace(flat: np.ndarray, frame: dict[str, np.ndarray], x: np.ndarray, y: np.ndarray, angles: np.ndarray,
           start: float, range_m: float, resolution: float) -> np.ndarray:
     """Distances [n, beams] from each env's (x, y) along `angles` [n, beams] (world frame) to the first occupied
-    cell, `range_m` when none; rays start `start` metres out. Every scene's grid has the same `resolution`.
-
-    A beam that grazes a wall converges slowly (each step shrinks by the sine of the grazing angle), so after
-    FINE_ITERS iterations the least step grows by GROWTH an iteration (up to MAX_STEP cells): such beams end in a
-    few more iterations, and the bisection of the last step keeps their distance to a fraction of a cell.
+    cell, exactly `range_m` when none; rays start `start` metres out. Every scene's grid has the same `resolution`.
     """
+    if not (np.isfinite(x).all() and np.isfinite(y).all() and np.isfinite(angles).all()):
+        raise ValueError("LiDAR origin or beam angles hold NaN or inf: the machine's pose is not finite")
     n, beams = angles.shape
     inv = 1.0 / resolution
     a = angles.ravel()
-    out = np.empty(n * beams, dtype=np.float32)
+    out = np.empty(n * beams, dtype=np.float64)
     kernel = _trace_parallel if n * beams >= PARALLEL_RAYS else _trace_serial
-    kernel(flat, STEP_TABLE,
-                np.repeat(((x - frame["x0"]) * inv).astype(np.float32), beams),
-                np.repeat(((y - frame["y0"]) * inv).astype(np.float32), beams),
-                np.cos(a).astype(np.float32), np.sin(a).astype(np.float32),
-                np.repeat(frame["cols"].astype(np.int64), beams), np.repeat(frame["offset"].astype(np.int64), beams),
-                np.float32(start * inv), np.float32(range_m * inv), out)
-    return np.minimum(out.reshape(n, beams).astype(np.float64) * resolution, range_m)
-
-
-STEP_TABLE = np.stack(STEP_TABLES)  # [MAX_ITERS, 256]: the kernel's view of the step tables
+    reach = range_m * inv
+    kernel(flat, np.repeat((x - frame["x0"]) * inv, beams), np.repeat((y - frame["y0"]) * inv, beams),
+           np.cos(a), np.sin(a), np.repeat(frame["cols"].astype(np.int64), beams),
+           np.repeat(frame["offset"].astype(np.int64), beams), start * inv, reach, out)
+    d = out.reshape(n, beams) * resolution
+    d[out.reshape(n, beams) >= reach] = range_m  # no hit: the range itself, not its float round trip
+    return d
 
 
 @njit(cache=True, nogil=True)
@@ -76,48 +56,64 @@ def _cell(flat: np.ndarray, gx: float, gy: float, dx: float, dy: float, cols: in
 
 
 @njit(cache=True, nogil=True)
-def _trace_one(flat: np.ndarray, table: np.ndarray, gx: float, gy: float, dx: float, dy: float, cols: int,
-               offset: int, start: np.float32, reach: np.float32) -> np.float32:
-    """Sphere-trace one ray (in cells): the march, then the bisection of a hit's last step down to TOLERANCE cells
-    (the hit is the final bracket's midpoint); `reach` when it hits nothing in range."""
-    t = start
-    last = start
-    for it in range(MAX_ITERS):
-        step = table[it, _cell(flat, gx, gy, dx, dy, cols, offset, t)]
-        if step <= 0:
-            break
-        last = t
-        t = min(t + step, reach)
-        if t >= reach:
-            return reach
-    end = _cell(flat, gx, gy, dx, dy, cols, offset, t)
-    if end == FAR:  # left the scene: no hit
-        return reach
-    tol = np.float32(TOLERANCE)
-    if end == 0 and t - last > tol:
-        lo, hi = last, t
-        while hi - lo > tol:
-            mid = np.float32(0.5) * (lo + hi)
-            if _cell(flat, gx, gy, dx, dy, cols, offset, mid) == 0:
-                hi = mid
-            else:
-                lo = mid
-        t = np.float32(0.5) * (lo + hi)
-    return t
+def _next_line(g: float, d: float, t: float) -> float:
+    """Distance along the ray (cells) at which coordinate g + t d next crosses a grid line (inf when d is 0)."""
+    if d > 0.0:
+        return (np.floor(g + t * d) + 1.0 - g) / d
+    if d < 0.0:
+        return (np.floor(g + t * d) - g) / d
+    return np.inf
 
 
 @njit(cache=True, nogil=True)
-def _trace_serial(flat: np.ndarray, table: np.ndarray, gx: np.ndarray, gy: np.ndarray, dx: np.ndarray, dy: np.ndarray,
-                  cols: np.ndarray, offset: np.ndarray, start: np.float32, reach: np.float32, out: np.ndarray) -> None:
+def _trace_one(flat: np.ndarray, gx: float, gy: float, dx: float, dy: float, cols: int, offset: int, start: float,
+               reach: float) -> float:
+    """March one ray (in cells): the distance at which it enters its first occupied cell, `reach` for none."""
+    t = start
+    last = start
+    walked = False  # whether the ray reached t by a cell walk (t is then the cell's entry point)
+    # A jump advances at least a cell and a walk step crosses a grid line (at most 2 per cell of length): a ray
+    # that has not ended after 3 reach iterations cannot hit anything within range.
+    for _ in range(3 * int(reach) + 8):
+        v = _cell(flat, gx, gy, dx, dy, cols, offset, t)
+        if v == 0 or v == FAR:
+            break
+        last = t
+        if v >= 2:
+            t = t + (v - 1.0)
+            walked = False
+        else:
+            t = min(_next_line(gx, dx, t), _next_line(gy, dy, t)) + NUDGE
+            walked = True
+        if t >= reach:
+            return reach
+    else:
+        return reach
+    if v == FAR:  # left the scene: no hit
+        return reach
+    if walked or t - last <= TOLERANCE:
+        return t
+    lo, hi = last, t  # the jump landed inside an obstacle: bisect back to where it entered
+    while hi - lo > TOLERANCE:
+        mid = 0.5 * (lo + hi)
+        if _cell(flat, gx, gy, dx, dy, cols, offset, mid) == 0:
+            hi = mid
+        else:
+            lo = mid
+    return 0.5 * (lo + hi)
+
+
+@njit(cache=True, nogil=True)
+def _trace_serial(flat: np.ndarray, gx: np.ndarray, gy: np.ndarray, dx: np.ndarray, dy: np.ndarray,
+                  cols: np.ndarray, offset: np.ndarray, start: float, reach: float, out: np.ndarray) -> None:
     """`_trace_one` of every ray (arrays over rays) into `out`, on this thread."""
     for r in range(out.size):
-        out[r] = _trace_one(flat, table, gx[r], gy[r], dx[r], dy[r], cols[r], offset[r], start, reach)
+        out[r] = _trace_one(flat, gx[r], gy[r], dx[r], dy[r], cols[r], offset[r], start, reach)
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _trace_parallel(flat: np.ndarray, table: np.ndarray, gx: np.ndarray, gy: np.ndarray, dx: np.ndarray,
-                    dy: np.ndarray, cols: np.ndarray, offset: np.ndarray, start: np.float32, reach: np.float32,
-                    out: np.ndarray) -> None:
+def _trace_parallel(flat: np.ndarray, gx: np.ndarray, gy: np.ndarray, dx: np.ndarray, dy: np.ndarray,
+                    cols: np.ndarray, offset: np.ndarray, start: float, reach: float, out: np.ndarray) -> None:
     """`_trace_one` of every ray into `out`, the rays shared among numba's threads."""
     for r in prange(out.size):
-        out[r] = _trace_one(flat, table, gx[r], gy[r], dx[r], dy[r], cols[r], offset[r], start, reach)
+        out[r] = _trace_one(flat, gx[r], gy[r], dx[r], dy[r], cols[r], offset[r], start, reach)

@@ -46,7 +46,7 @@ def _decode(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 @pytest.fixture(scope="module")
 def reference():
     """The PyBullet run: actions, observations, rewards, end flags, poses and raw scans at every step."""
-    env = PointNavEnv({"scene_spec": street()})
+    env = PointNavEnv({"scene_spec": street(), "lidar": {"static": "bullet"}})  # Bullet's rays: the reference
     expert = PurePursuitExpert()
     env.reset(seed=0, options=ROUTE)
     out = {"actions": [], "obs": [], "rewards": [], "ends": [], "poses": [], "scans": []}
@@ -122,7 +122,7 @@ def test_replay_matches_pybullet_and_a_perturbed_one_does_not(reference):
 def test_running_into_an_object_stops_and_costs_as_in_pybullet():
     cfg = {"scene_spec": street(), "collision_steps": 0, "stuck_steps": 0}
     route = {"start": [8.0, 7.0], "goal": [30.0, 7.0]}  # straight at the trash bin
-    ref, env = PointNavEnv(cfg), BatchedPointNav(1, cfg)
+    ref, env = PointNavEnv({**cfg, "lidar": {"static": "bullet"}}), BatchedPointNav(1, cfg)
     ref.reset(seed=0, options=route)
     env.reset(seed=0, options=route)
     for _ in range(40):

@@ -118,3 +118,77 @@ def test_backend_choice() -> None:
         PointNavEnv({"scene_spec": street(), "collision": "convex", "lidar": {"static": "grid"}})
     with pytest.raises(ConfigError, match="valid: auto, grid, bullet"):
         PointNavEnv({"scene_spec": street(), "lidar": {"static": "fast"}})
+
+
+def test_march_never_steps_over_a_thin_pole_beside_a_grazed_wall() -> None:
+    """A beam running 0.1-1 m beside a long wall meets a one-cell pole 15-30 m ahead, exactly where it is."""
+    from sim.raycast.grids import RING, _distance
+    from sim.raycast.march import trace
+
+    res, rows, cols = 0.05, 200, 1400  # 10 x 70 m
+    frame = {"x0": np.array([-RING * res]), "y0": np.array([-RING * res]), "cols": np.array([cols + 2 * RING]),
+             "offset": np.zeros(1, dtype=np.int64)}
+    for gap in (0.1, 0.25, 0.5, 1.0):
+        for pole_x in (15.0, 22.5, 30.0):
+            occ = np.zeros((rows, cols), dtype=bool)
+            occ[100, 100:1300] = True  # the wall: y in [5.0, 5.05), x from 5 to 65 m
+            y = 5.0 - gap + 0.5 * res  # the beam runs along the middle of a row of cells
+            occ[int(y / res), int(pole_x / res)] = True
+            d = trace(_distance(occ).ravel(), frame, np.array([2.0]), np.array([y]), np.zeros((1, 1)), 0.3, 50.0,
+                      res)[0, 0]
+            assert abs(d - (pole_x - 2.0)) < 1e-6, (gap, pole_x, d)
+            occ[int(y / res), int(pole_x / res)] = False
+            d = trace(_distance(occ).ravel(), frame, np.array([2.0]), np.array([y]), np.zeros((1, 1)), 0.3, 50.0,
+                      res)[0, 0]
+            assert d == 50.0, (gap, pole_x, d)  # no pole: nothing in range, the range exactly
+
+
+def test_rays_against_circles_and_boxes() -> None:
+    from sim.raycast.shapes import box_hits, circle_hits
+
+    cos, sin = np.array([1.0, 0.0, -1.0]), np.array([0.0, 1.0, 0.0])  # +x, +y, -x
+    dist, which = np.full(3, np.inf), -np.ones(3, dtype=np.int64)
+    circle_hits(0.0, 0.0, cos, sin, np.array([5.0, 0.0]), np.array([0.0, 0.2]), np.array([1.0, 0.5]), 0.5, 50.0,
+                dist, which)
+    assert dist[0] == pytest.approx(4.0) and which[0] == 0  # the circle ahead, entered at 4 m
+    assert dist[1] == 0.5 and which[1] == 1  # starts inside the second circle: met at the start radius
+    assert np.isinf(dist[2]) and which[2] == -1  # behind (-x) the ray leaves that circle before its start
+    dist, which = np.full(3, np.inf), -np.ones(3, dtype=np.int64)
+    circle_hits(0.0, 0.0, cos, sin, np.array([60.0]), np.array([0.0]), np.array([1.0]), 0.5, 50.0, dist, which)
+    assert np.isinf(dist).all() and (which == -1).all()  # beyond the range
+    dist, which = np.full(3, np.inf), -np.ones(3, dtype=np.int64)
+    # A 4 x 2 m box 10 m ahead turned by 90 degrees: its 2 m side faces the ray; the ray along +y runs beside it.
+    box_hits(0.0, 0.0, cos, sin, np.array([10.0]), np.array([0.0]), np.array([np.pi / 2]), 2.0, 1.0, 0.5, 50.0,
+             dist, which)
+    assert dist[0] == pytest.approx(9.0) and which[0] == 0
+    assert np.isinf(dist[1:]).all()
+
+
+def test_parked_or_absent_bodies_are_not_seen() -> None:
+    cfg = {"scene_spec": street(), "agents": {"counts": {"pedestrian": 3}}, "traffic": False}
+    env = SocialNavEnv(cfg)
+    env.reset(seed=0)
+    cos, sin = np.cos(env.lidar.angles), np.sin(env.lidar.angles)
+    m = env.machine
+    env.crowd.pos[0] = (m.position[0] + 1.0, m.position[1])
+    env._sync_bodies()
+    d, ids = env.bodies.ray_hits(m.position[0], m.position[1], 0.5, cos, sin, 0.4, 50.0)
+    assert (ids == env.bodies.agents[0]).any()
+    env.bodies.park()
+    d, ids = env.bodies.ray_hits(m.position[0], m.position[1], 0.5, cos, sin, 0.4, 50.0)
+    assert np.isinf(d).all() and (ids == -1).all()
+    env.close()
+    empty = SocialNavEnv({"scene_spec": street(), "agents": {"counts": {"pedestrian": 0}}, "traffic": False})
+    empty.reset(seed=0)
+    assert len(empty.crowd.pos) == 0
+    d, ids = empty.bodies.ray_hits(0.0, 0.0, 0.5, cos, sin, 0.4, 50.0)
+    assert np.isinf(d).all() and (ids == -1).all()
+    empty.close()
+
+
+def test_auto_picks_bullet_for_mesh_collision() -> None:
+    from sim.tasks.pointnav import DEFAULT_CONFIG, static_lidar
+
+    assert static_lidar(DEFAULT_CONFIG) == "grid"
+    assert static_lidar({**DEFAULT_CONFIG, "collision": "convex"}) == "bullet"
+    assert static_lidar({**DEFAULT_CONFIG, "lidar": {**DEFAULT_CONFIG["lidar"], "static": "bullet"}}) == "bullet"
