@@ -142,15 +142,26 @@ def build_grids(scene: Scene, *, resolution: float, lidar: dict[str, Any], body_
             occ |= obstacle_mask(grid, chosen)
         return occ
 
+    built: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def distance(occ: np.ndarray) -> np.ndarray:
+        """`_distance` of `occ`, shared with an identical grid built before (the high scan usually sees the same
+        solids from the sidewalk and from the road: one transform and one table fewer)."""
+        for other, table in built:
+            if np.array_equal(other, occ):
+                return table
+        built.append((occ, _distance(occ)))
+        return built[-1][1]
+
     tables = []
     for base in (curb, 0.0):  # SIDEWALK_LEVEL, ROAD_LEVEL
         high = base + float(lidar["height"])
         low = base + float(lidar["low_height"])
         # The body rests on the surface (from base + 1 mm): a raised sidewalk under a sidewalk-level machine is its
         # floor, not a wall.
-        level = [_distance(occupied(high, high)), _distance(occupied(low, low))]
+        level = [distance(occupied(high, high)), distance(occupied(low, low))]
         if body_height is not None:
-            level.append(_distance(occupied(base + 1e-3, base + body_height)))
+            level.append(distance(occupied(base + 1e-3, base + body_height)))
         tables.append(level)
     objects_mask = obstacle_mask(grid, objects) if objects else np.zeros(shape, dtype=bool)
     kinds[objects_mask] = OBJECT
