@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from sim.batched.atlas import Atlas
+from sim.envs.scenes import trim_heap
 from sim.machines import MachineSpec
 from sim.raycast.grids import build_grids
 from sim.route import Route, RoutePlanner
@@ -57,6 +58,7 @@ class SceneStore:
             b = BuiltScene(key=key, scene=scene, slot=self.atlas.add(grids), planner=planner)
             self.built[key] = b
             self.by_slot[b.slot] = b
+            trim_heap()  # the evicted scenes' grids and the atlas's old flat array are freed now
         self.built.move_to_end(key)
         b.users += 1
         return b

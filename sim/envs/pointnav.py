@@ -14,7 +14,7 @@ import pybullet as p
 from curbside.config import ConfigError
 from sim.envs.episode import Episode
 from sim.envs.observation import EgoObservation
-from sim.envs.scenes import SceneCache, SceneSlot, SceneSource, build_slot
+from sim.envs.scenes import SceneCache, SceneSlot, SceneSource, build_slot, trim_heap
 from sim.machines import Machine, machine_spec
 from sim.metrics import make_measures
 from sim.route import RoutePlanner
@@ -123,6 +123,7 @@ class PointNavEnv(gym.Env):
                 build_slot(slot, load(), self.config, self.spec_machine)
                 self._use(slot)
                 self._on_scene(slot.scene)
+                trim_heap()  # the scene it replaced is freed now
             except BaseException:
                 self.cache.discard(key)
                 self.slot = self.route = None

@@ -7,9 +7,12 @@ per repeat. The least recently used scene's client is reused for the next new sc
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -172,3 +175,25 @@ def build_slot(slot: SceneSlot, scene: Scene, cfg: Mapping[str, Any], machine: A
         slot.low_lidar = Lidar(slot.client, **low) if low else None
     slot.planner = RoutePlanner(scene, machine.half_width, margin=float(cfg["route_margin"]))
     slot.state = {}
+
+
+@lru_cache(maxsize=1)
+def _malloc_trim() -> Callable[[int], int] | None:
+    """glibc's `malloc_trim`, or None where the C library has none (macOS, musl)."""
+    name = ctypes.util.find_library("c")
+    try:
+        return ctypes.CDLL(name).malloc_trim if name else None
+    except (OSError, AttributeError):
+        return None
+
+
+def trim_heap() -> None:
+    """Hand the heap's free pages back to the OS (glibc's `malloc_trim`; nothing where there is none).
+
+    A scene's arrays (LiDAR grids, planner graphs) are several MB each. Past its first frees glibc serves such
+    arrays from the heap and keeps the freed ones, so without this RSS wanders by up to +-120 MB with the scenes
+    held before (benchmarks/results/issue14/bench_2026-11-25.txt); called after a new scene is built.
+    """
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)

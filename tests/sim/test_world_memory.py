@@ -83,3 +83,23 @@ def test_world_builds_do_not_keep_objects_or_memory(client: int) -> None:
     grown_mb = (psutil.Process().memory_info().rss - rss0) / 2**20
     assert grown_objects < 2_000, grown_objects
     assert grown_mb < 5.0, grown_mb
+
+
+def test_trim_heap_gives_freed_scene_arrays_back() -> None:
+    """Scene-sized arrays freed from the heap stay in RSS until `trim_heap` (called after each new scene)."""
+    from sim.envs.scenes import _malloc_trim, trim_heap
+
+    if _malloc_trim() is None:
+        pytest.skip("no glibc malloc_trim here")
+    rss = lambda: psutil.Process().memory_info().rss / 2**20  # noqa: E731
+    big = np.ones(2**20)  # 8 MB: mmapped; its free raises glibc's mmap threshold past the arrays below
+    del big
+    blocks, pins = [], []
+    for _ in range(12):
+        blocks.append(np.ones(2**19))  # 4 MB, now served from the heap
+        pins.append(np.ones(2**13))  # 64 kB above each: the freed blocks are holes, not the heap's top
+    del blocks
+    before = rss()
+    trim_heap()
+    assert before - rss() > 24.0, (before, rss())
+    del pins
