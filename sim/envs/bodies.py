@@ -141,4 +141,3 @@ class CohabitantBodies:
                      range_m, dist, k)
             which = np.where(k >= 0, np.asarray(self.vehicles[:len(vx)])[np.maximum(k, 0)], which)
         return dist, which
-

@@ -21,6 +21,7 @@ import pybullet as p
 
 from curbside.config import ConfigError
 from sim.machines import Machine
+from sim.raycast.grids import build_grids
 from sim.route import RoutePlanner
 from sim.scene.config import resolve_config
 from sim.scene.scene import Scene
@@ -165,8 +166,6 @@ def build_slot(slot: SceneSlot, scene: Scene, cfg: Mapping[str, Any], machine: A
     low = ({"beams": int(lid["low_beams"]), "range_m": max(float(lid["low_range"]), r0 + 0.1),
             "height": float(lid["low_height"]), "start_radius": r0} if int(lid["low_beams"]) else None)
     if static_lidar(cfg) == "grid":
-        from sim.raycast.grids import build_grids
-
         grids = build_grids(scene, resolution=float(lid["resolution"]), lidar=lid, body_height=None)
         slot.lidar = GridLidar(grids, "high", **high)
         slot.low_lidar = GridLidar(grids, "low", **low) if low else None

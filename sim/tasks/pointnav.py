@@ -52,8 +52,8 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "cost_kinds": ["object", "building"],  # contacts that cost (the paper: objects and buildings, not curbs)
     "lidar": {"beams": 240, "range": 50.0, "height": 0.4, "encoding": "log",
               "low_beams": 60, "low_range": 5.0, "low_height": 0.08,
-              # Static geometry: "grid" traces distance grids of `resolution` m (sim.raycast; 10x cheaper than
-              # Bullet's rays), "bullet" ray-tests the Bullet world; "auto" is grid with box collision, else bullet.
+              # Static geometry: "grid" traces distance grids of `resolution` m (sim.raycast; ~0.1 ms for 300 rays
+              # against Bullet's ~0.7 ms), "bullet" ray-tests the Bullet world; "auto" is grid with box collision, else bullet.
               "static": "auto", "resolution": 0.05},
     "speed_scale": 5.0,               # m/s that maps to 1 in the `speed` observation (clipped)
     "num_waypoints": 10,
