@@ -29,22 +29,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from catalogs.categories import CATEGORIES
 from catalogs.query import QueryFilters, search
 from catalogs.reader import open_catalog
 from catalogs.records import AssetRecord
 from catalogs.schema import DEFAULT_EMBEDDING_DIM, ZONES
 from catalogs.writer import build_catalog
 
-CATEGORIES = {
-    "street_lamp": "standard", "utility_pole": "standard", "traffic_sign": "standard", "traffic_light": "standard",
-    "fire_hydrant": "standard", "bollard": "standard", "tree": "standard", "bench": "non_standard",
-    "trash_bin": "non_standard", "recycling_bin": "non_standard", "planter": "non_standard",
-    "mailbox": "non_standard", "bike_rack": "non_standard", "newspaper_box": "non_standard",
-    "vending_machine": "non_standard", "phone_booth": "non_standard", "bus_shelter": "non_standard",
-    "kiosk": "non_standard", "cafe_table": "non_standard", "chair": "non_standard", "traffic_cone": "clutter",
-    "barrier": "clutter", "bicycle": "clutter", "e_scooter": "clutter", "shopping_bag": "clutter",
-    "cardboard_box": "clutter", "drink_can": "clutter",
-}
 SOURCES = ("procedural", "objaverse", "local")
 LICENSES = ("CC0-1.0", "CC-BY-4.0", "CC-BY-NC-4.0")
 FILTERS = QueryFilters(category="bench", zone="furnishing", max_height=1.2)
@@ -61,7 +52,7 @@ def synthetic_records(n: int, rng: np.random.Generator) -> list[AssetRecord]:
         zones = [str(z) for z in rng.choice(ZONES, size=int(rng.integers(1, 3)), replace=False)]
         out.append(AssetRecord(
             asset_id=f"syn-{i:07d}", source=SOURCES[i % 3], source_id=str(i), category=c,
-            object_class=CATEGORIES[c], zones=zones, depth=float(sizes[i, 0]), width=float(sizes[i, 1]),
+            object_class=CATEGORIES[c].object_class, zones=zones, depth=float(sizes[i, 0]), width=float(sizes[i, 1]),
             height=float(sizes[i, 2]), description=f"a {c.replace('_', ' ')} variant {i}", synonyms=[c],
             license=LICENSES[i % 3], mass=float(sizes[i].prod() * 100), mesh_path=f"syn_assets/{i}/mesh.obj",
             params={"seed": i},

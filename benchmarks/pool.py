@@ -7,9 +7,9 @@ import time
 
 import numpy as np
 
+from catalogs.categories import CATEGORIES
 from pipelines.cluster import dbscan_labels
 from pipelines.embed import embed_texts
-from pipelines.vocabulary import CATEGORIES, category_words
 
 COLOURS = ["red", "green", "blue", "gray", "black", "white", "yellow", "orange", "brown", "silver", "dark green", "teal"]
 MATERIALS = ["metal", "wooden", "plastic", "concrete", "steel", "stone", "aluminium", "cast iron"]
@@ -23,7 +23,7 @@ def synthetic_descriptions(n: int, seed: int = 0) -> list[str]:
     rng = np.random.default_rng(seed)
     pick = lambda xs: [xs[i] for i in rng.integers(0, len(xs), n)]  # noqa: E731
     parts = zip(pick(SIZES), pick(COLOURS), pick(MATERIALS), pick(list(CATEGORIES)), pick(EXTRAS), strict=True)
-    return [f"a {s} {c} {m} {category_words(cat)}{e}" for s, c, m, cat, e in parts]
+    return [f"a {s} {c} {m} {CATEGORIES[cat].words}{e}" for s, c, m, cat, e in parts]
 
 
 def main() -> None:

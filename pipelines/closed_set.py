@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from catalogs.categories import CATEGORIES, check_category
 from pipelines.common import CLOSED_SET_DIR, PipelineError, load_params, stage_cli, write_metrics, write_table
-from pipelines.vocabulary import CATEGORIES, category_group, check_category
 
 DEFAULTS: dict[str, Any] = {
     "segmentation_csv": str(CLOSED_SET_DIR / "segmentation_classes.csv"),
@@ -43,7 +43,7 @@ def load_closed_set(segmentation_csv: str | Path, handbook_csv: str | Path):  # 
     hb = _read_csv(handbook_csv, ["name", "category", "prompt", "provenance"])
     hb.insert(0, "source", "handbook")
     df = pd.concat([seg, hb], ignore_index=True)
-    df["group"] = [category_group(c) for c in df["category"]]
+    df["group"] = [CATEGORIES[c].object_class for c in df["category"]]
     dup = df[df.duplicated(["source", "name"])]
     if len(dup):
         raise PipelineError(f"closed-set lists repeat (source, name) {dup[['source', 'name']].values.tolist()}")

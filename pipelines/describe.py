@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from catalogs.categories import category
 from pipelines.common import PipelineError, load_params, progress, stage_cli, write_metrics, write_table
-from pipelines.vocabulary import category_words
 
 DEFAULTS: dict[str, Any] = {
     "closed_set": "data/closed_set/classes.parquet",
@@ -78,7 +78,7 @@ def _tag(row: Any, key: str) -> str | None:
 
 def osm_description(row: Any) -> str:
     """Text for an OSM object from its category and attribute tags (colour, material, support, backrest...)."""
-    words = category_words(row["category"])
+    words = category(row["category"], where="describe").words
     tag = str(row.get("tag") or "")
     if tag == "highway=bus_stop" and row["category"] == "traffic_sign":
         words = "bus stop sign"

@@ -10,9 +10,17 @@ from typing import Any
 
 import numpy as np
 
-from pipelines.common import CLOSED_SET_DIR, PipelineError, load_params, progress, stage_cli, write_metrics, write_table
+from catalogs.categories import check_category
+from pipelines.common import (
+    CLOSED_SET_DIR,
+    PipelineError,
+    load_params,
+    progress,
+    stage_cli,
+    write_metrics,
+    write_table,
+)
 from pipelines.countries import check_country
-from pipelines.vocabulary import check_category
 
 EARTH_RADIUS_M = 6_371_008.8
 # Tags copied to each object: they feed the textual description (colour, material, shape).

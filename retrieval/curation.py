@@ -1,58 +1,25 @@
-"""Curation: per-category size priors, real-world size normalisation (with a unit guess) and near-duplicates."""
+"""Curation: real-world size normalisation (with a unit guess) and near-duplicates."""
 
 from __future__ import annotations
 
-import csv
 import math
-from dataclasses import dataclass
-from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 
-SIZE_PRIORS_PATH = Path(__file__).resolve().parents[1] / "catalogs" / "size_priors.csv"
+from catalogs.categories import CATEGORIES, Category
 
 # Unit factors tried when a mesh's height is implausible for its category: file units -> metres.
 UNIT_FACTORS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048, "dm": 0.1}
 
 
-@dataclass(frozen=True)
-class SizePrior:
-    """Plausible real-world extents (metres) and placement defaults of one category."""
-
-    category: str
-    object_class: str
-    zones: tuple[str, ...]
-    height: tuple[float, float]
-    width: tuple[float, float]
-    depth: tuple[float, float]
-
-
-@lru_cache(maxsize=4)
-def load_size_priors(path: str | Path = SIZE_PRIORS_PATH) -> dict[str, SizePrior]:
-    """Read catalogs/size_priors.csv into a dict keyed by category."""
-    out: dict[str, SizePrior] = {}
-    with open(path, newline="") as fh:
-        for row in csv.DictReader(fh):
-            def rng(key: str, row: dict = row) -> tuple[float, float]:
-                lo, hi = float(row[f"{key}_min"]), float(row[f"{key}_max"])
-                if not 0 < lo <= hi:
-                    raise ValueError(f"{path}: {row['category']} has an invalid {key} range {lo}..{hi}; need 0 < min <= max")
-                return (lo, hi)
-
-            out[row["category"]] = SizePrior(row["category"], row["object_class"], tuple(row["zones"].split(";")),
-                                             rng("height"), rng("width"), rng("depth"))
-    return out
-
-
-def normalize_size(extents: np.ndarray, category: str, priors: dict[str, SizePrior] | None = None) -> tuple[float, str]:
+def normalize_size(extents: np.ndarray, category: str, priors: dict[str, Category] | None = None) -> tuple[float, str]:
     """Uniform scale that brings the height into the category's prior range, and the unit it implies.
 
     The raw height is first read in each plausible unit (m, cm, mm, in, ft, dm); the first unit that lands inside
     the range wins (scale = that unit's factor). If none does, the mesh is scaled to the range's geometric
     middle and the unit is reported as "rescaled".
     """
-    priors = priors or load_size_priors()
+    priors = priors or CATEGORIES
     prior = priors.get(category)
     height = float(extents[2])
     if prior is None or height <= 0:

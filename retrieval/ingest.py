@@ -73,7 +73,7 @@ def _ingest_into(writer: CatalogWriter, source: Source, catalog_path: Path, conf
     """The body of `ingest` on an open writer; fills `report`."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    from retrieval.curation import load_size_priors
+    from catalogs.categories import NAMES
     from retrieval.executors import check_executor, run_map
     from retrieval.scoring import cached_scorer, load_pool
 
@@ -92,7 +92,7 @@ def _ingest_into(writer: CatalogWriter, source: Source, catalog_path: Path, conf
                 continue
         pending.append(item)
     # Models load after the source listed its items: an unreachable source fails in seconds, not after them.
-    pool = load_pool(writer.descriptions(), sorted(load_size_priors()))
+    pool = load_pool(writer.descriptions(), sorted(NAMES))
     # Build the scorer now: a missing model folder is a configuration error of the run, not of each asset.
     cached_scorer(config.scoring, pool)
     record_pool(writer, pool, config)

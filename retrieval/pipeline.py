@@ -216,10 +216,10 @@ def curate_step(item: SourceItem, content_hash: str, canon: CanonicalMesh, score
                 top: list[tuple[int, float]], selected: list[int], config: IngestConfig, pool: DescriptionPool,
                 out: Path, catalog_dir: str | Path) -> tuple[AssetRecord, list[MatchRecord]]:
     """Pick the category, normalise the size, export OBJ/collision/GLB into `out`; returns the asset and matches."""
-    from retrieval.curation import load_size_priors, normalize_size
+    from catalogs.categories import CATEGORIES
+    from retrieval.curation import normalize_size
     from retrieval.normalize import export_collision, export_glb, export_obj, scale_mesh
 
-    priors = load_size_priors()
     category = item.category or next((pool.categories[i] for i, _ in top if pool.categories[i]), None)
     if category is None:
         best = int(np.argmax(scores.fused))
@@ -227,19 +227,22 @@ def curate_step(item: SourceItem, content_hash: str, canon: CanonicalMesh, score
         raise AssetRejected("no_match", f"best {pool.ids[best]}: calibrated {scores.fused[best]:.3f}, raw "
                                         f"{raw:.3f} (threshold {config.scoring.threshold}, min_lift "
                                         f"{config.scoring.min_lift})")
-    scale, unit = normalize_size(canon.extents, category, priors)
+    prior = CATEGORIES.get(category)
+    if prior is None:
+        raise AssetRejected("unknown_category", f"{category!r} is not in catalogs/categories.csv; give the source item "
+                                                f"one of: {', '.join(CATEGORIES)}")
+    scale, unit = normalize_size(canon.extents, category)
     final = scale_mesh(canon, scale)
     obj, _, _ = export_obj(final, out, "mesh")
     coll = export_collision(final, out) if config.collision == "convex" else None
     glb = export_glb(final, out) if config.write_glb else None
     depth, width, height = (float(x) for x in final.extents)
-    prior = priors.get(category)
     aid = asset_id(item.source, item.source_id)
     rel = lambda p: stored_path(p, catalog_dir) if p else None
     asset = AssetRecord(
         asset_id=aid, source=item.source, source_id=item.source_id, category=category,
-        object_class=prior.object_class if prior else "clutter",
-        zones=list(prior.zones) if prior else ["clear"], depth=round(depth, 6), width=round(width, 6),
+        object_class=prior.object_class,
+        zones=list(prior.zones), depth=round(depth, 6), width=round(width, 6),
         height=round(height, 6),
         description=item.description or (f"{category.replace('_', ' ')}: {item.name}" if item.name else category),
         synonyms=list(item.tags), license=item.license, attribution=item.attribution,

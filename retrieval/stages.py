@@ -73,10 +73,10 @@ def config_for(params: dict[str, Any], stage: str | None = None) -> IngestConfig
 
 def stage_pool() -> DescriptionPool:
     """The pool the stages match against: the category prompts, as for ingest into a fresh catalog."""
-    from retrieval.curation import load_size_priors
+    from catalogs.categories import NAMES
     from retrieval.scoring import category_pool
 
-    return category_pool(sorted(load_size_priors()))
+    return category_pool(sorted(NAMES))
 
 
 def _item(row: dict[str, Any]) -> SourceItem:

@@ -6,11 +6,11 @@ GLB; `to_record` turns it into a catalog row; `contact_sheet` renders a grid of 
 
 from retrieval.procedural.contact import contact_sheet
 from retrieval.procedural.export import ExportedAsset, export_asset, pybullet_extents, to_record
-from retrieval.procedural.library import CATEGORIES, GENERATORS, ProceduralAsset, category_names, generate
+from retrieval.procedural.library import GENERATORS, RECIPES, ProceduralAsset, category_names, generate
 from retrieval.procedural.render import render_views
-from retrieval.procedural.spec import CategorySpec, Variant, load_categories
+from retrieval.procedural.spec import CategorySpec, Variant, load_recipes
 
 __all__ = [
-    "CATEGORIES", "GENERATORS", "CategorySpec", "ExportedAsset", "ProceduralAsset", "Variant", "category_names",
-    "contact_sheet", "export_asset", "generate", "load_categories", "pybullet_extents", "render_views", "to_record",
+    "RECIPES", "GENERATORS", "CategorySpec", "ExportedAsset", "ProceduralAsset", "Variant", "category_names",
+    "contact_sheet", "export_asset", "generate", "load_recipes", "pybullet_extents", "render_views", "to_record",
 ]

@@ -13,24 +13,24 @@ import trimesh
 
 from retrieval.procedural import gen_clutter, gen_furniture, gen_nonstandard, gen_standard
 from retrieval.procedural.parts import Ctx, Parts
-from retrieval.procedural.spec import CategorySpec, load_categories
+from retrieval.procedural.spec import CategorySpec, load_recipes
 
-CATEGORIES: dict[str, CategorySpec] = load_categories()
+RECIPES: dict[str, CategorySpec] = load_recipes()
 
 GENERATORS: dict[str, Callable[[Ctx, Parts], str]] = {
     **gen_standard.GENERATORS, **gen_nonstandard.GENERATORS, **gen_furniture.GENERATORS, **gen_clutter.GENERATORS,
 }
 
-if set(GENERATORS) != set(CATEGORIES):
+if set(GENERATORS) != set(RECIPES):
     raise RuntimeError(
-        f"categories.csv and the generators disagree: table-only {sorted(set(CATEGORIES) - set(GENERATORS))}, "
-        f"generator-only {sorted(set(GENERATORS) - set(CATEGORIES))}; add the missing row or generator"
+        f"recipes.csv and the generators disagree: table-only {sorted(set(RECIPES) - set(GENERATORS))}, "
+        f"generator-only {sorted(set(GENERATORS) - set(RECIPES))}; add the missing row or generator"
     )
 
 
 def category_names() -> list[str]:
     """Names of all procedural categories, in table order."""
-    return list(CATEGORIES)
+    return list(RECIPES)
 
 
 @dataclass
@@ -60,9 +60,9 @@ class ProceduralAsset:
 
 
 def _spec(category: str) -> CategorySpec:
-    if category not in CATEGORIES:
-        raise ValueError(f"unknown procedural category {category!r}; valid categories: {', '.join(CATEGORIES)}")
-    return CATEGORIES[category]
+    if category not in RECIPES:
+        raise ValueError(f"unknown procedural category {category!r}; valid categories: {', '.join(RECIPES)}")
+    return RECIPES[category]
 
 
 def _fit(mesh: trimesh.Trimesh, target: tuple[float, float, float]) -> tuple[float, float, float]:

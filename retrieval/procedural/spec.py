@@ -1,17 +1,19 @@
-"""The category table (`categories.csv`): real-world dimension ranges, variants, descriptions and sources per category."""
+"""The procedural recipes (`recipes.csv`): per category of catalogs/categories.csv, the generator's size ranges (inside
+the category's priors), mass, colour variants, description template, synonyms and sources."""
 
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass
 from pathlib import Path
 
-from catalogs.schema import OBJECT_CLASSES, ZONES
+from catalogs.categories import AXES, category
 
-TABLE_PATH = Path(__file__).with_name("categories.csv")
+TABLE_PATH = Path(__file__).with_name("recipes.csv")
 
 COLUMNS = (
-    "category", "object_class", "zones", "depth_min", "depth_max", "width_min", "width_max",
+    "category", "depth_min", "depth_max", "width_min", "width_max",
     "height_min", "height_max", "mass_min", "mass_max", "variants", "description", "synonyms", "source",
 )
 
@@ -27,7 +29,7 @@ class Variant:
 
 @dataclass(frozen=True)
 class CategorySpec:
-    """One row of the category table: where the category belongs, its size ranges (m), mass range (kg) and texts."""
+    """One recipe with its category's class and zones: the generator's size ranges (m), mass range (kg) and texts."""
 
     name: str
     object_class: str
@@ -64,12 +66,7 @@ def _floats(row: dict[str, str], key: str, where: str) -> tuple[float, float]:
 
 
 def _parse_row(row: dict[str, str], where: str) -> CategorySpec:
-    if row["object_class"] not in OBJECT_CLASSES:
-        raise ValueError(f"{where}: object_class {row['object_class']!r} is not one of {OBJECT_CLASSES}")
-    zones = tuple(z.strip() for z in row["zones"].split(";") if z.strip())
-    bad = [z for z in zones if z not in ZONES]
-    if bad or not zones:
-        raise ValueError(f"{where}: zones {bad or zones} invalid; valid zones are {ZONES}")
+    cat = category(row["category"].strip(), where=where)
     variants = []
     for item in row["variants"].split(";"):
         parts = [p.strip() for p in item.split("|")]
@@ -79,13 +76,17 @@ def _parse_row(row: dict[str, str], where: str) -> CategorySpec:
     synonyms = tuple(s.strip() for s in row["synonyms"].split(";") if s.strip())
     if not row["source"].strip():
         raise ValueError(f"{where}: the source column is empty; name where the ranges come from")
+    ranges = {a: _floats(row, a, where) for a in AXES}
+    for a, (lo, hi) in ranges.items():
+        plo, phi = cat.range(a)
+        if lo < plo or hi > phi:
+            raise ValueError(f"{where}: {a} {lo}..{hi} leaves the category's prior {plo}..{phi}; generated assets must "
+                             "pass curation: narrow the recipe or widen the prior in catalogs/categories.csv")
     return CategorySpec(
-        name=row["category"].strip(),
-        object_class=row["object_class"],
-        zones=zones,
-        depth=_floats(row, "depth", where),
-        width=_floats(row, "width", where),
-        height=_floats(row, "height", where),
+        name=cat.name,
+        object_class=cat.object_class,
+        zones=cat.zones,
+        **ranges,
         mass=_floats(row, "mass", where),
         variants=tuple(variants),
         description=row["description"].strip(),
@@ -94,10 +95,10 @@ def _parse_row(row: dict[str, str], where: str) -> CategorySpec:
     )
 
 
-def load_categories(path: Path = TABLE_PATH) -> dict[str, CategorySpec]:
-    """Read the category table into {name: CategorySpec}, validating every row."""
+def load_recipes(path: Path = TABLE_PATH) -> dict[str, CategorySpec]:
+    """Read the recipe table into {name: CategorySpec}, validating every row against its category."""
     with open(path, newline="", encoding="utf-8") as f:
-        reader = csv.DictReader(f)
+        reader = csv.DictReader(io.StringIO("".join(line for line in f if not line.startswith("#"))))
         missing = [c for c in COLUMNS if c not in (reader.fieldnames or [])]
         if missing:
             raise ValueError(f"{path}: missing columns {missing}; expected {COLUMNS}")

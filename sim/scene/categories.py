@@ -1,38 +1,21 @@
-"""Object categories: class, designated zones, fallback box sizes, and category distributions."""
+"""Category draws for the scene generator: per-class samplers over catalogs/categories.csv and country frequencies."""
 
 from __future__ import annotations
 
-import csv
 from bisect import bisect_right
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from catalogs.categories import of_class
 from catalogs.schema import OBJECT_CLASSES
 from curbside.config import ConfigError
-
-Category = tuple[str, tuple[str, ...], tuple[float, float, float]]  # (object class, zones, fallback size)
-
-
-def _load_categories() -> dict[str, Category]:
-    """The category table `categories.csv` beside this module, in its row order (the generator's draw order)."""
-    with resources.files("sim.scene").joinpath("categories.csv").open(encoding="utf-8") as f:
-        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
-    return {r["category"]: (r["object_class"], tuple(r["zones"].split()),
-                            (float(r["depth"]), float(r["width"]), float(r["height"]))) for r in rows}
-
-
-# Each category: (object class, designated zones, fallback size [depth, width, height] in metres).
-CATEGORIES: dict[str, Category] = _load_categories()
-ALL_CATEGORIES = tuple(CATEGORIES)
-CLUTTER_ZONES = ("near_road_buffer", "furnishing", "clear", "frontage_buffer", "frontage")
 
 
 def by_class(object_class: str, exclude: list[str] | tuple[str, ...] = ()) -> list[str]:
     """Categories of `object_class` (buildings excluded: they have their own pass), minus `exclude`."""
-    return [c for c, (k, _, _) in CATEGORIES.items() if k == object_class and c != "building_facade" and c not in exclude]
+    return [c for c in of_class(object_class) if c != "building_facade" and c not in exclude]
 
 
 def _repo_root() -> Path:

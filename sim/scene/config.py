@@ -128,7 +128,7 @@ def check_codes(codes: str, valid: Mapping[str, Any] | str, *, what: str) -> Non
 
 def resolve_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
     """Merge `config` over DEFAULT_CONFIG strictly and validate every value."""
-    from sim.scene.categories import ALL_CATEGORIES
+    from catalogs.categories import NAMES
 
     preset = (config or {}).get("preset")
     if preset is not None and preset not in PRESETS:
@@ -160,9 +160,9 @@ def resolve_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
     cfg["lanes"] = [int(cfg["lanes"][0]), int(cfg["lanes"][1])]
     if cfg["density_model"] == "paper" and cfg["fill_gap"] < MIN_FILL_GAP:
         raise ConfigError(f"scene config.fill_gap must be >= {MIN_FILL_GAP} m with density_model 'paper', got {cfg['fill_gap']!r}")
-    bad = [c for c in cfg["exclude_categories"] if c not in ALL_CATEGORIES]
+    bad = [c for c in cfg["exclude_categories"] if c not in NAMES]
     if bad:
-        raise ConfigError(f"unknown categories {bad} in exclude_categories; valid: {', '.join(ALL_CATEGORIES)}")
+        raise ConfigError(f"unknown categories {bad} in exclude_categories; valid: {', '.join(NAMES)}")
     cfg["exclude_categories"] = sorted(set(cfg["exclude_categories"]))
     if cfg["country"] is not None:
         cfg["country"] = str(cfg["country"]).upper()

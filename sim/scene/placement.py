@@ -12,7 +12,8 @@ import shapely
 from shapely import lib
 from shapely.geometry import Polygon
 
-from sim.scene.categories import ALL_CATEGORIES, CATEGORIES, CLUTTER_ZONES, CategorySampler
+from catalogs.categories import CATEGORIES, NAMES, of_class, zones_of_class
+from sim.scene.categories import CategorySampler
 from sim.scene.occupancy import GAP, Occupancy, quad_polygon, rect
 from sim.scene.rows import Row, fill_rows
 from sim.scene.sidewalks import Sidewalk, Zone
@@ -44,7 +45,7 @@ class Placer:
     def _min_depth(self, category: str) -> float:
         if self.in_catalog(category):
             return float(self.catalog.table.size[self.catalog.candidates(category), 0].min())
-        return CATEGORIES[category][2][0]
+        return CATEGORIES[category].size[0]
 
     def set_keep_out(self, polys: list[Polygon]) -> None:
         """Areas no object may touch (clear-path corridors, ramp approaches)."""
@@ -58,7 +59,7 @@ class Placer:
                 rec = self.catalog.sample(self.rng, category, max_depth=max_depth, max_width=max_width)
             return None if rec is None else (rec.asset_id, [float(v) for v in rec.size])
         self._note_fallback(category)
-        size = list(CATEGORIES[category][2])
+        size = list(CATEGORIES[category].size)
         return None if size[0] > max_depth or (max_width is not None and size[1] > max_width) else (None, size)
 
     def _note_fallback(self, category: str) -> None:
@@ -68,9 +69,9 @@ class Placer:
             warnings.warn(f"{src}; placing default-size boxes for category {category!r}", stacklevel=5)
 
     def note_fallback(self, categories: np.ndarray) -> None:
-        """Record (and warn once about) the categories, by ALL_CATEGORIES index, placed as fallback boxes."""
+        """Record (and warn once about) the categories, by NAMES index, placed as fallback boxes."""
         for k in np.unique(categories).tolist():
-            self._note_fallback(ALL_CATEGORIES[k])
+            self._note_fallback(NAMES[k])
 
     def zone_shape(self, zone: Zone) -> tuple[Polygon, tuple[float, float, float, float]]:
         """The zone's polygon (prepared) and its bounds, computed once per polygon."""
@@ -114,7 +115,7 @@ class Placer:
             "id": f"o{len(self.objects)}",
             "asset_id": asset[0],
             "category": category,
-            "object_class": CATEGORIES[category][0],
+            "object_class": CATEGORIES[category].object_class,
             "zone": zone.kind,
             "sidewalk_id": sw.id,
             "position": [round_value(x), round_value(y), self.z],
@@ -137,7 +138,7 @@ class Placer:
         spacing = float(self.cfg["standard_spacing"]) / rho
         s0, s1 = sw.s_range
         stations = np.arange(s0 + 1.0 + self.rng.uniform(0, min(spacing, s1 - s0)), s1 - 1.0, spacing)
-        allowed = [c for c, (k, _, _) in CATEGORIES.items() if k == "standard" and self.min_depth[c] <= zone.width - 0.05]
+        allowed = [c for c in of_class("standard") if self.min_depth[c] <= zone.width - 0.05]
         cl, side = sw.roadway.centerline, sw.side
         for s in stations:
             cat = self.sampler.draw(self.rng, "standard", allowed)
@@ -179,12 +180,12 @@ class Placer:
         present = {z.kind: z for z in sw.zones}
         length = sw.s_range[1] - sw.s_range[0]
         for _ in range(self._count(float(self.cfg["non_standard_per_100m"]), length)):
-            allowed = [c for c, (k, zs, _) in CATEGORIES.items() if k == "non_standard" and any(
-                z in present and self.min_depth[c] <= present[z].width for z in zs)]
+            allowed = [c for c in of_class("non_standard") if any(
+                z in present and self.min_depth[c] <= present[z].width for z in CATEGORIES[c].zones)]
             cat = self.sampler.draw(self.rng, "non_standard", allowed)
             if cat is None:
                 return
-            zones = [present[z] for z in CATEGORIES[cat][1] if z in present and self.min_depth[cat] <= present[z].width]
+            zones = [present[z] for z in CATEGORIES[cat].zones if z in present and self.min_depth[cat] <= present[z].width]
             zone = zones[int(self.rng.integers(len(zones)))]
             a = self.asset(cat, zone.kind, zone.width)
             if a is None or not self._random_in(sw, zone, cat, a, "aligned"):
@@ -192,7 +193,7 @@ class Placer:
 
     def clutter(self, sw: Sidewalk) -> None:
         """Clutter anywhere on the sidewalk except the clear-path corridor."""
-        zones = [z for z in sw.zones if z.kind in CLUTTER_ZONES]
+        zones = [z for z in sw.zones if z.kind in zones_of_class("clutter")]
         length = sw.s_range[1] - sw.s_range[0]
         for _ in range(self._count(float(self.cfg["clutter_per_100m"]), length)):
             zone = zones[int(self.rng.integers(len(zones)))]

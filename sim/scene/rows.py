@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import shapely
 
-from sim.scene.categories import ALL_CATEGORIES, CATEGORIES
+from catalogs.categories import CATEGORIES, NAMES
 from sim.scene.occupancy import GAP, rects
 from sim.scene.sidewalks import Sidewalk, Zone
 from sim.scene.spec import round_array
@@ -26,25 +26,25 @@ if TYPE_CHECKING:
     from catalogs.reader import CatalogReader
     from sim.scene.placement import Placer
 
-_INDEX = {c: k for k, c in enumerate(ALL_CATEGORIES)}
-_CLASS = [CATEGORIES[c][0] for c in ALL_CATEGORIES]
-_FALLBACK = np.array([CATEGORIES[c][2] for c in ALL_CATEGORIES], dtype=np.float64)
+_INDEX = {c: k for k, c in enumerate(NAMES)}
+_CLASS = [CATEGORIES[c].object_class for c in NAMES]
+_FALLBACK = np.array([CATEGORIES[c].size for c in NAMES], dtype=np.float64)
 _MAX_BATCH = 256
 
 
 class Fits:
-    """Per category (ALL_CATEGORIES order), the assets that may stand in a zone sorted by depth, with the
+    """Per category (NAMES order), the assets that may stand in a zone sorted by depth, with the
     catalog-wide ones for categories the zone has none of; categories without catalog assets get their
     fallback box (index -1). Built once per catalog and zone kind (`fits_for`)."""
 
     def __init__(self, catalog: CatalogReader | None, zone: str) -> None:
-        n = len(ALL_CATEGORIES)
+        n = len(NAMES)
         if catalog is None:
             self.zone_index = self.any_index = np.full((n, 1), -1, dtype=np.int64)
             self.zone_size = self.any_size = _FALLBACK[:, None, :].copy()
             return
-        zi, zs = catalog.by_depth(ALL_CATEGORIES, zone)
-        ai, as_ = catalog.by_depth(ALL_CATEGORIES, None)
+        zi, zs = catalog.by_depth(NAMES, zone)
+        ai, as_ = catalog.by_depth(NAMES, None)
         m = max(zi.shape[1], ai.shape[1])
         self.zone_index, self.zone_size = _pad(zi, zs, m)
         self.any_index, self.any_size = _pad(ai, as_, m)
@@ -127,13 +127,13 @@ def fill_rows(placer: Placer, sw: Sidewalk, rows: list[Row]) -> None:
     for k, r in enumerate(rows):
         zkind = "furnishing" if r.zone.kind == "near_road_buffer" else r.zone.kind
         faces[k] = side * math.pi / 2 * (1 if zkind == "furnishing" else -1)  # furnishing faces the walkway
-        allowed = tuple(c for c, (cls, zs, _) in CATEGORIES.items() if cls != "clutter" and zkind in zs
+        allowed = tuple(c for c, row in CATEGORIES.items() if row.object_class != "clutter" and zkind in row.zones
                         and c != "building_facade" and placer.min_depth[c] <= max_depth[k])
-        ns = tuple(c for c in allowed if CATEGORIES[c][0] == "non_standard")
+        ns = tuple(c for c in allowed if CATEGORIES[c].object_class == "non_standard")
         if allowed:
             main_of[k] = mains.setdefault(ns or allowed, len(mains))
     p_clutter[main_of < 0] = 1.0
-    main_cdfs = [_cdf(placer, "non_standard" if CATEGORIES[key[0]][0] == "non_standard" else "standard", key)
+    main_cdfs = [_cdf(placer, "non_standard" if CATEGORIES[key[0]].object_class == "non_standard" else "standard", key)
                  for key in mains]
     clutter_cdf = _cdf(placer, "clutter", None)
     s0, s1 = sw.s_range
@@ -227,7 +227,7 @@ def place_many(placer: Placer, sw: Sidewalk, zones: list[Zone], zone_of: np.ndar
         else:
             ok[i] = False
     for k in cat[~ok].tolist():
-        placer.refused[ALL_CATEGORIES[k]] += 1
+        placer.refused[NAMES[k]] += 1
     if not placed:
         return
     p = np.array(placed, dtype=np.int64)
@@ -241,7 +241,7 @@ def place_many(placer: Placer, sw: Sidewalk, zones: list[Zone], zone_of: np.ndar
     objects, z, sid = placer.objects, placer.z, sw.id
     for k, (i, ci, zi) in enumerate(zip(index[p].tolist(), cat[p].tolist(), zone_of[p].tolist())):
         objects.append({
-            "id": f"o{len(objects)}", "asset_id": ids[i] if i >= 0 else None, "category": ALL_CATEGORIES[ci],
+            "id": f"o{len(objects)}", "asset_id": ids[i] if i >= 0 else None, "category": NAMES[ci],
             "object_class": _CLASS[ci], "zone": zones[zi].kind, "sidewalk_id": sid, "position": [*pos[k], z],
             "yaw": yw[k], "size": sz[k], "footprint": fp[k],
         })

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
+from catalogs.categories import CATEGORIES
 from pipelines import closed_set, osm
 from pipelines.common import CLOSED_SET_DIR, PipelineError
-from pipelines.vocabulary import CATEGORIES
 
 
 def test_closed_set_covers_vocabulary_with_provenance():

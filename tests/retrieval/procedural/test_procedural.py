@@ -12,7 +12,7 @@ from PIL import Image
 
 from catalogs.schema import OBJECT_CLASSES, ZONES
 from retrieval.procedural import (
-    CATEGORIES,
+    RECIPES,
     category_names,
     contact_sheet,
     export_asset,
@@ -21,7 +21,7 @@ from retrieval.procedural import (
     render_views,
     to_record,
 )
-from retrieval.procedural.spec import TABLE_PATH, load_categories
+from retrieval.procedural.spec import TABLE_PATH, load_recipes
 
 EXPECTED = {
     "standard": {"street_lamp", "utility_pole", "traffic_sign", "traffic_light", "fire_hydrant", "bollard", "tree",
@@ -37,29 +37,32 @@ ALL = category_names()
 def test_table_has_exactly_the_agreed_categories_and_classes():
     assert len(ALL) == 33
     for cls, names in EXPECTED.items():
-        assert {n for n, s in CATEGORIES.items() if s.object_class == cls} == names
-    for spec in CATEGORIES.values():
+        assert {n for n, s in RECIPES.items() if s.object_class == cls} == names
+    for spec in RECIPES.values():
         assert spec.object_class in OBJECT_CLASSES
         assert spec.zones and set(spec.zones) <= set(ZONES)
         assert spec.source and spec.synonyms and spec.variants
         assert "{" in spec.description  # a template, formatted per variant
-    assert CATEGORIES["building_facade"].zones == ("building",)
-    assert "garbage can" in CATEGORIES["trash_bin"].synonyms
-    assert "somewhere to sit" in CATEGORIES["bench"].synonyms
-    assert "street light" in CATEGORIES["street_lamp"].synonyms
+    assert RECIPES["building_facade"].zones == ("building",)
+    assert "garbage can" in RECIPES["trash_bin"].synonyms
+    assert "somewhere to sit" in RECIPES["bench"].synonyms
+    assert "street light" in RECIPES["street_lamp"].synonyms
 
 
-def test_table_rejects_bad_zone_naming_the_valid_ones(tmp_path: Path):
+def test_recipes_stay_inside_their_category_priors(tmp_path: Path):
     text = TABLE_PATH.read_text()
     bad = tmp_path / "bad.csv"
-    bad.write_text(text.replace("furnishing;near_road_buffer", "sidewalk_edge", 1))
-    with pytest.raises(ValueError, match="valid zones are"):
-        load_categories(bad)
+    bad.write_text(text.replace("street_lamp,0.8,2.5", "street_lamp,0.8,25.0", 1))
+    with pytest.raises(ValueError, match="leaves the category's prior"):
+        load_recipes(bad)
+    bad.write_text(text.replace("\nbench,", "\nbenches,", 1))
+    with pytest.raises(ValueError, match="'benches' is not in the curbside vocabulary"):
+        load_recipes(bad)
 
 
 @pytest.mark.parametrize("category", ALL)
 def test_generate_respects_ranges_and_mesh_convention(category: str):
-    spec = CATEGORIES[category]
+    spec = RECIPES[category]
     for seed in (0, 1):
         a = generate(category, seed)
         lo, hi = a.mesh.bounds
@@ -83,7 +86,7 @@ def test_generate_respects_ranges_and_mesh_convention(category: str):
 
 def test_many_seeds_generate_within_ranges():
     for category in ALL:
-        spec = CATEGORIES[category]
+        spec = RECIPES[category]
         for seed in range(10, 18):
             a = generate(category, seed)
             assert all(0.8 <= s <= 1.25 for s in a.params["fit_scale"]), (category, seed, a.params["fit_scale"])

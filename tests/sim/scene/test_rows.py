@@ -12,9 +12,11 @@ import numpy as np
 import pytest
 import shapely
 
+from catalogs.categories import CATEGORIES
+from catalogs.categories import NAMES as ALL_CATEGORIES
 from catalogs.reader import CatalogReader
 from sim.scene import generate_scene
-from sim.scene.categories import ALL_CATEGORIES, CATEGORIES, CategorySampler
+from sim.scene.categories import CategorySampler
 from sim.scene.config import MIN_FILL_GAP, resolve_config
 from sim.scene.occupancy import corridor, rect, rects
 from sim.scene.placement import Placer
@@ -57,7 +59,7 @@ def test_a_batch_places_exactly_what_one_by_one_placement_does(use_catalog: bool
     x, y, h = sw.roadway.centerline.points_xy(s, sw.side * d)
     yaw = h + rng.choice([0.0, math.pi / 2, 1.0], size=n)
     cats = rng.choice([ALL_CATEGORIES.index(c) for c in ("bench", "street_lamp", "trash_bin", "bicycle")], size=n)
-    size = np.array([CATEGORIES[ALL_CATEGORIES[c]][2] for c in cats.tolist()]) * rng.uniform(0.5, 1.2, size=(n, 1))
+    size = np.array([CATEGORIES[ALL_CATEGORIES[c]].size for c in cats.tolist()]) * rng.uniform(0.5, 1.2, size=(n, 1))
     index = np.full(n, -1, dtype=np.int64)
     if catalog is not None:  # some steps carry a catalog asset
         index[: n // 3] = 0
@@ -122,7 +124,7 @@ def test_assets_are_drawn_uniformly_among_those_that_fit_the_zone_else_anywhere(
     cone = ALL_CATEGORIES.index("traffic_cone")
     found, index, size = fits.pick(np.array([cone, cone]), u[:2], np.array([1.0, 0.1]))
     assert found.tolist() == [True, False] and index[0] == -1
-    assert size[0].tolist() == list(CATEGORIES["traffic_cone"][2])
+    assert size[0].tolist() == list(CATEGORIES["traffic_cone"].size)
 
 
 def test_the_tightest_rows_keep_their_objects_apart(tiny_catalog: Path) -> None:
