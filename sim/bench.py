@@ -179,3 +179,28 @@ def run_bench(quick: bool = False, machine: str = "delivery_bot", task: str = "P
         "cpu_count": os.cpu_count() or 0,
         "loadavg_1min": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else math.nan,
     }
+
+
+# The camera runs: no camera (the LiDAR-only env), each modality alone, all three from one render.
+CAMERA_RUNS = ((), ("rgb",), ("depth",), ("semantic",), ("rgb", "depth", "semantic"))
+PAPER_FPS = {"rgb": 50, "depth": 60, "lidar": 120}  # MetaUrban Table 6: 128x128, one process, V100
+
+
+def run_camera_bench(quick: bool = False, machine: str = "delivery_bot", size: int = 128,
+                     renderer: str = "tiny", task: str = "PointNav") -> dict[str, Any]:
+    """Env steps per CPU-second (and wall-second) in the bench scene with each camera modality at `size` pixels."""
+    steps = 200 if quick else 1000
+    spec = bench_scene()
+    out: dict[str, Any] = {"task": task, "machine": machine, "objects": len(spec["objects"]), "size": size,
+                           "renderer": renderer, "steps": steps}
+    for mods in CAMERA_RUNS:
+        cam = {"modalities": list(mods), "width": size, "height": size, "renderer": renderer}
+        env = make_bench_env(task, {"scene_spec": spec, "machine": machine, "camera": cam})
+        n, cpu, wall = _env_steps(env, steps)
+        env.close()
+        key = "+".join(mods) or "no_camera"
+        out[f"{key}_steps_per_s"] = round(n / cpu, 1)
+        out[f"{key}_wall_steps_per_s"] = round(n / wall, 1)
+    out.update({f"paper_{k}_fps": v for k, v in PAPER_FPS.items()})
+    out["cpu_count"] = os.cpu_count() or 0
+    return out

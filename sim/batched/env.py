@@ -69,6 +69,9 @@ class BatchedPointNav(VectorEnv):
         for key, need, why in PYBULLET_ONLY:
             if cfg[key] != need:
                 raise ConfigError(f"config.{key} must be {need!r} in the batched env: {why}")
+        if cfg["camera"]["modalities"] or cfg["observation"] == "dict":
+            raise ConfigError("config.camera.modalities must be [] and observation flat in the batched env: there is "
+                              "nothing to render; use the PyBullet env (curbside/PointNav-v0) for camera observations")
         self.num_envs = n = num_envs
         self.render_mode = None
         self.spec_machine = machine_spec(cfg["machine"])

@@ -1,4 +1,5 @@
-"""The PointNav observation vector: LiDAR scans, ego state, route waypoints and the goal (table in PointNavEnv)."""
+"""The PointNav observation: LiDAR scans, ego state, route waypoints and the goal (table in PointNavEnv), as one
+flat vector or, with a camera, a Dict of `lidar`, `state`, `nav` and the camera's images."""
 
 from __future__ import annotations
 
@@ -9,6 +10,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from curbside.config import ConfigError
+from sim.camera import camera_spaces
+
 GOAL_LOG_SCALE = math.log1p(500.0)  # goal distances up to 500 m span [0, 1] in the observation
 
 
@@ -16,8 +20,17 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def observation_mode(cfg: Mapping[str, Any]) -> str:
+    """"flat" or "dict": config.observation, "auto" resolved by whether the camera has modalities."""
+    mode, camera = cfg["observation"], bool(cfg["camera"]["modalities"])
+    if mode == "flat" and camera:
+        raise ConfigError("config.observation 'flat' cannot hold camera images; use observation 'dict' (or 'auto'), "
+                          "or camera.modalities []")
+    return ("dict" if camera else "flat") if mode == "auto" else mode
+
+
 class EgoObservation:
-    """Names, space and values of the `B + L + 6 + 2 W + 3` observation of a PointNav-style task."""
+    """Names, space and values of the `B + L + 6 + 2 W + 3` observation of a PointNav-style task (flat or Dict)."""
 
     def __init__(self, cfg: Mapping[str, Any]) -> None:
         lid = cfg["lidar"]
@@ -34,14 +47,22 @@ class EgoObservation:
         low = -np.ones(n, dtype=np.float32)
         low[: self.num_beams + self.num_low_beams] = 0.0
         self.space = gym.spaces.Box(low, np.ones(n, dtype=np.float32), dtype=np.float32)
+        self.mode = observation_mode(cfg)
+        b = self.num_beams + self.num_low_beams
+        self._parts = {"lidar": slice(0, b), "state": slice(b, b + 6), "nav": slice(b + 6, n)}
+        if self.mode == "dict":
+            self.space = gym.spaces.Dict({**{k: gym.spaces.Box(low[sl], 1.0, dtype=np.float32)
+                                             for k, sl in self._parts.items()}, **camera_spaces(cfg["camera"])})
         self._wp_offsets = np.arange(1, w + 1, dtype=np.float64) * float(cfg["waypoint_spacing"])
         self._wp_scale = 1.0 / (self._wp_offsets[-1])
         self.speed_scale = float(cfg["speed_scale"])
         self.lateral_scale = float(cfg["out_of_route_distance"])
 
     def __call__(self, machine: Any, route: Any, progress: float, lateral: float, last_action: np.ndarray,
-                 lidar: Any, low_lidar: Any | None) -> np.ndarray:
-        """The observation of `machine` at arc length `progress` and offset `lateral` on `route` (scans now)."""
+                 lidar: Any, low_lidar: Any | None, camera: Any = None,
+                 extra_kinds: Mapping[int, str] | None = None) -> np.ndarray | dict[str, np.ndarray]:
+        """The observation of `machine` at arc length `progress` and offset `lateral` on `route` (scans now; the
+        camera renders when the observation is a Dict, `extra_kinds` naming the bodies the world does not hold)."""
         m = machine
         x, y, z = m.position
         yaw = m.yaw
@@ -64,4 +85,7 @@ class EgoObservation:
         tail = [math.log1p(math.hypot(gx, gy)) / GOAL_LOG_SCALE, math.sin(bearing), math.cos(bearing)]
         obs = np.concatenate([*parts, np.asarray(state), ego, np.asarray(tail)]).astype(np.float32)
         np.clip(obs, -1.0, 1.0, out=obs)
-        return obs
+        if self.mode == "flat":
+            return obs
+        images = camera.capture(machine, extra_kinds) if camera is not None else {}
+        return {**{k: obs[sl] for k, sl in self._parts.items()}, **images}

@@ -35,7 +35,10 @@ class PointNavEnv(gym.Env):
     machines do not reverse). Out-of-range values are clipped to [-1, 1]; NaN or inf raise ValueError.
 
     ## Observation space
-    `Box(float32)` of `B + L + 6 + 2 W + 3` values (B LiDAR beams, L low beams, W waypoints; 329 by default):
+    `Box(float32)` of `B + L + 6 + 2 W + 3` values (B LiDAR beams, L low beams, W waypoints; 329 by default). With
+    `camera.modalities` (or `observation: dict`) a `Dict`: `lidar` (the first B + L values), `state` (the next 6),
+    `nav` (the rest), and the camera's `rgb` (H, W, 3) uint8, `depth` (H, W, 1) metres, `semantic` (H, W) class
+    ids of sim.camera.SEMANTIC_CLASSES (docs/cameras.md).
 
     | index | name | meaning |
     |---|---|---|
@@ -107,7 +110,6 @@ class PointNavEnv(gym.Env):
         self._collision_kinds: dict[int, str] = {}
         self.collision_kinds_all: list[str] = list(STATIC_COLLISION_KINDS)
         self.route = None
-        self._renderer = None
 
     # -- scene -------------------------------------------------------------------------------------
     def _ensure_scene(self, rng: np.random.Generator) -> None:
@@ -135,7 +137,7 @@ class PointNavEnv(gym.Env):
     def _use(self, slot: SceneSlot) -> None:
         self.slot = slot
         self.client, self.world, self.machine = slot.client, slot.world, slot.machine
-        self.lidar, self.low_lidar, self.planner = slot.lidar, slot.low_lidar, slot.planner
+        self.lidar, self.low_lidar, self.planner, self.camera = slot.lidar, slot.low_lidar, slot.planner, slot.camera
         self.kinds = dict(slot.world.kinds)
 
     @property
@@ -279,7 +281,7 @@ class PointNavEnv(gym.Env):
     def _observe(self) -> np.ndarray:
         ep = self.episode
         return self.observation(self.machine, self.route, ep.progress, ep.lateral, ep.last_action, self.lidar,
-                                self.low_lidar)
+                                self.low_lidar, self.camera, self._collision_kinds)
 
     def render(self) -> np.ndarray | None:
         """An RGB frame (H, W, 3) from the configured camera ('top_down' or 'chase') via TinyRenderer."""

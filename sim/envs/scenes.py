@@ -20,6 +20,7 @@ import numpy as np
 import pybullet as p
 
 from curbside.config import ConfigError
+from sim.camera import EgoCamera
 from sim.machines import Machine
 from sim.raycast.grids import build_grids
 from sim.route import RoutePlanner
@@ -43,6 +44,7 @@ class SceneSlot:
     lidar: Any = None
     low_lidar: Any = None
     planner: Any = None
+    camera: Any = None  # sim.camera.EgoCamera when config.camera has modalities
     state: dict[str, Any] = field(default_factory=dict)
 
 
@@ -149,7 +151,7 @@ class SceneCache:
 
 
 def build_slot(slot: SceneSlot, scene: Scene, cfg: Mapping[str, Any], machine: Any) -> None:
-    """Build `scene` into `slot`: its world, the machine of spec `machine`, both LiDARs and the route planner."""
+    """Build `scene` into `slot`: its world, the machine of spec `machine`, both LiDARs, the camera and the planner."""
     catalog = None
     if cfg["catalog"] is not None and (cfg["collision"] == "convex" or cfg["visual_meshes"]):
         from catalogs.reader import CatalogReader
@@ -173,6 +175,7 @@ def build_slot(slot: SceneSlot, scene: Scene, cfg: Mapping[str, Any], machine: A
         slot.lidar = Lidar(slot.client, **high)
         slot.low_lidar = Lidar(slot.client, **low) if low else None
     slot.planner = RoutePlanner(scene, machine.half_width, margin=float(cfg["route_margin"]))
+    slot.camera = EgoCamera(slot.client, slot.world, cfg["camera"]) if cfg["camera"]["modalities"] else None
     slot.state = {}
 
 

@@ -20,7 +20,9 @@ import numpy as np
 from curbside.config import ConfigError, merge_strict
 from sim.metrics import POINTNAV_MEASURES
 from sim.scene.dataset import SPLITS
+from sim.camera import CAMERA_DEFAULTS, CAMERA_TABLE
 from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule, check_table
+from sim.tasks.sensors import LIDAR_TABLE, RENDER_TABLE
 
 DEFAULT_CONFIG: dict[str, Any] = {
     "preset": None,                   # a TASK_PRESETS name (e.g. "metaurban12k"): its values replace these defaults
@@ -62,6 +64,8 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "reward": {},                     # overrides of the preset's terms (Reward fields)
     "measures": list(POINTNAV_MEASURES),
     "render": {"camera": "top_down", "width": 128, "height": 128, "top_down_height": 25.0},
+    "camera": CAMERA_DEFAULTS,        # the ego camera (sim.camera): modalities rgb / depth / semantic, size, fov
+    "observation": "auto",            # "flat" Box, or "dict" {lidar, state, nav, camera images}; auto: dict with a camera
 }
 
 
@@ -159,15 +163,6 @@ COLLISION_KINDS = ("object", "building", "curb", "agent", "vehicle")
 
 
 MAX_SEED = 1_000_000  # splits start 1,000,000 seeds apart: scene_seed + num_scenes stays below that
-LIDAR_TABLE = {
-    "beams": Int(1, 4096), "range": Pos(1000.0), "height": Pos(10.0), "encoding": Choice("linear", "log"),
-    "low_beams": Int(0, 4096), "low_range": Pos(1000.0), "low_height": Pos(10.0),
-    "static": Choice("auto", "grid", "bullet"), "resolution": Float(0.01, 0.5, hint="metres per grid cell"),
-}
-RENDER_TABLE = {
-    "camera": Choice("top_down", "chase"), "width": Int(16, 4096), "height": Int(16, 4096),
-    "top_down_height": Pos(1000.0),
-}
 # Overrides of a reward preset's terms (Reward fields); weights are bounded so one step cannot dwarf a return.
 REWARD_TABLE: dict[str, Rule] = {
     **{k: Float(-1e6, 1e6) for k in ("success", "out_of_route", "stuck", "disp", "lateral", "lateral_free",
@@ -213,6 +208,8 @@ CONFIG_TABLE: dict[str, Any] = {
     "reward": REWARD_TABLE,
     "measures": Rule("list", item=Rule("str")),
     "render": RENDER_TABLE,
+    "camera": CAMERA_TABLE,
+    "observation": Choice("auto", "flat", "dict"),
 }
 # Numeric MachineSpec fields of a custom machine (a dict): finite and within these bounds.
 MACHINE_TABLE: dict[str, Rule] = {

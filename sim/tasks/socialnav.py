@@ -15,7 +15,8 @@ from sim.metrics import SOCIALNAV_MEASURES
 from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule
 from sim.tasks.pointnav import CONFIG_TABLE as POINTNAV_TABLE
 from sim.tasks.pointnav import DEFAULT_CONFIG as POINTNAV_CONFIG
-from sim.tasks.pointnav import RENDER_TABLE, TASK_PRESETS
+from sim.tasks.pointnav import TASK_PRESETS
+from sim.tasks.sensors import RENDER_TABLE
 
 AGENTS_TABLE: dict[str, Rule] = {
     "dynamic_density": Float(0.0, 100.0, hint="agents per 100 m of sidewalk"),

@@ -62,6 +62,11 @@ def test_sim_options_match_the_task_defaults() -> None:
 
     assert _default(sim.app, "bench", "machine") == DEFAULT_CONFIG["machine"] == _kwdefault(run_bench, "machine")
     assert _default(sim.app, "bench", "task") == _kwdefault(run_bench, "task")
+    from sim.bench import run_camera_bench
+    from sim.camera import CAMERA_DEFAULTS
+
+    assert _default(sim.app, "bench", "size") == _kwdefault(run_camera_bench, "size") == CAMERA_DEFAULTS["width"]
+    assert _default(sim.app, "bench", "renderer") == _kwdefault(run_camera_bench, "renderer") == CAMERA_DEFAULTS["renderer"]
 
 
 def test_train_options_match_the_trainer_defaults() -> None:

@@ -113,7 +113,8 @@ def test_cli_and_table_choices_match_the_simulator() -> None:
     from sim.scene.config import PRESETS
     from sim.scene.dataset import SPLITS
     from sim.sensors import ENCODINGS
-    from sim.tasks.pointnav import LIDAR_TABLE, ROUTE_LENGTHS
+    from sim.tasks.pointnav import ROUTE_LENGTHS
+    from sim.tasks.sensors import LIDAR_TABLE
 
     assert tuple(MACHINES) == MACHINE_NAMES
     assert [s.value for s in Split] == list(SPLITS) and [p.value for p in Preset] == [*PRESETS, "none"]

@@ -1,0 +1,16 @@
+"""Config tables of the sensors a task reads: the LiDAR scans and the render() cameras (the ego camera's
+table lives with it in sim/camera.py)."""
+
+from __future__ import annotations
+
+from sim.schema import Choice, Float, Int, Pos
+
+LIDAR_TABLE = {
+    "beams": Int(1, 4096), "range": Pos(1000.0), "height": Pos(10.0), "encoding": Choice("linear", "log"),
+    "low_beams": Int(0, 4096), "low_range": Pos(1000.0), "low_height": Pos(10.0),
+    "static": Choice("auto", "grid", "bullet"), "resolution": Float(0.01, 0.5, hint="metres per grid cell"),
+}
+RENDER_TABLE = {
+    "camera": Choice("top_down", "chase"), "width": Int(16, 4096), "height": Int(16, 4096),
+    "top_down_height": Pos(1000.0),
+}

@@ -1,0 +1,152 @@
+"""The ego camera: Dict observations, metric depth and semantic ids checked against Bullet rays, determinism, errors."""
+
+from __future__ import annotations
+
+import math
+import os
+
+import gymnasium as gym
+import numpy as np
+import pybullet as p
+import pytest
+
+from curbside.config import ConfigError
+from sim.camera import SEMANTIC_CLASSES, SEMANTIC_ID, linear_depth
+from sim.envs import register_envs
+
+register_envs()
+ALL = ["rgb", "depth", "semantic"]
+
+
+def _env(modalities: list[str], size: int = 48, env_id: str = "curbside/PointNav-v0", **extra) -> gym.Env:
+    return gym.make(env_id, config={"camera": {"modalities": modalities, "width": size, "height": size}, **extra})
+
+
+def test_dict_observation_holds_the_vector_parts_and_the_images() -> None:
+    env = _env(ALL)
+    obs, _ = env.reset(seed=3)
+    space = env.observation_space
+    assert isinstance(space, gym.spaces.Dict) and set(space) == {"lidar", "state", "nav", *ALL}
+    assert space.contains(obs)
+    assert obs["rgb"].shape == (48, 48, 3) and obs["rgb"].dtype == np.uint8
+    assert obs["depth"].shape == (48, 48, 1) and obs["depth"].dtype == np.float32
+    assert obs["semantic"].shape == (48, 48) and obs["semantic"].max() < len(SEMANTIC_CLASSES)
+    # The vector parts are the flat observation split in three.
+    flat = gym.make("curbside/PointNav-v0")
+    ref, _ = flat.reset(seed=3)
+    np.testing.assert_array_equal(np.concatenate([obs["lidar"], obs["state"], obs["nav"]]), ref)
+    for _ in range(3):
+        obs, *_ = env.step(np.array([0.1, 0.6], dtype=np.float32))
+        assert space.contains(obs)
+    # Looking ahead and down from the sidewalk, the camera sees the sidewalk.
+    assert (obs["semantic"] == SEMANTIC_ID["sidewalk"]).mean() > 0.1
+    env.close()
+    flat.close()
+
+
+def _pixel_rays(env: gym.Env) -> list[tuple[float, int]]:
+    """Depth along the optical axis and body hit by Bullet rays from the eye through the centre pixel's corners
+    (TinyRenderer samples a pixel half a pixel off its centre; near the horizon depth changes fast per row)."""
+    u = env.unwrapped
+    cam, m = u.camera, u.machine
+    view = np.array(cam.view(m)).reshape(4, 4, order="F")
+    rot, t = view[:3, :3], view[:3, 3]
+    eye = -rot.T @ t
+    right, up, forward = rot[0], rot[1], -rot[2]  # OpenGL cameras look down -z
+    f = cam.intrinsics[0, 0]
+    out = []
+    for du in (-0.5, 0.5):
+        for dv in (-0.5, 0.5):
+            d = forward + (du * right + dv * up) / f
+            d /= np.linalg.norm(d)
+            hit = p.rayTest(eye.tolist(), (eye + cam.far * d).tolist(), physicsClientId=u.client)[0]
+            out.append((hit[2] * cam.far * float(d @ forward), hit[0]))
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_depth_is_metric_and_semantic_names_the_body_a_ray_hits(seed: int) -> None:
+    env = _env(ALL, size=65)  # odd: the centre pixel lies on the optical axis
+    obs, _ = env.reset(seed=seed)
+    for _ in range(5):
+        obs, *_ = env.step(np.array([0.0, 0.4], dtype=np.float32))
+    rays = _pixel_rays(env)
+    u = env.unwrapped
+    depths = [d for d, _ in rays]
+    assert min(depths) - 0.02 <= obs["depth"][32, 32, 0] <= max(depths) + 0.02, (obs["depth"][32, 32, 0], depths)
+    names = set()
+    for _, body in rays:
+        kind = u.world.kinds.get(body)
+        names.add(u.world.object_category(body) if kind == "object" else kind)
+    assert SEMANTIC_CLASSES[obs["semantic"][32, 32]] in names
+    env.close()
+
+
+def test_linear_depth_inverts_the_opengl_depth_buffer() -> None:
+    near, far = 0.05, 50.0
+    z = np.array([0.05, 1.0, 7.5, 50.0])
+    ndc = (far + near) / (far - near) - 2 * far * near / ((far - near) * z)  # OpenGL's projection of eye depth z
+    np.testing.assert_allclose(linear_depth(0.5 * ndc + 0.5, near, far), z, rtol=1e-4)
+
+
+def test_the_same_seed_renders_the_same_images() -> None:
+    runs = []
+    for _ in range(2):
+        env = _env(ALL, size=32)
+        obs, _ = env.reset(seed=11)
+        obs, *_ = env.step(np.array([0.3, 0.5], dtype=np.float32))
+        runs.append(obs)
+        env.close()
+    for k in ALL:
+        assert runs[0][k].tobytes() == runs[1][k].tobytes()
+
+
+def test_socialnav_agents_and_vehicles_have_their_own_classes() -> None:
+    env = _env(["semantic"], size=32, env_id="curbside/SocialNav-v0")
+    env.reset(seed=0)
+    u = env.unwrapped
+    agent, vehicle = u.bodies.agents[0], u.bodies.vehicles[0]
+    mask = np.array([[agent, vehicle], [u.machine.body, -1]])
+    got = u.camera.classes(mask, u.machine.body, u._collision_kinds)
+    assert [SEMANTIC_CLASSES[i] for i in got.ravel()] == ["agent", "vehicle", "ego", "unlabeled"]
+    env.close()
+
+
+def test_flat_observation_without_camera_is_unchanged() -> None:
+    env = gym.make("curbside/PointNav-v0")
+    assert isinstance(env.observation_space, gym.spaces.Box)
+    env.close()
+
+
+@pytest.mark.parametrize(("config", "message"), [
+    ({"camera": {"modalities": ["thermal"]}}, "thermal"),
+    ({"camera": {"modalities": ["rgb"]}, "observation": "flat"}, "observation 'flat' cannot hold camera images"),
+    ({"camera": {"modalities": ["rgb"], "fov": 0.0}}, "fov"),
+    ({"camera": {"modalities": ["rgb"], "zoom": 2}}, "unknown key 'zoom'"),
+])
+def test_bad_camera_configs_name_the_problem(config: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        gym.make("curbside/PointNav-v0", config=config)
+
+
+@pytest.mark.skipif(any(os.path.exists(f"/dev/nvidia{k}") for k in range(8)) or os.path.exists("/dev/dri/renderD128"),
+                    reason="a GPU is present: EGL may load")
+def test_egl_without_a_gpu_says_so() -> None:
+    env = gym.make("curbside/PointNav-v0", config={"camera": {"modalities": ["rgb"], "renderer": "egl"}})
+    with pytest.raises(ConfigError, match="needs a GPU with EGL"):
+        env.reset(seed=0)
+    env.close()
+
+
+def test_the_batched_env_refuses_cameras() -> None:
+    with pytest.raises(ConfigError, match="nothing to render"):
+        gym.make_vec("curbside/PointNav-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                     config={"camera": {"modalities": ["rgb"]}})
+
+
+def test_intrinsics_match_the_field_of_view() -> None:
+    env = _env(["depth"], size=64)
+    env.reset(seed=0)
+    k = env.unwrapped.camera.intrinsics
+    assert k[0, 0] == pytest.approx(32 / math.tan(math.radians(45)))
+    env.close()
