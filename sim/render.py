@@ -93,3 +93,35 @@ def rollout_gif(env_id: str, policy: str, out: Any, config: dict | None = None, 
     imageio.mimsave(out, frames, duration=1000 / fps, loop=0)
     Image.fromarray(frames[-1]).save(out.with_suffix(".png"))
     return metrics
+
+
+def rollout_video(env_id: str, policy: str, out: Any, config: dict | None = None, *, seed: int = 0,
+                  fps: int = 10) -> dict[str, float]:
+    """Run one episode through Gymnasium's RecordVideo (the env's dashboard frames) and write it as MP4 to `out`."""
+    import shutil
+    import tempfile
+    from pathlib import Path
+
+    import gymnasium as gym
+
+    from sim.envs import register_envs
+    from sim.rollout import make_policy, rollout
+
+    try:
+        import moviepy  # noqa: F401
+    except ImportError:
+        raise ValueError("writing a video needs moviepy: pip install 'curbside[viewer]'") from None
+    register_envs()
+    out = Path(out)
+    with tempfile.TemporaryDirectory() as tmp:
+        env = gym.make(env_id, config=dict(config or {}), render_mode="rgb_array")
+        env = gym.wrappers.RecordVideo(env, f"{tmp}/video", episode_trigger=lambda _: True, name_prefix="rollout",
+                                       fps=fps)
+        try:
+            metrics = rollout(env, make_policy(policy, env.unwrapped), seed)
+        finally:
+            env.close()
+        (video,) = Path(tmp, "video").glob("rollout-episode-0.mp4")
+        out.parent.mkdir(parents=True, exist_ok=True)
+        shutil.move(str(video), out)
+    return metrics

@@ -89,18 +89,30 @@ def rollout_cmd(
     scene_path: Optional[Path] = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of a generated scene."),
     config: Optional[str] = typer.Option(None, help="Extra env config as a JSON object."),
     chase: bool = typer.Option(True, help="Add the chase-camera view next to the map."),
+    video: Optional[Path] = typer.Option(None, "--video", help="Write an MP4 of the env's dashboard (chase view, map, "
+                                         "camera panels, metrics) through Gymnasium's RecordVideo instead of the GIF."),
     metrics_out: Optional[Path] = typer.Option(None, help="Also write the episode's metrics as JSON here."),
 ) -> None:
-    """Run one episode and write an animated GIF: top-down map with route and trajectory (+ chase camera)."""
-    from sim.render import rollout_gif
+    """Run one episode and write an animated GIF: top-down map with route and trajectory (+ chase camera), or with
+    --video an MP4 of the dashboard."""
+    from sim.render import rollout_gif, rollout_video
 
-    for path, flag in ((out, "--out"), (metrics_out, "--metrics-out")):
+    for path, flag in ((out, "--out"), (video, "--video"), (metrics_out, "--metrics-out")):
         if path is not None and path.is_dir():
             raise UsageError(f"{flag} {path} is a directory; give a file path such as {path / 'rollout.gif'}")
     env_id = TASKS[task.value]
     cfg = _env_config(machine, scene_path, config)
     _check_env(env_id, cfg)
-    metrics = rollout_gif(env_id, policy.value, out, cfg, seed=seed, chase=chase)
+    if video is not None:
+        if video.suffix.lower() != ".mp4":
+            raise UsageError(f"--video {video} must end in .mp4")
+        try:
+            metrics = rollout_video(env_id, policy.value, video, cfg, seed=seed)
+        except ValueError as e:
+            raise UsageError(str(e)) from None
+        out = video
+    else:
+        metrics = rollout_gif(env_id, policy.value, out, cfg, seed=seed, chase=chase)
     if metrics_out:
         metrics_out.parent.mkdir(parents=True, exist_ok=True)
         metrics_out.write_text(json.dumps(metrics, indent=2, sort_keys=True))
@@ -135,3 +147,34 @@ def bench_cmd(
         return
     for k, v in result.items():
         typer.echo(f"{k:>24}: {v:.4g}" if isinstance(v, float) else f"{k:>24}: {v}")
+
+
+Device = Enum("Device", {k: k for k in ("keyboard", "gamepad", "wheel")}, type=str)  # type: ignore[misc]
+
+
+@app.command("teleop")
+def teleop_cmd(
+    task: Task = typer.Option("PointNav", help="Task to drive."),
+    device: Device = typer.Option("keyboard", help="keyboard (arrows/WASD, R ends the episode, Esc stops), gamepad "
+                                  "or wheel (the first pygame joystick)."),
+    mapping: Optional[Path] = typer.Option(None, exists=True, dir_okay=False, help="JSON axis map over the device's "
+                                           "preset (steer_axis, throttle_axis, brake_axis, invert_*, pedals, deadzone)."),
+    out: Path = typer.Option(Path("outputs/demos"), help="Minari datasets root; episodes go to "
+                             "OUT/curbside/<task>-teleop-v0."),
+    episodes: Optional[int] = typer.Option(None, min=1, help="Stop after this many episodes (default: until Esc)."),
+    machine: Optional[MachineName] = typer.Option(None, help="Machine (default: the task's)."),
+    seed: int = typer.Option(0, min=0, max=MAX_SEED, help="First episode's seed."),
+    scene_path: Optional[Path] = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of a generated scene."),
+    config: Optional[str] = typer.Option(None, help="Extra env config as a JSON object."),
+) -> None:
+    """Drive a task by hand in a window (dashboard with live metrics) and record the episodes as a Minari dataset,
+    the format of `curbside demos collect`. Needs a display (or xvfb-run) and `pip install 'curbside[viewer]'`."""
+    from curbside.train.teleop import teleop
+
+    env_id = TASKS[task.value]
+    cfg = _env_config(machine, scene_path, config)
+    _check_env(env_id, cfg)
+    summary = teleop(task.value, out, device=device.value, mapping_file=mapping, env_config=cfg, episodes=episodes,
+                     seed=seed)
+    typer.echo(f"wrote {summary['path']}: {summary['episodes']} episode(s), {summary['steps']} steps, success rate "
+               f"{summary['success_rate']:.2f}")

@@ -49,66 +49,97 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
     """Drive the noisy expert on the train split until `steps` steps (whole episodes); write a Minari dataset
     under `out` (its datasets root) and return a summary: path, episodes, steps, success rate."""
     import gymnasium as gym
-    import minari
-    from minari.data_collector import EpisodeBuffer
 
     import sim  # noqa: F401
     from sim.expert import PurePursuitExpert
 
     if steps < 1 or not 0.0 <= noise < 10 or not 0.0 <= random_prob <= 1.0:
         raise ConfigError("demos need steps >= 1, 0 <= noise < 10 and 0 <= random_prob <= 1")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    os.environ["MINARI_DATASETS_PATH"] = str(out.resolve())
     did = dataset_id(task)
-    target = out / did
-    if target.exists():
-        import shutil
-        shutil.rmtree(target)  # a collection replaces the previous one: same id, same path
     cfg = split_config(env_config, "train", num_scenes)
     env = gym.make(env_id(task), config=cfg)
     expert = PurePursuitExpert()
     rng = np.random.default_rng(seed)
     env.action_space.seed(seed)
     total, successes = 0, 0
-    buffers: list[EpisodeBuffer] = []
+    buffers: list[Any] = []
     try:
         with progress_bar(f"demos {task}", steps, progress) as update:
             while total < steps:
                 ep_seed = seed + len(buffers)
                 obs, _ = env.reset(seed=ep_seed)
                 random_episode = rng.random() < random_prob
-                ep: dict[str, list] = {"observations": [obs], "actions": [], "rewards": [], "terminations": [], "truncations": []}
+                episode = EpisodeRecorder(obs, ep_seed)
                 done = False
                 while not done:
                     a = env.action_space.sample() if random_episode else expert.act(env) + rng.normal(0.0, noise, 2)
                     a = np.clip(a, -1, 1).astype(np.float32)
                     obs, r, term, trunc, info = env.step(a)
-                    for k, v in zip(("observations", "actions", "rewards", "terminations", "truncations"), (obs, a, r, term, trunc)):
-                        ep[k].append(v)
+                    episode.add(a, obs, r, term, trunc)
                     done = term or trunc
                     total += 1
                 successes += int(info["is_success"])
-                buffers.append(EpisodeBuffer(id=len(buffers), seed=ep_seed, observations=np.asarray(ep["observations"]),
-                                             actions=np.asarray(ep["actions"]), rewards=ep["rewards"],
-                                             terminations=ep["terminations"], truncations=ep["truncations"]))
+                buffers.append(episode.buffer(len(buffers)))
                 update(total)
-        # Built from buffers, not minari.DataCollector: the collector needs jax for nothing more than list appends.
-        with warnings.catch_warnings():
-            # Minari asks for a code permalink, an e-mail and an eval env; the env spec it records is the eval env.
-            warnings.filterwarnings("ignore", category=UserWarning, module="minari")
-            ds = minari.create_dataset_from_buffers(
-                dataset_id=did, buffer=buffers, env=env, algorithm_name=f"PurePursuitExpert(noise={noise}, random_prob={random_prob})",
-                author="curbside", description=f"{task} demonstrations on the train split: the pure-pursuit expert with "
-                "Gaussian action noise (curbside demos collect).", data_format="arrow")
+        summary = write_dataset(buffers, env, out, did, algorithm=f"PurePursuitExpert(noise={noise}, random_prob={random_prob})",
+                                description=f"{task} demonstrations on the train split: the pure-pursuit expert with "
+                                "Gaussian action noise (curbside demos collect).")
     finally:
         env.close()
-    episodes = len(buffers)
-    summary = {"dataset_id": did, "path": str(target), "episodes": episodes, "steps": total,
-               "success_rate": successes / max(episodes, 1), "noise": noise, "random_prob": random_prob,
-               "task": task, "total_steps_minari": int(ds.total_steps)}
-    (target / "curbside.json").write_text(json.dumps(summary, indent=2))
+    summary.update({"steps": total, "success_rate": successes / max(len(buffers), 1), "noise": noise,
+                    "random_prob": random_prob, "task": task})
+    (Path(summary["path"]) / "curbside.json").write_text(json.dumps(summary, indent=2))
     return summary
+
+
+class EpisodeRecorder:
+    """One episode's observations, actions, rewards and end flags, as Minari's EpisodeBuffer wants them."""
+
+    def __init__(self, first_obs: Any, seed: int | None) -> None:
+        self.seed = seed
+        self.cols: dict[str, list] = {"observations": [first_obs], "actions": [], "rewards": [], "terminations": [],
+                                      "truncations": []}
+
+    def add(self, action: np.ndarray, obs: Any, reward: float, terminated: bool, truncated: bool) -> None:
+        """Record one step: the action taken and what followed."""
+        for k, v in zip(("actions", "observations", "rewards", "terminations", "truncations"),
+                        (action, obs, reward, terminated, truncated)):
+            self.cols[k].append(v)
+
+    def __len__(self) -> int:
+        return len(self.cols["actions"])
+
+    def buffer(self, episode_id: int) -> Any:
+        """The minari EpisodeBuffer (Dict observations are stacked per key)."""
+        from minari.data_collector import EpisodeBuffer
+
+        o = self.cols["observations"]
+        obs = {k: np.asarray([x[k] for x in o]) for k in o[0]} if isinstance(o[0], dict) else np.asarray(o)
+        return EpisodeBuffer(id=episode_id, seed=self.seed, observations=obs, actions=np.asarray(self.cols["actions"]),
+                             rewards=self.cols["rewards"], terminations=self.cols["terminations"],
+                             truncations=self.cols["truncations"])
+
+
+def write_dataset(buffers: list[Any], env: Any, out: Path, did: str, *, algorithm: str, description: str) -> dict[str, Any]:
+    """Write episode buffers as the Minari dataset `did` under the datasets root `out` (replacing one of the same
+    id); returns its id, path, episode count and Minari's step count."""
+    import shutil
+
+    import minari
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    os.environ["MINARI_DATASETS_PATH"] = str(out.resolve())
+    target = out / did
+    if target.exists():
+        shutil.rmtree(target)  # a collection replaces the previous one: same id, same path
+    # Built from buffers, not minari.DataCollector: the collector needs jax for nothing more than list appends.
+    with warnings.catch_warnings():
+        # Minari asks for a code permalink, an e-mail and an eval env; the env spec it records is the eval env.
+        warnings.filterwarnings("ignore", category=UserWarning, module="minari")
+        ds = minari.create_dataset_from_buffers(dataset_id=did, buffer=buffers, env=env, algorithm_name=algorithm,
+                                                author="curbside", description=description, data_format="arrow")
+    return {"dataset_id": did, "path": str(target), "episodes": len(buffers), "total_steps_minari": int(ds.total_steps)}
 
 
 def load_demos(path: Path) -> tuple[Transitions, dict[str, Any]]:

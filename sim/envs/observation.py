@@ -48,6 +48,7 @@ class EgoObservation:
         low[: self.num_beams + self.num_low_beams] = 0.0
         self.space = gym.spaces.Box(low, np.ones(n, dtype=np.float32), dtype=np.float32)
         self.mode = observation_mode(cfg)
+        self.last_images: dict[str, np.ndarray] = {}  # the camera's latest images (the dashboard shows them)
         b = self.num_beams + self.num_low_beams
         self._parts = {"lidar": slice(0, b), "state": slice(b, b + 6), "nav": slice(b + 6, n)}
         if self.mode == "dict":
@@ -87,5 +88,5 @@ class EgoObservation:
         np.clip(obs, -1.0, 1.0, out=obs)
         if self.mode == "flat":
             return obs
-        images = camera.capture(machine, extra_kinds) if camera is not None else {}
+        images = self.last_images = camera.capture(machine, extra_kinds) if camera is not None else {}
         return {**{k: obs[sl] for k, sl in self._parts.items()}, **images}

@@ -21,6 +21,7 @@ from sim.route import RoutePlanner
 from sim.scene.scene import Scene
 from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, Termination, check_config, make_reward,
                                 resolve_task_config)
+from sim.viewer import close_window, render_frame
 from sim.world import World, touching
 
 STATIC_COLLISION_KINDS = ("object", "building", "curb")  # with "agent" and "vehicle": sim.tasks.pointnav.COLLISION_KINDS
@@ -72,7 +73,7 @@ class PointNavEnv(gym.Env):
     `_collision_kinds`, `collision_kinds_all`, `_episode_metrics()`: see docs/simulator.md.
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
     default_config: dict[str, Any] = DEFAULT_CONFIG
     presets: dict[str, dict[str, Any]] = TASK_PRESETS
     config_table: dict[str, Any] = CONFIG_TABLE  # (key -> type, range) of every config key; subclasses extend it
@@ -81,8 +82,8 @@ class PointNavEnv(gym.Env):
     def __init__(self, config: Mapping[str, Any] | None = None, render_mode: str | None = None) -> None:
         self.config = resolve_task_config(self.default_config, config, self.presets)
         cfg = self.config
-        if render_mode not in (None, "rgb_array"):
-            raise ConfigError(f"unknown render_mode {render_mode!r}; valid: rgb_array (or None)")
+        if render_mode not in (None, "rgb_array", "human"):
+            raise ConfigError(f"unknown render_mode {render_mode!r}; valid: rgb_array, human (or None)")
         self.render_mode = render_mode
         check_config(cfg, self.config_table, self.default_config)  # every value, before anything is built on it
         self.spec_machine = machine_spec(cfg["machine"])
@@ -280,21 +281,20 @@ class PointNavEnv(gym.Env):
 
     def _observe(self) -> np.ndarray:
         ep = self.episode
-        return self.observation(self.machine, self.route, ep.progress, ep.lateral, ep.last_action, self.lidar,
-                                self.low_lidar, self.camera, self._collision_kinds)
+        obs = self.observation(self.machine, self.route, ep.progress, ep.lateral, ep.last_action, self.lidar,
+                               self.low_lidar, self.camera, self._collision_kinds)
+        if self.render_mode == "human":
+            self.render()
+        return obs
 
     def render(self) -> np.ndarray | None:
-        """An RGB frame (H, W, 3) from the configured camera ('top_down' or 'chase') via TinyRenderer."""
-        if self.render_mode != "rgb_array":
-            return None
-        from sim.render import camera_image
-        r = self.config["render"]
-        return camera_image(self, camera=r["camera"], width=int(r["width"]), height=int(r["height"]),
-                            top_down_height=float(r["top_down_height"]))
+        """An RGB frame (H, W, 3) of `render.camera` (sim.viewer): "dashboard" (chase view, map, camera panels,
+        metrics), "top_down" or "chase"; in "human" mode it goes to a pygame window instead."""
+        return render_frame(self)
 
     def close(self) -> None:
-        """Disconnect every Bullet client of the scene cache."""
+        """Close the viewer window and disconnect every Bullet client of the scene cache."""
+        close_window(self)
         if getattr(self, "cache", None) is not None:
             self.cache.close()
-            self.cache = None
-            self.client = None
+            self.cache, self.client = None, None

@@ -9,7 +9,6 @@ from typing import Any
 import numpy as np
 
 from sim.agents.crowd import AgentManager, EgoState
-from sim.agents.render import draw_top_down
 from sim.agents.vehicles import VehicleManager
 from sim.envs.bodies import CohabitantBodies
 from sim.envs.pointnav import PointNavEnv
@@ -32,8 +31,8 @@ class SocialNavEnv(PointNavEnv):
     | `vehicle_states()` | structured array x, y, vx, vy, yaw, length, width |
     | config | `agents` (sim.agents.AGENT_DEFAULTS), `vehicles`, `traffic`, `personal_space`, `stl_cruise_speed` |
 
-    `render()` with camera "map" (default) draws a top-down map with agents by kind and short trails;
-    "top_down" and "chase" are PointNav's TinyRenderer cameras.
+    `render()` draws PointNav's dashboard (default; its map shows agents by kind with short trails), or camera
+    "map" (the map alone), "top_down" or "chase" (sim/viewer.py).
     """
 
     default_config: dict[str, Any] = DEFAULT_CONFIG
@@ -151,17 +150,3 @@ class SocialNavEnv(PointNavEnv):
     def vehicle_states(self) -> np.ndarray:
         """Every vehicle's x, y, vx, vy, yaw, length and width (structured array)."""
         return self.traffic.states() if self.config["traffic"] else np.zeros(0, dtype=self.traffic.states().dtype)
-
-    def render(self) -> np.ndarray | None:
-        """RGB frame: the top-down agent map (camera 'map') or PointNav's TinyRenderer cameras."""
-        if self.render_mode != "rgb_array":
-            return None
-        r = self.config["render"]
-        if r["camera"] != "map":
-            return super().render()
-        m = self.machine
-        x, y, _ = m.position
-        return draw_top_down(self.scene, (x, y), agents=self.crowd.states(), trails=self.crowd.trail,
-                             vehicles=self.vehicle_states(), ego=(x, y, m.yaw, m.spec.length, m.spec.width),
-                             route=self.route.point_at(np.linspace(0.0, self.route.length, 100)),
-                             size=int(r["width"]), view=float(r["top_down_height"]) * 1.6)

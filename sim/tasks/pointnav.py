@@ -63,7 +63,7 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "reward_preset": "learnable",     # "learnable" or "paper" (REWARD_PRESETS)
     "reward": {},                     # overrides of the preset's terms (Reward fields)
     "measures": list(POINTNAV_MEASURES),
-    "render": {"camera": "top_down", "width": 128, "height": 128, "top_down_height": 25.0},
+    "render": {"camera": "dashboard", "width": 768, "height": 384, "top_down_height": 25.0},
     "camera": CAMERA_DEFAULTS,        # the ego camera (sim.camera): modalities rgb / depth / semantic, size, fov
     "observation": "auto",            # "flat" Box, or "dict" {lidar, state, nav, camera images}; auto: dict with a camera
 }

@@ -11,6 +11,6 @@ LIDAR_TABLE = {
     "static": Choice("auto", "grid", "bullet"), "resolution": Float(0.01, 0.5, hint="metres per grid cell"),
 }
 RENDER_TABLE = {
-    "camera": Choice("top_down", "chase"), "width": Int(16, 4096), "height": Int(16, 4096),
+    "camera": Choice("dashboard", "top_down", "chase"), "width": Int(16, 4096), "height": Int(16, 4096),
     "top_down_height": Pos(1000.0),
 }

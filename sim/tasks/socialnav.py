@@ -74,7 +74,7 @@ CONFIG_TABLE: dict[str, Any] = {
     "traffic": Bool(),
     "personal_space": Float(0.0, 10.0, hint="metres between body surfaces"),
     "stl_cruise_speed": Pos(50.0, hint="m/s"),
-    "render": {**RENDER_TABLE, "camera": Choice("map", "top_down", "chase")},
+    "render": {**RENDER_TABLE, "camera": Choice("dashboard", "map", "top_down", "chase")},
 }
 
 DEFAULT_CONFIG: dict[str, Any] = {
@@ -86,7 +86,6 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "stl_cruise_speed": 2.5,  # m/s; t_ref = geodesic / min(this, v_max); the expert's cruise speed
     "cost_kinds": ["object", "building", "agent", "vehicle"],
     "measures": list(SOCIALNAV_MEASURES),
-    "render": {**POINTNAV_CONFIG["render"], "camera": "map", "width": 256, "height": 256},
 }
 # SocialNav's presets: PointNav's plus the paper's 10 dynamic agents per block (7.2 per 100 m of sidewalk on the
 # metaurban12k scenes, which have ~139 m of sidewalk per block).

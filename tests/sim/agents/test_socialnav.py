@@ -96,7 +96,7 @@ def test_deterministic_and_renders(env) -> None:
     x, y, _ = u.machine.position
     u.crowd.pos[0] = (x + 3.0, y + 3.0)
     frame = env.render()
-    assert frame.shape == (256, 256, 3) and frame.dtype == np.uint8
+    assert frame.shape == (384, 768, 3) and frame.dtype == np.uint8  # the dashboard: chase view and map
     from sim.agents.kinds import AGENT_KINDS
     colour = np.array([int(255 * c) for c in AGENT_KINDS[str(u.agent_states()["kind"][0])].color])
     assert (frame.reshape(-1, 3) == colour).all(1).sum() > 10, "the agent next to the ego is drawn in its kind colour"

@@ -1,0 +1,174 @@
+"""What `env.render()` draws and where "human" mode shows it: the dashboard (chase camera, map around the ego,
+the ego camera's images, live metrics), the agents' map, or a plain TinyRenderer camera (docs/cameras.md)."""
+
+from __future__ import annotations
+
+import os
+import weakref
+from typing import Any
+
+import numpy as np
+from PIL import Image, ImageDraw
+
+from curbside.config import ConfigError
+from sim.camera import SEMANTIC_CLASSES
+from sim.palette import SURFACE, category_color, rgb255
+
+PANEL_BG = (24, 24, 28)
+TEXT = (235, 235, 235)
+_WINDOWS: weakref.WeakKeyDictionary[Any, HumanWindow] = weakref.WeakKeyDictionary()
+
+
+def semantic_palette() -> np.ndarray:
+    """RGB uint8 colour per semantic id: surfaces and categories in the top-down map's colours."""
+    out = np.zeros((len(SEMANTIC_CLASSES), 3), dtype=np.uint8)
+    extra = {"unlabeled": (0.55, 0.75, 0.95), "ground": SURFACE["ground"], "agent": (0.9, 0.2, 0.6),
+             "vehicle": (0.95, 0.85, 0.1), "ego": (0.1, 0.8, 0.9)}
+    for k, name in enumerate(SEMANTIC_CLASSES):
+        colour = extra.get(name) or SURFACE.get(name) or category_color(name)
+        out[k] = rgb255(colour)
+    return out
+
+
+_PALETTE = semantic_palette()
+
+
+def colourise(name: str, image: np.ndarray, far: float = 50.0) -> np.ndarray:
+    """An RGB view of one camera modality: rgb as is, depth as grey (near bright, log scale), semantic coloured."""
+    if name == "rgb":
+        return image
+    if name == "depth":
+        d = np.log1p(np.clip(image[..., 0], 0.0, far)) / np.log1p(far)
+        grey = (255 * (1.0 - d)).astype(np.uint8)
+        return np.repeat(grey[..., None], 3, axis=2)
+    return _PALETTE[np.minimum(image, len(_PALETTE) - 1)]
+
+
+def _fit(image: np.ndarray, width: int, height: int) -> np.ndarray:
+    return np.asarray(Image.fromarray(image).resize((max(width, 1), max(height, 1)), Image.NEAREST))
+
+
+def top_down_map(env: Any, size: int, view: float) -> np.ndarray:
+    """The map of a `view`-metre window around the ego: scene, route, agents and vehicles (SocialNav), ego."""
+    from sim.agents.render import draw_top_down
+
+    m = env.machine
+    x, y, _ = m.position
+    social = getattr(env, "has_agents", False)
+    return draw_top_down(env.scene, (x, y), agents=env.crowd.states() if social else None,
+                         trails=env.crowd.trail if social else None, vehicles=env.vehicle_states() if social else None,
+                         ego=(x, y, m.yaw, m.spec.length, m.spec.width),
+                         route=env.route.point_at(np.linspace(0.0, env.route.length, 200)), size=size, view=view)
+
+
+def hud_text(env: Any) -> str:
+    """One line of live metrics: step, speed, route completion, collisions and cost."""
+    ep, m = env.episode, env.machine
+    done = min(ep.max_progress / env.route.length, 1.0) if env.route.length > 0 else 0.0
+    return (f"step {ep.steps}/{ep.horizon}   {3.6 * m.speed:5.1f} km/h   route {100 * done:3.0f} %   "
+            f"cost {ep.cost_total}   {env.spec_machine.name}")
+
+
+def dashboard(env: Any, width: int, height: int, view: float) -> np.ndarray:
+    """Chase camera (left), map around the ego (right), ego-camera panels under the chase view, a metrics line."""
+    from sim.render import camera_image
+
+    bar = 18 if height >= 120 else 0
+    body = height - bar
+    map_w = min(body, width // 2)
+    chase_w = width - map_w
+    frame = np.empty((height, width, 3), dtype=np.uint8)
+    frame[:] = PANEL_BG
+    frame[bar:, :chase_w] = camera_image(env, "chase", chase_w, body)
+    frame[bar:, chase_w:] = _fit(top_down_map(env, map_w, view), map_w, body)
+    images = getattr(env.observation, "last_images", None) or {}
+    if images and body >= 96:
+        side = body // 4
+        for k, (name, image) in enumerate(images.items()):
+            x0 = 4 + k * (side + 4)
+            if x0 + side <= chase_w:
+                frame[height - side - 4:height - 4, x0:x0 + side] = _fit(colourise(name, image), side, side)
+    if bar:
+        img = Image.fromarray(frame)
+        ImageDraw.Draw(img).text((6, 3), hud_text(env), fill=TEXT)
+        frame = np.asarray(img)
+    return frame
+
+
+def render_frame(env: Any) -> np.ndarray | None:
+    """`env.render()`: the frame of config.render's camera; in "human" mode it is shown in a window (returns None)."""
+    if env.render_mode is None:
+        return None
+    from sim.render import camera_image
+
+    r = env.config["render"]
+    w, h, camera = int(r["width"]), int(r["height"]), r["camera"]
+    if camera == "dashboard":
+        frame = dashboard(env, w, h, float(r["top_down_height"]))
+    elif camera == "map":
+        frame = top_down_map(env, w, float(r["top_down_height"]) * 1.6)
+    else:
+        frame = camera_image(env, camera=camera, width=w, height=h, top_down_height=float(r["top_down_height"]))
+    if env.render_mode != "human":
+        return frame
+    window = _WINDOWS.get(env)
+    if window is None:
+        window = _WINDOWS[env] = HumanWindow(f"curbside {type(env).__name__}", int(env.metadata["render_fps"]))
+    window.show(frame)
+    return None
+
+
+def window_of(env: Any) -> HumanWindow | None:
+    """The "human" window of `env` (opened by its first render), or None."""
+    return _WINDOWS.get(env)
+
+
+def close_window(env: Any) -> None:
+    """Close the env's "human" window, if it has one."""
+    window = _WINDOWS.pop(env, None)
+    if window is not None:
+        window.close()
+
+
+class HumanWindow:
+    """A pygame window showing RGB frames at most `fps` a second (works under Xvfb or SDL_VIDEODRIVER=dummy)."""
+
+    def __init__(self, title: str, fps: int) -> None:
+        try:
+            import pygame
+        except ImportError:
+            raise ConfigError("render_mode 'human' needs pygame: pip install 'curbside[viewer]'") from None
+        if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") or os.environ.get("SDL_VIDEODRIVER")):
+            raise ConfigError("render_mode 'human' needs a display and DISPLAY is not set; run under a desktop or "
+                              "`xvfb-run`, or use render_mode 'rgb_array' (RecordVideo, `curbside sim rollout --video`)")
+        self.pygame = pygame
+        pygame.display.init()
+        pygame.display.set_caption(title)
+        self.screen = None
+        self.clock = pygame.time.Clock()
+        self.fps = fps
+        self.closed = False  # the user closed the window
+        self.events: list[Any] = []  # pygame events since the last take_events() (teleop reads keys from them)
+
+    def show(self, frame: np.ndarray) -> None:
+        """Draw one frame and handle the window's events."""
+        pg = self.pygame
+        h, w = frame.shape[:2]
+        if self.screen is None or self.screen.get_size() != (w, h):
+            self.screen = pg.display.set_mode((w, h))
+        pg.surfarray.blit_array(self.screen, np.ascontiguousarray(frame.swapaxes(0, 1)))
+        events = pg.event.get()
+        self.closed = self.closed or any(e.type == pg.QUIT for e in events)
+        self.events.extend(events[-256:])
+        del self.events[:-256]  # nobody reading them (plain viewing): keep the latest few
+        pg.display.flip()
+        self.clock.tick(self.fps)
+
+    def take_events(self) -> list[Any]:
+        """The events gathered since the last call."""
+        events, self.events = self.events, []
+        return events
+
+    def close(self) -> None:
+        """Close the window."""
+        self.pygame.display.quit()
