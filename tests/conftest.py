@@ -15,7 +15,9 @@ os.environ["MPLBACKEND"] = "Agg"
 os.environ.setdefault("HF_HUB_DISABLE_PROGRESS_BARS", "1")
 os.environ.setdefault("TOKENIZERS_PARALLELISM", "false")
 
-from collections.abc import Callable
+import shutil
+import subprocess
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -92,3 +94,24 @@ def unit_vectors(n: int, dim: int = 384, seed: int = 0) -> np.ndarray:
 def random_unit_vectors() -> Callable[..., np.ndarray]:
     """Factory of deterministic random unit vectors: random_unit_vectors(n, dim=384, seed=0)."""
     return unit_vectors
+
+
+@pytest.fixture(scope="module")
+def x_display() -> Iterator[str]:
+    """A real X display from Xvfb where it is installed (the Makefile adds it when apt can), else SDL's dummy
+    video driver (the same pygame window code, no X server)."""
+    mp = pytest.MonkeyPatch()
+    server = None
+    if shutil.which("Xvfb"):
+        # -displayfd: Xvfb picks a free display (xdist workers start their own) and prints it once it is ready.
+        server = subprocess.Popen(["Xvfb", "-displayfd", "1", "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+                                  stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        mp.setenv("DISPLAY", f":{server.stdout.readline().strip()}")
+        mp.delenv("SDL_VIDEODRIVER", raising=False)
+    else:
+        mp.setenv("SDL_VIDEODRIVER", "dummy")
+    yield "xvfb" if server else "dummy"
+    mp.undo()
+    if server is not None:
+        server.terminate()
+        server.wait()

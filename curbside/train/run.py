@@ -51,7 +51,7 @@ def train(algo: str, task: str, out: Path, *, steps: int, env_config: Mapping[st
     if algo == "bc":
         from curbside.train.imitate import train_bc
         return train_bc(transitions, out, steps=steps, observation_space=obs_space, action_space=act_space, seed=seed,
-                        progress=progress)
+                        batch_size=int((hparams or {}).get("batch_size", 256)), progress=progress)
     from curbside.train.imitate import train_gail
 
     vec = make_vec_env(task, cfg, n_envs, num_scenes, subprocess=subprocess, seed=seed)

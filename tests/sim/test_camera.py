@@ -150,3 +150,43 @@ def test_intrinsics_match_the_field_of_view() -> None:
     k = env.unwrapped.camera.intrinsics
     assert k[0, 0] == pytest.approx(32 / math.tan(math.radians(45)))
     env.close()
+
+
+@pytest.mark.parametrize("seed", [1, 4])
+def test_depth_along_the_centre_row_matches_the_lidar(seed: int) -> None:
+    # A level camera sees along its centre row what a LiDAR at the same point and height measures along its beams.
+    from sim.sensors import Lidar
+
+    height = 0.4
+    cam = {"modalities": ["depth"], "width": 161, "height": 33, "fov": 60.0, "mount_height": height, "pitch": 0.0}
+    env = gym.make("curbside/PointNav-v0", config={"camera": cam})
+    obs, _ = env.reset(seed=seed)
+    for _ in range(8):
+        obs, *_ = env.step(np.array([0.2, 0.5], dtype=np.float32))
+    u = env.unwrapped
+    m, f = u.machine, u.camera.intrinsics[0, 0]
+    x, y, z = m.position
+    ex, ey = x + 0.5 * m.spec.length * math.cos(m.yaw), y + 0.5 * m.spec.length * math.sin(m.yaw)
+    lidar = Lidar(u.client, beams=720, range_m=50.0, height=height, start_radius=0.05)
+    d = lidar.scan(ex, ey, z, m.yaw).astype(np.float64) * lidar.range_m
+    angles = np.arctan2(np.sin(lidar.angles), np.cos(lidar.angles))
+    seen = (np.abs(np.tan(angles)) * f < 75) & (np.abs(angles) < math.pi / 2) & (d < 0.99 * lidar.range_m)
+    # TinyRenderer samples pixel (r, c) at its corner (r, c), not its centre: the optical axis, at 80.5 across
+    # and 16.5 down, falls between rows 15 and 16, and a point at tan(angle) left of it lies at 80.5 - f tan(angle).
+    cols = np.clip(np.rint(80.5 - f * np.tan(angles[seen])).astype(int), 0, 160)
+    expected = d[seen] * np.cos(angles[seen])  # depth is measured along the optical axis
+    # Row 16 looks a fraction of a degree down (the ground beyond ~23 m), row 15 as much up: the beam is between.
+    got = np.maximum(obs["depth"][15, cols, 0], obs["depth"][16, cols, 0])
+    close = np.abs(got - expected) <= 0.1 + 0.05 * expected
+    # A beam and its pixel sample a surface a fraction of a degree apart: at an edge, or along a wall seen at a
+    # grazing angle, one of them may land elsewhere.
+    assert seen.sum() >= 40 and close.mean() >= 0.85, (close.mean(), seen.sum())
+    env.close()
+
+
+def test_check_env_passes_with_the_dict_space() -> None:
+    from gymnasium.utils.env_checker import check_env
+
+    env = _env(ALL, size=32)
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()

@@ -32,9 +32,8 @@ def test_the_dashboard_shows_the_camera_panels_and_metrics() -> None:
     assert plain[:18].std() > 5  # HUD text on the bar
 
 
-def test_human_mode_draws_into_a_window_and_closes_it(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_human_mode_draws_into_a_window_and_closes_it(x_display: str) -> None:
     pytest.importorskip("pygame")
-    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
     env = gym.make("curbside/PointNav-v0", config=SHORT, render_mode="human")
     env.reset(seed=0)
     import pygame

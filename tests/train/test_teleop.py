@@ -13,12 +13,14 @@ pg = pytest.importorskip("pygame")
 pytest.importorskip("minari")
 
 from curbside.train.demos import load_demos  # noqa: E402
+from curbside.train.policies import load_policy  # noqa: E402
+from curbside.train.run import train  # noqa: E402
 from curbside.train.teleop import DEVICE_PRESETS, axes_action, device_mapping, teleop  # noqa: E402
 
 
 @pytest.fixture(autouse=True)
-def _dummy_display(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")  # what xvfb-run gives a headless machine, without X
+def _on_a_display(x_display: str) -> str:
+    return x_display
 
 
 def test_keyboard_episodes_are_recorded_as_a_minari_dataset(tmp_path) -> None:
@@ -45,6 +47,12 @@ def test_keyboard_episodes_are_recorded_as_a_minari_dataset(tmp_path) -> None:
     # R ended the first episode (truncated, not terminated) and Esc the second.
     ends = np.flatnonzero(data.timeouts)
     assert ends.tolist() == [26, 33] and not data.terminals.any()
+    # Behaviour cloning from `curbside train` learns from it as from the expert's demonstrations.
+    path = train("bc", "PointNav", tmp_path / "bc", steps=20, env_config=loose, n_envs=1, num_scenes=1,
+                 demos=tmp_path / "curbside" / "pointnav-teleop-v0", hparams={"batch_size": 16}, progress=False,
+                 subprocess=False)
+    act, run = load_policy(tmp_path / "bc")
+    assert path.is_file() and run["algo"] == "bc" and np.asarray(act(data.obs[0])).shape == (2,)
 
 
 def test_axis_maps_of_gamepads_and_wheels() -> None:
