@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from importlib import resources
 
 from catalogs.schema import OBJECT_CLASSES, ZONES
+from curbside.config import ConfigError
 
 AXES = ("depth", "width", "height")
 COLUMNS = ("category", "object_class", "zones", *AXES, *(f"{a}_{e}" for a in AXES for e in ("min", "max")), "sources")
@@ -85,7 +86,7 @@ def category(name: str, *, where: str = "category") -> Category:
     try:
         return CATEGORIES[name]
     except KeyError:
-        raise ValueError(f"{where}: {name!r} is not in the curbside vocabulary (catalogs/categories.csv); "
+        raise ConfigError(f"{where}: {name!r} is not in the curbside vocabulary (catalogs/categories.csv); "
                          f"use one of: {', '.join(NAMES)}") from None
 
 

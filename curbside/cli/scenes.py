@@ -74,6 +74,9 @@ def generate(
     catalog: Path | None = typer.Option(None, help=f"Asset catalog (default: {DEFAULT_CATALOG} if present)."),
     crosswalk_density: float = typer.Option(0.5, "--crosswalk-density",
                                             help="Fraction of crosswalk candidates built, in [0, 1]."),
+    from_file: Path | None = typer.Option(None, "--from", exists=True, dir_okay=False, readable=True,
+                                          help="A custom scene YAML (blocks, templates, object pool and density, "
+                                          "named objects, agent groups; docs/scenes.md) instead of the options."),
 ) -> None:
     """Generate one scene spec."""
     import warnings
@@ -82,6 +85,19 @@ def generate(
     from sim.scene.config import resolve_config
 
     _file_out(out, "scene.json")
+    if from_file is not None:
+        from sim.scene.custom import generate_custom, generator_config, load_custom
+
+        custom = load_custom(from_file)
+        resolve_config(generator_config(custom))  # a bad generator value fails before any work
+        with _catalog_errors(), warnings.catch_warnings(record=True):
+            warnings.simplefilter("always")
+            spec = generate_custom(custom, _catalog(catalog))
+        save(spec, out)
+        agents = sum(spec.get("agents", {}).values())
+        typer.echo(f"{out}: blocks {spec['stats']['blocks']}, {len(spec['objects'])} objects "
+                   f"({len(custom['place'])} named), {agents} agents in groups")
+        return
     cfg = {"blocks": _blocks(blocks), "templates": templates, "object_density": object_density,
            "country": country, "crosswalk_density": crosswalk_density}
     resolve_config(cfg)  # a bad value (NaN, out of range) fails here, before the catalog warning or any work

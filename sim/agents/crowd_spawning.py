@@ -45,8 +45,10 @@ class AgentSpawning:
 
     def _draw_kinds(self, scene: Scene, rng: np.random.Generator) -> list[str]:
         c = self.config
-        if c["counts"]:
-            kinds = [k for k in KIND_NAMES for _ in range(int(c["counts"].get(k, 0)))]
+        # Explicit counts win, then the scene's own agent groups (a custom scene's `agents`), then the density.
+        counts = c["counts"] or scene.spec.get("agents") or {}
+        if counts:
+            kinds = [k for k in KIND_NAMES for _ in range(int(counts.get(k, 0)))]
         else:
             n = int(round(c["dynamic_density"] * self._area_length(scene) / 100.0))
             names = list(c["mix"])
