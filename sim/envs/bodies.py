@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 import pybullet as p
 
+from sim.agents.figures import figure_shape
 from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
 from sim.raycast.shapes import box_hits, circle_hits
 
@@ -30,6 +31,7 @@ class CohabitantBodies:
         self._half_heights = np.zeros(0)
         self._radii = np.zeros(0)
         self._xyz: np.ndarray | None = None
+        self._yaw = np.zeros(0)  # the agents' headings (their figures face their motion)
         self._vehicle_poses = np.zeros((0, 3))  # x, y, yaw of the vehicles shown
 
     def park(self) -> None:
@@ -39,6 +41,7 @@ class CohabitantBodies:
         self._vehicles_shown = -1
         if self._xyz is not None:
             self._xyz = np.full_like(self._xyz, np.nan)
+        self._yaw[:] = 0.0  # an episode's pictures must not depend on where the last one left the figures
         self._vehicle_poses = np.zeros((0, 3))
 
     def sync(self, kind_idx: np.ndarray, pos: np.ndarray, base_heights: np.ndarray, vehicles: np.ndarray) -> None:
@@ -51,8 +54,12 @@ class CohabitantBodies:
             xyz[:, 2] = base_heights + self._half_heights
             # Standing agents keep their body where it is: a Bullet reset per body is the cost worth saving.
             moved = np.flatnonzero(np.any(xyz != self._xyz, axis=1))
-            for k, at in zip(moved.tolist(), xyz[moved].tolist()):
-                p.resetBasePositionAndOrientation(self.agents[k], at, (0, 0, 0, 1), physicsClientId=c)
+            step = xyz[moved, :2] - self._xyz[moved, :2]  # nan on the first sync: the figures keep their heading
+            walking = np.hypot(step[:, 0], step[:, 1]) > 1e-3
+            self._yaw[moved[walking]] = np.arctan2(step[walking, 1], step[walking, 0])
+            half = 0.5 * self._yaw[moved]
+            for k, at, sz, cz in zip(moved.tolist(), xyz[moved].tolist(), np.sin(half).tolist(), np.cos(half).tolist()):
+                p.resetBasePositionAndOrientation(self.agents[k], at, (0, 0, sz, cz), physicsClientId=c)
             self._xyz = xyz
         self._vehicle_poses = np.stack([vehicles["x"], vehicles["y"], vehicles["yaw"]], 1) if len(vehicles) else \
             np.zeros((0, 3))
@@ -88,12 +95,11 @@ class CohabitantBodies:
             for k in kinds:
                 kind = AGENT_KINDS[k]
                 # Capsules, not cylinders: Bullet ray-tests a cylinder about four times slower than a capsule, and
-                # the LiDAR's rays made cylinders the costliest part of a SocialNav step.
+                # the LiDAR's rays made cylinders the costliest part of a SocialNav step. Cameras see a figure.
                 shaft = max(kind.height - 2.0 * kind.radius, 0.0)
-                col, vis = self._shape(k, lambda kind=kind, shaft=shaft: (
+                col, vis = self._shape(k, lambda kind=kind, shaft=shaft, k=k: (
                     p.createCollisionShape(p.GEOM_CAPSULE, radius=kind.radius, height=shaft, physicsClientId=c),
-                    p.createVisualShape(p.GEOM_CAPSULE, radius=kind.radius, length=shaft,
-                                        rgbaColor=[*kind.color, 1.0], physicsClientId=c)))
+                    figure_shape(c, k, max(kind.height, 2.0 * kind.radius), kind.radius, kind.color)))
                 body = p.createMultiBody(0.0, col, vis, PARKED, physicsClientId=c)
                 self.agents.append(body)
                 self.collision_kinds[body] = "agent"
@@ -101,6 +107,7 @@ class CohabitantBodies:
             self._half_heights = np.array([max(AGENT_KINDS[k].height, 2.0 * AGENT_KINDS[k].radius) / 2 for k in kinds])
             self._radii = np.array([AGENT_KINDS[k].radius for k in kinds])
             self._xyz = np.full((len(kinds), 3), np.nan)  # nan != anything: every body moves on the first sync
+            self._yaw = np.zeros(len(kinds))
         while len(self.vehicles) < n_vehicles:
             half = [self.vehicle_size[0] / 2, self.vehicle_size[1] / 2, VEHICLE_HEIGHT / 2]
             col, vis = self._shape("vehicle", lambda half=half: (
