@@ -96,8 +96,10 @@ class Rule:
             return isinstance(v, bool)
         if k == "str":
             return isinstance(v, str)
-        if k == "choice":
-            return isinstance(v, (str, int, float)) and not isinstance(v, bool) and v in self.choices
+        if k == "choice":  # true / false only where a bool is a choice (1 is not True here)
+            if isinstance(v, bool):
+                return any(c is v for c in self.choices)
+            return isinstance(v, (str, int, float)) and any(c == v and not isinstance(c, bool) for c in self.choices)
         if k == "pair":
             item = self.item or Rule("float")
             return (isinstance(v, (list, tuple)) and len(v) == 2 and all(item.ok(x) for x in v) and v[0] <= v[1])

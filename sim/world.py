@@ -144,33 +144,38 @@ class World:
         d, w, hgt = (max(float(v), 0.02) for v in obj["size"])
         orn = p.getQuaternionFromEuler([0, 0, float(obj.get("yaw", 0.0))])
         color = list(category_color(str(obj.get("category", "object"))))
-        mesh = self._mesh_path(obj) if (self._collision == "convex" or self._visual_meshes) else None
-        if mesh is not None:
-            v = _obj_vertices(mesh)
+        size = np.array([d, w, hgt])
+        hull = self._mesh_path(obj, "collision_path") if self._collision == "convex" else None
+        if hull is not None:
+            v = _obj_vertices(hull)
             lo, hi = v.min(0), v.max(0)
-            scale = np.array([d, w, hgt]) / np.maximum(hi - lo, 1e-6)
-            # Fit the mesh into the spec's box: base centred on the footprint, bottom on the surface.
-            v = (v - [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]) * scale
-        if mesh is not None and self._collision == "convex":
-            col = mesh_shape(p.createCollisionShape, v.tolist(), physicsClientId=c)
-            col_pos = (x, y, z)
+            # Fit the hull into the spec's box: base centred on the footprint, bottom on the surface.
+            v = (v - [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]) * (size / np.maximum(hi - lo, 1e-6))
+            col, origin = mesh_shape(p.createCollisionShape, v.tolist(), physicsClientId=c), (x, y, z)
         else:
             col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[d / 2, w / 2, hgt / 2], physicsClientId=c)
-            col_pos = None
-        if mesh is not None and self._visual_meshes:
-            vis = p.createVisualShape(p.GEOM_MESH, fileName=str(mesh), meshScale=list(scale), rgbaColor=color,
-                                      physicsClientId=c)
+            origin = (x, y, z + hgt / 2)
+        look = self._mesh_path(obj, "mesh_path") if self._visual_meshes else None
+        if look is not None:
+            v = _obj_vertices(look)
+            lo, hi = v.min(0), v.max(0)
+            scale = size / np.maximum(hi - lo, 1e-6)
+            # The textured mesh in the same box, relative to the body's origin (the box centre, or the base).
+            at = [-(lo[0] + hi[0]) / 2 * scale[0], -(lo[1] + hi[1]) / 2 * scale[1], -lo[2] * scale[2] + z - origin[2]]
+            vis = p.createVisualShape(p.GEOM_MESH, fileName=look, meshScale=scale.tolist(), visualFramePosition=at,
+                                      physicsClientId=c)  # no rgbaColor: the mesh's baked texture shows
         else:
-            vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[d / 2, w / 2, hgt / 2], rgbaColor=color, physicsClientId=c)
-        if col_pos is None:
-            return self._add("object", col, vis, (x, y, z + hgt / 2), orn)
-        return self._add("object", col, vis, col_pos, orn)
+            vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[d / 2, w / 2, hgt / 2], rgbaColor=color,
+                                      visualFramePosition=[0.0, 0.0, z + hgt / 2 - origin[2]], physicsClientId=c)
+        return self._add("object", col, vis, origin, orn)
 
-    def _mesh_path(self, obj: Mapping[str, Any]) -> str | None:
+    def _mesh_path(self, obj: Mapping[str, Any], field: str) -> str | None:
+        """The catalog OBJ of `obj`'s asset named by `field` (mesh_path: textured; collision_path: the hull,
+        falling back to mesh_path), or None."""
         if self._catalog is None or not obj.get("asset_id"):
             return None
         rec = self._catalog.get(obj["asset_id"])
-        rel = getattr(rec, "collision_path", None) or getattr(rec, "mesh_path", None)
+        rel = getattr(rec, field, None) or getattr(rec, "mesh_path", None)
         path = self._catalog.resolve(rel)
         if path is None or path.suffix.lower() != ".obj" or not path.exists():
             return None

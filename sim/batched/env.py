@@ -39,8 +39,7 @@ BATCHED_DEFAULTS: dict[str, Any] = {
 BATCHED_TABLE: dict[str, Any] = {**CONFIG_TABLE, "route_pool": Int(0, 1_000_000)}
 # PointNav keys the batched env cannot honour: (key, the value it needs, why).
 PYBULLET_ONLY = (("gui", False, "there is no PyBullet world to show"),
-                 ("collision", "box", "objects are their spec boxes; convex hulls need the PyBullet env"),
-                 ("visual_meshes", False, "there is nothing to render"))
+                 ("collision", "box", "objects are their spec boxes; convex hulls need the PyBullet env"))
 
 
 class BatchedPointNav(VectorEnv):
@@ -69,9 +68,9 @@ class BatchedPointNav(VectorEnv):
         for key, need, why in PYBULLET_ONLY:
             if cfg[key] != need:
                 raise ConfigError(f"config.{key} must be {need!r} in the batched env: {why}")
-        if cfg["camera"]["modalities"] or cfg["observation"] == "dict":
-            raise ConfigError("config.camera.modalities must be [] and observation flat in the batched env: there is "
-                              "nothing to render; use the PyBullet env (curbside/PointNav-v0) for camera observations")
+        if cfg["camera"]["modalities"] or cfg["observation"] == "dict" or cfg["visual_meshes"] is True:
+            raise ConfigError("config.camera.modalities must be [], observation flat and visual_meshes not true in the "
+                              "batched env: there is nothing to render; use the PyBullet env (curbside/PointNav-v0)")
         self.num_envs = n = num_envs
         self.render_mode = None
         self.spec_machine = machine_spec(cfg["machine"])

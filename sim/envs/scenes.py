@@ -153,13 +153,14 @@ class SceneCache:
 def build_slot(slot: SceneSlot, scene: Scene, cfg: Mapping[str, Any], machine: Any) -> None:
     """Build `scene` into `slot`: its world, the machine of spec `machine`, both LiDARs, the camera and the planner."""
     catalog = None
-    if cfg["catalog"] is not None and (cfg["collision"] == "convex" or cfg["visual_meshes"]):
+    meshes = cfg["visual_meshes"] is True or (cfg["visual_meshes"] == "auto" and bool(cfg["camera"]["modalities"]))
+    if cfg["catalog"] is not None and (cfg["collision"] == "convex" or meshes):
         from catalogs.reader import CatalogReader
         catalog = CatalogReader(cfg["catalog"])
     dt = float(cfg["dt"])
     slot.scene = scene
     slot.world = World(scene, client=slot.client, collision=cfg["collision"], catalog=catalog,
-                       visual_meshes=bool(cfg["visual_meshes"]), physics_dt=dt / int(cfg["physics_substeps"]))
+                       visual_meshes=meshes, physics_dt=dt / int(cfg["physics_substeps"]))
     slot.machine = Machine(slot.client, machine)
     lid = cfg["lidar"]
     r0 = slot.machine.bounding_radius + 0.05

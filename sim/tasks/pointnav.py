@@ -37,7 +37,7 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "scene_path": None,               # or a path to a scene spec JSON file
     "catalog": None,                  # catalog path for the generator and for mesh collision/visuals
     "collision": "box",               # static objects: "box" from `size`, or "convex" hull of the catalog mesh
-    "visual_meshes": False,           # catalog meshes as visual shapes (rendering only)
+    "visual_meshes": "auto",          # catalog meshes (textured) as visual shapes; auto: with camera modalities
     "gui": False,                     # PyBullet GUI instead of DIRECT
     "dt": 0.1,                        # seconds per env step
     "physics_substeps": 5,            # Bullet substeps per env step (0.02 s each by default)
@@ -185,7 +185,7 @@ CONFIG_TABLE: dict[str, Any] = {
     "scene_path": Rule("path", none=True),
     "catalog": Rule("file", none=True, hint="build one with `curbside catalog build --catalog PATH`"),
     "collision": Choice("box", "convex"),
-    "visual_meshes": Bool(),
+    "visual_meshes": Choice("auto", True, False),
     "gui": Bool(),
     "dt": Pos(1.0, hint="seconds per env step"),
     "physics_substeps": Int(1, 100),
