@@ -129,7 +129,9 @@ class Machine:
         self.yaw_rate = 0.0
         self.yaw = 0.0
         self.pitch = 0.0
+        self.roll = 0.0
         self.position = (0.0, 0.0, 0.0)
+        self.surface_friction = math.inf  # the ground's friction coefficient under the machine (terrain sets it)
 
     def _build_body(self) -> int:
         s, c = self.spec, self.client
@@ -196,10 +198,12 @@ class Machine:
             else:
                 force = throttle * 4.0 * self.brake_force
             resist = s.rolling_resistance * s.mass * G + 0.5 * 1.2 * s.drag_area * v * v
-            # Bullet's pitch is positive nose-down, so uphill (negative pitch) adds a retarding grade force.
-            force += s.mass * G * math.sin(self.pitch) - resist
+            # No grade term: the contacts are frictionless, so Bullet's gravity already pulls the body down a slope
+            # (adding m g sin(pitch) here counted the grade twice: a wheelchair stalled on a 10 % ramp).
+            force -= resist
             accel = force / s.mass
-            limit = s.friction * G  # tyres cannot transmit more than mu * g
+            # Tyres cannot transmit more than mu * g; mu is the tyre's or the surface's, whichever is lower.
+            limit = min(s.friction, self.surface_friction) * G
             accel = min(max(accel, -limit), limit)
             v_new = v + accel * dt
             if v_new < 0.0 and throttle <= 0.0:
@@ -231,5 +235,6 @@ class Machine:
         self.position = pos
         self.yaw = yaw
         self.pitch = pitch
+        self.roll = roll
         # Speed along the heading: a wall or a curb the machine runs into takes it away.
         self.speed = lin[0] * math.cos(yaw) + lin[1] * math.sin(yaw)

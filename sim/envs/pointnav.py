@@ -255,17 +255,17 @@ class PointNavEnv(gym.Env):
         progress, new_progress = ep.advance((x0, y0), (x, y), s, lat, hits, collided)
         ep.succeeded, ep.out_of_route, ep.stuck = self.termination(
             ep.steps, ep.max_progress, self.route.length, lat, lambda: self.planner.grid.label_at(x, y) != 0, bool(hits))
+        ep.toppled = not ep.succeeded and max(abs(m.roll), abs(m.pitch)) > self.termination.topple
         d_steer = steer - ep.last_action[0]
         reward = self.reward_fn(progress, new_progress, lat, d_steer, m.speed, collided, ep.succeeded, ep.out_of_route,
-                                ep.stuck)
+                                ep.stuck or ep.toppled)
         ep.last_action = a
-        terminated = ep.succeeded or ep.out_of_route or ep.stuck
+        terminated = ep.succeeded or ep.out_of_route or ep.stuck or ep.toppled
         truncated = (not terminated) and ep.steps >= ep.horizon
         for meas in self.measures:
             meas.update(self)
         obs = self._observe()
-        info: dict[str, Any] = {"cost": float(collided), "route_completion": min(ep.max_progress / self.route.length, 1.0),
-                                "collision_kinds": sorted(hits), "out_of_route": ep.out_of_route, "stuck": ep.stuck}
+        info: dict[str, Any] = ep.step_info(collided, hits, self.route.length)
         if terminated or truncated:
             metrics = self._episode_metrics()
             info.update(metrics)

@@ -51,6 +51,7 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "stuck_steps": 100,               # end the episode when the route progress grew < stuck_distance in this many steps (0: never)
     "stuck_distance": 0.5,            # metres of new progress that count as moving on
     "collision_steps": 30,            # end the episode after this many consecutive steps in contact (0: never)
+    "topple_angle": 60.0,             # degrees of roll or pitch that end the episode as toppled
     "cost_kinds": ["object", "building"],  # contacts that cost (the paper: objects and buildings, not curbs)
     "lidar": {"beams": 240, "range": 50.0, "height": 0.4, "encoding": "log",
               "low_beams": 60, "low_range": 5.0, "low_height": 0.08,
@@ -160,8 +161,6 @@ REWARD_PRESETS: dict[str, dict[str, Any]] = {
 
 
 COLLISION_KINDS = ("object", "building", "curb", "agent", "vehicle")
-
-
 MAX_SEED = 1_000_000  # splits start 1,000,000 seeds apart: scene_seed + num_scenes stays below that
 # Overrides of a reward preset's terms (Reward fields); weights are bounded so one step cannot dwarf a return.
 REWARD_TABLE: dict[str, Rule] = {
@@ -199,6 +198,7 @@ CONFIG_TABLE: dict[str, Any] = {
     "stuck_steps": Int(0, 10_000_000),
     "stuck_distance": Pos(1000.0),
     "collision_steps": Int(0, 10_000_000),
+    "topple_angle": Float(1.0, 180.0, hint="degrees"),
     "cost_kinds": Rule("list", choices=COLLISION_KINDS),
     "lidar": LIDAR_TABLE,
     "speed_scale": Pos(100.0),
@@ -273,6 +273,7 @@ class Termination:
     stuck_steps: int
     collision_steps: int
     off_walkable_ends: bool  # leaving the walkable area ends the episode as out of route
+    topple: float = float(np.radians(60.0))  # roll or pitch (rad) past which the machine has toppled
     mark: tuple[int, float] = (0, 0.0)  # (step, max progress) when progress last grew by stuck_distance
     contact_run: int = 0  # consecutive steps in contact
 
@@ -280,7 +281,8 @@ class Termination:
     def from_config(cls, cfg: Mapping[str, Any]) -> Termination:
         """A fresh detector for one episode of a task config."""
         return cls(float(cfg["success_completion"]), float(cfg["out_of_route_distance"]), float(cfg["stuck_distance"]),
-                   int(cfg["stuck_steps"]), int(cfg["collision_steps"]), bool(cfg["terminate_off_walkable"]))
+                   int(cfg["stuck_steps"]), int(cfg["collision_steps"]), bool(cfg["terminate_off_walkable"]),
+                   float(np.radians(cfg["topple_angle"])))
 
     def __call__(self, steps: int, max_progress: float, route_length: float, lateral: float,
                  on_walkable: Callable[[], bool], in_contact: bool) -> tuple[bool, bool, bool]:

@@ -1,0 +1,105 @@
+"""MetaUrban Table 4 on curbside's runways: x-displacement and time until the trial ends (toppled, stuck, much slower,
+or the runway's end) for the delivery bot, the wheelchair and the mobility scooter driving straight ahead at full
+throttle on three runways of increasing difficulty (sim.terrain.runway), beside the paper's figures.
+
+    python benchmarks/table4.py --seeds 10 --out benchmarks/results/issue16
+
+Prints a table (mean over seeds, each seed a different runway), whether each runway ranks the machines as the paper
+does, and writes table4.csv, table4.json and table4.png to --out.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from sim.terrain.runway import RUNWAYS, drive_forward  # noqa: E402
+
+MACHINES = ("delivery_bot", "wheelchair", "mobility_scooter")
+# MetaUrban (ICLR 2025) Table 4: x-displacement (m) per runway and machine; time to fall (s) on slopes.
+PAPER_X = {"slopes": (31.90, 34.58, 38.07), "stairs": (38.55, 38.94, 38.67), "roughs": (28.06, 31.91, 34.17)}
+PAPER_TIME = {"slopes": (6.3, 6.9, 7.7)}
+
+
+def ranking(values: tuple[float, ...]) -> tuple[int, ...]:
+    """The machines' order from shortest to longest distance (indices into MACHINES)."""
+    return tuple(int(i) for i in np.argsort(values, kind="stable"))
+
+
+def main(seeds: int = 10, out: Path | None = None) -> dict:
+    """Run every machine on every runway for `seeds` runways each; print and write the table."""
+    from rich.progress import track
+
+    rows = []
+    jobs = [(r, m, s) for r in RUNWAYS for m in MACHINES for s in range(seeds)]
+    for runway, machine, seed in track(jobs, description="table 4 trials"):
+        rows.append(drive_forward(machine, runway, seed))
+    table: dict = {}
+    print(f"{'runway':8} {'machine':18} {'x (m)':>14} {'paper x':>8} {'time (s)':>14} {'paper t':>8}  ends")
+    for runway in RUNWAYS:
+        means = []
+        for k, machine in enumerate(MACHINES):
+            rs = [r for r in rows if r["runway"] == runway and r["machine"] == machine]
+            x = np.array([r["x_displacement"] for r in rs])
+            t = np.array([r["time"] for r in rs])
+            ends = {reason: sum(r["reason"] == reason for r in rs) for reason in sorted({r["reason"] for r in rs})}
+            means.append(float(x.mean()))
+            table[f"{runway}/{machine}"] = {"x_mean": float(x.mean()), "x_std": float(x.std()), "time_mean": float(t.mean()),
+                                            "time_std": float(t.std()), "ends": ends, "paper_x": PAPER_X[runway][k],
+                                            "paper_time": PAPER_TIME.get(runway, (None,) * 3)[k]}
+            pt = PAPER_TIME.get(runway, (None,) * 3)[k]
+            print(f"{runway:8} {machine:18} {x.mean():7.2f} ±{x.std():5.2f} {PAPER_X[runway][k]:8.2f} "
+                  f"{t.mean():7.2f} ±{t.std():5.2f} {'' if pt is None else f'{pt:8.1f}':>8}  {ends}")
+        same = ranking(tuple(means)) == ranking(PAPER_X[runway])
+        table[f"{runway}/same_order_as_paper"] = same
+        print(f"{runway:8} order {' < '.join(MACHINES[i] for i in ranking(tuple(means)))}; paper "
+              f"{' < '.join(MACHINES[i] for i in ranking(PAPER_X[runway]))}: {'same' if same else 'different'}")
+    matched = sum(table[f"{r}/same_order_as_paper"] for r in RUNWAYS)
+    print(f"runways ranked as in the paper: {matched} of {len(RUNWAYS)}")
+    table["runways_ranked_as_paper"] = matched
+    if out is not None:
+        _write(Path(out), rows, table)
+    return table
+
+
+def _write(out: Path, rows: list[dict], table: dict) -> None:
+    """table4.csv (every trial), table4.json (the summary) and table4.png (bars beside the paper's)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "table4.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    (out / "table4.json").write_text(json.dumps(table, indent=2, sort_keys=True))
+    fig, axes = plt.subplots(1, len(RUNWAYS), figsize=(4 * len(RUNWAYS), 3.6), sharey=True)
+    for ax, runway in zip(axes, RUNWAYS):
+        ours = [table[f"{runway}/{m}"]["x_mean"] for m in MACHINES]
+        err = [table[f"{runway}/{m}"]["x_std"] for m in MACHINES]
+        pos = np.arange(len(MACHINES))
+        ax.bar(pos - 0.2, ours, 0.4, yerr=err, label="curbside", color="#3b7dd8")
+        ax.bar(pos + 0.2, PAPER_X[runway], 0.4, label="MetaUrban Table 4", color="#bbbbbb")
+        ax.set_xticks(pos, ["bot", "wheelchair", "scooter"])
+        ax.set_title(f"{runway} ({'same' if table[f'{runway}/same_order_as_paper'] else 'different'} order)")
+    axes[0].set_ylabel("x-displacement (m)")
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "table4.png", dpi=120)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", type=int, default=10, help="runways per runway kind (each seed a different terrain)")
+    ap.add_argument("--out", type=Path, default=None, help="folder for table4.csv, .json and .png")
+    a = ap.parse_args()
+    main(a.seeds, a.out)
