@@ -33,14 +33,14 @@ def ranking(values: tuple[float, ...]) -> tuple[int, ...]:
     return tuple(int(i) for i in np.argsort(values, kind="stable"))
 
 
-def main(seeds: int = 10, out: Path | None = None) -> dict:
+def main(seeds: int = 10, out: Path | None = None, model: str = "force", speed: float | None = None) -> dict:
     """Run every machine on every runway for `seeds` runways each; print and write the table."""
     from rich.progress import track
 
     rows = []
     jobs = [(r, m, s) for r in RUNWAYS for m in MACHINES for s in range(seeds)]
     for runway, machine, seed in track(jobs, description="table 4 trials"):
-        rows.append(drive_forward(machine, runway, seed))
+        rows.append(drive_forward(machine, runway, seed, model=model, speed=speed))
     table: dict = {}
     print(f"{'runway':8} {'machine':18} {'x (m)':>14} {'paper x':>8} {'time (s)':>14} {'paper t':>8}  ends")
     for runway in RUNWAYS:
@@ -101,5 +101,8 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=10, help="runways per runway kind (each seed a different terrain)")
     ap.add_argument("--out", type=Path, default=None, help="folder for table4.csv, .json and .png")
+    ap.add_argument("--model", choices=("force", "wheels"), default="force",
+                    help="machine model: the envs' force model, or driven wheel links (sim.terrain.wheels, experimental)")
+    ap.add_argument("--speed", type=float, default=None, help="wheels model: one commanded speed (m/s) for every machine")
     a = ap.parse_args()
-    main(a.seeds, a.out)
+    main(a.seeds, a.out, a.model, a.speed)

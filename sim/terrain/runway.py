@@ -100,26 +100,39 @@ def friction_at(runway: Runway, x: float, y: float) -> float:
     return SURFACES["asphalt"]
 
 
-def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int = 0, *, dt: float = 0.02,
-                  max_time: float = 200.0, stuck_time: float = 2.0, slow_fraction: float = 0.25) -> dict[str, Any]:
+def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int = 0, *, model: str = "force",
+                  speed: float | None = None, dt: float = 0.02, max_time: float = 200.0, stuck_time: float = 2.0,
+                  slow_fraction: float = 0.25) -> dict[str, Any]:
     """Table 4's trial: full throttle, no steering, on a fresh runway; returns the x-displacement (m), the time
     (s) until the trial ended, and why: `toppled`, `stuck` (less than 0.1 m in `stuck_time` s), `slow` (below
-    `slow_fraction` of the machine's top speed for `stuck_time` s once it had reached it), `end` or `time`."""
+    `slow_fraction` of the machine's top speed for `stuck_time` s once it had reached it), `end` or `time`.
+    `model`: "wheels" (sim.terrain.wheels, driven wheel links) or "force" (the envs' machine model)."""
+    from sim.terrain.wheels import WheeledMachine
+
+    if model not in ("wheels", "force"):
+        raise ConfigError(f"unknown machine model {model!r}; valid: wheels, force")
     client = p.connect(p.DIRECT)
     try:
         p.setGravity(0, 0, -9.81, physicsClientId=client)
         p.setTimeStep(dt, physicsClientId=client)
         runway = build_runway(client, runway_name, seed)
         spec = machine_spec(machine)
-        m = Machine(client, spec)
         x0, y0 = 1.0, runway.width / 2
-        m.reset(x0, y0, surface_at(runway, x0, y0), 0.0, np.random.default_rng(seed))
+        if model == "wheels":
+            m: Any = WheeledMachine(client, spec)
+            m.reset(x0, y0, surface_at(runway, x0, y0), 0.0)
+        else:
+            m = Machine(client, spec)
+            m.reset(x0, y0, surface_at(runway, x0, y0), 0.0, np.random.default_rng(seed))
         m.engine_force = float(np.max(spec.engine_force))  # the same strongest drive in every trial
         t, mark, reached, slow_since, reason = 0.0, (0.0, x0), False, None, "time"
         while t < max_time:
-            x, y, _ = m.position
-            m.surface_friction = friction_at(runway, x, y)
-            m.command(0.0, 1.0, dt)
+            if model == "wheels":
+                m.drive(1.0, speed)  # the tiles' friction acts on the wheels' contacts
+            else:
+                x, y, _ = m.position
+                m.surface_friction = friction_at(runway, x, y)
+                m.command(0.0, 1.0, dt)
             p.stepSimulation(physicsClientId=client)
             m.sync()
             t += dt
@@ -135,13 +148,14 @@ def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int 
             elif t - mark[0] > stuck_time:
                 reason = "stuck"
                 break
-            reached = reached or m.speed >= 0.9 * spec.v_max
-            slow = reached and m.speed < slow_fraction * spec.v_max
+            top = spec.v_max if speed is None or model != "wheels" else min(speed, spec.v_max)
+            reached = reached or m.speed >= 0.9 * top
+            slow = reached and m.speed < slow_fraction * top
             slow_since = (slow_since if slow_since is not None else t) if slow else None
             if slow_since is not None and t - slow_since > stuck_time:
                 reason = "slow"
                 break
-        return {"machine": spec.name, "runway": runway_name, "seed": seed, "x_displacement": m.position[0] - x0,
-                "time": t, "reason": reason}
+        return {"machine": spec.name, "runway": runway_name, "seed": seed, "model": model,
+                "x_displacement": m.position[0] - x0, "time": t, "reason": reason}
     finally:
         p.disconnect(physicsClientId=client)

@@ -162,3 +162,24 @@ def test_the_table4_trial_reports_distance_time_and_why_it_ended() -> None:
     out = drive_forward("mobility_scooter", "roughs", seed=0, max_time=3.0)
     assert out["reason"] in ("toppled", "stuck", "slow", "end", "time") and 0.0 < out["time"] <= 3.0 + 1e-9
     assert out["x_displacement"] > 1.0  # it drove forward
+
+
+@pytest.mark.parametrize("name", ["delivery_bot", "wheelchair", "mobility_scooter"])
+def test_wheeled_machines_drive_straight_at_their_top_speed_on_flat_ground(name: str) -> None:
+    from sim.terrain.wheels import WheeledMachine
+
+    c = p.connect(p.DIRECT)
+    p.setGravity(0, 0, -9.81, physicsClientId=c)
+    p.setTimeStep(0.02, physicsClientId=c)
+    ground = p.createCollisionShape(p.GEOM_BOX, halfExtents=[200, 5, 0.5], physicsClientId=c)
+    body = p.createMultiBody(0, ground, -1, [150, 0, -0.5], physicsClientId=c)
+    p.changeDynamics(body, -1, lateralFriction=SURFACES["asphalt"], physicsClientId=c)
+    m = WheeledMachine(c, machine_spec(name))
+    m.reset(0.0, 0.0, 0.0, 0.0)
+    for _ in range(400):
+        m.drive(1.0)
+        p.stepSimulation(physicsClientId=c)
+        m.sync()
+    assert m.speed == pytest.approx(m.spec.v_max, rel=0.02)
+    assert abs(m.position[1]) < 0.1 and abs(m.yaw) < math.radians(1) and abs(m.pitch) < math.radians(1)
+    p.disconnect(c)
