@@ -132,6 +132,7 @@ class Machine:
         self.roll = 0.0
         self.position = (0.0, 0.0, 0.0)
         self.surface_friction = math.inf  # the ground's friction coefficient under the machine (terrain sets it)
+        self.count_grade = True  # add the grade force (see command); terrain trials turn it off
 
     def _build_body(self) -> int:
         s, c = self.spec, self.client
@@ -198,12 +199,16 @@ class Machine:
             else:
                 force = throttle * 4.0 * self.brake_force
             resist = s.rolling_resistance * s.mass * G + 0.5 * 1.2 * s.drag_area * v * v
-            # No grade term: the contacts are frictionless, so Bullet's gravity already pulls the body down a slope
-            # (adding m g sin(pitch) here counted the grade twice: a wheelchair stalled on a 10 % ramp).
+            # Bullet's pitch is positive nose-down, so uphill (negative pitch) adds a retarding grade force. The
+            # contacts are frictionless, so Bullet's gravity pulls the body down a slope as well: on terrain (the
+            # runways) `count_grade` is off and the grade is counted once. In the envs it stays on: it is also what
+            # stops a machine driven into a wall at speed from riding up it (the drive sets its velocity).
+            if self.count_grade:
+                force += s.mass * G * math.sin(self.pitch)
+            mu = min(s.friction, self.surface_friction)
             force -= resist
             accel = force / s.mass
-            # Tyres cannot transmit more than mu * g; mu is the tyre's or the surface's, whichever is lower.
-            limit = min(s.friction, self.surface_friction) * G
+            limit = mu * G  # tyres cannot transmit more than mu * g (the tyre's mu or the surface's, the lower)
             accel = min(max(accel, -limit), limit)
             v_new = v + accel * dt
             if v_new < 0.0 and throttle <= 0.0:

@@ -123,6 +123,7 @@ def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int 
             m.reset(x0, y0, surface_at(runway, x0, y0), 0.0)
         else:
             m = Machine(client, spec)
+            m.count_grade = False  # the slopes' pull comes from Bullet's gravity alone (sim/machines.py)
             m.reset(x0, y0, surface_at(runway, x0, y0), 0.0, np.random.default_rng(seed))
         m.engine_force = float(np.max(spec.engine_force))  # the same strongest drive in every trial
         t, mark, reached, slow_since, reason = 0.0, (0.0, x0), False, None, "time"
