@@ -103,6 +103,6 @@ if __name__ == "__main__":
     ap.add_argument("--out", type=Path, default=None, help="folder for table4.csv, .json and .png")
     ap.add_argument("--model", choices=("force", "wheels"), default="force",
                     help="machine model: the envs' force model, or driven wheel links (sim.terrain.wheels, experimental)")
-    ap.add_argument("--speed", type=float, default=None, help="wheels model: one commanded speed (m/s) for every machine")
+    ap.add_argument("--speed", type=float, default=None, help="one commanded speed (m/s) for every machine (default: full throttle)")
     a = ap.parse_args()
     main(a.seeds, a.out, a.model, a.speed)

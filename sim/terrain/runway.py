@@ -133,7 +133,8 @@ def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int 
             else:
                 x, y, _ = m.position
                 m.surface_friction = friction_at(runway, x, y)
-                m.command(0.0, 1.0, dt)
+                # A common `speed` is held by throttling the drive towards it (full throttle below it).
+                m.command(0.0, 1.0 if speed is None else min(max(4.0 * (speed - m.speed) / speed, 0.0), 1.0), dt)
             p.stepSimulation(physicsClientId=client)
             m.sync()
             t += dt
@@ -149,7 +150,7 @@ def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int 
             elif t - mark[0] > stuck_time:
                 reason = "stuck"
                 break
-            top = spec.v_max if speed is None or model != "wheels" else min(speed, spec.v_max)
+            top = spec.v_max if speed is None else min(speed, spec.v_max)
             reached = reached or m.speed >= 0.9 * top
             slow = reached and m.speed < slow_fraction * top
             slow_since = (slow_since if slow_since is not None else t) if slow else None
