@@ -85,7 +85,7 @@ def category(name: str, *, where: str = "category") -> Category:
     """The row of `name`; raises naming `where` it came from and the valid names."""
     try:
         return CATEGORIES[name]
-    except KeyError:
+    except (KeyError, TypeError):  # TypeError: an unhashable value (a list where a name belongs)
         raise ConfigError(f"{where}: {name!r} is not in the curbside vocabulary (catalogs/categories.csv); "
                          f"use one of: {', '.join(NAMES)}") from None
 

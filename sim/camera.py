@@ -70,10 +70,15 @@ def camera_spaces(cfg: Mapping[str, Any]) -> dict[str, Any]:
     return {m: table[m] for m in cfg["modalities"]}
 
 
+def forget_egl(client: int) -> None:
+    """Forget that `client` has the EGL plugin (call on disconnect: PyBullet reuses client ids)."""
+    _EGL.pop(client, None)
+
+
 def linear_depth(buffer: np.ndarray, near: float, far: float) -> np.ndarray:
-    """Metric depth along the optical axis (m) from an OpenGL depth buffer in [0, 1]."""
-    b = np.asarray(buffer, dtype=np.float32)
-    return (far * near / (far - (far - near) * b)).astype(np.float32)
+    """Metric depth along the optical axis (m) from an OpenGL depth buffer in [0, 1], at most `far`."""
+    b = np.asarray(buffer, dtype=np.float64)
+    return np.minimum(far * near / (far - (far - near) * b), far).astype(np.float32)
 
 
 class EgoCamera:
@@ -92,7 +97,7 @@ class EgoCamera:
             self.renderer = p.ER_BULLET_HARDWARE_OPENGL
         self.projection = p.computeProjectionMatrixFOV(self.fov, self.width / self.height, self.near, self.far)
         self._lut = np.zeros(0, dtype=np.uint8)
-        self._lut_key: tuple[int, int] = (-1, -1)
+        self._lut_key: tuple[Any, ...] = ()
 
     @property
     def intrinsics(self) -> np.ndarray:
@@ -131,9 +136,11 @@ class EgoCamera:
     def classes(self, seg: np.ndarray, ego: int, extra_kinds: Mapping[int, str]) -> np.ndarray:
         """Semantic ids of a segmentation mask of body ids (-1: nothing drawn there)."""
         n = p.getNumBodies(physicsClientId=self.client)
-        if self._lut_key != (n, len(extra_kinds)):
+        # By content: SocialNav removes and adds bodies, and Bullet hands a freed id to the next new body.
+        key = (n, ego, frozenset(extra_kinds.items()))
+        if self._lut_key != key:
             self._lut = self._table(n, ego, extra_kinds)
-            self._lut_key = (n, len(extra_kinds))
+            self._lut_key = key
         body = np.asarray(seg, dtype=np.int64) & ((1 << 24) - 1)  # the link index rides in the high bits
         body = np.where(np.asarray(seg) < 0, len(self._lut) - 1, np.minimum(body, len(self._lut) - 1))
         return self._lut[body]

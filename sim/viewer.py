@@ -106,7 +106,7 @@ def render_frame(env: Any) -> np.ndarray | None:
     if camera == "dashboard":
         frame = dashboard(env, w, h, float(r["top_down_height"]))
     elif camera == "map":
-        frame = top_down_map(env, w, float(r["top_down_height"]) * 1.6)
+        frame = _fit(top_down_map(env, min(w, h), float(r["top_down_height"]) * 1.6), w, h)
     else:
         frame = camera_image(env, camera=camera, width=w, height=h, top_down_height=float(r["top_down_height"]))
     if env.render_mode != "human":

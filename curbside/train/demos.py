@@ -144,6 +144,7 @@ def write_dataset(buffers: list[Any], env: Any, out: Path, did: str, *, algorith
 
 def load_demos(path: Path) -> tuple[Transitions, dict[str, Any]]:
     """Read a dataset written by collect_demos (its folder) as flat transitions plus its summary."""
+    import gymnasium as gym
     from minari import MinariDataset
 
     path = Path(path)
@@ -151,6 +152,9 @@ def load_demos(path: Path) -> tuple[Transitions, dict[str, Any]]:
         raise ConfigError(f"no demonstration dataset at {path}; collect one with "
                           f"`curbside demos collect --task PointNav --out {path.parent.parent if path.parent != path else path}`")
     ds = MinariDataset(path / "data")
+    if isinstance(ds.observation_space, gym.spaces.Dict):
+        raise ConfigError(f"the dataset at {path} holds camera (Dict) observations; the offline and imitation "
+                          "baselines learn from the flat vector: record it again with camera.modalities []")
     cols: dict[str, list[np.ndarray]] = {k: [] for k in ("obs", "actions", "rewards", "next_obs", "terminals", "timeouts")}
     for ep in ds.iterate_episodes():
         o = np.asarray(ep.observations, dtype=np.float32)

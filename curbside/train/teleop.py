@@ -119,7 +119,13 @@ def device_mapping(device: str, mapping_file: Path | None = None) -> dict[str, A
     """The axis map of a joystick device: its preset, with a JSON file's keys over it (unknown keys rejected)."""
     if device not in DEVICE_PRESETS:
         raise ConfigError(f"unknown device {device!r}; valid: {', '.join(DEVICES)}")
-    extra = json.loads(Path(mapping_file).read_text()) if mapping_file is not None else {}
+    try:
+        extra = json.loads(Path(mapping_file).read_text()) if mapping_file is not None else {}
+    except json.JSONDecodeError as e:
+        raise ConfigError(f"--mapping {mapping_file} is not JSON ({e}); write an object such as "
+                          '{"steer_axis": 0, "throttle_axis": 2}') from None
+    if not isinstance(extra, dict):
+        raise ConfigError(f"--mapping {mapping_file} must hold a JSON object of axis settings")
     return merge_strict(DEVICE_PRESETS[device], extra, name=f"--mapping {mapping_file}")
 
 

@@ -20,7 +20,7 @@ import numpy as np
 import pybullet as p
 
 from curbside.config import ConfigError
-from sim.camera import EgoCamera
+from sim.camera import EgoCamera, forget_egl
 from sim.machines import Machine
 from sim.raycast.grids import build_grids
 from sim.route import RoutePlanner
@@ -146,6 +146,7 @@ class SceneCache:
                 p.disconnect(physicsClientId=c)
             except p.error:
                 pass
+            forget_egl(c)
         self.slots.clear()
         self._spare = []
 

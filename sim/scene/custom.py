@@ -61,10 +61,16 @@ def check_custom(data: Mapping[str, Any], where: str = "custom scene") -> dict[s
     from sim.agents.kinds import agent_kind
 
     c = merge_strict(KEYS, data, name=where)
+    if not isinstance(c["generator"], Mapping):
+        raise ConfigError(f"{where}: generator must be a mapping of scene generator keys, got {c['generator']!r}")
+    taken = sorted(set(c["generator"]) & {"blocks", "templates", "object_density", "country"})
+    if taken:
+        raise ConfigError(f"{where}: set {', '.join(taken)} at the top level (blocks, templates) or under objects "
+                          "(density, country), not under generator")
     c["objects"] = merge_strict(OBJECT_KEYS, c["objects"] or {}, name=f"{where}: objects")
     pool = c["objects"]["pool"]
     if pool is not None:
-        if not isinstance(pool, list) or not pool:
+        if not isinstance(pool, list) or not pool or not all(isinstance(n, str) for n in pool):
             raise ConfigError(f"{where}: objects.pool must be a non-empty list of categories, got {pool!r}")
         for name in pool:
             category(name, where=f"{where}: objects.pool")
@@ -92,11 +98,14 @@ def _check_place(item: Any, where: str) -> dict[str, Any]:
     p = merge_strict(PLACE_KEYS, item, name=where)
     if not isinstance(p["name"], str) or not p["name"]:
         raise ConfigError(f"{where}: give the object a name")
+    if not isinstance(p["category"], str):
+        raise ConfigError(f"{where}.category must be one category name, got {p['category']!r}")
     category(p["category"], where=f"{where}.category")
     at = p["at"]
     if isinstance(at, Mapping):
         p["at"] = merge_strict(AT_KEYS, at, name=f"{where}.at")
-        if not 0.0 <= float(p["at"]["along"]) <= 1.0:
+        along = p["at"]["along"]
+        if not isinstance(along, (int, float)) or isinstance(along, bool) or not 0.0 <= float(along) <= 1.0:
             raise ConfigError(f"{where}.at.along must be a fraction of the sidewalk's length in [0, 1]")
     elif not (isinstance(at, list) and len(at) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in at)):
         raise ConfigError(f"{where}.at must be [x, y] in metres or {{sidewalk: ID, along: 0..1, zone: KIND}}")
@@ -134,7 +143,10 @@ def generate_custom(c: Mapping[str, Any], catalog: Any = None) -> dict[str, Any]
         yaw = math.radians(float(item["yaw"]))
         corners, _ = rect(x, y, math.cos(yaw), math.sin(yaw), d, w)
         box = Polygon(corners)
-        objects = [o for o in objects if not Polygon(o["footprint"]).intersects(box)]  # named objects win
+        hit = [o["name"] for o in objects if o.get("name") and Polygon(o["footprint"]).intersects(box)]
+        if hit:
+            raise ConfigError(f"named objects {hit[0]!r} and {item['name']!r} overlap; move one of them")
+        objects = [o for o in objects if o.get("name") or not Polygon(o["footprint"]).intersects(box)]  # named win
         objects.append({"id": "", "name": item["name"], "asset_id": item["asset_id"], "category": cat.name,
                         "object_class": cat.object_class, "zone": item["at"]["zone"] if isinstance(item["at"], Mapping)
                         else None, "sidewalk_id": sidewalk, "position": [round_value(x), round_value(y), curb if sidewalk else 0.0],

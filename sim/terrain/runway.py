@@ -111,6 +111,8 @@ def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int 
 
     if model not in ("wheels", "force"):
         raise ConfigError(f"unknown machine model {model!r}; valid: wheels, force")
+    if speed is not None and not (isinstance(speed, (int, float)) and 0.0 < speed < 100.0):
+        raise ConfigError(f"speed must be a number of m/s above 0 (or None for full throttle), got {speed!r}")
     client = p.connect(p.DIRECT)
     try:
         p.setGravity(0, 0, -9.81, physicsClientId=client)

@@ -190,3 +190,20 @@ def test_check_env_passes_with_the_dict_space() -> None:
     env = _env(ALL, size=32)
     check_env(env.unwrapped, skip_render_check=True)
     env.close()
+
+
+def test_depth_never_exceeds_the_far_plane() -> None:
+    assert float(linear_depth(np.array([1.0]), 0.05, 50.0)[0]) <= 50.0
+
+
+def test_semantic_classes_follow_bodies_that_change_kind() -> None:
+    # SocialNav removes and re-adds bodies; Bullet hands freed ids to new ones: the table follows the kinds.
+    env = _env(["semantic"], size=16)
+    env.reset(seed=0)
+    u = env.unwrapped
+    mask = np.array([[900, 901]])
+    first = u.camera.classes(mask, u.machine.body, {900: "agent", 901: "vehicle"})
+    second = u.camera.classes(mask, u.machine.body, {900: "vehicle", 901: "agent"})
+    assert [SEMANTIC_CLASSES[i] for i in first.ravel()] == ["agent", "vehicle"]
+    assert [SEMANTIC_CLASSES[i] for i in second.ravel()] == ["vehicle", "agent"]
+    env.close()

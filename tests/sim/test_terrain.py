@@ -184,3 +184,8 @@ def test_wheeled_machines_drive_straight_at_their_top_speed_on_flat_ground(name:
     assert m.speed == pytest.approx(m.spec.v_max, rel=0.02)
     assert abs(m.position[1]) < 0.1 and abs(m.yaw) < math.radians(1) and abs(m.pitch) < math.radians(1)
     p.disconnect(c)
+
+
+def test_a_commanded_speed_must_be_positive() -> None:
+    with pytest.raises(ConfigError, match="speed must be a number of m/s above 0"):
+        drive_forward("wheelchair", "slopes", speed=0.0)

@@ -81,3 +81,11 @@ def test_rollout_video_command(tmp_path, capfd: pytest.CaptureFixture[str]) -> N
     assert out.stat().st_size > 1000 and "wrote" in stdout
     line = one_error_line(*cli(["sim", "rollout", "--video", str(tmp_path / "ep.gif")], capfd))
     assert "must end in .mp4" in line
+
+
+def test_the_map_camera_fills_the_configured_frame() -> None:
+    env = gym.make("curbside/SocialNav-v0", config={**SHORT, "render": {"camera": "map", "width": 200, "height": 120}},
+                   render_mode="rgb_array")
+    env.reset(seed=0)
+    assert env.render().shape == (120, 200, 3)
+    env.close()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -78,3 +79,12 @@ def test_a_mapping_file_overrides_the_preset_and_unknown_keys_are_refused(tmp_pa
 def test_a_joystick_device_without_a_joystick_says_so(tmp_path) -> None:
     with pytest.raises(ConfigError, match="no joystick, gamepad or wheel is connected"):
         teleop("PointNav", tmp_path, device="gamepad", env_config={"route_length": [10.0, 15.0]}, max_steps=5)
+
+
+def test_camera_datasets_are_refused_by_the_flat_learners_with_the_fix(tmp_path) -> None:
+    from curbside.train.demos import collect_demos
+
+    cfg = {"camera": {"modalities": ["depth"], "width": 8, "height": 8}, "route_length": [5.0, 10.0]}
+    summary = collect_demos("PointNav", tmp_path, steps=10, env_config=cfg, num_scenes=1, progress=False)
+    with pytest.raises(ConfigError, match=r"camera \(Dict\) observations.*camera.modalities \[\]"):
+        load_demos(Path(summary["path"]))

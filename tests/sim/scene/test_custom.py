@@ -97,3 +97,16 @@ def test_the_cli_generates_from_yaml_and_refuses_bad_files(tmp_path, capsys) -> 
     bad = tmp_path / "bad.yaml"
     bad.write_text("blocks: [unclosed\n")
     assert "not valid YAML" in one_error_line(*cli(["scenes", "generate", "--from", str(bad), "--out", str(out)], capsys))
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    ({"place": [{"name": "a", "category": "bench", "at": [40.0, 8.0]}, {"name": "b", "category": "trash_bin",
+                                                                        "at": [40.5, 8.0]}]}, "'a' and 'b' overlap"),
+    ({"generator": {"object_density": 3.0}}, "not under generator"),
+    ({"place": [{"name": "a", "category": ["bench"], "at": [0, 0]}]}, "one category name"),
+    ({"place": [{"name": "a", "category": "bench", "at": {"sidewalk": "r0-s0", "along": "half"}}]}, "fraction"),
+])
+def test_conflicting_or_malformed_custom_scenes_say_so(change: dict, message: str) -> None:
+    base = yaml.safe_load(EXAMPLE.read_text())
+    with pytest.raises(ConfigError, match=message):
+        generate_custom(check_custom({**base, **change}))
