@@ -23,6 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from benchmarks.plots import beside_paper, save_panels  # noqa: E402
 from benchmarks.table1 import BUDGETS as TABLE1_BUDGETS  # noqa: E402
 
 MACHINES = ("delivery_bot", "delivery_bot_mod1", "delivery_bot_mod2", "wheelchair", "mobility_scooter")
@@ -72,7 +73,6 @@ def write(rows: list[dict[str, Any]], out: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
 
     with open(out / "table2.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -83,17 +83,9 @@ def write(rows: list[dict[str, Any]], out: Path) -> None:
     for ax, block in zip(axes, BLOCKS):
         ours = [next(r["sr"] for r in rows if r["machine"] == m and r["block"] == block) for m in machines]
         paper = [PAPER_SR[m][BLOCKS.index(block)] / 100 for m in machines]
-        pos = np.arange(len(machines))
-        ax.bar(pos - 0.2, ours, 0.4, label="curbside PPO", color="#3b7dd8")
-        ax.bar(pos + 0.2, paper, 0.4, label="MetaUrban Table 2", color="#bbbbbb")
-        ax.set_xticks(pos, [m.replace("delivery_bot", "bot").replace("mobility_", "") for m in machines], fontsize=8)
-        ax.set_title(f"{block} block")
-    axes[0].set_ylabel("success rate")
-    axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "table2.png", dpi=120)
-    plt.close(fig)
-
+        beside_paper(ax, [m.replace("delivery_bot", "bot").replace("mobility_", "") for m in machines], ours, paper,
+                     ours_label="curbside PPO", paper_label="MetaUrban Table 2", title=f"{block} block")
+    save_panels(fig, axes, "success rate", out / "table2.png")
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

@@ -20,6 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.plots import beside_paper, save_panels  # noqa: E402
 from sim.terrain.runway import RUNWAYS, drive_forward  # noqa: E402
 
 MACHINES = ("delivery_bot", "wheelchair", "mobility_scooter")
@@ -85,17 +86,10 @@ def _write(out: Path, rows: list[dict], table: dict) -> None:
     for ax, runway in zip(axes, RUNWAYS):
         ours = [table[f"{runway}/{m}"]["x_mean"] for m in MACHINES]
         err = [table[f"{runway}/{m}"]["x_std"] for m in MACHINES]
-        pos = np.arange(len(MACHINES))
-        ax.bar(pos - 0.2, ours, 0.4, yerr=err, label="curbside", color="#3b7dd8")
-        ax.bar(pos + 0.2, PAPER_X[runway], 0.4, label="MetaUrban Table 4", color="#bbbbbb")
-        ax.set_xticks(pos, ["bot", "wheelchair", "scooter"])
-        ax.set_title(f"{runway} ({'same' if table[f'{runway}/same_order_as_paper'] else 'different'} order)")
-    axes[0].set_ylabel("x-displacement (m)")
-    axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "table4.png", dpi=120)
-    plt.close(fig)
-
+        same = "same" if table[f"{runway}/same_order_as_paper"] else "different"
+        beside_paper(ax, ["bot", "wheelchair", "scooter"], ours, PAPER_X[runway], ours_label="curbside",
+                     paper_label="MetaUrban Table 4", title=f"{runway} ({same} order)", err=err)
+    save_panels(fig, axes, "x-displacement (m)", out / "table4.png")
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
