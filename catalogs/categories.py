@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass
+from functools import cache
 from importlib import resources
 
 from catalogs.schema import OBJECT_CLASSES, ZONES
@@ -95,6 +96,7 @@ def check_category(name: str, *, where: str) -> str:
     return category(name, where=where).name
 
 
+@cache
 def of_class(object_class: str) -> tuple[str, ...]:
     """The categories of `object_class`, in table order."""
     if object_class not in OBJECT_CLASSES:
@@ -102,6 +104,7 @@ def of_class(object_class: str) -> tuple[str, ...]:
     return tuple(c.name for c in CATEGORIES.values() if c.object_class == object_class)
 
 
+@cache
 def zones_of_class(object_class: str) -> tuple[str, ...]:
     """Every zone some category of `object_class` may stand in, in catalogs.schema.ZONES order."""
     used = {z for c in of_class(object_class) for z in CATEGORIES[c].zones}

@@ -8,7 +8,6 @@ import weakref
 from typing import Any
 
 import numpy as np
-from PIL import Image, ImageDraw
 
 from curbside.config import ConfigError
 from sim.camera import SEMANTIC_CLASSES
@@ -45,6 +44,8 @@ def colourise(name: str, image: np.ndarray, far: float = 50.0) -> np.ndarray:
 
 
 def _fit(image: np.ndarray, width: int, height: int) -> np.ndarray:
+    from PIL import Image  # here, not at import: every env imports this module, few draw frames
+
     return np.asarray(Image.fromarray(image).resize((max(width, 1), max(height, 1)), Image.NEAREST))
 
 
@@ -89,6 +90,8 @@ def dashboard(env: Any, width: int, height: int, view: float) -> np.ndarray:
             if x0 + side <= chase_w:
                 frame[height - side - 4:height - 4, x0:x0 + side] = _fit(colourise(name, image), side, side)
     if bar:
+        from PIL import Image, ImageDraw
+
         img = Image.fromarray(frame)
         ImageDraw.Draw(img).text((6, 3), hud_text(env), fill=TEXT)
         frame = np.asarray(img)

@@ -41,7 +41,6 @@ def profile(tile: Tile, u: np.ndarray) -> np.ndarray:
         frac = (u >= 0.5).astype(np.float64)
     elif kind == "stairs":
         frac = np.floor(np.clip(u, 0.0, 1.0 - 1e-12) * 3.0) / 2.0  # thirds: level, level + 1, level + 2
-        frac = np.where(u >= 1.0, 1.0, np.minimum(frac, 1.0))
     else:
         frac = np.zeros_like(u)
     return tile.level + rise * frac
