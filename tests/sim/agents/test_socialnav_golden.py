@@ -1,0 +1,82 @@
+"""SocialNav's golden episodes: the hash of observations, rewards, infos and cohabitant states of fixed episodes.
+
+Speed-ups of the crowd, traffic, bodies and LiDAR (issue 14) claim to preserve behaviour bit for bit; this test
+holds them to it. The episodes cover agents of six kinds spawned along the route (the ego meets them) and on the
+sidewalks (the bench crowd), standing groups that disperse or walk on, road crossings, pushes, idling, running,
+and dense traffic that turns at junctions, respawns and yields at crosswalks; the expert drives two episodes,
+seeded random actions (collisions) the others.
+
+GOLDEN was computed on the code before the speed-ups. Bullet and numpy's float results can differ between CPU
+architectures; on such a machine the hash differs for every commit alike: recompute it there on a commit known
+to be behaviour-preserving (`python tests/sim/agents/test_socialnav_golden.py`) before comparing others.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import warnings
+from typing import Any
+
+import numpy as np
+
+GOLDEN = "167029327875d0117c622a5f755e6256bf41a65dcc43ad4ff22bf219e398fa25"
+
+ROUTE_CROWD = {"counts": {"pedestrian": 16, "cyclist": 3, "wheelchair_user": 3, "scooter_rider": 2, "robot_dog": 1,
+                          "delivery_robot": 1},
+               "group_prob": 0.4, "cross_prob": 0.4, "stuck_steps": 10, "regoal_steps": 40, "idle_prob": 0.3,
+               "idle_time": [0.5, 2.0], "group_time": [1.0, 4.0], "run_prob": 0.3, "spawn_area": "route"}
+
+
+def _numbers(info: dict[str, Any]) -> np.ndarray:
+    """The info's numeric fields in key order (metrics at episode end included)."""
+    return np.array([float(v) for k, v in sorted(info.items()) if isinstance(v, (int, float, bool, np.number))])
+
+
+def golden_digest() -> tuple[str, int]:
+    """(sha256 of the golden episodes, env steps taken)."""
+    from sim.bench import SOCIALNAV_BENCH
+    from sim.envs.socialnav import SocialNavEnv
+    from sim.expert import PurePursuitExpert
+    from sim.scene import generate_scene
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        spec = generate_scene({"blocks": 2, "object_density": 2.0}, 1)  # 97 objects, 3 crosswalks, junctions
+    base = {"scene_spec": spec, "route_length": [20.0, 40.0], "horizon": 120, "vehicles": {"traffic_density": 3.0}}
+    h, steps = hashlib.sha256(), 0
+
+    def feed(*arrays: Any) -> None:
+        for a in arrays:
+            h.update(np.ascontiguousarray(a).tobytes())
+
+    expert = PurePursuitExpert()
+    runs = ((ROUTE_CROWD, (0, 1, 2, 3)), (SOCIALNAV_BENCH["agents"], (5, 6)))
+    for agents, seeds in runs:
+        env = SocialNavEnv({**base, "agents": agents})
+        for seed in seeds:
+            obs, info = env.reset(seed=seed)
+            feed(obs, np.array([float(info["route_length"]), float(info["horizon"])]))
+            rng = np.random.default_rng(seed)
+            for _ in range(120):
+                action = expert.act(env) if seed % 2 == 0 else rng.uniform(-1.0, 1.0, 2)
+                obs, reward, term, trunc, info = env.step(action)
+                steps += 1
+                feed(obs, np.float64(reward), _numbers(info), env.agent_states()[["x", "y", "vx", "vy"]],
+                     env.vehicle_states()[["x", "y", "vx", "vy", "yaw"]])
+                if term or trunc:
+                    break
+            stats = {**env.crowd.behaviour_stats(), **env.crowd.goal_stats(), "respawns": env.traffic.respawns,
+                     "turns": env.traffic.turns, "continued": env.traffic.continued}
+            feed(np.array([float(stats[k]) for k in sorted(stats)]))
+        env.close()
+    return h.hexdigest(), steps
+
+
+def test_golden_episodes() -> None:
+    digest, steps = golden_digest()
+    assert steps > 500
+    assert digest == GOLDEN, f"SocialNav episodes changed: {digest} != {GOLDEN} (a speed-up changed behaviour)"
+
+
+if __name__ == "__main__":
+    print(*golden_digest())
