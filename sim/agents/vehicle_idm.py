@@ -1,64 +1,124 @@
-"""Car following: the IDM law, each vehicle's desired speed and the leaders a lane's front vehicle sees."""
+"""Car following: same-lane leaders, the leaders a lane's front vehicle sees on its next lane, each vehicle's
+desired speed and the IDM law, as numba kernels over the vehicles of one tick.
+
+A tick of ~10 vehicles was ~150 small numpy calls (~0.3 ms); these loops are ~0.02 ms. They do the float
+operations of the numpy code they replaced in the same order (no fastmath), so vehicles move bit for bit as
+before (tests/sim/agents/test_socialnav_golden.py holds them to it).
+"""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 
-class CarFollowing:
-    """VehicleManager's IDM part: desired speeds, next-lane leaders and the acceleration law itself."""
+@njit(cache=True, nogil=True)
+def leaders(order: np.ndarray, lane_id: np.ndarray, s: np.ndarray, v: np.ndarray, nxt_lane: np.ndarray,
+            lane_len: np.ndarray, is_connector: np.ndarray, granted: np.ndarray, occupied: np.ndarray,
+            cross_lane: np.ndarray, cross_cw: np.ndarray, cross_s: np.ndarray, length: float, stop_gap: float,
+            dt: float, comfort_decel: float, junction_stop: float, n_lanes: int):  # pragma: no cover - numba
+    """Vehicles sorted by (lane, s): same-lane gaps and speed differences (stop lines of occupied crosswalks on
+    the own lane included), each lane's rearmost vehicle, the lanes' front vehicles and whether one wants a grant.
 
-    def _desired_speed(self) -> np.ndarray:
-        """Each vehicle's IDM v0: its own, capped by its lane's turn speed and, near the end, by the next lane's
-        (the speed from which comfortable braking reaches that limit at the lane's end)."""
-        b = self.config["comfort_decel"]
-        lim_next = np.where(self.next >= 0, self.vlim[np.maximum(self.next, 0)], np.inf)
-        to_end = np.maximum(self.lane_len[self.lane_id] - self.s, 0.0)
-        return np.minimum(np.minimum(self.v0, self.vlim[self.lane_id]), np.sqrt(lim_next ** 2 + 2.0 * b * to_end))
+    Returns (ls, ss, vs, same, gap, dv, rear_s, rear_v, front, to_end, want_grant)."""
+    n = order.size
+    ls, ss, vs = lane_id[order], s[order], v[order]
+    same = np.zeros(n, dtype=np.bool_)
+    gap = np.full(n, np.inf)
+    dv = np.zeros(n)
+    for k in range(n - 1):
+        if ls[k + 1] == ls[k]:
+            same[k] = True
+            gap[k] = ss[k + 1] - ss[k] - length
+            dv[k] = vs[k] - vs[k + 1]
+    half = length / 2.0
+    for e in range(cross_lane.size):
+        if not occupied[cross_cw[e]]:
+            continue
+        line = cross_s[e] - stop_gap
+        for k in range(n):
+            ahead = line - (ss[k] + half)
+            if ls[k] == cross_lane[e] and ahead > -0.5 and ahead < gap[k]:
+                gap[k] = max(ahead, 0.0)
+                dv[k] = vs[k]
+    rear_s = np.full(n_lanes, np.inf)
+    rear_v = np.zeros(n_lanes)
+    for k in range(n):
+        if k == 0 or ls[k] != ls[k - 1]:
+            rear_s[ls[k]], rear_v[ls[k]] = ss[k], vs[k]
+    front = np.flatnonzero(~same)
+    to_end = np.empty(front.size)
+    want = False
+    for m in range(front.size):
+        k = front[m]
+        to_end[m] = lane_len[ls[k]] - (ss[k] + half)
+        nx = nxt_lane[order[k]]
+        if nx >= 0 and is_connector[nx] and not granted[order[k]]:
+            reach = vs[k] * vs[k] / (2.0 * comfort_decel) + vs[k] * dt + 3.0 + junction_stop
+            want = want or to_end[m] < reach
+    return ls, ss, vs, same, gap, dv, rear_s, rear_v, front, to_end, want
 
-    def _look_ahead(self, dt: float, order: np.ndarray, ls: np.ndarray, ss: np.ndarray, v: np.ndarray,
-                    same: np.ndarray, gap: np.ndarray, dv: np.ndarray) -> None:
-        """Give each lane's front vehicle the leaders of its next lane, and stop it at a junction without a grant."""
-        c = self.config
-        half = c["length"] / 2.0
-        rear_s, rear_v = np.full(len(self.lanes), np.inf), np.zeros(len(self.lanes))
-        first = np.flatnonzero(np.r_[True, ls[1:] != ls[:-1]])  # sorted by (lane, s): each lane's rearmost
-        rear_s[ls[first]], rear_v[ls[first]] = ss[first], v[first]
-        front = np.flatnonzero(~same)
-        ids, nxt = order[front], self.next[order[front]]
-        to_end = self.lane_len[ls[front]] - (ss[front] + half)
+
+@njit(cache=True, nogil=True)
+def follow(order: np.ndarray, ls: np.ndarray, vs: np.ndarray, gap: np.ndarray, dv: np.ndarray, front: np.ndarray,
+           to_end: np.ndarray, rear_s: np.ndarray, rear_v: np.ndarray, lane_id: np.ndarray, s: np.ndarray,
+           v: np.ndarray, v0: np.ndarray, nxt_lane: np.ndarray, prev_lane: np.ndarray, lane_len: np.ndarray,
+           vlim: np.ndarray, is_connector: np.ndarray, granted: np.ndarray, occupied: np.ndarray,
+           cross_lane: np.ndarray, cross_cw: np.ndarray, cross_s: np.ndarray, length: float, stop_gap: float,
+           junction_stop: float, min_gap: float, time_headway: float, max_accel: float, comfort_decel: float,
+           max_decel: float, delta: float, dt: float):  # pragma: no cover - numba
+    """The front vehicles' leaders on their next lanes (its rearmost vehicle, a vehicle whose rear is still on the
+    own lane, an occupied crosswalk, a junction without a grant), then IDM and one Euler step: (new v, new s)."""
+    n_lanes = lane_len.size
+    half = length / 2.0
+    tail_s = np.full(n_lanes, np.inf)
+    tail_v = np.zeros(n_lanes)
+    for i in range(s.size):  # per lane left, the rearmost vehicle (ties: the lower index)
+        pl = prev_lane[i]
+        if pl >= 0 and s[i] < tail_s[pl]:
+            tail_s[pl], tail_v[pl] = s[i], v[i]
+    for m in range(front.size):
+        k = front[m]
+        nxt = nxt_lane[order[k]]
         has = nxt >= 0
-        nx = np.maximum(nxt, 0)
-        self._grant(dt, ids, nxt, to_end, v[front], rear_s)
-        blocked = has & self.is_connector[nx] & ~self.granted[ids]
-        cand = np.where(blocked, to_end - c["junction_stop"], np.inf)
-        cand_dv = v[front].copy()
-        ahead = to_end + rear_s[nx] - half
-        use = has & ~blocked & (ahead < cand)
-        cand[use], cand_dv[use] = ahead[use], v[front][use] - rear_v[nx][use]
-        # A vehicle that just left a lane still has its rear on it: it leads that lane's front vehicle.
-        left = np.flatnonzero(self.prev_lane >= 0)
-        if len(left):
-            k = left[np.lexsort((self.s[left], self.prev_lane[left]))]  # per lane left, the rearmost first
-            k = k[np.r_[True, self.prev_lane[k][1:] != self.prev_lane[k][:-1]]]
-            tail_s, tail_v = np.full(len(self.lanes), np.inf), np.zeros(len(self.lanes))
-            tail_s[self.prev_lane[k]], tail_v[self.prev_lane[k]] = self.s[k], self.v[k]
-            tail = to_end + tail_s[ls[front]] - half
-            hit = tail < cand
-            cand[hit], cand_dv[hit] = tail[hit], v[front][hit] - tail_v[ls[front]][hit]
-        for ci in np.flatnonzero(self.occupied).tolist():
-            for li, s_in in self.cw_lanes[ci]:
-                stop = to_end + s_in - c["stop_gap"]
-                hit = has & ~blocked & (nxt == li) & (stop < cand)
-                cand[hit], cand_dv[hit] = stop[hit], v[front][hit]
-        closer = cand < gap[front]
-        k = front[closer]
-        gap[k], dv[k] = np.maximum(cand[closer], 0.0), cand_dv[closer]
-
-    def _idm(self, v: np.ndarray, v0: np.ndarray, gap: np.ndarray, dv: np.ndarray) -> np.ndarray:
-        c = self.config
-        s_star = c["min_gap"] + np.maximum(0.0, v * c["time_headway"] + v * dv / (2.0 * np.sqrt(c["max_accel"] * c["comfort_decel"])))
-        with np.errstate(divide="ignore"):
-            interaction = np.where(np.isfinite(gap), (s_star / np.maximum(gap, 0.1)) ** 2, 0.0)
-        a = c["max_accel"] * (1.0 - (v / v0) ** c["delta"] - interaction)
-        return a.clip(-c["max_decel"], c["max_accel"])
+        nx = max(nxt, 0)
+        blocked = has and is_connector[nx] and not granted[order[k]]
+        cand = to_end[m] - junction_stop if blocked else np.inf
+        cand_dv = vs[k]
+        ahead = to_end[m] + rear_s[nx] - half
+        if has and not blocked and ahead < cand:
+            cand, cand_dv = ahead, vs[k] - rear_v[nx]
+        tail = to_end[m] + tail_s[ls[k]] - half
+        if tail < cand:
+            cand, cand_dv = tail, vs[k] - tail_v[ls[k]]
+        for ci in range(occupied.size):
+            if not occupied[ci]:
+                continue
+            for e in range(cross_lane.size):
+                if cross_cw[e] != ci:
+                    continue
+                stop = to_end[m] + cross_s[e] - stop_gap
+                if has and not blocked and nxt == cross_lane[e] and stop < cand:
+                    cand, cand_dv = stop, vs[k]
+        if cand < gap[k]:
+            gap[k], dv[k] = max(cand, 0.0), cand_dv
+    n = s.size
+    root = 2.0 * math.sqrt(max_accel * comfort_decel)
+    new_v = np.empty(n)
+    new_s = np.empty(n)
+    for k in range(n):
+        i = order[k]
+        # Desired speed: the own, capped by the lane's turn speed and by braking to the next lane's limit.
+        lim_next = vlim[max(nxt_lane[i], 0)] if nxt_lane[i] >= 0 else np.inf
+        end = max(lane_len[lane_id[i]] - s[i], 0.0)
+        want = min(min(v0[i], vlim[lane_id[i]]), math.sqrt(lim_next * lim_next + 2.0 * comfort_decel * end))
+        vk = vs[k]
+        s_star = min_gap + max(0.0, vk * time_headway + vk * dv[k] / root)
+        interaction = (s_star / max(gap[k], 0.1)) ** 2 if np.isfinite(gap[k]) else 0.0
+        a = max_accel * (1.0 - (vk / want) ** delta - interaction)
+        a = min(max(a, -max_decel), max_accel)
+        new_v[i] = max(v[i] + a * dt, 0.0)
+        new_s[i] = s[i] + new_v[i] * dt
+    return new_v, new_s

@@ -38,8 +38,8 @@ from sim.agents.lanes import (
     build_lanes,
     connector_compatibility,
 )
-from sim.agents.vehicle_idm import CarFollowing
 from sim.agents.vehicle_junctions import JunctionControl
+from sim.agents.vehicle_idm import follow, leaders
 from sim.agents.vehicle_routing import LaneRouting
 from sim.scene.scene import Scene, as_scene
 
@@ -68,7 +68,7 @@ VEHICLE_DEFAULTS: dict[str, Any] = {
 }
 
 
-class VehicleManager(LaneRouting, CarFollowing, JunctionControl):
+class VehicleManager(LaneRouting, JunctionControl):
     """Vehicles driving the lanes of one scene with IDM, stopping for agents on crosswalks and at busy crossings."""
 
     def __init__(self, config: Mapping[str, Any] | None = None) -> None:
@@ -140,28 +140,22 @@ class VehicleManager(LaneRouting, CarFollowing, JunctionControl):
                 self.occupied[ci] = bool(shapely.contains_xy(self.crosswalks[ci], pts[:, 0], pts[:, 1]).any())
         if self.n:
             order = np.lexsort((self.s, self.lane_id))
-            ls, ss, v = self.lane_id[order], self.s[order], self.v[order]
-            nxt = np.minimum(np.arange(1, self.n + 1), self.n - 1)
-            same = (ls[nxt] == ls) & (np.arange(self.n) < self.n - 1)
-            # A lane's front vehicle drives freely to the lane's end (no ring: it leaves the lane there).
-            gap = np.where(same, ss[nxt] - ss - c["length"], np.inf)
-            dv = np.where(same, v - v[nxt], 0.0)
-            front = ss + c["length"] / 2.0
-            for li, ci, s_in in self.crossings:
-                if not self.occupied[ci]:
-                    continue
-                # A vehicle whose front has not reached the stop line treats it as a standing leader.
-                ahead = s_in - c["stop_gap"] - front
-                closer = (ls == li) & (ahead > -0.5) & (ahead < gap)
-                gap[closer] = np.maximum(ahead[closer], 0.0)
-                dv[closer] = v[closer]
+            cl, cc, cs = self._cross_arrays
+            ls, ss, v, same, gap, dv, rear_s, rear_v, front, to_end, want = leaders(
+                order, self.lane_id, self.s, self.v, self.next, self.lane_len, self.is_connector, self.granted,
+                self.occupied, cl, cc, cs, float(c["length"]), float(c["stop_gap"]), float(dt),
+                float(c["comfort_decel"]), float(c["junction_stop"]), len(self.lanes))
             if self.zones.n_zones:
                 self._crossing_leaders(dt, ls, ss, v, gap, dv)
-            self._look_ahead(dt, order, ls, ss, v, same, gap, dv)
-            acc = np.empty(self.n)
-            acc[order] = self._idm(v, self._desired_speed()[order], gap, dv)
-            self.v = np.maximum(self.v + acc * dt, 0.0)
-            self.s = self.s + self.v * dt
+            if want:  # a front vehicle nears a junction connector without a grant
+                ids = order[front]
+                self._grant(dt, ids, self.next[ids], to_end, v[front], rear_s)
+            self.v, self.s = follow(
+                order, ls, v, gap, dv, front, to_end, rear_s, rear_v, self.lane_id, self.s, self.v, self.v0,
+                self.next, self.prev_lane, self.lane_len, self.vlim, self.is_connector, self.granted, self.occupied,
+                cl, cc, cs, float(c["length"]), float(c["stop_gap"]), float(c["junction_stop"]), float(c["min_gap"]),
+                float(c["time_headway"]), float(c["max_accel"]), float(c["comfort_decel"]), float(c["max_decel"]),
+                float(c["delta"]), float(dt))
             self.jumped = np.zeros(self.n, dtype=bool)  # respawned this step (the only discontinuous moves)
             for i in np.flatnonzero(self.s >= self.lane_len[self.lane_id]).tolist():
                 self._leave_lane(i)
