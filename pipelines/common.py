@@ -61,7 +61,7 @@ def progress():  # noqa: ANN201 - rich.progress.Progress, imported lazily
 
 def die_with_parent() -> None:
     """End this process when its parent (dvc, or the shell that ran it) dies, even by SIGKILL (Linux prctl)."""
-    from retrieval.executors import die_with_parent as _die_with_parent
+    from curbside.executors import die_with_parent as _die_with_parent
 
     _die_with_parent(os.getppid())
 

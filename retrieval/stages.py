@@ -265,7 +265,7 @@ def main(argv: list[str] | None = None) -> None:
     import yaml
     from rich.console import Console
 
-    from retrieval.executors import die_with_parent
+    from curbside.executors import die_with_parent
 
     die_with_parent(os.getppid())  # dvc killed (even by SIGKILL): the stage ends too
     quiet_third_party()

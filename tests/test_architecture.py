@@ -8,7 +8,7 @@ import subprocess
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-KERNEL = {"curbside.config", "curbside.quiet", "curbside.reproducible"}
+KERNEL = {"curbside.config", "curbside.executors", "curbside.quiet", "curbside.reproducible"}
 # What each room may import from the other rooms (the kernel is shared by all; the CLI and training sit on top).
 ALLOWED = {
     "kernel": set(),

@@ -11,10 +11,10 @@ import typer
 
 from catalogs import DEFAULT_CATALOG  # light: only the schema constants
 from curbside.cli.errors import RunError, UsageError
+from curbside.cli.executor_options import Executor  # curbside.executors.EXECUTORS, one choice across the CLI
 
 # Option choices as Enums and ranges, so click refuses a bad value before the catalog is touched: a bad value
 # reaching the per-asset steps would be recorded as every asset's rejection (issue 12).
-Executor = Enum("Executor", {e: e for e in ("local", "process", "ray")}, type=str)  # retrieval.executors.EXECUTORS
 Scorer = Enum("Scorer", {e: e for e in ("imagenet", "clip", "none")}, type=str)  # retrieval.scoring.IMAGE_ENCODERS
 Calibration = Enum("Calibration", {e: e for e in ("softmax", "zscore", "none")}, type=str)  # scoring.CALIBRATIONS
 MAX_VIEWS = 20  # retrieval.render.MAX_VIEWS, not imported so `--help` stays light (a test checks they agree)

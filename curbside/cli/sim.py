@@ -10,6 +10,13 @@ from typing import Optional
 import typer
 
 from curbside.cli.errors import UsageError, parse_config_json
+from curbside.cli.executor_options import (
+    Executor,
+    address_option,
+    check_executor_args,
+    executor_option,
+    workers_option,
+)
 
 app = typer.Typer(help="Run, evaluate, render and benchmark the PyBullet simulator.", no_args_is_help=True)
 
@@ -59,16 +66,30 @@ def eval_cmd(
     scene_path: Optional[Path] = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of generated scenes."),
     config: Optional[str] = typer.Option(None, help="Extra env config as a JSON object."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Also write the summary (metrics.json) and one row per "
+                                       "episode (episodes.csv) into this folder."),
+    executor: Executor = executor_option(),
+    workers: Optional[int] = workers_option(),
+    address: Optional[str] = address_option(),
 ) -> None:
-    """Run a policy for N episodes and print SR, SPL, Cost (plus every other metric the env reports)."""
-    from sim.eval import evaluate
+    """Run a policy for N episodes and print SR, SPL, Cost (plus every other metric the env reports).
+
+    Episodes can be sharded over processes or a Ray cluster (--executor); episode k's seed is seed + k whoever runs
+    it, and the metrics are aggregated in seed order, so every executor prints and writes the same bytes."""
+    from sim.eval import evaluate, write_eval
 
     if seed + episodes - 1 > MAX_SEED:
         raise UsageError(f"--seed + --episodes must stay <= {MAX_SEED + 1}; lower --seed")
+    if out is not None and out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out} is a file; give a folder for metrics.json and episodes.csv")
+    ex = check_executor_args(executor, address)
     env_id = TASKS[task.value]
     cfg = _env_config(machine, scene_path, config)
     _check_env(env_id, cfg)
-    summary = evaluate(env_id, policy.value, episodes, cfg, seed=seed, progress=not as_json)
+    summary = evaluate(env_id, policy.value, episodes, cfg, seed=seed, progress=not as_json, executor=ex,
+                       workers=workers, address=address)
+    if out is not None:
+        write_eval(summary, out)
     if as_json:
         typer.echo(json.dumps(summary, sort_keys=True))
         return

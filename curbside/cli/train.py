@@ -11,6 +11,7 @@ import typer
 from rich.console import Console
 
 from curbside.cli.errors import fail, parse_config_json
+from curbside.cli.executor_options import Executor, address_option, check_executor_args, executor_option, workers_option
 from curbside.config import ConfigError
 
 app = typer.Typer(help="Train PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, BC or GAIL and evaluate them on a split.",
@@ -105,17 +106,24 @@ def collect_cmd(
     scenes: int = typer.Option(64, min=1, help="Train-split scenes to draw episodes from."),
     seed: int = typer.Option(0, min=0, help="Seed of the first episode."),
     config: Optional[str] = typer.Option(None, help="Env config overrides as a JSON object."),
+    executor: Executor = executor_option(),
+    workers: Optional[int] = workers_option(),
+    address: Optional[str] = address_option(),
 ) -> None:
-    """Record the noisy expert on the train split as a Minari dataset; print its path and success rate."""
+    """Record the noisy expert on the train split as a Minari dataset; print its path and success rate.
+
+    Episodes can run on a process pool or a Ray cluster (--executor): episode k depends on (seed, k) alone and
+    the dataset keeps episodes in index order, so every executor writes the same dataset."""
     from curbside.train.demos import collect_demos
 
     cfg = parse_config_json(config)
+    ex = check_executor_args(executor, address)
     try:
         _check_env_config(task, cfg, "train")
     except (ConfigError, ValueError, FileNotFoundError) as e:
         raise fail(str(e)) from None
     os.environ.setdefault("MINARI_DATASETS_PATH", str(out))
     summary = collect_demos(task, out, steps=steps, noise=noise, random_prob=random_prob, env_config=cfg,
-                            num_scenes=scenes, seed=seed)
+                            num_scenes=scenes, seed=seed, executor=ex, workers=workers, address=address)
     typer.echo(f"{summary['path']}: {summary['episodes']} episodes, {summary['steps']} steps, "
                f"success rate {summary['success_rate']:.2f}")

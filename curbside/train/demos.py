@@ -45,42 +45,46 @@ def dataset_id(task: str) -> str:
 
 def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0.7, random_prob: float = 0.0,
                   env_config: Mapping[str, Any] | None = None, num_scenes: int = 64, seed: int = 0,
-                  progress: bool = True) -> dict[str, Any]:
+                  progress: bool = True, executor: str = "local", workers: int | None = None,
+                  address: str | None = None) -> dict[str, Any]:
     """Drive the noisy expert on the train split until `steps` steps (whole episodes); write a Minari dataset
-    under `out` (its datasets root) and return a summary: path, episodes, steps, success rate."""
+    under `out` (its datasets root) and return a summary: path, episodes, steps, success rate.
+
+    Episode k uses seed + k for the env and its own noise stream (seeded by (seed, k)), so `executor`
+    (curbside.executors: local, process, or ray at `address`) may run episodes anywhere: they are kept in index
+    order up to the first that reaches `steps`, and the dataset is the same whichever executor ran them.
+    """
+    import itertools
+
     import gymnasium as gym
 
     import sim  # noqa: F401
-    from sim.expert import PurePursuitExpert
+    from curbside.executors import run_map
 
     if steps < 1 or not 0.0 <= noise < 10 or not 0.0 <= random_prob <= 1.0:
         raise ConfigError("demos need steps >= 1, 0 <= noise < 10 and 0 <= random_prob <= 1")
     did = dataset_id(task)
     cfg = split_config(env_config, "train", num_scenes)
     env = gym.make(env_id(task), config=cfg)
-    expert = PurePursuitExpert()
-    rng = np.random.default_rng(seed)
-    env.action_space.seed(seed)
+    job = (env_id(task), cfg, float(noise), float(random_prob), int(seed))
     total, successes = 0, 0
     buffers: list[Any] = []
     try:
         with progress_bar(f"demos {task}", steps, progress) as update:
-            while total < steps:
-                ep_seed = seed + len(buffers)
-                obs, _ = env.reset(seed=ep_seed)
-                random_episode = rng.random() < random_prob
-                episode = EpisodeRecorder(obs, ep_seed)
-                done = False
-                while not done:
-                    a = env.action_space.sample() if random_episode else expert.act(env) + rng.normal(0.0, noise, 2)
-                    a = np.clip(a, -1, 1).astype(np.float32)
-                    obs, r, term, trunc, info = env.step(a)
-                    episode.add(a, obs, r, term, trunc)
-                    done = term or trunc
-                    total += 1
-                successes += int(info["is_success"])
-                buffers.append(episode.buffer(len(buffers)))
-                update(total)
+            # Endless episode indices: run_map keeps a window of episodes in flight and cancels the rest once the
+            # steps are reached (those extra episodes are dropped, as a local run never starts them).
+            episodes = run_map(demo_episode, itertools.count(), executor=executor, workers=workers, address=address,
+                               args=(job,))
+            try:
+                for episode, success in episodes:
+                    successes += int(success)
+                    total += len(episode)
+                    buffers.append(episode.buffer(len(buffers)))
+                    update(total)
+                    if total >= steps:
+                        break
+            finally:
+                episodes.close()
         summary = write_dataset(buffers, env, out, did, algorithm=f"PurePursuitExpert(noise={noise}, random_prob={random_prob})",
                                 description=f"{task} demonstrations on the train split: the pure-pursuit expert with "
                                 "Gaussian action noise (curbside demos collect).")
@@ -90,6 +94,35 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
                     "random_prob": random_prob, "task": task})
     (Path(summary["path"]) / "curbside.json").write_text(json.dumps(summary, indent=2))
     return summary
+
+
+def demo_episode(k: int, job: tuple[str, dict[str, Any], float, float, int]) -> tuple[EpisodeRecorder, bool]:
+    """Episode `k` of a collection (`job`: env id, env config, noise, random_prob, seed) and whether it
+    succeeded; it depends on (seed, k) alone, so any worker, or a retry, records the same steps."""
+    import gymnasium as gym
+
+    import sim  # noqa: F401
+    from curbside.executors import worker_state
+    from sim.expert import PurePursuitExpert
+
+    eid, cfg, noise, random_prob, seed = job
+    env = worker_state("demo_env", json.dumps([eid, cfg], sort_keys=True, default=str),
+                       lambda: gym.make(eid, config=dict(cfg)))
+    expert = PurePursuitExpert()
+    rng = np.random.default_rng([seed, k])
+    ep_seed = seed + k
+    obs, _ = env.reset(seed=ep_seed)
+    env.action_space.seed(ep_seed)
+    random_episode = rng.random() < random_prob
+    episode = EpisodeRecorder(obs, ep_seed)
+    done, info = False, {}
+    while not done:
+        a = env.action_space.sample() if random_episode else expert.act(env) + rng.normal(0.0, noise, 2)
+        a = np.clip(a, -1, 1).astype(np.float32)
+        obs, r, term, trunc, info = env.step(a)
+        episode.add(a, obs, r, term, trunc)
+        done = term or trunc
+    return episode, bool(info["is_success"])
 
 
 class EpisodeRecorder:

@@ -45,16 +45,14 @@ def summarize(spec: dict[str, Any], file: str, split: str) -> dict[str, Any]:
     return row
 
 
-_WORKER: dict[str, Any] = {}
+def _reader(catalog: str | None) -> Any:
+    """The catalog reader of this worker process (read once per process, not once per scene)."""
+    if catalog is None:
+        return None
+    from catalogs.reader import CatalogReader
+    from curbside.executors import worker_state
 
-
-def _init(cfg: dict[str, Any], catalog: str | None, out: str, split: str, resolved: dict[str, Any]) -> None:
-    reader = None
-    if catalog is not None:
-        from catalogs.reader import CatalogReader
-
-        reader = CatalogReader(catalog)
-    _WORKER.update(cfg=cfg, catalog=reader, name=catalog, out=out, split=split, resolved=resolved)
+    return worker_state("catalog", catalog, lambda: CatalogReader(catalog))
 
 
 def scene_file(split: str, seed: int) -> str:
@@ -81,27 +79,25 @@ def verified_scene(path: Path, seed: int, config: dict[str, Any], catalog: str |
     return spec
 
 
-def _one(seed: int) -> tuple[dict[str, Any], bool]:
-    """(index row, whether it was generated) of one seed: an existing verified file is kept (resume)."""
+def scene_item(seed: int, job: dict[str, Any]) -> tuple[dict[str, Any], str | None]:
+    """(index row, canonical JSON to write, or None when the verified file already in the dataset is kept) of one
+    seed; runs in any worker, and its answer depends on the seed and `job` alone (a retried seed gives the same)."""
     import warnings
 
     from sim.scene.generator import generate_scene
-    from sim.scene.spec import save
+    from sim.scene.spec import encode
 
-    name = scene_file(_WORKER["split"], seed)
-    path = Path(_WORKER["out"]) / name
-    if path.exists():
-        spec = verified_scene(path, seed, _WORKER["resolved"], _WORKER["name"])
+    name = scene_file(job["split"], seed)
+    path = Path(job["out"]) / name
+    if path.exists():  # a worker on another node without the shared folder sees no file and generates
+        spec = verified_scene(path, seed, job["resolved"], job["catalog"])
         if spec is not None:
-            return summarize(spec, name, _WORKER["split"]), False
+            return summarize(spec, name, job["split"]), None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # fallback categories are in each scene's stats; the CLI reports them once
-        spec = generate_scene(_WORKER["cfg"], seed, _WORKER["catalog"])
-    spec["catalog"] = _WORKER["name"]  # a str or None: the spec stays canonical
-    # Atomic: a kill leaves the old file or none, never half a scene. No fsync: after a power loss a file that
-    # came back empty or torn fails `verified_scene` on the next run and is generated again.
-    save(spec, path, is_canonical=True, durable=False)
-    return summarize(spec, name, _WORKER["split"]), True
+        spec = generate_scene(job["cfg"], seed, _reader(job["catalog"]))
+    spec["catalog"] = job["catalog"]  # a str or None: the spec stays canonical
+    return summarize(spec, name, job["split"]), encode(spec)
 
 
 MAX_COUNT = 1_000_000  # splits start 1,000,000 seeds apart
@@ -109,20 +105,26 @@ MAX_COUNT = 1_000_000  # splits start 1,000,000 seeds apart
 
 def build_dataset(
     split: str, count: int, out: str | Path, *, base: dict[str, Any] | None = None, catalog: str | None = None,
-    workers: int = 1, progress: Callable[[int], None] | None = None,
+    workers: int | None = None, progress: Callable[[int], None] | None = None, executor: str | None = None,
+    address: str | None = None,
 ) -> list[dict[str, Any]]:
     """Generate `count` scenes of `split` into `out` (one JSON each) plus index.jsonl and index.parquet.
 
-    Resumable: scene files already in `out` that are complete and match the seed, config and catalog are kept,
-    so a rerun after a kill generates only the missing (or corrupt) ones. Index rows follow seed order.
+    `executor` (curbside.executors): local, process (`workers` processes) or ray (a cluster at `address`, or one
+    started here with `workers` CPUs; None: every core); by default process when workers > 1, else local. Workers
+    generate, this
+    process writes every file, so the dataset is byte-identical whichever executor ran it. Resumable: scene files
+    already in `out` that are complete and match the seed, config and catalog are kept, so a rerun after a kill
+    generates only the missing (or corrupt) ones. Index rows follow seed order.
     """
     from curbside.config import ConfigError
+    from curbside.executors import run_map
     from sim.scene.config import resolve_config
-    from sim.scene.spec import TMP_SUFFIX, canonical
+    from sim.scene.spec import TMP_SUFFIX, canonical, write_atomic
 
     if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= MAX_COUNT:
         raise ConfigError(f"count must be an integer in [1, {MAX_COUNT}] (scenes per split), got {count!r}")
-    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256):
         raise ConfigError(f"workers must be an integer in [1, 256], got {workers!r}")
     cfg, offset = split_config(split, base)
     resolved = canonical(resolve_config(cfg))  # fail before starting workers; as stored in each spec
@@ -132,23 +134,17 @@ def build_dataset(
     (out / "scenes").mkdir(parents=True, exist_ok=True)
     for tmp in (out / "scenes").glob(f".*{TMP_SUFFIX}"):
         tmp.unlink(missing_ok=True)  # left by a killed run (sim.scene.spec.write_atomic)
-    seeds = [offset + i for i in range(count)]
+    executor = executor or ("process" if workers is not None and workers > 1 else "local")
+    job = {"cfg": cfg, "catalog": catalog, "out": str(out.resolve()), "split": split, "resolved": resolved}
     rows: list[dict[str, Any]] = []
-    args = (cfg, catalog, str(out), split, resolved)
-    if workers <= 1:
-        _init(*args)
-        for s in seeds:
-            rows.append(_one(s)[0])
-            if progress:
-                progress(1)
-    else:
-        import multiprocessing as mp
-
-        with mp.get_context("spawn").Pool(workers, initializer=_init, initargs=args) as pool:
-            for row, _ in pool.imap(_one, seeds, chunksize=8):
-                rows.append(row)
-                if progress:
-                    progress(1)
+    seeds = (offset + i for i in range(count))
+    for row, text in run_map(scene_item, seeds, executor=executor, workers=workers, address=address, args=(job,),
+                             progress=progress):
+        if text is not None:
+            # Atomic: a kill leaves the old file or none, never half a scene. No fsync: after a power loss a file
+            # that came back empty or torn fails `verified_scene` on the next run and is generated again.
+            write_atomic(out / row["file"], text, durable=False)
+        rows.append(row)
     write_index(rows, out)
     return rows
 
