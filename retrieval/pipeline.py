@@ -217,10 +217,14 @@ def curate_step(item: SourceItem, content_hash: str, canon: CanonicalMesh, score
                 out: Path, catalog_dir: str | Path) -> tuple[AssetRecord, list[MatchRecord]]:
     """Pick the category, normalise the size, export OBJ/collision/GLB into `out`; returns the asset and matches."""
     from catalogs.categories import CATEGORIES
-    from retrieval.curation import normalize_size
+    from retrieval.curation import OPEN_OBJECT_CLASS, normalize_open_size, normalize_size
     from retrieval.normalize import export_collision, export_glb, export_obj, scale_mesh
 
-    category = item.category or next((pool.categories[i] for i, _ in top if pool.categories[i]), None)
+    category = item.category or (pool.categories[top[0][0]] if top else None)
+    open_vocabulary = category is None and item.category is None and bool(top)
+    if open_vocabulary:
+        # The best match is an open-vocabulary description (category None): the asset is kept under its label.
+        category = open_label(pool.texts[top[0][0]])
     if category is None:
         best = int(np.argmax(scores.fused))
         raw = scores.raw_fused[best] if scores.raw_fused is not None else scores.fused[best]
@@ -228,10 +232,10 @@ def curate_step(item: SourceItem, content_hash: str, canon: CanonicalMesh, score
                                         f"{raw:.3f} (threshold {config.scoring.threshold}, min_lift "
                                         f"{config.scoring.min_lift})")
     prior = CATEGORIES.get(category)
-    if prior is None:
+    if prior is None and not open_vocabulary:
         raise AssetRejected("unknown_category", f"{category!r} is not in catalogs/categories.csv; give the source item "
                                                 f"one of: {', '.join(CATEGORIES)}")
-    scale, unit = normalize_size(canon.extents, category)
+    scale, unit = normalize_size(canon.extents, category) if prior else normalize_open_size(canon.extents)
     final = scale_mesh(canon, scale)
     obj, _, _ = export_obj(final, out, "mesh")
     coll = export_collision(final, out) if config.collision == "convex" else None
@@ -241,8 +245,8 @@ def curate_step(item: SourceItem, content_hash: str, canon: CanonicalMesh, score
     rel = lambda p: stored_path(p, catalog_dir) if p else None
     asset = AssetRecord(
         asset_id=aid, source=item.source, source_id=item.source_id, category=category,
-        object_class=prior.object_class,
-        zones=list(prior.zones), depth=round(depth, 6), width=round(width, 6),
+        object_class=prior.object_class if prior else OPEN_OBJECT_CLASS,
+        zones=list(prior.zones) if prior else [], depth=round(depth, 6), width=round(width, 6),
         height=round(height, 6),
         description=item.description or (f"{category.replace('_', ' ')}: {item.name}" if item.name else category),
         synonyms=list(item.tags), license=item.license, attribution=item.attribution,
@@ -251,6 +255,7 @@ def curate_step(item: SourceItem, content_hash: str, canon: CanonicalMesh, score
         content_hash=content_hash,
         params={**canon.params, "scale": round(scale, 9), "unit_guess": unit, "name": item.name,
                 "scorer": config.scoring.scorer_name, "informative_views": list(selected),
+                **({"open_vocabulary": True} if open_vocabulary else {}),
                 **{k: v for k, v in item.metadata.items() if k != "companion_files"}},
     )
     matches = [MatchRecord(aid, pool.ids[i], round(s, 6), config.scoring.scorer_name,
@@ -258,6 +263,14 @@ def curate_step(item: SourceItem, content_hash: str, canon: CanonicalMesh, score
                            None if scores.text is None else round(float(scores.text[i]), 6), rank)
                for rank, (i, s) in enumerate(top, start=1)]
     return asset, matches
+
+
+def open_label(text: str) -> str:
+    """The catalog category of an open-vocabulary asset: its description's words, article dropped, snake_case."""
+    import re
+
+    words = re.sub(r"^(a|an|the)\s+", "", text.strip().lower())
+    return re.sub(r"[^a-z0-9]+", "_", words).strip("_")[:60] or "object"
 
 
 def process_item(item: SourceItem, config: IngestConfig, pool: DescriptionPool, root: str,

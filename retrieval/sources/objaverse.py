@@ -29,18 +29,23 @@ HF_URL = "https://huggingface.co/datasets/allenai/objaverse/resolve/main"
 URL_ENV = "CURBSIDE_OBJAVERSE_URL"  # another mirror (or, in tests, an address that refuses connections)
 DEFAULT_CACHE = Path.home() / ".objaverse"
 
-# LVIS category -> curbside category, for the LVIS categories that are street objects.
+# LVIS category -> curbside category, for the LVIS categories that are street objects of one category.
 LVIS_TO_CATEGORY = {
-    "bench": "bench", "trash_can": "trash_bin", "fireplug": "fire_hydrant", "traffic_light": "traffic_light",
-    "parking_meter": "parking_meter", "mailbox_(at_home)": "mailbox", "postbox_(public)": "mailbox",
-    "street_sign": "traffic_sign", "streetlight": "street_lamp", "bicycle": "bicycle", "cone": "traffic_cone",
+    "bench": "bench", "trash_can": "trash_bin", "dumpster": "trash_bin", "fireplug": "fire_hydrant",
+    "traffic_light": "traffic_light", "parking_meter": "parking_meter", "mailbox_(at_home)": "mailbox",
+    "postbox_(public)": "mailbox", "street_sign": "traffic_sign", "stop_sign": "traffic_sign",
+    "streetlight": "street_lamp", "lamppost": "street_lamp", "bicycle": "bicycle", "cone": "traffic_cone",
     "shopping_bag": "shopping_bag", "carton": "cardboard_box", "can": "drink_can", "soda_can": "drink_can",
     "beer_can": "drink_can", "chair": "chair", "vending_machine": "vending_machine", "telephone_booth": "phone_booth",
     "flowerpot": "planter", "kiosk": "kiosk", "telephone_pole": "utility_pole", "signboard": "advertising_board",
     "billboard": "advertising_board", "water_fountain": "drinking_fountain", "newsstand": "newspaper_box",
     "cafe_table": "cafe_table", "table": "cafe_table", "scooter": "e_scooter", "pushcart": "food_cart",
-    "barrel": "barrier", "bus_(vehicle)": None, "cart": "food_cart",
+    "barrel": "barrier", "cart": "food_cart",
 }
+# LVIS categories of street objects that name no single curbside category (a pole may be a bollard, a street
+# lamp or a utility pole; a statue is none of the 33): their items carry no category, so the scorer decides, and
+# an asset that matches only open-vocabulary descriptions of the pool is kept as an open-vocabulary asset.
+LVIS_SCORED = ("pole", "statue_(sculpture)", "sculpture", "flagpole", "milestone", "parasol", "birdbath")
 # Sketchfab licence codes in the annotations; the default keeps those that allow redistribution with attribution.
 DEFAULT_LICENSES = ("by", "by-sa", "cc0")
 LICENSE_NAMES = {"by": "CC-BY-4.0", "by-sa": "CC-BY-SA-4.0", "by-nd": "CC-BY-ND-4.0", "by-nc": "CC-BY-NC-4.0",
@@ -133,8 +138,8 @@ class ObjaverseSource:
                  max_bytes: int = 50_000_000, timeout: float = 60.0, retries: int = 3, batch: int = 16,
                  base_url: str | None = None, **_: object) -> None:
         self.cache = ObjaverseCache(cache_dir, timeout=timeout, retries=retries, base_url=base_url)
-        self.lvis = {k: v for k, v in LVIS_TO_CATEGORY.items() if v} if lvis_categories is None else \
-            {k: LVIS_TO_CATEGORY.get(k) for k in lvis_categories}
+        chosen = [*LVIS_TO_CATEGORY, *LVIS_SCORED] if lvis_categories is None else list(lvis_categories)
+        self.lvis = {k: LVIS_TO_CATEGORY.get(k) for k in chosen}
         self.licenses = tuple(licenses)
         self.max_faces, self.max_bytes = max_faces, max_bytes
         self.timeout, self.retries, self.batch = timeout, retries, batch
@@ -173,10 +178,10 @@ class ObjaverseSource:
     def items(self, limit: int | None = None) -> Iterator[SourceItem]:
         """Yield items category by category (uids sorted), prefiltered, downloading in batches."""
         lvis = self.cache.annotation("lvis-annotations.json.gz")
-        chosen: list[tuple[str, str, str]] = []
+        chosen: list[tuple[str, str, str | None]] = []
         for lvis_cat in sorted(self.lvis):
             for uid in sorted(lvis.get(lvis_cat, [])):
-                chosen.append((uid, lvis_cat, self.lvis[lvis_cat] or lvis_cat))
+                chosen.append((uid, lvis_cat, self.lvis[lvis_cat]))
         if limit is not None:
             chosen = chosen[:limit]
         for start in range(0, len(chosen), self.batch):
@@ -200,14 +205,36 @@ class ObjaverseSource:
             paths, errors = self._download(ok)
             for uid, lvis_cat, cat in part:
                 a = ann.get(uid, {})
-                user = a.get("user", {}) or {}
                 verdict = verdicts.get(uid) or (("download_failed", errors[uid]) if uid in errors else None)
+                tags = [t.get("name", "") for t in a.get("tags", [])][:20]
                 yield SourceItem(
                     source="objaverse", source_id=uid, path=paths.get(uid, ""), name=a.get("name", ""),
                     description=(a.get("description") or "").strip()[:500] or None,
-                    tags=[t.get("name", "") for t in a.get("tags", [])][:20], category=cat,
+                    # The LVIS name is a human label too: it tells the text signal what an uncategorised item is.
+                    tags=tags if cat else [*tags, lvis_label(lvis_cat)], category=cat,
                     license=LICENSE_NAMES.get(a.get("license"), a.get("license") or "unknown"),
-                    attribution=f"{a.get('name', uid)} by {user.get('displayName') or user.get('username') or 'unknown'}"
-                                f" ({a.get('viewerUrl') or 'https://sketchfab.com/3d-models/' + uid})",
-                    metadata={"lvis": lvis_cat, **({"rejected": list(verdict)} if verdict else {})},
+                    attribution=attribution(a, uid),
+                    metadata={"lvis": lvis_cat, **provenance(a, uid),
+                              **({"rejected": list(verdict)} if verdict else {})},
                 )
+
+
+def lvis_label(lvis_category: str) -> str:
+    """An LVIS category as words: 'statue_(sculpture)' -> 'statue (sculpture)'."""
+    return lvis_category.replace("_", " ")
+
+
+def attribution(annotation: dict, uid: str) -> str:
+    """'<name> by <author> (<Sketchfab URL>)', the attribution CC-BY asks for, from a Sketchfab annotation."""
+    user = annotation.get("user") or {}
+    author = user.get("displayName") or user.get("username") or "unknown author"
+    url = annotation.get("viewerUrl") or f"https://sketchfab.com/3d-models/{uid}"
+    return f"{annotation.get('name') or uid} by {author} ({url})"
+
+
+def provenance(annotation: dict, uid: str) -> dict[str, str | None]:
+    """What the catalog keeps about where an asset came from: licence code, author and its page, model page."""
+    user = annotation.get("user") or {}
+    return {"license_code": annotation.get("license"), "author": user.get("displayName") or user.get("username"),
+            "author_url": user.get("profileUrl"),
+            "source_url": annotation.get("viewerUrl") or f"https://sketchfab.com/3d-models/{uid}"}
