@@ -29,6 +29,7 @@ from curbside.config import ConfigError, merge_strict
 from sim.agents.behaviours import Crossings, Groups
 from sim.agents.crowd_config import AGENT_DEFAULTS, check_behaviour_config
 from sim.agents.crowd_goals import GoalFollowing
+from sim.agents.crowd_kernels import nearest_nodes, on_mask
 from sim.agents.crowd_orca import EgoState, OrcaCrowd, as_ego
 from sim.agents.crowd_spawning import SPAWN_AREAS, AgentSpawning, sidewalk_length, spawn_region
 from sim.agents.deadlock import PushResolver
@@ -136,8 +137,9 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         self.time += dt
         pref = np.zeros((self.n, 2))
         pinned = np.zeros(self.n, dtype=bool)
+        ox, oy, res = float(g.origin[0]), float(g.origin[1]), float(g.res)
         if self.n:
-            nodes = g.nearest_node(self.pos)
+            nodes = nearest_nodes(self.pos, ox, oy, res, g.nearest_rc, g.node_of)
             self.push.release(self, nodes)
             self._update_goals(dt, nodes)
             self.push.hold(self)
@@ -159,7 +161,7 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         new_vel = np.array([get_vel(i).to_tuple() for i in range(self.n)]).reshape(self.n, 2)
         # ORCA's obstacle handling is not a hard guarantee at concave corners: an agent whose step would leave
         # the walkable area stays put instead; so do members standing in a group (see sim.agents.behaviours).
-        bad = (~g.is_walkable(new_pos) | pinned) if self.n else pinned
+        bad = (~on_mask(new_pos, ox, oy, res, g.walkable) | pinned) if self.n else pinned
         for i in np.flatnonzero(bad):
             sim.set_agent_position(int(i), (float(self.pos[i, 0]), float(self.pos[i, 1])))
             sim.set_agent_velocity(int(i), (0.0, 0.0))

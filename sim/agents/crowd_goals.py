@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.agents.kinds import AGENT_KINDS, IDLE, KIND_NAMES, RUNNING, WALKING
+from sim.agents.crowd_kernels import carrots, headings, progress
 from sim.agents.navgrid import JUMPS
 
 
@@ -75,20 +76,9 @@ class GoalFollowing:
         moving = np.flatnonzero(~idle)
         if not len(moving):
             return
-        d = self.pos[moving] - self.goal[moving]
-        to_goal = np.sqrt((d * d).sum(1))  # == np.linalg.norm(axis=1), without its dispatch cost
-        stall = self.stall[moving]
-        arrived = (to_goal < c["arrive_radius"]) | ((to_goal < c["crowded_arrive_radius"]) & (stall >= c["stuck_steps"] // 2))
-        dist = g.distance(nodes[moving], self.site[moving], planned=True)  # _new_goal planned every goal's field
-        progressed = dist < self.best[moving] - c["stuck_progress"]
-        go = ~arrived & progressed
-        held = ~arrived & ~progressed
-        stall = np.where(go, 0, stall + held)
-        best = np.where(go, dist, self.best[moving])
-        # Progress during the side-step counts from where it began, not from before being pushed back.
-        restart = held & (stall == c["stuck_steps"])
-        best[restart] = dist[restart]
-        self.stall[moving], self.best[moving] = stall, best
+        arrived, abandon = progress(moving, self.pos, self.goal, nodes, self.site, g._dist, self.stall, self.best,
+                                    float(c["arrive_radius"]), float(c["crowded_arrive_radius"]), int(c["stuck_steps"]),
+                                    float(c["stuck_progress"]), int(c["regoal_steps"]))  # _new_goal planned every field
         if arrived.any():
             for i in moving[arrived].tolist():
                 late = self.time - self.goal_t0[i] > self.budget[i]
@@ -102,7 +92,7 @@ class GoalFollowing:
                     self.idle_left[i] = self.rng.uniform(*c["idle_time"])
                 else:
                     self._new_goal(i, int(nodes[i]))
-        for i in moving[held & (stall >= c["regoal_steps"])].tolist():
+        for i in moving[abandon].tolist():
             if self.groups.of[i] >= 0:
                 self.groups.dissolve(self, int(self.groups.of[i]))
             self._new_goal(i, int(nodes[i]), abandon=True)
@@ -112,14 +102,11 @@ class GoalFollowing:
         sites = self.site[idx]
         pos = self.pos[idx]
         steps = c["lookahead_cells"]
-        carrot = g.node_xy(g.lookahead(nodes, sites, steps, planned=True))
+        ox, oy = float(g.origin[0]), float(g.origin[1])
         # Keep right: shortest paths hug the same inner edges in both directions, so opposing flows would meet
         # head-on in one lane (ORCA then herds the weaker side backwards); a right offset forms two lanes.
-        d = carrot - pos
-        norm = np.maximum(np.sqrt((d * d).sum(1))[:, None], 1e-6)
-        shifted = carrot + np.stack([d[:, 1], -d[:, 0]], 1) / norm * c["keep_right"]
-        ok = g.is_free(shifted)
-        carrot[ok] = shifted[ok]
+        carrot = carrots(idx, nodes, self.pos, self.site, g._jump[JUMPS.index(steps)], g.centres,
+                         float(c["keep_right"]), ox, oy, float(g.res), g.free)
         # A carrot behind a concave corner (a crosswalk mouth) would press the agent into the curb: fall back
         # to nearer points of the path (steps, steps/2, ..., 1 cells; the last without a check) until one is in
         # sight. The rungs are looked up at once for the few agents that need them.
@@ -138,14 +125,8 @@ class GoalFollowing:
                 else:
                     carrot[k] = rungs[-1][m]
         # Close to the site the field's single target cell would pull everyone to one point: aim at the own goal.
-        goal = self.goal[idx]
-        near = g.distance(nodes, sites, planned=True) < 1.5 * c["goal_spread"]
-        carrot[near] = goal[near]
-        d = carrot - pos
-        norm = np.sqrt((d * d).sum(1))[:, None]
-        direction = np.where(norm > 1e-6, d / np.maximum(norm, 1e-6), 0.0)
-        dg = goal - pos
-        speed = np.minimum(self.speed[idx], np.maximum(np.sqrt((dg * dg).sum(1)), 0.3))
+        direction, speed = headings(idx, nodes, self.pos, carrot, self.goal, self.site, g._dist, self.speed,
+                                    1.5 * c["goal_spread"])
         stall = self.stall[idx]
         stuck = stall >= c["stuck_steps"]
         if stuck.any():

@@ -102,13 +102,18 @@ class NavGrid:
         """Number of planning cells."""
         return int(self.node_rc.shape[0])
 
-    def node_xy(self, nodes: np.ndarray) -> np.ndarray:
-        """World centres [n, 2] of graph nodes."""
+    @property
+    def centres(self) -> np.ndarray:
+        """World centres [n_nodes, 2] of every graph node."""
         if self._centres is None:
             rc = self.node_rc
             self._centres = np.stack([self.origin[0] + (rc[:, 1] + 0.5) * self.res,
                                       self.origin[1] + (rc[:, 0] + 0.5) * self.res], -1)
-        return self._centres[nodes]
+        return self._centres
+
+    def node_xy(self, nodes: np.ndarray) -> np.ndarray:
+        """World centres [n, 2] of graph nodes."""
+        return self.centres[nodes]
 
     def _frac(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Fractional (column, row) grid coordinates of world points [n, 2]."""
