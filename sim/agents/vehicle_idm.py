@@ -67,10 +67,10 @@ def follow(order: np.ndarray, ls: np.ndarray, vs: np.ndarray, gap: np.ndarray, d
            v: np.ndarray, v0: np.ndarray, nxt_lane: np.ndarray, prev_lane: np.ndarray, lane_len: np.ndarray,
            vlim: np.ndarray, is_connector: np.ndarray, granted: np.ndarray, occupied: np.ndarray,
            cross_lane: np.ndarray, cross_cw: np.ndarray, cross_s: np.ndarray, length: float, stop_gap: float,
-           junction_stop: float, min_gap: float, time_headway: float, max_accel: float, comfort_decel: float,
-           max_decel: float, delta: float, dt: float):  # pragma: no cover - numba
+           junction_stop: float, comfort_decel: float):  # pragma: no cover - numba
     """The front vehicles' leaders on their next lanes (its rearmost vehicle, a vehicle whose rear is still on the
-    own lane, an occupied crosswalk, a junction without a grant), then IDM and one Euler step: (new v, new s)."""
+    own lane, an occupied crosswalk, a junction without a grant), into `gap` and `dv` in place; returns each
+    vehicle's speed over its desired speed (sorted order)."""
     n_lanes = lane_len.size
     half = length / 2.0
     tail_s = np.full(n_lanes, np.inf)
@@ -104,20 +104,31 @@ def follow(order: np.ndarray, ls: np.ndarray, vs: np.ndarray, gap: np.ndarray, d
                     cand, cand_dv = stop, vs[k]
         if cand < gap[k]:
             gap[k], dv[k] = max(cand, 0.0), cand_dv
+    ratio = np.empty(s.size)  # v / v0 in sorted order: numpy raises it to delta (its pow is not libm's)
+    for k in range(s.size):
+        i = order[k]
+        # Desired speed: the own, capped by the lane's turn speed and by braking to the next lane's limit.
+        lim_next = vlim[max(nxt_lane[i], 0)] if nxt_lane[i] >= 0 else np.inf
+        end = max(lane_len[lane_id[i]] - s[i], 0.0)
+        ratio[k] = vs[k] / min(min(v0[i], vlim[lane_id[i]]), math.sqrt(lim_next * lim_next + 2.0 * comfort_decel * end))
+    return ratio
+
+
+@njit(cache=True, nogil=True)
+def idm(order: np.ndarray, vs: np.ndarray, gap: np.ndarray, dv: np.ndarray, free_term: np.ndarray, v: np.ndarray,
+        s: np.ndarray, min_gap: float, time_headway: float, max_accel: float, comfort_decel: float,
+        max_decel: float, dt: float):  # pragma: no cover - numba
+    """IDM accelerations (`free_term` = (v / v0) ** delta, sorted order) and one Euler step: (new v, new s)."""
     n = s.size
     root = 2.0 * math.sqrt(max_accel * comfort_decel)
     new_v = np.empty(n)
     new_s = np.empty(n)
     for k in range(n):
         i = order[k]
-        # Desired speed: the own, capped by the lane's turn speed and by braking to the next lane's limit.
-        lim_next = vlim[max(nxt_lane[i], 0)] if nxt_lane[i] >= 0 else np.inf
-        end = max(lane_len[lane_id[i]] - s[i], 0.0)
-        want = min(min(v0[i], vlim[lane_id[i]]), math.sqrt(lim_next * lim_next + 2.0 * comfort_decel * end))
         vk = vs[k]
         s_star = min_gap + max(0.0, vk * time_headway + vk * dv[k] / root)
         interaction = (s_star / max(gap[k], 0.1)) ** 2 if np.isfinite(gap[k]) else 0.0
-        a = max_accel * (1.0 - (vk / want) ** delta - interaction)
+        a = max_accel * (1.0 - free_term[k] - interaction)
         a = min(max(a, -max_decel), max_accel)
         new_v[i] = max(v[i] + a * dt, 0.0)
         new_s[i] = s[i] + new_v[i] * dt

@@ -39,7 +39,7 @@ from sim.agents.lanes import (
     connector_compatibility,
 )
 from sim.agents.vehicle_junctions import JunctionControl
-from sim.agents.vehicle_idm import follow, leaders
+from sim.agents.vehicle_idm import follow, idm, leaders
 from sim.agents.vehicle_routing import LaneRouting
 from sim.scene.scene import Scene, as_scene
 
@@ -150,12 +150,13 @@ class VehicleManager(LaneRouting, JunctionControl):
             if want:  # a front vehicle nears a junction connector without a grant
                 ids = order[front]
                 self._grant(dt, ids, self.next[ids], to_end, v[front], rear_s)
-            self.v, self.s = follow(
-                order, ls, v, gap, dv, front, to_end, rear_s, rear_v, self.lane_id, self.s, self.v, self.v0,
-                self.next, self.prev_lane, self.lane_len, self.vlim, self.is_connector, self.granted, self.occupied,
-                cl, cc, cs, float(c["length"]), float(c["stop_gap"]), float(c["junction_stop"]), float(c["min_gap"]),
-                float(c["time_headway"]), float(c["max_accel"]), float(c["comfort_decel"]), float(c["max_decel"]),
-                float(c["delta"]), float(dt))
+            ratio = follow(order, ls, v, gap, dv, front, to_end, rear_s, rear_v, self.lane_id, self.s, self.v, self.v0,
+                           self.next, self.prev_lane, self.lane_len, self.vlim, self.is_connector, self.granted,
+                           self.occupied, cl, cc, cs, float(c["length"]), float(c["stop_gap"]),
+                           float(c["junction_stop"]), float(c["comfort_decel"]))
+            self.v, self.s = idm(order, v, gap, dv, ratio ** c["delta"], self.v, self.s, float(c["min_gap"]),
+                                 float(c["time_headway"]), float(c["max_accel"]), float(c["comfort_decel"]),
+                                 float(c["max_decel"]), float(dt))
             self.jumped = np.zeros(self.n, dtype=bool)  # respawned this step (the only discontinuous moves)
             for i in np.flatnonzero(self.s >= self.lane_len[self.lane_id]).tolist():
                 self._leave_lane(i)
