@@ -36,6 +36,26 @@ def write_frame(df: Any, path: str | Path) -> Path:
     return write_parquet(pa.Table.from_pandas(df, preserve_index=False).replace_schema_metadata(None), path)
 
 
+def write_npz(arrays: dict[str, Any], path: str | Path) -> Path:
+    """Write numpy arrays as an uncompressed .npz (np.load reads it) with fixed zip timestamps: equal arrays give
+    equal bytes (np.savez stamps every member with the current time)."""
+    import io
+    import zipfile
+
+    import numpy as np
+
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    tmp = p.with_name(p.name + ".tmp")
+    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_STORED) as zf:
+        for name in sorted(arrays):
+            buf = io.BytesIO()
+            np.lib.format.write_array(buf, np.asanyarray(arrays[name]), allow_pickle=False)
+            zf.writestr(zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0)), buf.getvalue())
+    os.replace(tmp, p)
+    return p
+
+
 def quiet_third_party() -> None:
     """Silence third-party progress bars and advisories (Hugging Face Hub, transformers, tqdm) in this process."""
     os.environ.setdefault("HF_HUB_DISABLE_PROGRESS_BARS", "1")  # read by huggingface_hub and transformers at import

@@ -192,7 +192,7 @@ def render_step(item: SourceItem, obj: Path, bounds: np.ndarray, config: IngestC
         path = out / "views" / f"view_{i:02d}.png"
         Image.fromarray(im).save(path)
         files.append(path)
-    contact_sheet(images, selected, title=f"{item.source}:{item.source_id}").save(out / "contact_sheet.png")
+    contact_sheet(images, selected, title=f"{item.source}:{item.source_id}", scores=info).save(out / "contact_sheet.png")
     return Rendered(images, [s.azimuth for s in specs], [s.elevation for s in specs], selected, info, files)
 
 

@@ -1,9 +1,16 @@
 """Multi-view rendering on CPU with PyBullet's TinyRenderer, informative-view selection and contact sheets.
 
-Informative-view criterion (docs/retrieval.md): score = coverage x edge_entropy, where coverage is the fraction
-of pixels covered by the object and edge_entropy is the normalised Shannon entropy of the gradient-orientation
-histogram (8 bins, magnitude-weighted) over the object's pixels. Views that show a large silhouette with edges
-in many directions (a bench seen three-quarter) beat thin or edge-on views (a bench seen end-on).
+Informative-view criterion (docs/retrieval.md): score = coverage x edge_entropy x consensus.
+- coverage: the fraction of pixels covered by the object; edge_entropy: the normalised Shannon entropy of the
+  magnitude-weighted gradient-orientation histogram (8 bins) over the object's pixels. A large silhouette with
+  edges in many directions (a bench seen three-quarter) beats a thin or edge-on view (a bench seen end-on).
+- consensus: how well the view agrees with the object's other views (cosine of its OpenCV appearance descriptor,
+  colour + edge-orientation histograms, with the mean of the others). This follows Luo et al. (2024, DiffuRank),
+  who keep the views whose content best explains the whole object: there a text-to-3D diffusion model measures
+  the agreement, here a cheap descriptor does, so all 20 views can be ranked at render cost. Views that show an
+  atypical part only (the underside, a pole's cap from above) agree least.
+Selected views are then kept apart: a view nearly identical to one already chosen (a symmetric object's mirror
+view) is passed over, as Luo et al. (2023, Cap3D) spread captioning views around the object.
 """
 
 from __future__ import annotations
@@ -115,21 +122,74 @@ def informativeness(image: np.ndarray) -> float:
     return coverage * entropy
 
 
+DUPLICATE_COS = 0.995  # descriptor cosine above which a view repeats one already selected
+
+
+def view_descriptor(image: np.ndarray) -> np.ndarray:
+    """Unit appearance descriptor of a view (OpenCV): hue-saturation histogram of the object's pixels and its
+    magnitude-weighted edge-orientation histogram; a view of nothing gives zeros."""
+    import cv2
+
+    fg = ((image < 250).any(axis=2)).astype(np.uint8)
+    if not fg.any():
+        return np.zeros(8 * 4 + 16, dtype=np.float32)
+    hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
+    colour = cv2.calcHist([hsv], [0, 1], fg, [8, 4], [0, 180, 0, 256]).ravel()
+    gray = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    mag, ang = cv2.cartToPolar(cv2.Sobel(gray, cv2.CV_32F, 1, 0), cv2.Sobel(gray, cv2.CV_32F, 0, 1))
+    edges = np.bincount((np.mod(ang, np.pi) / np.pi * 16).astype(np.int64).ravel().clip(0, 15),
+                        weights=mag.ravel(), minlength=16)
+    parts = [colour / max(colour.sum(), 1e-9), edges / max(edges.sum(), 1e-9)]
+    d = np.concatenate(parts).astype(np.float32)
+    return d / max(float(np.linalg.norm(d)), 1e-12)
+
+
+def consensus(descriptors: np.ndarray) -> np.ndarray:
+    """Per view, the cosine of its descriptor with the mean descriptor of the other views (1 for a single view)."""
+    d = np.asarray(descriptors, dtype=np.float64)
+    n = len(d)
+    if n < 2:
+        return np.ones(n)
+    others = (d.sum(0)[None] - d) / (n - 1)
+    norm = np.linalg.norm(others, axis=1) * np.linalg.norm(d, axis=1)
+    return np.where(norm > 0, (d * others).sum(1) / np.maximum(norm, 1e-12), 0.0)
+
+
 def select_informative(images: list[np.ndarray], k: int) -> tuple[list[int], list[float]]:
-    """Indices of the `k` most informative views (ties broken by view order) and every view's score."""
-    scores = [informativeness(im) for im in images]
-    order = sorted(range(len(images)), key=lambda i: (-round(scores[i], 9), i))
-    return sorted(order[: max(1, k)]), scores
+    """Indices of the `k` most informative views (coverage x edge entropy x consensus; ties to the lower index;
+    near-duplicates of a chosen view skipped while others remain) and every view's score."""
+    desc = np.stack([view_descriptor(im) for im in images])
+    agree = consensus(desc)
+    scores = [round(informativeness(im) * float(a), 9) for im, a in zip(images, agree)]
+    order = sorted(range(len(images)), key=lambda i: (-scores[i], i))
+    chosen: list[int] = []
+    for i in order:
+        if len(chosen) == max(1, k):
+            break
+        if all(float(desc[i] @ desc[j]) < DUPLICATE_COS for j in chosen):
+            chosen.append(i)
+    for i in order:  # fewer distinct views than k: fill with the best remaining ones
+        if len(chosen) < min(max(1, k), len(images)) and i not in chosen:
+            chosen.append(i)
+    return sorted(chosen), scores
 
 
-def contact_sheet(images: list[np.ndarray], selected: list[int] | None = None, cols: int = 4, title: str | None = None):
-    """Grid of the views as a PIL image; selected (informative) views get a green frame."""
+LEGEND = ("green frame: selected for scoring; number: view score = coverage x edge entropy x consensus with the "
+          "other views (Luo et al. 2024); near-duplicates of a selected view are skipped")
+
+
+def contact_sheet(images: list[np.ndarray], selected: list[int] | None = None, cols: int = 5, title: str | None = None,
+                  scores: list[float] | None = None):
+    """Grid of the views as a PIL image: selected (informative) views framed green, each view's score in its
+    corner, and a legend saying how the views were chosen."""
     from PIL import Image, ImageDraw
 
     h, w = images[0].shape[:2]
+    cols = min(cols, len(images))
     rows = math.ceil(len(images) / cols)
     top = 18 if title else 0
-    sheet = Image.new("RGB", (cols * w, rows * h + top), "white")
+    bottom = 30 if scores is not None else 0
+    sheet = Image.new("RGB", (cols * w, rows * h + top + bottom), "white")
     draw = ImageDraw.Draw(sheet)
     if title:
         draw.text((4, 3), title[:120], fill=(0, 0, 0))
@@ -138,4 +198,11 @@ def contact_sheet(images: list[np.ndarray], selected: list[int] | None = None, c
         sheet.paste(Image.fromarray(im), (x, y))
         if selected and i in selected:
             draw.rectangle([x + 1, y + 1, x + w - 2, y + h - 2], outline=(0, 170, 0), width=3)
+        if scores is not None:
+            draw.text((x + 5, y + 4), f"{i}: {scores[i]:.2f}", fill=(0, 120, 0) if selected and i in selected
+                      else (90, 90, 90))
+    if scores is not None:
+        chars = max(20, cols * w // 6)
+        for n, line in enumerate((LEGEND[:chars], LEGEND[chars:2 * chars])):
+            draw.text((4, rows * h + top + 2 + 13 * n), line, fill=(0, 0, 0))
     return sheet

@@ -24,7 +24,7 @@ import numpy as np
 from catalogs.schema import DEFAULT_TEXT_MODEL
 from curbside.config import check_choice
 
-IMAGE_ENCODERS = ("imagenet", "clip", "none")
+IMAGE_ENCODERS = ("aligned", "imagenet", "clip", "blip", "blip2", "none")
 AGGREGATES = ("max", "mean")
 CALIBRATIONS = ("softmax", "zscore", "none")
 
@@ -58,7 +58,8 @@ class ScoringConfig:
     """How images and metadata text are scored against the pool."""
 
     image_encoder: str = "imagenet"
-    clip_model: str | None = None
+    clip_model: str | None = None  # the clip / blip / blip2 weights folder (or a cached hub name)
+    aligned_weights: str | None = None  # the aligned scorer's heads; None: retrieval/models/aligned.npz
     text_model: str | None = None
     aggregate: str = "max"
     image_weight: float = 0.6
@@ -77,15 +78,18 @@ class ScoringConfig:
         check_choice(self.calibration, CALIBRATIONS, what="score calibration")
         if self.temperature <= 0:
             raise ValueError(f"temperature must be > 0 (softmax calibration), got {self.temperature}")
-        if self.image_encoder == "clip" and not self.clip_model:
-            raise ValueError("the clip image encoder needs clip_model (a local weights folder); or use imagenet")
+        if self.image_encoder in ("clip", "blip", "blip2") and not self.clip_model:
+            raise ValueError(f"the {self.image_encoder} image encoder needs a local weights folder (--clip-model); "
+                             f"or use the offline `aligned` scorer")
         if self.image_weight < 0 or self.text_weight < 0 or self.image_weight + self.text_weight <= 0:
             raise ValueError("image_weight and text_weight must be >= 0 and not both 0")
 
     @property
     def scorer_name(self) -> str:
         """Identifies the scorer in every MatchRecord (encoders, aggregate, weights)."""
-        img = self.image_encoder if self.image_encoder != "clip" else f"clip[{str(self.clip_model).rstrip('/').split('/')[-1]}]"
+        img = self.image_encoder
+        if img in ("clip", "blip", "blip2"):
+            img = f"{img}[{str(self.clip_model).rstrip('/').split('/')[-1]}]"
         text = (self.text_model or DEFAULT_TEXT_MODEL).rstrip("/").split("/")[-1]
         cal = {"softmax": f"sm{self.temperature:g}", "zscore": "z", "none": "raw"}[self.calibration]
         return f"{img}+{text}:{self.aggregate}:w{self.image_weight:g}/{self.text_weight:g}:{cal}"
@@ -131,10 +135,18 @@ class Scorer:
             from retrieval.encoders.imagenet import ImageNetEncoder
 
             self.image_encoder = ImageNetEncoder(self.text_encoder, threads=config.threads)
+        elif config.image_encoder == "aligned":
+            from retrieval.encoders.aligned import AlignedEncoder
+
+            self.image_encoder = AlignedEncoder(self.text_encoder, config.aligned_weights)
         elif config.image_encoder == "clip":
             from retrieval.encoders.clip import ClipEncoder
 
             self.image_encoder = ClipEncoder(config.clip_model)
+        elif config.image_encoder in ("blip", "blip2"):
+            from retrieval.encoders.blip import BlipEncoder
+
+            self.image_encoder = BlipEncoder(config.clip_model, kind=config.image_encoder)
         self.pool_text = self.text_encoder.encode(list(pool.texts))
         self.pool_image = self.image_encoder.encode_texts(list(pool.texts)) if self.image_encoder else None
 
@@ -143,8 +155,11 @@ class Scorer:
         c = self.config
         img_scores = img_emb = None
         if self.image_encoder is not None and images:
-            views = self.image_encoder.encode_images(images)
-            per_view = views @ self.pool_image.T
+            if hasattr(self.image_encoder, "view_scores"):  # BLIP-2: a view's best query token per text
+                per_view, views = self.image_encoder.view_scores(images, self.pool_image)
+            else:
+                views = self.image_encoder.encode_images(images)
+                per_view = views @ self.pool_image.T
             img_scores = per_view.max(axis=0) if c.aggregate == "max" else per_view.mean(axis=0)
             img_emb = views.mean(axis=0)
             img_emb = img_emb / max(float(np.linalg.norm(img_emb)), 1e-12)

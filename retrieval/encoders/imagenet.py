@@ -90,12 +90,15 @@ def _build_model():  # noqa: ANN202 - torch.nn.Module, torch imported lazily
             self._bn1 = bn(1280)
             self._fc = nn.Linear(1280, 1000)
 
-        def forward(self, x):  # noqa: ANN001, ANN202
+        def pooled(self, x):  # noqa: ANN001, ANN202 - the 1280-d features the classifier reads
             x = F.relu6(self._bn0(self._conv_stem(x)))
             for b in self._blocks:
                 x = b(x)
             x = F.relu6(self._bn1(self._conv_head(x)))
-            return self._fc(torch.flatten(F.adaptive_avg_pool2d(x, 1), 1))
+            return torch.flatten(F.adaptive_avg_pool2d(x, 1), 1)
+
+        def forward(self, x):  # noqa: ANN001, ANN202
+            return self._fc(self.pooled(x))
 
     return EfficientNetLite0()
 
@@ -119,6 +122,29 @@ def load_efficientnet_lite0(path: str | None = None):  # noqa: ANN201 - torch.nn
     return model.eval()
 
 
+def image_batch(images: list[np.ndarray], size: int = 224):  # noqa: ANN201 - torch.Tensor (n, 3, size, size)
+    """HxWx3 uint8 images as one EfficientNet-Lite input batch: resized to `size`, normalised as in its training."""
+    import torch
+    from PIL import Image
+
+    batch = [im if im.shape[:2] == (size, size) else np.asarray(Image.fromarray(im).resize((size, size), Image.BILINEAR))
+             for im in images]
+    x = torch.from_numpy(np.stack(batch)).permute(0, 3, 1, 2).float()
+    return (x - 127.0) / 128.0  # EfficientNet-Lite's input normalisation
+
+
+def pooled_features(images: list[np.ndarray], size: int = 224, batch_size: int = 32) -> np.ndarray:
+    """(n, 1280) float32 globally pooled EfficientNet-Lite0 features (the layer before the ImageNet classifier)."""
+    import torch
+
+    model = load_efficientnet_lite0()
+    out = []
+    for i in range(0, len(images), batch_size):
+        with torch.inference_mode():
+            out.append(model.pooled(image_batch(images[i:i + batch_size], size)).numpy())
+    return np.concatenate(out).astype(np.float32) if out else np.zeros((0, 1280), dtype=np.float32)
+
+
 class ImageNetEncoder:
     """Images -> ImageNet-1k probabilities -> probability-weighted class-name text embedding (unit vectors)."""
 
@@ -140,17 +166,10 @@ class ImageNetEncoder:
     def probabilities(self, images: list[np.ndarray]) -> np.ndarray:
         """(n, 1000) softmax probabilities for HxWx3 uint8 images (resized to 224, normalised as in training)."""
         import torch
-        from PIL import Image
 
         out = []
         for i in range(0, len(images), self.batch_size):
-            batch = []
-            for im in images[i:i + self.batch_size]:
-                if im.shape[:2] != (224, 224):
-                    im = np.asarray(Image.fromarray(im).resize((224, 224), Image.BILINEAR))
-                batch.append(im)
-            x = torch.from_numpy(np.stack(batch)).permute(0, 3, 1, 2).float()
-            x = (x - 127.0) / 128.0  # EfficientNet-Lite's input normalisation
+            x = image_batch(images[i:i + self.batch_size])
             with torch.inference_mode():
                 out.append(torch.softmax(self.model(x), dim=1).numpy())
         return np.concatenate(out) if out else np.zeros((0, 1000), dtype=np.float32)

@@ -1,0 +1,51 @@
+"""`aligned` image-text encoder (the default scorer): frozen per-view features (retrieval.aligned.features) and
+frozen MiniLM text embeddings, each through its trained head (catalogs.aligned) into one joint space, where a
+view and a description that matches it ("a gray trash bin with a lid") have a high cosine.
+
+Weights: retrieval/models/aligned.npz, built by the `train_scorer` DVC stage (retrieval/aligned/train.py).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from catalogs.aligned import AlignedHeads, load_heads
+
+
+class AlignedEncoder:
+    """Image and text embeddings (unit vectors) in the aligned scorer's joint space."""
+
+    name = "aligned"
+
+    def __init__(self, text_encoder: Any, weights: str | None = None, heads: AlignedHeads | None = None) -> None:
+        from retrieval.aligned.features import FEATURE_DIM, FEATURE_VERSION
+
+        self.heads = heads or load_heads(weights)
+        if self.heads.feature_version != FEATURE_VERSION or self.heads.feature_dim != FEATURE_DIM:
+            raise ValueError(f"aligned weights were trained on features {self.heads.feature_version!r}, this code makes "
+                             f"{FEATURE_VERSION!r}; retrain them (dvc repro retrieval/dvc.yaml:train_scorer)")
+        self.text_encoder = text_encoder
+        self.dim = self.heads.dim
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, Any], text_encoder: Any) -> AlignedEncoder:
+        """An encoder on in-memory weights (the trainer's report, before they are written)."""
+        from retrieval.aligned.features import FEATURE_VERSION
+
+        return cls(text_encoder, heads=AlignedHeads({"feature_version": FEATURE_VERSION, **arrays}))
+
+    def project_features(self, features: np.ndarray) -> np.ndarray:
+        """Joint-space vectors of precomputed view features."""
+        return self.heads.image(features)
+
+    def encode_images(self, images: list[np.ndarray]) -> np.ndarray:
+        """(n, dim) unit embeddings of HxWx3 uint8 renders on white."""
+        from retrieval.aligned.features import view_features
+
+        return self.heads.image(view_features(images))
+
+    def encode_texts(self, texts: list[str]) -> np.ndarray:
+        """(n, dim) unit embeddings of descriptions."""
+        return self.heads.text(self.text_encoder.encode(list(texts)))
