@@ -10,10 +10,12 @@ import pybullet as p
 
 from sim.agents.figures import figure_shape
 from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
-from sim.raycast.shapes import box_hits, circle_hits
+from sim.raycast.shapes import capsule_box_hits
 
 VEHICLE_HEIGHT = 1.5
 PARKED = [0, 0, -20]  # where unused bodies wait, below the ground
+_NO_XYZ = np.zeros((0, 3))
+_NO_BOXES = (np.zeros(0), np.zeros(0), np.zeros(0))
 
 
 class CohabitantBodies:
@@ -33,6 +35,9 @@ class CohabitantBodies:
         self._xyz: np.ndarray | None = None
         self._yaw = np.zeros(0)  # the agents' headings (their figures face their motion)
         self._vehicle_poses = np.zeros((0, 3))  # x, y, yaw of the vehicles shown
+        self._vehicle_cols: tuple[np.ndarray, ...] = _NO_BOXES
+        self._vehicle_ids = self._agent_ids = np.zeros(0, dtype=np.int64)
+        self._shaft = np.zeros(0)
 
     def park(self) -> None:
         """Move every body out of the way (below the ground), e.g. while the next start's height is probed."""
@@ -43,6 +48,7 @@ class CohabitantBodies:
             self._xyz = np.full_like(self._xyz, np.nan)
         self._yaw[:] = 0.0  # an episode's pictures must not depend on where the last one left the figures
         self._vehicle_poses = np.zeros((0, 3))
+        self._vehicle_cols, self._vehicle_ids = _NO_BOXES, np.zeros(0, dtype=np.int64)
 
     def sync(self, kind_idx: np.ndarray, pos: np.ndarray, base_heights: np.ndarray, vehicles: np.ndarray) -> None:
         """Place the agent bodies at `pos` (on `base_heights`) and the vehicle bodies at `vehicles`' states."""
@@ -63,6 +69,9 @@ class CohabitantBodies:
             self._xyz = xyz
         self._vehicle_poses = np.stack([vehicles["x"], vehicles["y"], vehicles["yaw"]], 1) if len(vehicles) else \
             np.zeros((0, 3))
+        # The ray test's inputs: contiguous pose columns and the ids of the vehicles shown.
+        self._vehicle_cols = tuple(np.ascontiguousarray(v) for v in self._vehicle_poses.T)
+        self._vehicle_ids = np.asarray(self.vehicles[:len(vehicles)], dtype=np.int64)
         if len(vehicles):
             half_yaw = (0.5 * vehicles["yaw"]).tolist()
             for body, x, y, h in zip(self.vehicles, vehicles["x"].tolist(), vehicles["y"].tolist(), half_yaw):
@@ -107,6 +116,8 @@ class CohabitantBodies:
             self._half_heights = np.array([max(AGENT_KINDS[k].height, 2.0 * AGENT_KINDS[k].radius) / 2 for k in kinds])
             self._radii = np.array([AGENT_KINDS[k].radius for k in kinds])
             self._xyz = np.full((len(kinds), 3), np.nan)  # nan != anything: every body moves on the first sync
+            self._shaft = np.maximum(self._half_heights - self._radii, 0.0)  # half each capsule's straight part
+            self._agent_ids = np.asarray(self.agents, dtype=np.int64)
             self._yaw = np.zeros(len(kinds))
         while len(self.vehicles) < n_vehicles:
             half = [self.vehicle_size[0] / 2, self.vehicle_size[1] / 2, VEHICLE_HEIGHT / 2]
@@ -131,20 +142,10 @@ class CohabitantBodies:
         whose grids hold only the static scene.
         """
         dist = np.full(cos.shape, np.inf)
-        which = -np.ones(cos.shape, dtype=np.int64)
-        if self._xyz is not None and len(self._xyz):
-            shaft = np.maximum(self._half_heights - self._radii, 0.0)  # half the straight part
-            dz = np.maximum(np.abs(h - self._xyz[:, 2]) - shaft, 0.0)  # nan for parked bodies: no hit
-            rho2 = self._radii ** 2 - dz ** 2
-            near = np.flatnonzero(rho2 > 0.0)
-            if near.size:
-                circle_hits(x, y, cos, sin, self._xyz[near, 0], self._xyz[near, 1], np.sqrt(rho2[near]), start,
-                            range_m, dist, which)
-                which = np.where(which >= 0, np.asarray(self.agents)[near][np.maximum(which, 0)], -1)
-        if len(self._vehicle_poses) and 0.0 <= h <= VEHICLE_HEIGHT:
-            vx, vy, vyaw = (np.ascontiguousarray(v) for v in self._vehicle_poses.T)
-            k = -np.ones(cos.shape, dtype=np.int64)
-            box_hits(x, y, cos, sin, vx, vy, vyaw, 0.5 * self.vehicle_size[0], 0.5 * self.vehicle_size[1], start,
-                     range_m, dist, k)
-            which = np.where(k >= 0, np.asarray(self.vehicles[:len(vx)])[np.maximum(k, 0)], which)
+        which = np.full(cos.shape, -1, dtype=np.int64)
+        xyz = self._xyz if self._xyz is not None else _NO_XYZ
+        boxes = self._vehicle_cols if len(self._vehicle_poses) and 0.0 <= h <= VEHICLE_HEIGHT else _NO_BOXES
+        capsule_box_hits(float(x), float(y), float(h), cos, sin, float(start), float(range_m), xyz, self._shaft,
+                         self._radii, self._agent_ids, *boxes, 0.5 * self.vehicle_size[0], 0.5 * self.vehicle_size[1],
+                         self._vehicle_ids, dist, which)
         return dist, which
