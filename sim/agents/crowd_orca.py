@@ -57,8 +57,11 @@ class OrcaCrowd:
                 sim.add_agent(self._parked(i), c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
                               c["time_horizon_obst"], 0.1, 0.0)
             # The ego is the last ORCA agent; it starts parked far away so it influences nobody until placed.
+            # Its max speed is 0: agents see its position, velocity and radius only, and its own ORCA velocity is
+            # never used (_set_ego overwrites both before every step), but RVO2 would gather every obstacle within
+            # time_horizon_obst * max speed of it each step (about half of do_step at 50 m/s).
             sim.add_agent(self._parked(cap), c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
-                          c["time_horizon_obst"], 0.1, 50.0)
+                          c["time_horizon_obst"], 0.1, 0.0)
             for vertices in self._obstacles:
                 sim.add_obstacle(vertices)
             sim.process_obstacles()
@@ -70,7 +73,7 @@ class OrcaCrowd:
                 top = (kind.run_speed or kind.pref_speed) + 3.0 * kind.speed_std
                 pos, radius = (float(self.pos[i, 0]), float(self.pos[i, 1])), float(self.radius[i] + c["safety_margin"])
             else:
-                pos, radius, top = self._parked(i), 0.1, 0.0 if i < cap else 50.0
+                pos, radius, top = self._parked(i), 0.1, 0.0
             sim.set_agent_position(i, pos)
             sim.set_agent_velocity(i, (0.0, 0.0))
             sim.set_agent_pref_velocity(i, (0.0, 0.0))
