@@ -81,6 +81,7 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         fresh = scene is not self._scene
         if fresh:
             self.grid = build_navgrid(scene, plan_radius=c["plan_radius"], n_sites=c["n_goal_sites"])
+            self._goal_cell_cache: dict = {}  # (site, spread) -> goal cells (GoalFollowing._goal_cells)
             self.crossings.setup(scene, self.grid)
         self._area = spawn_region(scene, c, route)
         if route is not None and len(route) >= 2:
@@ -130,6 +131,11 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
     # ------------------------------------------------------------------ step
     def step(self, dt: float, ego: EgoState | Mapping[str, float] | Sequence[float] | None = None) -> np.ndarray:
         """Advance every agent by `dt` seconds around the ego (None: no ego) and return states()."""
+        self.advance(dt, ego)
+        return self.states()
+
+    def advance(self, dt: float, ego: EgoState | Mapping[str, float] | Sequence[float] | None = None) -> None:
+        """step() without building its states (the env reads `pos` directly)."""
         if self.grid is None:
             raise RuntimeError("AgentManager.step called before reset(scene, rng)")
         g = self.grid
@@ -157,8 +163,8 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
             set_pref(i, v)
         sim.do_step()
         get_pos, get_vel = sim.get_agent_position, sim.get_agent_velocity
-        new_pos = np.array([get_pos(i).to_tuple() for i in range(self.n)]).reshape(self.n, 2)
-        new_vel = np.array([get_vel(i).to_tuple() for i in range(self.n)]).reshape(self.n, 2)
+        state = np.array([get_pos(i).to_tuple() + get_vel(i).to_tuple() for i in range(self.n)]).reshape(self.n, 4)
+        new_pos, new_vel = state[:, :2].copy(), state[:, 2:].copy()
         # ORCA's obstacle handling is not a hard guarantee at concave corners: an agent whose step would leave
         # the walkable area stays put instead; so do members standing in a group (see sim.agents.behaviours).
         bad = (~on_mask(new_pos, ox, oy, res, g.walkable) | pinned) if self.n else pinned
@@ -169,7 +175,6 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         self.pos, self.vel = new_pos, new_vel
         self.trail[:-1] = self.trail[1:]  # oldest first; in place, no new [trail, n, 2] array per step
         self.trail[-1] = self.pos
-        return self.states()
 
     # ------------------------------------------------------------------ outputs
     def states(self) -> np.ndarray:

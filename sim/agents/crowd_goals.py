@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.agents.kinds import AGENT_KINDS, IDLE, KIND_NAMES, RUNNING, WALKING
-from sim.agents.crowd_kernels import carrots, headings, progress
+from sim.agents.crowd_kernels import carrots, headings, idle_tick, progress, rungs
 from sim.agents.navgrid import JUMPS
 
 
@@ -41,10 +41,7 @@ class GoalFollowing:
             self.movement[i], self.speed[i] = WALKING, speed
         dist = g.field(site)
         if goal_xy is None:
-            centre = g.node_xy(np.array([g.sites[site]]))[0]
-            near = np.flatnonzero(np.linalg.norm(g.node_xy(np.flatnonzero(dist < spread * 1.5)) - centre, axis=1)
-                                  < spread)
-            near_nodes = np.flatnonzero(dist < spread * 1.5)[near]
+            near_nodes = self._goal_cells(site, spread, dist)
             goal_node = int(rng.choice(near_nodes)) if len(near_nodes) else int(g.sites[site])
         else:
             goal_node = int(g.nearest_node(np.asarray(goal_xy, dtype=np.float64)[None])[0])
@@ -56,24 +53,33 @@ class GoalFollowing:
         self.best[i] = np.inf
         self.stall[i] = 0
 
+    def _goal_cells(self, site: int, spread: float, dist: np.ndarray) -> np.ndarray:
+        """Nodes within `spread` m of goal site `site` (and within 1.5 spread along its field `dist`), cached: goals
+        are drawn among them every time an agent heads there."""
+        key = (id(self.grid), site, spread)
+        cells = self._goal_cell_cache.get(key)
+        if cells is None:
+            g = self.grid
+            centre = g.node_xy(np.array([g.sites[site]]))[0]
+            cand = np.flatnonzero(dist < spread * 1.5)
+            cells = cand[np.flatnonzero(np.linalg.norm(g.node_xy(cand) - centre, axis=1) < spread)]
+            self._goal_cell_cache[key] = cells
+        return cells
+
     def _walking_speed(self, i: int) -> float:
         """A fresh walking speed for agent i's kind."""
         return AGENT_KINDS[KIND_NAMES[self.kind_idx[i]]].sample_speed(self.rng, "walking")
 
     def _update_goals(self, dt: float, nodes: np.ndarray) -> None:
         c, g = self.config, self.grid
-        idle = self.movement == IDLE
-        if idle.any():
-            self.idle_left[idle] -= dt
-            for i in np.flatnonzero(idle & (self.idle_left <= 0)).tolist():
-                if self.movement[i] != IDLE:
-                    continue  # its group's decision already sent it off
-                if self.groups.of[i] >= 0:
-                    self.groups.stand_over(self, i, nodes)
-                else:
-                    self._new_goal(i, int(nodes[i]))
-            idle = self.movement == IDLE
-        moving = np.flatnonzero(~idle)
+        for i in idle_tick(self.movement, self.idle_left, float(dt), IDLE).tolist():
+            if self.movement[i] != IDLE:
+                continue  # its group's decision already sent it off
+            if self.groups.of[i] >= 0:
+                self.groups.stand_over(self, i, nodes)
+            else:
+                self._new_goal(i, int(nodes[i]))
+        moving = np.flatnonzero(self.movement != IDLE)
         if not len(moving):
             return
         arrived, abandon = progress(moving, self.pos, self.goal, nodes, self.site, g._dist, self.stall, self.best,
@@ -115,15 +121,14 @@ class GoalFollowing:
         blocked = [k for k, (p, q, r) in enumerate(zip(pos_l, carrot.tolist(), rad_l)) if not visible(p, q, r)]
         if blocked:
             b = np.asarray(blocked)
-            rungs = [g.node_xy(g.lookahead(nodes[b], sites[b], s, planned=True)).tolist()
-                     for s in JUMPS[::-1] if s <= steps]
+            ladder = rungs(nodes[b], sites[b], g._jump, g.centres, JUMPS.index(steps)).tolist()
             for m, k in enumerate(blocked):
-                for rung in rungs[:-1]:
+                for rung in ladder[:-1]:
                     if visible(pos_l[k], rung[m], rad_l[k]):
                         carrot[k] = rung[m]
                         break
                 else:
-                    carrot[k] = rungs[-1][m]
+                    carrot[k] = ladder[-1][m]
         # Close to the site the field's single target cell would pull everyone to one point: aim at the own goal.
         direction, speed = headings(idx, nodes, self.pos, carrot, self.goal, self.site, g._dist, self.speed,
                                     1.5 * c["goal_spread"])

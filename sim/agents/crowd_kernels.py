@@ -48,6 +48,17 @@ def on_mask(xy: np.ndarray, ox: float, oy: float, res: float, mask: np.ndarray) 
 
 
 @njit(cache=True, nogil=True)
+def idle_tick(movement: np.ndarray, idle_left: np.ndarray, dt: float, idle: int) -> np.ndarray:  # pragma: no cover
+    """Count `dt` off the idle agents' `idle_left` (in place); returns the idle agents whose time is up."""
+    done = np.zeros(movement.size, dtype=np.bool_)
+    for i in range(movement.size):
+        if movement[i] == idle:
+            idle_left[i] -= dt
+            done[i] = idle_left[i] <= 0
+    return np.flatnonzero(done)
+
+
+@njit(cache=True, nogil=True)
 def progress(moving: np.ndarray, pos: np.ndarray, goal: np.ndarray, nodes: np.ndarray, site: np.ndarray,
              dist_table: np.ndarray, stall: np.ndarray, best: np.ndarray, arrive_radius: float,
              crowded_radius: float, stuck_steps: int, stuck_progress: float, regoal_steps: int):  # pragma: no cover
@@ -120,3 +131,14 @@ def headings(idx: np.ndarray, nodes: np.ndarray, pos: np.ndarray, carrot: np.nda
         ex, ey = gx - pos[i, 0], gy - pos[i, 1]
         out_speed[k] = min(speed[i], max(math.sqrt(ex * ex + ey * ey), 0.3))
     return direction, out_speed
+
+
+@njit(cache=True, nogil=True)
+def rungs(nodes: np.ndarray, sites: np.ndarray, jump: np.ndarray, centres: np.ndarray, top: int) -> np.ndarray:
+    """Path cells [rung, k, 2] 2^top, ..., 2, 1 cells ahead of `nodes` toward `sites` (jump: [2^j, site, node])."""
+    out = np.empty((top + 1, nodes.size, 2))
+    for r in range(top + 1):
+        for k in range(nodes.size):
+            c = centres[jump[top - r, sites[k], nodes[k]]]
+            out[r, k, 0], out[r, k, 1] = c[0], c[1]
+    return out

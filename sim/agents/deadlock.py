@@ -91,6 +91,8 @@ class PushResolver:
             return
         c, g = m.config, m.grid
         stuck = c["stuck_steps"]
+        if not (m.stall >= max(stuck, 1)).any():
+            return  # nobody stalled long enough: no candidate
         busy = self.busy(m.n)
         moving = m.movement != IDLE
         cand = np.flatnonzero(moving & (m.stall >= max(stuck, 1)) & ~busy)

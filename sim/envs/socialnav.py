@@ -98,7 +98,7 @@ class SocialNavEnv(PointNavEnv):
 
     def _on_step(self) -> None:
         ego = self._ego_state()
-        self.crowd.step(self.dt, ego)
+        self.crowd.advance(self.dt, ego)
         if self.config["traffic"]:
             people = np.concatenate([self.crowd.pos, [[ego.x, ego.y]]])
             self._vehicle_states = self.traffic.step(self.dt, people)
