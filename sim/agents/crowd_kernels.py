@@ -37,6 +37,17 @@ def nearest_nodes(xy: np.ndarray, ox: float, oy: float, res: float, nearest_rc: 
 
 
 @njit(cache=True, nogil=True)
+def cell_values(xy: np.ndarray, ox: float, oy: float, res: float, grid: np.ndarray) -> np.ndarray:  # pragma: no cover
+    """Values of `grid` at the cells holding world points [n, 2], clipped to the grid (NavGrid.cell_of)."""
+    h, w = grid.shape
+    out = np.empty(xy.shape[0], dtype=grid.dtype)
+    for k in range(xy.shape[0]):
+        i, j, _ = _cell(xy[k, 0], xy[k, 1], ox, oy, res, h, w)
+        out[k] = grid[i, j]
+    return out
+
+
+@njit(cache=True, nogil=True)
 def on_mask(xy: np.ndarray, ox: float, oy: float, res: float, mask: np.ndarray) -> np.ndarray:  # pragma: no cover
     """Whether world points [n, 2] lie inside the grid on a True cell of `mask` (NavGrid.is_walkable / is_free)."""
     h, w = mask.shape

@@ -133,3 +133,34 @@ def idm(order: np.ndarray, vs: np.ndarray, gap: np.ndarray, dv: np.ndarray, free
         new_v[i] = max(v[i] + a * dt, 0.0)
         new_s[i] = s[i] + new_v[i] * dt
     return new_v, new_s
+
+
+@njit(cache=True, nogil=True)
+def lane_points(lane_id: np.ndarray, s: np.ndarray, lane_off: np.ndarray, lane_len: np.ndarray, all_cum: np.ndarray,
+                all_pts: np.ndarray):  # pragma: no cover - numba
+    """Centres [n, 2] of vehicles at arc length `s` on their lanes (all lanes laid end to end in `all_pts` at
+    `all_cum`), and the direction [n, 2] of the segment each is on."""
+    n = s.size
+    xy = np.empty((n, 2))
+    seg = np.empty((n, 2))
+    for i in range(n):
+        g = lane_off[lane_id[i]] + min(s[i], lane_len[lane_id[i]] - 1e-6)
+        k = min(max(np.searchsorted(all_cum, g, side="right") - 1, 0), all_cum.size - 2)
+        sx, sy = all_pts[k + 1, 0] - all_pts[k, 0], all_pts[k + 1, 1] - all_pts[k, 1]
+        t = (g - all_cum[k]) / max(all_cum[k + 1] - all_cum[k], 1e-9)
+        xy[i, 0], xy[i, 1] = all_pts[k, 0] + sx * t, all_pts[k, 1] + sy * t
+        seg[i, 0], seg[i, 1] = sx, sy
+    return xy, seg
+
+
+@njit(cache=True, nogil=True)
+def in_boxes(xy: np.ndarray, bounds: np.ndarray):  # pragma: no cover - numba
+    """(box, point) index pairs of the points [n, 2] inside the boxes [m, 4] (min x, min y, max x, max y)."""
+    box, pt = [], []
+    for b in range(bounds.shape[0]):
+        for i in range(xy.shape[0]):
+            if (xy[i, 0] >= bounds[b, 0] and xy[i, 1] >= bounds[b, 1] and xy[i, 0] <= bounds[b, 2]
+                    and xy[i, 1] <= bounds[b, 3]):
+                box.append(b)
+                pt.append(i)
+    return np.array(box, dtype=np.int64), np.array(pt, dtype=np.int64)

@@ -39,7 +39,7 @@ from sim.agents.lanes import (
     connector_compatibility,
 )
 from sim.agents.vehicle_junctions import JunctionControl
-from sim.agents.vehicle_idm import follow, idm, leaders
+from sim.agents.vehicle_idm import follow, idm, in_boxes, lane_points, leaders
 from sim.agents.vehicle_routing import LaneRouting
 from sim.scene.scene import Scene, as_scene
 
@@ -92,6 +92,7 @@ class VehicleManager(LaneRouting, JunctionControl):
             for cw in self.crosswalks:
                 shapely.prepare(cw)
             self._cw_bounds = np.array([cw.bounds for cw in self.crosswalks]).reshape(-1, 4)
+            self._cw_array = np.array(self.crosswalks, dtype=object)  # for one contains_xy call over all of them
             self.zones: ConflictZones = build_conflict_zones(road, c["width"])
             self._index_lanes()
             self._scene = scene
@@ -131,13 +132,12 @@ class VehicleManager(LaneRouting, JunctionControl):
         c = self.config
         self.occupied = np.zeros(len(self.crosswalks), dtype=bool)
         if self.n and people_xy is not None and len(people_xy) and self.crosswalks:
-            xy = np.asarray(people_xy, dtype=np.float64)
+            xy = np.ascontiguousarray(people_xy, dtype=np.float64)
             # Bounding boxes first: most ticks nobody is near a crosswalk and no polygon test runs at all.
-            lo, hi = self._cw_bounds[:, None, :2], self._cw_bounds[:, None, 2:]
-            near = np.all((xy[None] >= lo) & (xy[None] <= hi), axis=2)
-            for ci in np.flatnonzero(near.any(axis=1)).tolist():
-                pts = xy[near[ci]]
-                self.occupied[ci] = bool(shapely.contains_xy(self.crosswalks[ci], pts[:, 0], pts[:, 1]).any())
+            box, pt = in_boxes(xy, self._cw_bounds)
+            if len(box):
+                inside = shapely.contains_xy(self._cw_array[box], xy[pt, 0], xy[pt, 1])
+                self.occupied[box[inside]] = True
         if self.n:
             order = np.lexsort((self.s, self.lane_id))
             cl, cc, cs = self._cross_arrays
@@ -186,11 +186,7 @@ class VehicleManager(LaneRouting, JunctionControl):
         """Every vehicle's centre, velocity, heading and size as a structured array of VEHICLE_DTYPE."""
         out = np.zeros(self.n, dtype=VEHICLE_DTYPE)
         if self.n:
-            g = self.lane_off[self.lane_id] + np.minimum(self.s, self.lane_len[self.lane_id] - 1e-6)
-            k = (np.searchsorted(self.all_cum, g, side="right") - 1).clip(0, len(self.all_cum) - 2)
-            seg = self.all_pts[k + 1] - self.all_pts[k]
-            t = (g - self.all_cum[k]) / np.maximum(self.all_cum[k + 1] - self.all_cum[k], 1e-9)
-            xy = self.all_pts[k] + seg * t[:, None]
+            xy, seg = lane_points(self.lane_id, self.s, self.lane_off, self.lane_len, self.all_cum, self.all_pts)
             yaw = np.arctan2(seg[:, 1], seg[:, 0])
             out["x"], out["y"], out["yaw"] = xy[:, 0], xy[:, 1], yaw
             out["vx"], out["vy"] = self.v * np.cos(yaw), self.v * np.sin(yaw)

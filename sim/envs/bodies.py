@@ -34,8 +34,7 @@ class CohabitantBodies:
         self._radii = np.zeros(0)
         self._xyz: np.ndarray | None = None
         self._yaw = np.zeros(0)  # the agents' headings (their figures face their motion)
-        self._vehicle_poses = np.zeros((0, 3))  # x, y, yaw of the vehicles shown
-        self._vehicle_cols: tuple[np.ndarray, ...] = _NO_BOXES
+        self._vehicle_cols: tuple[np.ndarray, ...] = _NO_BOXES  # x, y, yaw of the vehicles shown
         self._vehicle_ids = self._agent_ids = np.zeros(0, dtype=np.int64)
         self._shaft = np.zeros(0)
 
@@ -47,7 +46,6 @@ class CohabitantBodies:
         if self._xyz is not None:
             self._xyz = np.full_like(self._xyz, np.nan)
         self._yaw[:] = 0.0  # an episode's pictures must not depend on where the last one left the figures
-        self._vehicle_poses = np.zeros((0, 3))
         self._vehicle_cols, self._vehicle_ids = _NO_BOXES, np.zeros(0, dtype=np.int64)
 
     def sync(self, kind_idx: np.ndarray, pos: np.ndarray, base_heights: np.ndarray, vehicles: np.ndarray) -> None:
@@ -67,10 +65,8 @@ class CohabitantBodies:
             for k, at, sz, cz in zip(moved.tolist(), xyz[moved].tolist(), np.sin(half).tolist(), np.cos(half).tolist()):
                 p.resetBasePositionAndOrientation(self.agents[k], at, (0, 0, sz, cz), physicsClientId=c)
             self._xyz = xyz
-        self._vehicle_poses = np.stack([vehicles["x"], vehicles["y"], vehicles["yaw"]], 1) if len(vehicles) else \
-            np.zeros((0, 3))
-        # The ray test's inputs: contiguous pose columns and the ids of the vehicles shown.
-        self._vehicle_cols = tuple(np.ascontiguousarray(v) for v in self._vehicle_poses.T)
+        # The ray test's inputs: the shown vehicles' x, y and yaw (contiguous) and their body ids.
+        self._vehicle_cols = (vehicles["x"].copy(), vehicles["y"].copy(), vehicles["yaw"].copy())
         self._vehicle_ids = np.asarray(self.vehicles[:len(vehicles)], dtype=np.int64)
         if len(vehicles):
             half_yaw = (0.5 * vehicles["yaw"]).tolist()
@@ -144,7 +140,7 @@ class CohabitantBodies:
         dist = np.full(cos.shape, np.inf)
         which = np.full(cos.shape, -1, dtype=np.int64)
         xyz = self._xyz if self._xyz is not None else _NO_XYZ
-        boxes = self._vehicle_cols if len(self._vehicle_poses) and 0.0 <= h <= VEHICLE_HEIGHT else _NO_BOXES
+        boxes = self._vehicle_cols if 0.0 <= h <= VEHICLE_HEIGHT else _NO_BOXES
         capsule_box_hits(float(x), float(y), float(h), cos, sin, float(start), float(range_m), xyz, self._shaft,
                          self._radii, self._agent_ids, *boxes, 0.5 * self.vehicle_size[0], 0.5 * self.vehicle_size[1],
                          self._vehicle_ids, dist, which)

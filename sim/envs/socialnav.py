@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from sim.agents.crowd import AgentManager, EgoState
+from sim.agents.crowd_kernels import cell_values
 from sim.agents.vehicles import VehicleManager
 from sim.envs.bodies import CohabitantBodies
 from sim.envs.pointnav import PointNavEnv
@@ -116,10 +117,10 @@ class SocialNavEnv(PointNavEnv):
         g = self.crowd.grid
         if not len(xy):
             return np.zeros(0)
-        i, j = g.cell_of(xy)
+        codes = cell_values(xy, float(g.origin[0]), float(g.origin[1]), float(g.res), g.cells)
         curb = self.scene.curb_height
         # Legend: sidewalk on the curb, crosswalk on the road, ramps half way.
-        return np.choose(np.minimum(g.cells[i, j], 3), [curb, curb, 0.0, curb / 2])
+        return np.array([curb, curb, 0.0, curb / 2])[np.minimum(codes, 3)]
 
     # -- state -------------------------------------------------------------------------------------
     def _ego_state(self) -> EgoState:
