@@ -182,6 +182,7 @@ def connect_ray(workers: int | None = None, address: str | None = None) -> bool:
     quiet = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.WARNING,
              "configure_logging": True}
     if address:
+        _check_reachable(address)
         try:
             ray.init(address=address, **quiet)
         except (ConnectionError, RuntimeError, ValueError) as exc:
@@ -190,6 +191,20 @@ def connect_ray(workers: int | None = None, address: str | None = None) -> bool:
     else:
         ray.init(num_cpus=workers or os.cpu_count() or 1, **quiet)
     return True
+
+
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    """ConfigError when a HOST:PORT address does not answer a TCP connect (Ray itself would retry for minutes)."""
+    import socket
+
+    host, sep, port = address.rpartition(":")
+    if not sep or "/" in address or not port.isdigit():
+        return  # "auto", ray://..., or a form Ray explains itself
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as exc:
+        raise ConfigError(f"cannot reach a Ray cluster at {address!r} ({exc.strerror or exc}); start one with "
+                          "`ray start --head` and pass the address it prints, or leave out --address") from None
 
 
 def _ray_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | None, address: str | None, args: tuple,
