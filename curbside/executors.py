@@ -99,13 +99,14 @@ def die_with_parent(parent_pid: int) -> None:
 
 def run_map(fn: Callable[..., Any], items: Iterable[Any], *, executor: str = "local", workers: int | None = None,
             address: str | None = None, args: tuple = (), progress: Progress | None = None,
-            max_retries: int = MAX_RETRIES) -> Iterator[Any]:
+            max_retries: int = MAX_RETRIES, nodes: dict[str, int] | None = None) -> Iterator[Any]:
     """Yield fn(item, *args) for each item, in order, computed by the chosen executor.
 
     `workers`: processes (`process`), or at most this many items at once on the cluster (`ray`; a local cluster is
     started with this many CPUs). `address`: a running Ray cluster (`ray start --head` prints it; "auto" finds the
     one on this node). `progress(n)` is called as items finish, in whatever order the workers finish them.
     `items` may be endless: work is submitted a window at a time, and closing the generator cancels what is left.
+    `nodes`, when given, is filled with the number of items each node finished (Ray node ids; "local" otherwise).
     """
     check_executor(executor)
     check_workers(workers)
@@ -117,13 +118,18 @@ def run_map(fn: Callable[..., Any], items: Iterable[Any], *, executor: str = "lo
                 result = fn(item, *args)
                 if progress:
                     progress(1)
+                if nodes is not None:
+                    nodes["local"] = nodes.get("local", 0) + 1
                 yield result
         finally:
             release_worker_state()
     elif executor == "process":
-        yield from _process_map(fn, items, workers, args, progress)
+        for result in _process_map(fn, items, workers, args, progress):
+            if nodes is not None:
+                nodes["local"] = nodes.get("local", 0) + 1
+            yield result
     else:
-        yield from _ray_map(fn, items, workers, address, args, progress, max_retries)
+        yield from _ray_map(fn, items, workers, address, args, progress, max_retries, nodes)
 
 
 def _process_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | None, args: tuple,
@@ -207,8 +213,15 @@ def _check_reachable(address: str, timeout: float = 5.0) -> None:
                           "`ray start --head` and pass the address it prints, or leave out --address") from None
 
 
+def on_node(fn: Callable[..., Any], item: Any, *args: Any) -> tuple[str, Any]:
+    """(id of the Ray node this runs on, fn(item, *args)): the task the ray executor submits."""
+    import ray
+
+    return ray.get_runtime_context().get_node_id(), fn(item, *args)
+
+
 def _ray_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | None, address: str | None, args: tuple,
-             progress: Progress | None, max_retries: int) -> Iterator[Any]:
+             progress: Progress | None, max_retries: int, nodes: dict[str, int] | None) -> Iterator[Any]:
     started = connect_ray(workers, address)
     import ray
 
@@ -216,8 +229,9 @@ def _ray_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | None, 
     try:
         # max_retries: Ray reruns a task whose worker process died (not one whose code raised: that is a bug or
         # bad input, and would fail again).
-        remote = ray.remote(num_cpus=1, max_retries=max_retries)(fn)
-        shared = [ray.put(a) for a in args]
+        # The task is `on_node` named after fn (workers are titled ray::<name> while they run it).
+        remote = ray.remote(num_cpus=1, max_retries=max_retries)(on_node).options(name=getattr(fn, "__name__", "item"))
+        shared = [ray.put(fn)] + [ray.put(a) for a in args]
         capacity = workers or max(2, 2 * int(ray.cluster_resources().get("CPU", 1)))
         done: dict[int, Any] = {}
         it = enumerate(items)
@@ -229,7 +243,7 @@ def _ray_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | None, 
                 except StopIteration:
                     exhausted = True
                     break
-                pending[remote.remote(item, *shared)] = i
+                pending[remote.remote(shared[0], item, *shared[1:])] = i
             if not pending and not done:
                 return
             if next_out not in done:
@@ -237,9 +251,11 @@ def _ray_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | None, 
                 for ref in ready:
                     i = pending.pop(ref)
                     try:
-                        done[i] = ray.get(ref)
+                        node, done[i] = ray.get(ref)
                     except ray.exceptions.RayTaskError as exc:  # the item's own exception, as `local` raises it
                         raise exc.as_instanceof_cause() from None
+                    if nodes is not None:
+                        nodes[node] = nodes.get(node, 0) + 1
                     if progress:
                         progress(1)
             while next_out in done:
