@@ -61,7 +61,11 @@ class WalkableGrid:
 
     def label_at(self, x: float, y: float) -> int:
         """Legend code under the world point (x, y); 0 outside the grid."""
-        i, j = (int(v) for v in self.world_to_cell((x, y)))
+        # world_to_cell's arithmetic on one point, without its arrays (the env asks this every step).
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return 0
+        i = math.floor((float(y) - float(self.origin[1])) / self.resolution)
+        j = math.floor((float(x) - float(self.origin[0])) / self.resolution)
         if 0 <= i < self.shape[0] and 0 <= j < self.shape[1]:
             return int(self.mask[i, j])
         return 0
