@@ -10,7 +10,7 @@ import numpy as np
 import pybullet as p
 
 from sim.raycast.grids import ROAD_LEVEL, SIDEWALK_LEVEL, WHAT, SceneGrids
-from sim.raycast.march import trace
+from sim.raycast.march import trace_fan
 
 ENCODINGS = ("linear", "log")
 # (x, y, height, cos, sin, start, range_m) -> (distances in m, inf for none; body ids): GridLidar's moving bodies.
@@ -113,7 +113,7 @@ class GridLidar(PlanarLidar):
         self.grids = grids
         self.moving: MovingHits | None = None
         table = WHAT.index(what)
-        # Per level: the flat table and the one-env frame `sim.raycast.march.trace` reads.
+        # Per level: the flat table and the one-env frame `sim.raycast.march.trace_fan` reads.
         self._frames = [(tables[table].ravel(), {
             "x0": np.array([grids.origin[0]]), "y0": np.array([grids.origin[1]]),
             "cols": np.array([grids.shape[1]]), "offset": np.zeros(1, dtype=np.int64)}) for tables in grids.tables]
@@ -123,11 +123,12 @@ class GridLidar(PlanarLidar):
         level = SIDEWALK_LEVEL if z > 0.5 * self.grids.curb_height else ROAD_LEVEL
         flat, frame = self._frames[level]
         a = self.angles + yaw
-        d = trace(flat, frame, np.array([x]), np.array([y]), a[None], self.start_radius, self.range_m,
-                        self.grids.resolution)[0]
+        cos, sin = np.cos(a), np.sin(a)
+        d = trace_fan(flat, float(frame["x0"][0]), float(frame["y0"][0]), int(frame["cols"][0]), x, y, cos, sin,
+                      self.start_radius, self.range_m, self.grids.resolution)
         ids = np.where(d < self.range_m, self.STATIC_HIT, -1)
         if self.moving is not None:
-            dm, idm = self.moving(x, y, z + self.height, np.cos(a), np.sin(a), self.start_radius, self.range_m)
+            dm, idm = self.moving(x, y, z + self.height, cos, sin, self.start_radius, self.range_m)
             nearer = dm < d
             d = np.where(nearer, dm, d)
             ids = np.where(nearer, idm, ids)

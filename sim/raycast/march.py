@@ -49,6 +49,22 @@ def trace(flat: np.ndarray, frame: dict[str, np.ndarray], x: np.ndarray, y: np.n
     return d
 
 
+def trace_fan(flat: np.ndarray, x0: float, y0: float, cols: int, x: float, y: float, cos: np.ndarray, sin: np.ndarray,
+              start: float, range_m: float, resolution: float) -> np.ndarray:
+    """`trace` of one origin (x, y) with the beams' direction cosines given: distances [beams] through the grid of
+    origin (x0, y0) and `cols` columns at the start of `flat` (the PyBullet env's LiDAR, which also needs cos and
+    sin for its moving bodies)."""
+    if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(cos).all() and np.isfinite(sin).all()):
+        raise ValueError("LiDAR origin or beam angles hold NaN or inf: the machine's pose is not finite")
+    inv = 1.0 / resolution
+    reach = range_m * inv
+    out = np.empty(cos.size, dtype=np.float64)
+    _trace_origin(flat, (x - x0) * inv, (y - y0) * inv, cos, sin, cols, start * inv, reach, out)
+    d = out * resolution
+    d[out >= reach] = range_m  # no hit: the range itself, not its float round trip
+    return d
+
+
 @njit(cache=True, nogil=True)
 def _cell(flat: np.ndarray, gx: float, gy: float, dx: float, dy: float, cols: int, offset: int, t: float) -> int:
     """Grid value at distance t (cells) along a ray (coordinates are positive: the FAR ring keeps rays inside)."""
@@ -117,3 +133,11 @@ def _trace_parallel(flat: np.ndarray, gx: np.ndarray, gy: np.ndarray, dx: np.nda
     """`_trace_one` of every ray into `out`, the rays shared among numba's threads."""
     for r in prange(out.size):
         out[r] = _trace_one(flat, gx[r], gy[r], dx[r], dy[r], cols[r], offset[r], start, reach)
+
+
+@njit(cache=True, nogil=True)
+def _trace_origin(flat: np.ndarray, gx: float, gy: float, dx: np.ndarray, dy: np.ndarray, cols: int, start: float,
+                  reach: float, out: np.ndarray) -> None:
+    """`_trace_one` of every ray from one origin (grid coordinates) into `out`, on this thread."""
+    for r in range(out.size):
+        out[r] = _trace_one(flat, gx, gy, dx[r], dy[r], cols, 0, start, reach)
