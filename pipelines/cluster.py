@@ -61,7 +61,7 @@ def build_pool(descriptions: Any, texts: list[str], vectors: np.ndarray, *, eps:
         i = index[r.text]
         weight[i] += r.count
         lab = int(labels[i])
-        cats[lab][r.category] += r.count
+        cats[lab][r.category if isinstance(r.category, str) and r.category else None] += r.count
         srcs[lab].add(r.source)
         if isinstance(r.country, str) and r.country:
             countries[lab][r.country] += int(r.count)
@@ -71,7 +71,10 @@ def build_pool(descriptions: Any, texts: list[str], vectors: np.ndarray, *, eps:
         w = weight[members]
         rep = members[medoid(vectors[members], w)]
         order = sorted(members, key=lambda m: (-weight[m], texts[m]))
-        cat = sorted(cats[int(lab)].items(), key=lambda kv: (-kv[1], kv[0]))[0][0]
+        # The members' majority category; None (open vocabulary) only when no member has a category: a cluster
+        # that joins "a statue" to a categorised description is that category's.
+        named = {c: n for c, n in cats[int(lab)].items() if c is not None}
+        cat = sorted(named.items(), key=lambda kv: (-kv[1], kv[0]))[0][0] if named else None
         rows.append({
             "description_id": "pool-" + hashlib.sha1(texts[rep].encode()).hexdigest()[:12],
             "text": texts[rep], "category": cat, "members": [texts[m] for m in order], "n_members": len(members),
@@ -113,7 +116,9 @@ def run(params_path: str | None = None) -> dict[str, Any]:
     out = Path(p["out_dir"])
     write_table(pool, out / "pool.parquet")
     metrics = {"clusters": len(pool), "clusters_multi_member": int((pool["n_members"] > 1).sum()),
-               "largest_cluster_members": int(pool["n_members"].max()) if len(pool) else 0}
+               "largest_cluster_members": int(pool["n_members"].max()) if len(pool) else 0,
+               "clusters_open_vocabulary": int(pool["category"].isna().sum()),
+               "descriptions": int(pool["n_members"].sum())}
     if p["catalog"]:
         metrics["catalog_descriptions_written"] = write_pool_to_catalog(pool, p["catalog"])
     write_metrics(out / "metrics.json", metrics)

@@ -11,6 +11,7 @@ import numpy as np
 
 from catalogs.categories import category
 from pipelines.common import PipelineError, load_params, progress, stage_cli, write_metrics, write_table
+from pipelines.signs import SignTable, sign_table
 
 DEFAULTS: dict[str, Any] = {
     "closed_set": "data/closed_set/classes.parquet",
@@ -63,8 +64,8 @@ def size_word(box_height: float, image_height: float, small_max: float, medium_m
 
 
 def _article(phrase: str) -> str:
-    # "a utility pole", "a unit": a leading 'u' read as 'you' takes "a".
-    vowel = phrase[:1].lower() in "aeiou" and not phrase.lower().startswith(("uti", "uni", "use"))
+    # "a utility pole", "a unit", "a one-way sign": a leading 'u' read as 'you' or 'o' as 'won' takes "a".
+    vowel = phrase[:1].lower() in "aeiou" and not phrase.lower().startswith(("uti", "uni", "use", "one"))
     return ("an " if vowel else "a ") + phrase
 
 
@@ -76,12 +77,24 @@ def _tag(row: Any, key: str) -> str | None:
     return str(v).split(";")[0].strip()
 
 
-def osm_description(row: Any) -> str:
-    """Text for an OSM object from its category and attribute tags (colour, material, support, backrest...)."""
-    words = category(row["category"], where="describe").words
+def osm_description(row: Any, signs: SignTable | None = None) -> str:
+    """Text for an OSM object from its category or label and attribute tags (colour, material, backrest...).
+
+    A traffic_sign=<code> tag becomes the sign's name ("a no stopping sign") through the sign table; a code the
+    table does not know reads "a traffic sign", never the raw code.
+    """
     tag = str(row.get("tag") or "")
-    if tag == "highway=bus_stop" and row["category"] == "traffic_sign":
-        words = "bus stop sign"
+    label = _tag(row, "label")
+    if tag.startswith("traffic_sign="):
+        sign = (signs or sign_table()).describe(tag.split("=", 1)[1])
+        words = sign.split(" ", 1)[1]  # without its article: adjectives go in front
+    elif label:
+        words = label
+    elif _tag(row, "category"):
+        words = category(row["category"], where="describe").words
+    else:
+        raise PipelineError(f"OSM object {row.get('osm_id')} ({tag}) has neither a category nor a label; "
+                            f"re-run the osm stage with catalogs/closed_set/osm_tags.csv")
     adj = []
     if _tag(row, "colour"):
         adj.append(_tag(row, "colour").replace("_", " "))
@@ -97,8 +110,6 @@ def osm_description(row: Any) -> str:
         text += " with a backrest"
     elif _tag(row, "backrest") == "no":
         text += " without a backrest"
-    if tag.startswith("traffic_sign="):
-        text += f" ({tag.split('=', 1)[1].split(';')[0]})"
     if _tag(row, "genus"):
         text += f" ({_tag(row, 'genus')})"
     return text
@@ -136,8 +147,10 @@ def build_descriptions(closed_set: Any, osm_objects: Any, dets: Any, image_files
 
     rows = [{"text": t, "category": c, "source": "closed_set", "country": None}
             for t, c in zip(closed_set["prompt"], closed_set["category"], strict=True)]
+    signs = sign_table()
     for rec in osm_objects.to_dict("records"):
-        rows.append({"text": osm_description(rec), "category": rec["category"], "source": "osm", "country": rec["country"]})
+        rows.append({"text": osm_description(rec, signs), "category": _tag(rec, "category"), "source": "osm",
+                     "country": rec["country"]})
     rows += describe_detections(dets, image_files, small_max=small_max, medium_max=medium_max)
     df = pd.DataFrame(rows, columns=DESCRIPTION_COLUMNS[:-1])
     df["country"] = df["country"].astype("string")
@@ -163,7 +176,8 @@ def run(params_path: str | None = None) -> dict[str, int]:
                             small_max=float(p["small_max"]), medium_max=float(p["medium_max"]))
     out = Path(p["out_dir"])
     write_table(df, out / "descriptions.parquet")
-    metrics = {"descriptions_unique": len(df), "objects_described": int(df["count"].sum())}
+    metrics = {"descriptions_unique": len(df), "objects_described": int(df["count"].sum()),
+               "descriptions_open_vocabulary": int(df["category"].isna().sum())}
     for src in ("closed_set", "osm", "images"):
         metrics[f"objects_{src}"] = int(df.loc[df["source"] == src, "count"].sum())
     write_metrics(out / "metrics.json", metrics)

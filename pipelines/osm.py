@@ -51,13 +51,18 @@ def default_extract() -> Path:
 
 @dataclass
 class TagRule:
-    """One row of the OSM tag -> category table; a rule with an extra condition outranks a plain one."""
+    """One row of the OSM tag -> category table; a rule with an extra condition outranks a plain one.
+
+    `category` None: an open-vocabulary object (a statue, a street clock) outside the category table; `label`
+    says what it is. A label on a categorised rule names the object more precisely ("stop sign").
+    """
 
     key: str
     value: str
     extra_key: str
     extra_value: str
-    category: str
+    category: str | None
+    label: str = ""
 
     def matches(self, tags: Any) -> bool:
         """True when the tags carry key=value (value '*' = any) and the extra condition, if any."""
@@ -68,20 +73,26 @@ class TagRule:
 
 
 def load_tag_rules(path: str | Path) -> list[TagRule]:
-    """Read the OSM tag -> category CSV, rules with an extra condition first."""
+    """Read the OSM tag -> category CSV: categorised rules first, within them those with an extra condition."""
     import pandas as pd
 
     p = Path(path)
     if not p.exists():
         raise PipelineError(f"OSM tag table {p} not found; set osm.tags_csv to catalogs/closed_set/osm_tags.csv")
     df = pd.read_csv(p, dtype=str, keep_default_na=False)
-    need = ["key", "value", "extra_key", "extra_value", "category", "provenance"]
+    need = ["key", "value", "extra_key", "extra_value", "category", "label", "provenance"]
     missing = [c for c in need if c not in df.columns]
     if missing:
         raise PipelineError(f"{p} lacks column(s) {', '.join(missing)}")
-    rules = [TagRule(r.key, r.value, r.extra_key, r.extra_value, check_category(r.category, where=f"{p} row {i + 2}"))
-             for i, r in enumerate(df.itertuples())]
-    return sorted(rules, key=lambda r: (r.extra_key == "", r.value == "*"))
+    rules = []
+    for i, r in enumerate(df.itertuples()):
+        if not r.category and not r.label:
+            raise PipelineError(f"{p} row {i + 2}: give a category or, for an object outside the category table, "
+                                f"a label saying what it is")
+        cat = check_category(r.category, where=f"{p} row {i + 2}") if r.category else None
+        rules.append(TagRule(r.key, r.value, r.extra_key, r.extra_value, cat, r.label))
+    # A categorised rule outranks an open-vocabulary one (a memorial bench is a bench), then conditions first.
+    return sorted(rules, key=lambda r: (r.category is None, r.extra_key == "", r.value == "*"))
 
 
 @dataclass
@@ -113,7 +124,8 @@ def read_extract(path: str | Path, rules: list[TagRule], street_highways: list[s
                 if rule is None or not obj.location.valid():
                     continue
                 row = {"osm_id": int(obj.id), "lon": obj.location.lon, "lat": obj.location.lat,
-                       "category": rule.category, "tag": f"{rule.key}={obj.tags.get(rule.key)}"}
+                       "category": rule.category, "label": rule.label or None,
+                       "tag": f"{rule.key}={obj.tags.get(rule.key)}"}
                 row.update({t: obj.tags.get(t) for t in ATTRIBUTE_TAGS})
                 data.objects.append(row)
             elif obj.is_way():
@@ -222,12 +234,15 @@ def extract_osm(extracts: list[dict[str, Any]], rules: list[TagRule], *, street_
             data = read_extract(path, rules, street_highways)
             country = resolve_country(ex.get("country", "auto"), data.countries, path)
             region = ex.get("region") or path.name.split(".")[0]
-            df = pd.DataFrame(data.objects, columns=["osm_id", "lon", "lat", "category", "tag", *ATTRIBUTE_TAGS])
+            df = pd.DataFrame(data.objects, columns=["osm_id", "lon", "lat", "category", "label", "tag",
+                                                     *ATTRIBUTE_TAGS])
             df.insert(0, "region", region)
             df.insert(0, "country", country)
             df = df.sort_values("osm_id", kind="stable").reset_index(drop=True)
             obj_frames.append(df)
-            gaps = along_street_gaps(df, data.streets, snap_m=snap_m, max_gap_m=max_gap_m, tile_deg=tile_deg)
+            # Spacing and counts are per category: open-vocabulary objects (category None) feed descriptions only.
+            gaps = along_street_gaps(df[df["category"].notna()], data.streets, snap_m=snap_m, max_gap_m=max_gap_m,
+                                     tile_deg=tile_deg)
             for cat, g in sorted(gaps.items()):
                 spacing_rows.append({"country": country, "region": region, "category": cat, "method": "along_street",
                                      **_stats(np.asarray(g))})
@@ -262,6 +277,7 @@ def run(params_path: str | None = None) -> dict[str, int]:
     along.to_csv(out / "spacing.csv", index=False, float_format="%.2f")
     metrics = {"extracts": len(p["extracts"]), "objects": len(objects), "countries": int(objects["country"].nunique()),
                "categories": int(objects["category"].nunique()),
+               "open_vocabulary_objects": int(objects["category"].isna().sum()),
                "spacing_gaps_along_street": int(spacing.loc[spacing["method"] == "along_street", "n"].sum())}
     write_metrics(out / "metrics.json", metrics)
     return metrics

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import re
+
+import pandas as pd
 import pytest
 
 from catalogs.categories import CATEGORIES
-from pipelines import closed_set, osm
+from pipelines import closed_set, describe, osm, signs
 from pipelines.common import CLOSED_SET_DIR, PipelineError
 
 
@@ -68,3 +71,57 @@ def test_along_street_gaps_on_a_known_street():
     street = np.array([[24.89, 60.0], [24.92, 60.0]])
     gaps = osm.along_street_gaps(objs, [street], snap_m=25, max_gap_m=300, tile_deg=0.25)
     assert np.allclose(gaps["street_lamp"], 20.0, atol=0.3)
+
+
+RAW_CODE = re.compile(r"\b[A-Z]{2}:\d|\[|\]")
+
+
+def test_helsinki_open_vocabulary_objects_stay_out_of_the_counts(helsinki):
+    objects, counts, spacing = helsinki
+    open_vocab = objects[objects["category"].isna()]
+    # Surveillance cameras, flagpoles, artworks... are street objects of none of the categories: kept with a label.
+    assert {"surveillance camera", "flagpole"} <= set(open_vocab["label"])
+    assert open_vocab["label"].notna().all()
+    assert counts["category"].notna().all() and spacing["category"].notna().all()
+    assert counts["count"].sum() == objects["category"].notna().sum()
+
+
+def test_helsinki_descriptions_name_signs_and_keep_open_vocabulary(helsinki):
+    objects, _, _ = helsinki
+    closed = pd.DataFrame({"prompt": ["a bench"], "category": ["bench"]})
+    desc = describe.build_descriptions(closed, objects, pd.DataFrame(), {})
+    osm_texts = desc.loc[desc["source"] == "osm", "text"]
+    assert not osm_texts.str.contains(RAW_CODE).any(), osm_texts[osm_texts.str.contains(RAW_CODE)].tolist()[:5]
+    signs = desc[(desc["source"] == "osm") & (desc["category"] == "traffic_sign")]
+    by_text = dict(zip(signs["text"], signs["count"], strict=True))
+    # FI:372 (237 nodes in the extract) is the no-stopping sign, FI:511 (199) the pedestrian crossing sign.
+    assert by_text["a no stopping sign"] >= 237 and by_text["a pedestrian crossing sign"] >= 199
+    assert by_text["a 30 km/h speed limit zone sign"] >= 25
+    open_vocab = desc[desc["category"].isna()]
+    assert {"a surveillance camera", "a flagpole"} <= set(open_vocab["text"])
+    assert set(open_vocab["source"]) == {"osm"}
+
+
+def test_sign_table_never_shows_a_raw_code():
+    t = signs.sign_table()
+    assert t.describe("FI:372") == "a no stopping sign"
+    assert t.describe("FI:361[40]") == "a 40 km/h speed limit sign" and t.describe("DE:274-30") == "a 30 km/h speed limit sign"
+    assert t.describe("FI:373;FI:374") == "a no parking zone sign"  # the first sign of a post
+    assert t.describe("FI:417") == "a mandatory sign"  # family of an unlisted code
+    assert t.describe("DE:1020-30") == "an additional sign panel"  # four digits: the 10xx family, not 1xx
+    for value in ("FI:922", "XX:123", "FI:reunapaalu", "yes", "FI:632[FI:674 MAKASIINITERMINAALI]"):
+        assert not RAW_CODE.search(t.describe(value)), value
+
+
+def test_sign_table_refuses_a_bad_row(tmp_path):
+    bad = tmp_path / "signs.csv"
+    bad.write_text("sign,description,with_value,provenance\nFI:372,no stopping,,made up\n")
+    with pytest.raises(PipelineError, match="must start with 'a ' or 'an '"):
+        signs.load_sign_table(bad)
+
+
+def test_osm_tag_table_needs_a_category_or_a_label(tmp_path):
+    bad = tmp_path / "tags.csv"
+    bad.write_text("key,value,extra_key,extra_value,category,label,provenance\namenity,clock,,,,,made up\n")
+    with pytest.raises(PipelineError, match="give a category or.*a label"):
+        osm.load_tag_rules(bad)
