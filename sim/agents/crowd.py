@@ -114,6 +114,8 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         self.groups.reset(self, rng, clear)
         self._build_orca(scene, fresh)
         self._orca_radius = self.radius + c["safety_margin"]
+        self._orca_plain = True  # _orca_radius holds no standing margin
+        self._ego_radius = float("nan")  # the ego's ORCA radius as last set (nan: set it on the next placement)
         self._scene = scene
         nodes = self.grid.nearest_node(self.pos)
         for i in range(n):

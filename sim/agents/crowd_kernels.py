@@ -153,3 +153,16 @@ def rungs(nodes: np.ndarray, sites: np.ndarray, jump: np.ndarray, centres: np.nd
             c = centres[jump[top - r, sites[k], nodes[k]]]
             out[r, k, 0], out[r, k, 1] = c[0], c[1]
     return out
+
+
+@njit(cache=True, nogil=True)
+def box_gaps(pos: np.ndarray, x: float, y: float, c: float, s: float, half_l: float, half_w: float):  # pragma: no cover
+    """Per point [n, 2], its distances (ex, ey) outside a rectangle centred at (x, y) with axes (c, s) and half
+    sizes (half_l, half_w), along the rectangle's axes (0 inside its extent)."""
+    n = pos.shape[0]
+    ex, ey = np.empty(n), np.empty(n)
+    for k in range(n):
+        dx, dy = pos[k, 0] - x, pos[k, 1] - y
+        ex[k] = max(abs(c * dx + s * dy) - half_l, 0.0)
+        ey[k] = max(abs(-s * dx + c * dy) - half_w, 0.0)
+    return ex, ey

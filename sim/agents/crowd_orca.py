@@ -103,14 +103,20 @@ class OrcaCrowd:
             self.sim.set_agent_velocity(self.ego_id, (0.0, 0.0))
             self.sim.set_agent_pref_velocity(self.ego_id, (0.0, 0.0))
             return
-        self.sim.set_agent_radius(self.ego_id, float(ego.radius + self.config["ego_margin"]))
+        radius = float(ego.radius + self.config["ego_margin"])
+        if radius != self._ego_radius:  # the ego's footprint does not change within an episode
+            self.sim.set_agent_radius(self.ego_id, radius)
+            self._ego_radius = radius
         self.sim.set_agent_position(self.ego_id, (ego.x, ego.y))
         self.sim.set_agent_velocity(self.ego_id, (ego.vx, ego.vy))
         self.sim.set_agent_pref_velocity(self.ego_id, (ego.vx, ego.vy))
 
     def _set_orca_radii(self, pinned: np.ndarray) -> None:
         """ORCA radii: radius + safety_margin, plus STAND_MARGIN for agents that hold their spot (no reciprocity)."""
+        if not pinned.any() and self._orca_plain:
+            return  # nobody holds a spot, nor did last step: the radii are radius + safety_margin already
         want = self.radius + self.config["safety_margin"] + STAND_MARGIN * pinned
         for i in np.flatnonzero(want != self._orca_radius).tolist():
             self.sim.set_agent_radius(i, float(want[i]))
         self._orca_radius = want
+        self._orca_plain = not pinned.any()

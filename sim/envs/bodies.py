@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 import pybullet as p
+from numba import njit
 
 from sim.agents.figures import figure_shape
 from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
@@ -16,6 +17,20 @@ VEHICLE_HEIGHT = 1.5
 PARKED = [0, 0, -20]  # where unused bodies wait, below the ground
 _NO_XYZ = np.zeros((0, 3))
 _NO_BOXES = (np.zeros(0), np.zeros(0), np.zeros(0))
+
+
+@njit(cache=True, nogil=True)
+def moved_rows(xyz: np.ndarray, last: np.ndarray):  # pragma: no cover - numba
+    """Rows of `xyz` [n, 3] that differ from `last` (nan differs from everything), and their xy steps [k, 2]."""
+    moved = []
+    for k in range(xyz.shape[0]):
+        if xyz[k, 0] != last[k, 0] or xyz[k, 1] != last[k, 1] or xyz[k, 2] != last[k, 2]:
+            moved.append(k)
+    idx = np.array(moved, dtype=np.int64)
+    step = np.empty((idx.size, 2))
+    for m in range(idx.size):
+        step[m, 0], step[m, 1] = xyz[idx[m], 0] - last[idx[m], 0], xyz[idx[m], 1] - last[idx[m], 1]
+    return idx, step
 
 
 class CohabitantBodies:
@@ -57,8 +72,7 @@ class CohabitantBodies:
             xyz[:, :2] = pos
             xyz[:, 2] = base_heights + self._half_heights
             # Standing agents keep their body where it is: a Bullet reset per body is the cost worth saving.
-            moved = np.flatnonzero(np.any(xyz != self._xyz, axis=1))
-            step = xyz[moved, :2] - self._xyz[moved, :2]  # nan on the first sync: the figures keep their heading
+            moved, step = moved_rows(xyz, self._xyz)  # step: nan on the first sync (the figures keep their heading)
             walking = np.hypot(step[:, 0], step[:, 1]) > 1e-3
             self._yaw[moved[walking]] = np.arctan2(step[walking, 1], step[walking, 0])
             half = 0.5 * self._yaw[moved]

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from sim.agents.crowd import AgentManager, EgoState
-from sim.agents.crowd_kernels import cell_values
+from sim.agents.crowd_kernels import box_gaps, cell_values
 from sim.agents.vehicles import VehicleManager
 from sim.envs.bodies import CohabitantBodies
 from sim.envs.pointnav import PointNavEnv
@@ -138,10 +138,8 @@ class SocialNavEnv(PointNavEnv):
         m = self.machine
         x, y, _ = m.position
         c, s = math.cos(m.yaw), math.sin(m.yaw)
-        dx, dy = pos[:, 0] - x, pos[:, 1] - y
         # Agent centres in the ego frame, then the distance to the footprint box (0 inside it).
-        ex = np.maximum(np.abs(c * dx + s * dy) - 0.5 * m.spec.length, 0.0)
-        ey = np.maximum(np.abs(-s * dx + c * dy) - 0.5 * m.spec.width, 0.0)
+        ex, ey = box_gaps(pos, float(x), float(y), c, s, 0.5 * m.spec.length, 0.5 * m.spec.width)
         return float(np.min(np.hypot(ex, ey) - self.crowd.radius))
 
     def agent_states(self) -> np.ndarray:
