@@ -1,4 +1,4 @@
-"""Asset sources behind one interface: `objaverse`, `local:DIR` and `procedural` yield `SourceItem`s.
+"""Asset sources behind one interface: `objaverse`, `objaverse-xl`, `local:DIR` and `procedural` yield `SourceItem`s.
 
 A source lists candidate assets with their metadata (name, tags, licence, ...) and makes each one available as
 a local mesh file; everything after that (normalisation, rendering, scoring, curation) is source-agnostic.
@@ -73,7 +73,7 @@ class Source(Protocol):
 
 
 def open_source(spec: str, **options: Any) -> Source:
-    """Open a source from its CLI spelling: `objaverse`, `local:DIR` or `procedural`."""
+    """Open a source from its CLI spelling: `objaverse`, `objaverse-xl[:SOURCES]`, `local:DIR` or `procedural`."""
     if spec == "procedural":
         from retrieval.sources.procedural import ProceduralSource
 
@@ -82,8 +82,14 @@ def open_source(spec: str, **options: Any) -> Source:
         from retrieval.sources.objaverse import ObjaverseSource
 
         return ObjaverseSource(**options)
+    if spec == "objaverse-xl" or spec.startswith("objaverse-xl:"):
+        from retrieval.sources.objaverse_xl import XL_SOURCES, ObjaverseXLSource
+
+        chosen = tuple(s.strip() for s in spec.split(":", 1)[1].split(",")) if ":" in spec else XL_SOURCES
+        return ObjaverseXLSource(sources=chosen, **options)
     if spec.startswith("local:"):
         from retrieval.sources.local import LocalSource
 
         return LocalSource(spec[len("local:"):], **options)
-    raise ValueError(f"unknown source {spec!r}; use `objaverse`, `local:DIR` or `procedural`")
+    raise ValueError(f"unknown source {spec!r}; use `objaverse`, `objaverse-xl[:smithsonian,thingiverse,sketchfab]`, "
+                     f"`local:DIR` or `procedural`")
