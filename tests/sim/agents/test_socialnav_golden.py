@@ -80,3 +80,19 @@ def test_golden_episodes() -> None:
 
 if __name__ == "__main__":
     print(*golden_digest())
+
+
+def test_scalar_reward_matches_batch() -> None:
+    """Reward.__call__ (Python floats, every env step) gives batch()'s double (numpy, the batched env) bit for bit."""
+    from sim.tasks.pointnav import REWARD_PRESETS, Reward
+
+    rng = np.random.default_rng(0)
+    for preset in ({}, REWARD_PRESETS["paper"], {"floor": True}):
+        reward = Reward(**preset)
+        for _ in range(3000):
+            args = [float(v) for v in rng.normal(size=5)]
+            if rng.random() < 0.1:
+                args[2] = float("nan")  # a NaN offset: neither the scalar nor the batch path penalises it
+            flags = [bool(v) for v in rng.random(4) < 0.2]
+            a, b = reward(*args, *flags), float(reward.batch(*args, *flags))
+            assert np.float64(a).tobytes() == np.float64(b).tobytes(), (preset, args, flags, a, b)
