@@ -1,7 +1,10 @@
 """Text search over the catalog: cosine similarity computed in DuckDB, filters bound as SQL parameters.
 
 Callers embed the query text (retrieval.encoders.text) and pass the vector here; this module stays
-free of torch so it can be timed and reused on its own.
+free of torch so it can be timed and reused on its own. Catalogs scored by the aligned scorer also hold one
+embedding per scored view in the scorer's joint space (catalogs.aligned): a query then ranks by
+(1 - view_weight) x text cosine + view_weight x best view cosine, so what the views show (colour, shape, "with a
+lid") counts beside what the metadata says.
 """
 
 from __future__ import annotations
@@ -12,7 +15,7 @@ import duckdb
 import numpy as np
 
 from catalogs.reader import read_meta
-from catalogs.schema import ASSET_TEXT_KIND
+from catalogs.schema import ASSET_TEXT_KIND, ASSET_VIEW_KIND
 
 
 @dataclass
@@ -48,6 +51,12 @@ def _asset_filters(filters: QueryFilters) -> tuple[list[str], dict[str, object]]
     return where, params
 
 
+def has_view_embeddings(con: duckdb.DuckDBPyConnection, view_model: str = "aligned") -> bool:
+    """Whether the catalog holds per-view embeddings of `view_model` (an aligned-scorer ingest)."""
+    return con.execute("SELECT count(*) FROM embeddings WHERE owner_kind = ? AND model LIKE ? LIMIT 1",
+                       [ASSET_VIEW_KIND, f"{view_model}%#view%"]).fetchone()[0] > 0
+
+
 def search(
     con: duckdb.DuckDBPyConnection,
     query_vector: np.ndarray,
@@ -55,8 +64,12 @@ def search(
     *,
     limit: int = 10,
     model: str | None = None,
+    view_vector: np.ndarray | None = None,
+    view_model: str = "aligned",
+    view_weight: float = 0.5,
 ) -> list[dict]:
-    """Return up to `limit` assets ranked by cosine similarity of their text embedding to `query_vector`."""
+    """Return up to `limit` assets ranked by cosine similarity of their text embedding to `query_vector`, fused
+    with the best of their `view_model` view embeddings' cosines to `view_vector` when one is given."""
     filters = filters or QueryFilters()
     if int(limit) < 1:
         raise ValueError(f"limit must be at least 1, got {limit}")
@@ -76,7 +89,24 @@ def search(
     params.update({"kind": ASSET_TEXT_KIND, "model": model, "q": vec.tolist(), "limit": int(limit)})
     score = f"array_inner_product(e.vector, $q::FLOAT[{dim}])"
     columns = ", ".join(f"a.{c}" for c in RESULT_COLUMNS if c != "score")
-    if where:
+    if view_vector is not None:
+        v = np.asarray(view_vector, dtype=np.float32).reshape(-1)
+        if v.shape[0] != dim or not np.isfinite(v).all() or not np.any(v):
+            raise ValueError(f"view vector must be a finite non-zero vector of {dim} dimensions, got shape {v.shape}")
+        params.update({"vkind": ASSET_VIEW_KIND, "vmodel": f"{view_model}%#view%", "v": (v / np.linalg.norm(v)).tolist(),
+                       "w": float(view_weight)})
+        sql = f"""
+            WITH txt AS (SELECT e.owner_id, {score} AS s FROM embeddings e
+                         WHERE e.owner_kind = $kind AND e.model = $model),
+                 img AS (SELECT owner_id, max(array_inner_product(vector, $v::FLOAT[{dim}])) AS s FROM embeddings
+                         WHERE owner_kind = $vkind AND model LIKE $vmodel GROUP BY owner_id)
+            SELECT {columns}, (1 - $w) * txt.s + $w * coalesce(img.s, txt.s) AS score
+            FROM txt JOIN assets a ON a.asset_id = txt.owner_id LEFT JOIN img ON img.owner_id = txt.owner_id
+            {'WHERE ' + ' AND '.join(where) if where else ''}
+            ORDER BY score DESC, a.asset_id
+            LIMIT $limit
+        """
+    elif where:
         # Selective filters first: the join computes similarities only for the assets that pass.
         sql = f"""
             SELECT {columns}, {score} AS score

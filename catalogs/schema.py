@@ -19,9 +19,10 @@ OBJECT_CLASSES = ("standard", "non_standard", "clutter")
 # `embeddings.owner_kind` values: text search ranks ASSET_TEXT vectors, so every writer of assets uses it.
 ASSET_TEXT_KIND = "asset_text"
 ASSET_IMAGE_KIND = "asset_image"
+ASSET_VIEW_KIND = "asset_view"  # one per scored view, model "<scorer>#view<NN>": what attribute queries rank by
 DESCRIPTION_KIND = "description"
 # The embeddings that belong to one asset: deleted with it.
-ASSET_KINDS = (ASSET_TEXT_KIND, ASSET_IMAGE_KIND)
+ASSET_KINDS = (ASSET_TEXT_KIND, ASSET_IMAGE_KIND, ASSET_VIEW_KIND)
 ZONES = ("near_road_buffer", "furnishing", "clear", "frontage_buffer", "frontage", "building")
 
 

@@ -19,6 +19,7 @@ from catalogs.schema import (
     ASSET_COLUMNS,
     ASSET_IMAGE_KIND,
     ASSET_KINDS,
+    ASSET_VIEW_KIND,
     ASSET_TEXT_KIND,
     DEFAULT_EMBEDDING_DIM,
     DEFAULT_TEXT_MODEL,
@@ -301,8 +302,11 @@ class CatalogWriter:
         text_embedding: np.ndarray | None = None,
         image_embedding: np.ndarray | None = None,
         image_model: str | None = None,
+        view_embeddings: np.ndarray | None = None,
+        view_ids: Sequence[int] = (),
     ) -> None:
-        """Write one finished asset in one transaction, replacing its earlier rows and any rejection of its item."""
+        """Write one finished asset in one transaction, replacing its earlier rows and any rejection of its item;
+        `view_embeddings` (one row per view of `view_ids`) are stored as `<image_model>#view<NN>`."""
         aid = asset.asset_id
         with self.transaction():
             self.con.execute("DELETE FROM rejections WHERE source = ? AND source_id = ?",
@@ -315,6 +319,9 @@ class CatalogWriter:
             if image_embedding is not None:
                 self.upsert_embeddings(ASSET_IMAGE_KIND, [aid], np.asarray(image_embedding)[None, :],
                                        model=image_model)
+            if view_embeddings is not None and len(view_ids):
+                for v, vec in zip(view_ids, np.asarray(view_embeddings)):
+                    self.upsert_embeddings(ASSET_VIEW_KIND, [aid], vec[None, :], model=f"{image_model}#view{int(v):02d}")
             self.upsert_matches(matches)
             # Last: a resumed run treats an asset row with its content hash as a finished asset.
             self.upsert_assets([asset])

@@ -39,9 +39,9 @@ T = TypeVar("T")
 class IngestConfig:
     """Parameters of the per-asset steps and their drivers (defaults mirror retrieval/params.yaml)."""
 
-    n_views: int = 8
+    n_views: int = 20
     n_informative: int = 3
-    image_size: int = 224
+    image_size: int = 160
     elevations: tuple[float, float] = (15.0, 40.0)
     scoring: ScoringConfig = ScoringConfig()
     limits: QualityLimits = QualityLimits()
@@ -112,6 +112,7 @@ class ItemResult:
     matches: list[MatchRecord] = field(default_factory=list)
     image_embedding: np.ndarray | None = None
     text_embedding: np.ndarray | None = None
+    view_embeddings: np.ndarray | None = None  # the scored (informative) views', in asset.params informative_views order
     rejection: RejectionRecord | None = None
     seconds: dict[str, float] = field(default_factory=dict)
 
@@ -312,7 +313,7 @@ def process_item(item: SourceItem, config: IngestConfig, pool: DescriptionPool, 
         return refuse(rej)
     asset, matches = curated
     return ItemResult(item.source, item.source_id, h, asset, views, matches, scores.image_embedding,
-                      scores.text_embedding, seconds=times)
+                      scores.text_embedding, scores.view_embeddings, seconds=times)
 
 
 def record_pool(writer: CatalogWriter, pool: DescriptionPool, config: IngestConfig) -> None:
@@ -340,5 +341,9 @@ def write_result(writer: CatalogWriter, res: ItemResult, config: IngestConfig, c
         folder = retrieved_asset_dir(asset_root(catalog_path), res.source, res.source_id)
         np.save(folder / IMAGE_EMBEDDING_FILE, image)
         image = None
+    per_view = res.view_embeddings
+    if per_view is not None and per_view.shape[-1] != writer.embedding_dim:
+        per_view = None  # another width than the catalog's (CLIP, BLIP): the mean above is kept beside the asset
     writer.replace_asset(res.asset, res.views, res.matches, text_embedding=res.text_embedding,
-                         image_embedding=image, image_model=config.scoring.scorer_name.split(":")[0])
+                         image_embedding=image, image_model=config.scoring.scorer_name.split(":")[0],
+                         view_embeddings=per_view, view_ids=res.asset.params.get("informative_views", []))

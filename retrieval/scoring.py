@@ -57,7 +57,7 @@ def load_pool(rows: Sequence[tuple[str, str, str | None]], categories: list[str]
 class ScoringConfig:
     """How images and metadata text are scored against the pool."""
 
-    image_encoder: str = "imagenet"
+    image_encoder: str = "aligned"
     clip_model: str | None = None  # the clip / blip / blip2 weights folder (or a cached hub name)
     aligned_weights: str | None = None  # the aligned scorer's heads; None: retrieval/models/aligned.npz
     text_model: str | None = None
@@ -118,6 +118,7 @@ class AssetScores:
     image_embedding: np.ndarray | None  # mean of the selected views' embeddings (image encoder's space)
     text_embedding: np.ndarray | None  # metadata text embedding (text encoder's space)
     raw_fused: np.ndarray | None = None  # fused raw cosines: the absolute threshold applies to these
+    view_embeddings: np.ndarray | None = None  # (views, dim) unit embeddings of the scored views
     extra: dict = field(default_factory=dict)
 
 
@@ -138,7 +139,7 @@ class Scorer:
         elif config.image_encoder == "aligned":
             from retrieval.encoders.aligned import AlignedEncoder
 
-            self.image_encoder = AlignedEncoder(self.text_encoder, config.aligned_weights)
+            self.image_encoder = AlignedEncoder(self.text_encoder, config.aligned_weights, threads=config.threads)
         elif config.image_encoder == "clip":
             from retrieval.encoders.clip import ClipEncoder
 
@@ -153,7 +154,7 @@ class Scorer:
     def score(self, images: list[np.ndarray], metadata_text: str) -> AssetScores:
         """Score the (selected) views and the metadata text against every pool entry."""
         c = self.config
-        img_scores = img_emb = None
+        img_scores = img_emb = views = None
         if self.image_encoder is not None and images:
             if hasattr(self.image_encoder, "view_scores"):  # BLIP-2: a view's best query token per text
                 per_view, views = self.image_encoder.view_scores(images, self.pool_image)
@@ -180,7 +181,8 @@ class Scorer:
             raw = mix(lambda x: np.asarray(x, dtype=np.float64))
             fused = mix(lambda x: calibrate(x, c.calibration, c.temperature))
         return AssetScores(np.asarray(fused, dtype=np.float64), img_scores, txt_scores, img_emb, txt_emb,
-                           raw_fused=np.asarray(raw, dtype=np.float64))
+                           raw_fused=np.asarray(raw, dtype=np.float64),
+                           view_embeddings=None if img_scores is None else np.asarray(views, dtype=np.float32))
 
     def passes(self, scores: AssetScores, i: int) -> bool:
         """Whether pool entry i clears the absolute threshold (raw fused cosine) and the calibrated lift."""

@@ -193,7 +193,9 @@ def score(manifest: Path, views: Path, views_dir: Path, config: IngestConfig, sc
         rows.append({**base, "fused": _vec(s.fused), "raw_fused": _vec(s.raw_fused), "image": _vec(s.image),
                      "text": _vec(s.text), "image_embedding": _vec(s.image_embedding),
                      "image_embedding_dtype": _dtype(s.image_embedding), "text_embedding": _vec(s.text_embedding),
-                     "text_embedding_dtype": _dtype(s.text_embedding), "top_index": [int(i) for i, _ in top],
+                     "text_embedding_dtype": _dtype(s.text_embedding),
+                     "view_embeddings": None if s.view_embeddings is None else [_vec(v) for v in s.view_embeddings],
+                     "view_embeddings_dtype": _dtype(s.view_embeddings), "top_index": [int(i) for i, _ in top],
                      "top_score": [float(x) for _, x in top], "scorer": config.scoring.scorer_name})
     _write(rows, scores)
     return sum(not _rejected(r) for r in rows)
@@ -249,7 +251,9 @@ def _curate_one(item: SourceItem, h: str, row: dict, view_row: dict, score_row: 
     s = score_row
     scores = AssetScores(_arr(s["fused"]), _arr(s["image"]), _arr(s["text"]),
                          _arr(s["image_embedding"], s["image_embedding_dtype"]),
-                         _arr(s["text_embedding"], s["text_embedding_dtype"]), raw_fused=_arr(s["raw_fused"]))
+                         _arr(s["text_embedding"], s["text_embedding_dtype"]), raw_fused=_arr(s["raw_fused"]),
+                         view_embeddings=None if s.get("view_embeddings") is None else
+                         np.stack([np.asarray(v) for v in s["view_embeddings"]]).astype(s["view_embeddings_dtype"]))
     top = [(int(i), float(x)) for i, x in zip(s["top_index"], s["top_score"])]
     res, rej = guard("curate", curate_step, item, h, canon, scores, top, rendered.selected, config, pool,
                      out, catalog_path.parent)
@@ -257,7 +261,7 @@ def _curate_one(item: SourceItem, h: str, row: dict, view_row: dict, score_row: 
         return rejected(item, h, rej, None)
     asset, matches = res
     return ItemResult(item.source, item.source_id, h, asset, views, matches, scores.image_embedding,
-                      scores.text_embedding)
+                      scores.text_embedding, scores.view_embeddings)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -13,7 +13,7 @@ from pathlib import Path
 import typer
 
 from catalogs import DEFAULT_CATALOG  # light: only the schema constants
-from catalogs.schema import OBJECT_CLASSES, ZONES
+from catalogs.schema import DEFAULT_TEXT_MODEL_NAMES, OBJECT_CLASSES, ZONES
 from curbside.cli.errors import RunError, UsageError
 
 # Option choices as Enums, so click refuses a bad value before any catalog is opened, listing the valid ones.
@@ -131,7 +131,7 @@ def query(
     as_json: bool = JsonOpt,
 ) -> None:
     """Search the catalog by meaning: text-embedding similarity computed in DuckDB, filters as SQL parameters."""
-    from catalogs.query import QueryFilters, search
+    from catalogs.query import QueryFilters, has_view_embeddings, search
     from catalogs.reader import category_names, read_meta
 
     if not text.strip():
@@ -143,8 +143,15 @@ def query(
     con = _open(catalog)
     # Checksum errors surface while blocks are read, not on open: the whole read maps to one error line.
     with _catalog_errors(catalog), contextlib.closing(con):
-        vec = _embed_query(read_meta(con).get("embedding_model"), text)
-        results = search(con, vec, filters, limit=limit)
+        text_model = read_meta(con).get("embedding_model")
+        vec = _embed_query(text_model, text)
+        view_vec = None
+        # An aligned-scorer catalog embedded with MiniLM (the heads' text side): what the views show counts too.
+        if text_model in DEFAULT_TEXT_MODEL_NAMES and has_view_embeddings(con):
+            from catalogs.aligned import load_heads
+
+            view_vec = load_heads().text(vec[None, :])[0]
+        results = search(con, vec, filters, limit=limit, view_vector=view_vec)
         known = category_names(con)
     active = {k: v for k, v in vars(filters).items() if v is not None}
     hint = None

@@ -192,7 +192,7 @@ def mesh_dir(tmp_path: Path) -> Path:
 
 @pytest.mark.parametrize(("option", "value", "words"), [
     ("--views", "0", "--views"), ("--views", "21", "--views"), ("--executor", "bogus", "'local', 'process', 'ray'"),
-    ("--scorer", "resnet", "'imagenet', 'clip', 'none'"), ("--calibration", "max", "'softmax', 'zscore', 'none'"),
+    ("--scorer", "resnet", "'aligned', 'imagenet', 'clip', 'blip', 'blip2', 'none'"), ("--calibration", "max", "'softmax', 'zscore', 'none'"),
     ("--limit", "0", "--limit"), ("--workers", "0", "--workers"),
 ])
 def test_ingest_bad_option_is_refused_before_the_catalog(capsys, mesh_dir: Path, tmp_path: Path, option: str,

@@ -38,12 +38,12 @@ def test_local_folder_fills_catalog_and_rejects_bad_input(mesh_folder, tmp_path)
     for _, _, _, _, _, mesh, coll in assets.values():
         assert (cat.parent / mesh).exists() and (cat.parent / coll).exists()
     views = _rows(cat, "SELECT asset_id, count(*), sum(informative::INT) FROM views GROUP BY 1")
-    assert sorted(v[1:] for v in views) == [(8, 3), (8, 3)]
+    assert sorted(v[1:] for v in views) == [(20, 3), (20, 3)]
     matches = _rows(cat, "SELECT asset_id, description_id, score, image_score, text_score, scorer FROM matches")
     top = {m[0]: m for m in sorted(matches, key=lambda m: m[2])}
     assert top["local:a_bench.ply"][1] == "category:bench"  # no label: the category comes from the best match
     assert ("local:b_cone.glb", "category:traffic_cone") in {m[:2] for m in matches}
-    assert all(m[5].startswith("imagenet+all-MiniLM-L6-v2") and m[3] is not None for m in matches)
+    assert all(m[5].startswith("aligned+all-MiniLM-L6-v2") and m[3] is not None for m in matches)
     assert {m[0] for m in matches} == {"local:a_bench.ply", "local:b_cone.glb"}
     assert _rows(cat, "SELECT count(*) FROM embeddings WHERE owner_kind = 'asset_image'")[0][0] == 2
     assert (cat.parent / "c_assets" / "retrieval" / "local" / "a_bench.ply" / "contact_sheet.png").exists()
@@ -71,5 +71,5 @@ def test_interrupted_run_resumes_without_loss_or_duplicates(mesh_folder, tmp_pat
     report = ingest(LocalSource(mesh_folder["root"]), cat, CONFIG, progress=False)
     assert report.skipped == 3 and report.written == 0 and report.rejected == 5
     assert _rows(cat, "SELECT count(*) FROM assets")[0][0] == 2
-    assert _rows(cat, "SELECT count(*), count(DISTINCT (asset_id, view_index)) FROM views")[0] == (16, 16)
+    assert _rows(cat, "SELECT count(*), count(DISTINCT (asset_id, view_index)) FROM views")[0] == (40, 40)
     assert _rows(cat, "SELECT count(*) FROM rejections")[0][0] == 6
