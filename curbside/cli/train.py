@@ -46,14 +46,25 @@ def run_cmd(
     resume: bool = typer.Option(False, help="Continue from the latest checkpoint in --out."),
     eval_every: int = typer.Option(0, min=0, help="Evaluate on the test split every N env steps (0: never)."),
     config: Optional[str] = typer.Option(None, help="Env config overrides as a JSON object."),
+    executor: Executor = typer.Option("local", help="local: SB3 with --envs envs in local processes; ray: RLlib PPO "
+                                      "(ppo, ppo_et) with --num-env-runners env runners on a Ray cluster (--address)."),
+    num_env_runners: int = typer.Option(2, "--num-env-runners", min=1, max=1024, help="RLlib env runners "
+                                        "(--executor ray), each stepping --envs / runners envs."),
+    address: Optional[str] = address_option(),
 ) -> None:
     """Train one algorithm on the train split; the policy, logs (CSV + TensorBoard) and checkpoints go to --out."""
     from curbside.train.policies import check_algo
     from curbside.train.run import train
 
     cfg = parse_config_json(config)
+    ex = check_executor_args(executor, address)
     try:
         check_algo(algo)
+        if ex == "process":
+            raise ConfigError("training runs on --executor local (SB3; --envs already steps envs in local processes) "
+                              "or ray (RLlib)")
+        if ex == "ray" and algo not in ("ppo", "ppo_et"):
+            raise ConfigError(f"--executor ray trains ppo and ppo_et on RLlib; train {algo} with --executor local")
         if demos is not None and not (demos / "data").is_dir():
             raise ConfigError(f"no demonstration dataset at {demos}; collect one with `curbside demos collect --task {task} --out DIR` "
                               "and pass the folder it prints")
@@ -63,8 +74,30 @@ def run_cmd(
     except (ConfigError, ValueError, FileNotFoundError) as e:
         raise fail(str(e)) from None
     path = train(algo, task, out, steps=steps, env_config=cfg, n_envs=envs, num_scenes=scenes, seed=seed,
-                 demos=demos, resume=resume, eval_every=eval_every)
+                 demos=demos, resume=resume, eval_every=eval_every, executor=ex, num_env_runners=num_env_runners,
+                 address=address)
     Console(stderr=True).print(f"[green]trained[/] {algo} on {task}: {path}", highlight=False)
+
+
+@app.command("ppo")
+def ppo_cmd(
+    task: str = typer.Option("PointNav", help="PointNav or SocialNav."),
+    out: Path = typer.Option(Path("outputs/train/ppo"), help="Output folder: run.json, policy, checkpoints, logs."),
+    steps: int = typer.Option(200_000, min=1, help="Env steps."),
+    envs: int = typer.Option(8, min=1, max=256, help="Parallel envs (in all)."),
+    scenes: int = typer.Option(64, min=1, help="Train-split scenes, sharded across the workers or env runners."),
+    seed: int = typer.Option(0, min=0, help="Seed of the run."),
+    resume: bool = typer.Option(False, help="Continue from the latest checkpoint in --out."),
+    eval_every: int = typer.Option(0, min=0, help="Evaluate on the test split every N env steps (0: never)."),
+    config: Optional[str] = typer.Option(None, help="Env config overrides as a JSON object."),
+    executor: Executor = typer.Option("local", help="local (SB3) or ray (RLlib PPO on a Ray cluster)."),
+    num_env_runners: int = typer.Option(2, "--num-env-runners", min=1, max=1024, help="RLlib env runners (ray)."),
+    address: Optional[str] = address_option(),
+) -> None:
+    """Train PPO (`train run --algo ppo`); with --executor ray on RLlib, env runners spread over the cluster."""
+    run_cmd(algo="ppo", task=task, out=out, steps=steps, demos=None, envs=envs, scenes=scenes, seed=seed,
+            resume=resume, eval_every=eval_every, config=config, executor=executor, num_env_runners=num_env_runners,
+            address=address)
 
 
 @app.command("eval")

@@ -33,16 +33,21 @@ def SplitEvalCallback(task: str, env_config: Mapping[str, Any], every: int, epis
             policy = self.model
             summary = evaluate_policy(lambda obs: policy.predict(obs, deterministic=True)[0], task, env_config,
                                       split=split, episodes=episodes, progress=False)
-            row = {"steps": self.num_timesteps, **{k: summary[k] for k in ("sr", "spl", "cost", "route_completion", "sns")
-                                                  if k in summary}}
-            new = not csv_path.exists()
-            with open(csv_path, "a", newline="") as f:
-                w = csv.DictWriter(f, fieldnames=list(row))
-                if new:
-                    w.writeheader()
-                w.writerow(row)
-            for k, v in row.items():
-                if k != "steps":
-                    self.logger.record(f"eval_{split}/{k}", v)
+            append_eval_row(csv_path, self.num_timesteps, summary, self.logger, split)
 
     return _SplitEval()
+
+
+def append_eval_row(csv_path: Path, steps: int, summary: Mapping[str, Any], logger: Any, split: str) -> None:
+    """Append one evaluation (SR, SPL, cost, route completion, SNS) at `steps` to the learning-curve CSV and record
+    it in the SB3 `logger` under eval_<split>/ (shared by the SB3 and RLlib trainers)."""
+    row = {"steps": steps, **{k: summary[k] for k in ("sr", "spl", "cost", "route_completion", "sns") if k in summary}}
+    new = not csv_path.exists()
+    with open(csv_path, "a", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(row))
+        if new:
+            w.writeheader()
+        w.writerow(row)
+    for k, v in row.items():
+        if k != "steps":
+            logger.record(f"eval_{split}/{k}", v)

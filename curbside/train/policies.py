@@ -37,6 +37,14 @@ def load_policy(run_dir: Path) -> tuple[Callable[[np.ndarray], np.ndarray], dict
     """(act, run) for a run folder: act(obs) returns the deterministic action of the saved policy."""
     run = read_run(run_dir)
     algo = run["algo"]
+    if run.get("engine") == "rllib":  # `curbside train run --executor ray`: an RLlib checkpoint folder
+        from curbside.train.rllib import load_rllib_policy
+
+        policy_dir = Path(run_dir) / "policy"
+        if not policy_dir.is_dir():
+            raise ConfigError(f"{policy_dir} is missing; the run did not finish: resume it with `curbside train run "
+                              f"--executor ray --resume --out {run_dir}`")
+        return load_rllib_policy(policy_dir), run
     path = Path(run_dir) / POLICY_FILES[algo]
     if not path.is_file():
         raise ConfigError(f"{path} is missing; the run did not finish: resume it with `curbside train run --resume --out {run_dir}`")

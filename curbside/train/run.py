@@ -13,14 +13,28 @@ from curbside.train.policies import check_algo
 def train(algo: str, task: str, out: Path, *, steps: int, env_config: Mapping[str, Any] | None = None,
           n_envs: int = 8, num_scenes: int = 64, seed: int = 0, demos: Path | None = None, resume: bool = False,
           eval_every: int = 0, hparams: Mapping[str, Any] | None = None, progress: bool = True,
-          subprocess: bool = True) -> Path:
-    """Train `algo` on `task`'s train split; write run.json and the policy into `out`; return the policy path."""
+          subprocess: bool = True, executor: str = "local", num_env_runners: int = 2,
+          address: str | None = None) -> Path:
+    """Train `algo` on `task`'s train split; write run.json and the policy into `out`; return the policy path.
+
+    `executor` "ray" trains PPO (or PPO-ET) on Ray RLlib with `num_env_runners` env runners on the cluster at
+    `address` (curbside.train.rllib), into the same layout; "local" is SB3 with `n_envs` envs in local processes.
+    """
     from curbside.train.online import ONLINE_ALGOS, PPO_DEFAULTS, train_online
 
     check_algo(algo)
     out = Path(out)
     cfg = dict(env_config or {})
     h = {**PPO_DEFAULTS, **(hparams or {})}
+    if executor not in ("local", "ray"):
+        from curbside.config import ConfigError
+        raise ConfigError(f"training runs on executor local (SB3, envs in local processes) or ray (RLlib), got "
+                          f"{executor!r}")
+    if executor == "ray":
+        from curbside.train.rllib import train_rllib
+        return train_rllib(algo, task, out, steps=steps, env_config=cfg, n_envs=n_envs, num_env_runners=num_env_runners,
+                           num_scenes=num_scenes, hparams=h, seed=seed, resume=resume, eval_every=eval_every,
+                           address=address, progress=progress)
     if algo in ONLINE_ALGOS:
         return train_online(algo, task, out, steps=steps, env_config=cfg, n_envs=n_envs, num_scenes=num_scenes,
                             hparams=h, seed=seed, resume=resume, eval_every=eval_every, progress=progress,
