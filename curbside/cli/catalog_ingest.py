@@ -15,7 +15,9 @@ from curbside.cli.executor_options import Executor  # curbside.executors.EXECUTO
 
 # Option choices as Enums and ranges, so click refuses a bad value before the catalog is touched: a bad value
 # reaching the per-asset steps would be recorded as every asset's rejection (issue 12).
-Scorer = Enum("Scorer", {e: e for e in ("imagenet", "clip", "none")}, type=str)  # retrieval.scoring.IMAGE_ENCODERS
+Scorer = Enum("Scorer", {e: e for e in ("aligned", "imagenet", "clip", "blip", "blip2", "none")},
+              type=str)  # retrieval.scoring.IMAGE_ENCODERS
+MeshSet = Enum("MeshSet", {e: e for e in ("procedural", "primitives")}, type=str)
 Calibration = Enum("Calibration", {e: e for e in ("softmax", "zscore", "none")}, type=str)  # scoring.CALIBRATIONS
 MAX_VIEWS = 20  # retrieval.render.MAX_VIEWS, not imported so `--help` stays light (a test checks they agree)
 # --views, --scorer, --calibration and --per-category defaults equal IngestConfig / ScoringConfig / ProceduralSource's
@@ -45,9 +47,9 @@ def register(app: typer.Typer) -> None:
         address: str = typer.Option(None, help="Ray cluster address (with --executor ray)"),
         workers: int = typer.Option(None, min=1, help="worker processes (process/ray executors)"),
         catalog: Path = typer.Option(Path(DEFAULT_CATALOG), help="catalog file (created if missing)"),
-        scorer: Scorer = typer.Option(Scorer.imagenet.value, help="image encoder"),
-        clip_model: str = typer.Option(None, help="CLIP weights folder (with --scorer clip)"),
-        views: int = typer.Option(8, min=1, max=MAX_VIEWS, help="rendered views per asset"),
+        scorer: Scorer = typer.Option(Scorer.aligned.value, help="image encoder"),
+        clip_model: str = typer.Option(None, help="CLIP/BLIP/BLIP-2 weights folder (with --scorer clip|blip|blip2)"),
+        views: int = typer.Option(20, min=1, max=MAX_VIEWS, help="rendered views per asset"),
         calibration: Calibration = typer.Option(Calibration.softmax.value, help="per-signal calibration over the pool"),
         per_category: int = typer.Option(2, min=1, help="procedural variants per category"),
         objaverse_cache: Path = typer.Option(None, help="objaverse / objaverse-xl cache folder (default ~/.objaverse)"),
@@ -80,9 +82,11 @@ def register(app: typer.Typer) -> None:
     @app.command("eval")
     def eval_cmd(
         per_category: int = typer.Option(1, min=1, help="procedural assets per category in the built-in labelled set"),
-        scorer: Scorer = typer.Option(Scorer.imagenet.value, help="image encoder"),
-        clip_model: str = typer.Option(None, help="CLIP weights folder (with --scorer clip)"),
+        scorer: Scorer = typer.Option(Scorer.aligned.value, help="image encoder"),
+        clip_model: str = typer.Option(None, help="CLIP/BLIP/BLIP-2 weights folder (with --scorer clip|blip|blip2)"),
         objaverse_cache: Path = typer.Option(None, help="evaluate on this objaverse cache's LVIS labels instead"),
+        mesh_set: MeshSet = typer.Option(MeshSet.procedural.value, help="procedural: held-out library variants; "
+                                         "primitives: hand-built meshes the scorer never trained on"),
         limit: int = typer.Option(None, min=1, help="at most this many assets"),
         calibration: Calibration = typer.Option(Calibration.softmax.value, help="per-signal calibration over the pool"),
     ) -> None:
@@ -102,6 +106,11 @@ def register(app: typer.Typer) -> None:
         with tempfile.TemporaryDirectory() as tmp, _source_errors():
             if objaverse_cache:
                 src = open_source("objaverse", cache_dir=objaverse_cache)
+            elif MeshSet(mesh_set) == MeshSet.primitives:
+                from retrieval.primitive_set import build_set
+
+                build_set(Path(tmp) / "primitives")
+                src = open_source(f"local:{Path(tmp) / 'primitives'}")
             else:
                 src = open_source("procedural", per_category=per_category, work_dir=Path(tmp) / "proc")
             report = evaluate(src, config, limit=limit)
