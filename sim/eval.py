@@ -13,12 +13,12 @@ from sim.rollout import make_policy, rollout
 
 def evaluate(env_id: str, policy: str, episodes: int, config: Mapping[str, Any] | None = None, *,
              seed: int = 0, progress: bool = False, executor: str = "local", workers: int | None = None,
-             address: str | None = None) -> dict[str, Any]:
+             address: str | None = None, nodes: dict[str, int] | None = None) -> dict[str, Any]:
     """Mean metrics over `episodes` episodes with seeds seed..seed+N-1: keys sr, spl, cost, episodes, ...
 
     `executor` (curbside.executors: local, process or ray at `address`) shards the episodes over workers; each
     episode depends on its seed alone and the rows are aggregated in seed order, so every executor gives the
-    same summary, byte for byte.
+    same summary, byte for byte. `nodes`, when given, receives the episodes each (Ray) node ran.
     """
     from curbside.executors import run_map
 
@@ -34,7 +34,7 @@ def evaluate(env_id: str, policy: str, episodes: int, config: Mapping[str, Any] 
     try:
         advance = (lambda n: bar.advance(task, n)) if bar is not None else None
         rows.extend(run_map(episode_metrics, range(seed, seed + episodes), executor=executor, workers=workers,
-                            address=address, args=(job,), progress=advance))
+                            address=address, args=(job,), progress=advance, nodes=nodes))
     finally:
         if bar is not None:
             bar.stop()

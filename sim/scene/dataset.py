@@ -106,7 +106,7 @@ MAX_COUNT = 1_000_000  # splits start 1,000,000 seeds apart
 def build_dataset(
     split: str, count: int, out: str | Path, *, base: dict[str, Any] | None = None, catalog: str | None = None,
     workers: int | None = None, progress: Callable[[int], None] | None = None, executor: str | None = None,
-    address: str | None = None,
+    address: str | None = None, nodes: dict[str, int] | None = None,
 ) -> list[dict[str, Any]]:
     """Generate `count` scenes of `split` into `out` (one JSON each) plus index.jsonl and index.parquet.
 
@@ -139,7 +139,7 @@ def build_dataset(
     rows: list[dict[str, Any]] = []
     seeds = (offset + i for i in range(count))
     for row, text in run_map(scene_item, seeds, executor=executor, workers=workers, address=address, args=(job,),
-                             progress=progress):
+                             progress=progress, nodes=nodes):
         if text is not None:
             # Atomic: a kill leaves the old file or none, never half a scene. No fsync: after a power loss a file
             # that came back empty or torn fails `verified_scene` on the next run and is generated again.
