@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
 def _cell(x: float, y: float, ox: float, oy: float, res: float, h: int, w: int):  # pragma: no cover - numba
     """(row, col, inside) of world point (x, y): floor of its grid coordinates, clipped to the grid."""
     fx, fy = (x - ox) / res, (y - oy) / res
@@ -24,7 +24,7 @@ def _cell(x: float, y: float, ox: float, oy: float, res: float, h: int, w: int):
     return i, j, inside
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def nearest_nodes(xy: np.ndarray, ox: float, oy: float, res: float, nearest_rc: np.ndarray,
                   node_of: np.ndarray) -> np.ndarray:  # pragma: no cover - numba
     """Graph node nearest to each world point [n, 2] (NavGrid.nearest_node)."""
@@ -36,7 +36,7 @@ def nearest_nodes(xy: np.ndarray, ox: float, oy: float, res: float, nearest_rc: 
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def cell_values(xy: np.ndarray, ox: float, oy: float, res: float, grid: np.ndarray) -> np.ndarray:  # pragma: no cover
     """Values of `grid` at the cells holding world points [n, 2], clipped to the grid (NavGrid.cell_of)."""
     h, w = grid.shape
@@ -47,7 +47,7 @@ def cell_values(xy: np.ndarray, ox: float, oy: float, res: float, grid: np.ndarr
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def on_mask(xy: np.ndarray, ox: float, oy: float, res: float, mask: np.ndarray) -> np.ndarray:  # pragma: no cover
     """Whether world points [n, 2] lie inside the grid on a True cell of `mask` (NavGrid.is_walkable / is_free)."""
     h, w = mask.shape
@@ -58,7 +58,7 @@ def on_mask(xy: np.ndarray, ox: float, oy: float, res: float, mask: np.ndarray) 
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def idle_tick(movement: np.ndarray, idle_left: np.ndarray, dt: float, idle: int) -> np.ndarray:  # pragma: no cover
     """Count `dt` off the idle agents' `idle_left` (in place); returns the idle agents whose time is up."""
     done = np.zeros(movement.size, dtype=np.bool_)
@@ -69,7 +69,7 @@ def idle_tick(movement: np.ndarray, idle_left: np.ndarray, dt: float, idle: int)
     return np.flatnonzero(done)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def progress(moving: np.ndarray, pos: np.ndarray, goal: np.ndarray, nodes: np.ndarray, site: np.ndarray,
              dist_table: np.ndarray, stall: np.ndarray, best: np.ndarray, arrive_radius: float,
              crowded_radius: float, stuck_steps: int, stuck_progress: float, regoal_steps: int):  # pragma: no cover
@@ -97,7 +97,7 @@ def progress(moving: np.ndarray, pos: np.ndarray, goal: np.ndarray, nodes: np.nd
     return arrived, abandon
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def carrots(idx: np.ndarray, nodes: np.ndarray, pos: np.ndarray, site: np.ndarray, jump: np.ndarray,
             centres: np.ndarray, keep_right: float, ox: float, oy: float, res: float,
             free: np.ndarray) -> np.ndarray:  # pragma: no cover - numba
@@ -119,7 +119,7 @@ def carrots(idx: np.ndarray, nodes: np.ndarray, pos: np.ndarray, site: np.ndarra
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def headings(idx: np.ndarray, nodes: np.ndarray, pos: np.ndarray, carrot: np.ndarray, goal: np.ndarray,
              site: np.ndarray, dist_table: np.ndarray, speed: np.ndarray, near_goal: float):  # pragma: no cover
     """Unit directions [k, 2] at the carrots (at the own goal near the goal site) and speeds (slowing within
@@ -144,7 +144,7 @@ def headings(idx: np.ndarray, nodes: np.ndarray, pos: np.ndarray, carrot: np.nda
     return direction, out_speed
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def rungs(nodes: np.ndarray, sites: np.ndarray, jump: np.ndarray, centres: np.ndarray, top: int) -> np.ndarray:
     """Path cells [rung, k, 2] 2^top, ..., 2, 1 cells ahead of `nodes` toward `sites` (jump: [2^j, site, node])."""
     out = np.empty((top + 1, nodes.size, 2))
@@ -155,7 +155,7 @@ def rungs(nodes: np.ndarray, sites: np.ndarray, jump: np.ndarray, centres: np.nd
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def box_gaps(pos: np.ndarray, x: float, y: float, c: float, s: float, half_l: float, half_w: float):  # pragma: no cover
     """Per point [n, 2], its distances (ex, ey) outside a rectangle centred at (x, y) with axes (c, s) and half
     sizes (half_l, half_w), along the rectangle's axes (0 inside its extent)."""

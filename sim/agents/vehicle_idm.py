@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def leaders(order: np.ndarray, lane_id: np.ndarray, s: np.ndarray, v: np.ndarray, nxt_lane: np.ndarray,
             lane_len: np.ndarray, is_connector: np.ndarray, granted: np.ndarray, occupied: np.ndarray,
             cross_lane: np.ndarray, cross_cw: np.ndarray, cross_s: np.ndarray, length: float, stop_gap: float,
@@ -61,7 +61,7 @@ def leaders(order: np.ndarray, lane_id: np.ndarray, s: np.ndarray, v: np.ndarray
     return ls, ss, vs, same, gap, dv, rear_s, rear_v, front, to_end, want
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def follow(order: np.ndarray, ls: np.ndarray, vs: np.ndarray, gap: np.ndarray, dv: np.ndarray, front: np.ndarray,
            to_end: np.ndarray, rear_s: np.ndarray, rear_v: np.ndarray, lane_id: np.ndarray, s: np.ndarray,
            v: np.ndarray, v0: np.ndarray, nxt_lane: np.ndarray, prev_lane: np.ndarray, lane_len: np.ndarray,
@@ -114,7 +114,7 @@ def follow(order: np.ndarray, ls: np.ndarray, vs: np.ndarray, gap: np.ndarray, d
     return ratio
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def idm(order: np.ndarray, vs: np.ndarray, gap: np.ndarray, dv: np.ndarray, free_term: np.ndarray, v: np.ndarray,
         s: np.ndarray, min_gap: float, time_headway: float, max_accel: float, comfort_decel: float,
         max_decel: float, dt: float):  # pragma: no cover - numba
@@ -135,7 +135,7 @@ def idm(order: np.ndarray, vs: np.ndarray, gap: np.ndarray, dv: np.ndarray, free
     return new_v, new_s
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def lane_points(lane_id: np.ndarray, s: np.ndarray, lane_off: np.ndarray, lane_len: np.ndarray, all_cum: np.ndarray,
                 all_pts: np.ndarray):  # pragma: no cover - numba
     """Centres [n, 2] of vehicles at arc length `s` on their lanes (all lanes laid end to end in `all_pts` at
@@ -153,7 +153,7 @@ def lane_points(lane_id: np.ndarray, s: np.ndarray, lane_off: np.ndarray, lane_l
     return xy, seg
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def in_boxes(xy: np.ndarray, bounds: np.ndarray):  # pragma: no cover - numba
     """(box, point) index pairs of the points [n, 2] inside the boxes [m, 4] (min x, min y, max x, max y)."""
     box, pt = [], []

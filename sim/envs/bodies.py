@@ -19,7 +19,7 @@ _NO_XYZ = np.zeros((0, 3))
 _NO_BOXES = (np.zeros(0), np.zeros(0), np.zeros(0))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def moved_rows(xyz: np.ndarray, last: np.ndarray):  # pragma: no cover - numba
     """Rows of `xyz` [n, 3] that differ from `last` (nan differs from everything), and their xy steps [k, 2]."""
     moved = []

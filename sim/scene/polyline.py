@@ -12,6 +12,7 @@ from functools import cached_property
 
 import numpy as np
 import shapely
+from numba import njit
 from shapely.geometry import LineString
 
 
@@ -125,13 +126,31 @@ class Polyline:
         else:
             k0 = max(int(np.searchsorted(self.s, s_hint - window[0])) - 1, 0)
             k1 = min(int(np.searchsorted(self.s, s_hint + window[1])) + 1, len(self.seg))
-        a = self.points[k0:k1]
-        d = self.seg[k0:k1]
-        qx, qy = x - a[:, 0], y - a[:, 1]
-        t = np.clip((qx * d[:, 0] + qy * d[:, 1]) / (self.seg_len[k0:k1] ** 2), 0.0, 1.0)
-        ex, ey = qx - t * d[:, 0], qy - t * d[:, 1]
+        if k1 <= k0:
+            raise ValueError(f"no segment of the line lies near arc length {s_hint} (length {self.length:.1f})")
+        return _locate(self.points, self.seg, self.seg_len, self.s, k0, k1, float(x), float(y))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _locate(points: np.ndarray, seg: np.ndarray, seg_len: np.ndarray, s: np.ndarray, k0: int, k1: int, x: float,
+            y: float) -> tuple[float, float]:  # pragma: no cover - numba
+    """Polyline.locate on segments k0..k1: each segment's closest point, the nearest one's (arc length, offset)
+    (the numpy version's float operations in its order; a NaN distance wins, as np.argmin picks it)."""
+    best, k = np.inf, -1
+    t_best = 0.0
+    for j in range(k0, k1):
+        qx, qy = x - points[j, 0], y - points[j, 1]
+        t = (qx * seg[j, 0] + qy * seg[j, 1]) / (seg_len[j] * seg_len[j])
+        if not math.isnan(t):
+            t = min(max(t, 0.0), 1.0)
+        ex, ey = qx - t * seg[j, 0], qy - t * seg[j, 1]
         dist2 = ex * ex + ey * ey
-        k = int(np.argmin(dist2))
-        cross = d[k, 0] * qy[k] - d[k, 1] * qx[k]
-        lateral = math.sqrt(float(dist2[k])) * (1.0 if cross >= 0 else -1.0)
-        return float(self.s[k0 + k] + t[k] * self.seg_len[k0 + k]), lateral
+        if math.isnan(dist2):
+            best, k, t_best = dist2, j, t
+            break
+        if k < 0 or dist2 < best:
+            best, k, t_best = dist2, j, t
+    qx, qy = x - points[k, 0], y - points[k, 1]
+    cross = seg[k, 0] * qy - seg[k, 1] * qx
+    lateral = math.sqrt(best) * (1.0 if cross >= 0 else -1.0)
+    return s[k] + t_best * seg_len[k], lateral

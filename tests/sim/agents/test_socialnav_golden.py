@@ -96,3 +96,36 @@ def test_scalar_reward_matches_batch() -> None:
             flags = [bool(v) for v in rng.random(4) < 0.2]
             a, b = reward(*args, *flags), float(reward.batch(*args, *flags))
             assert np.float64(a).tobytes() == np.float64(b).tobytes(), (preset, args, flags, a, b)
+
+
+def _locate_numpy(line: Any, x: float, y: float, s_hint: float | None) -> tuple[float, float]:
+    """Polyline.locate as numpy computed it before its numba kernel (the reference for the kernel's doubles)."""
+    import math
+
+    if s_hint is None:
+        k0, k1 = 0, len(line.seg)
+    else:
+        k0 = max(int(np.searchsorted(line.s, s_hint - 3.0)) - 1, 0)
+        k1 = min(int(np.searchsorted(line.s, s_hint + 8.0)) + 1, len(line.seg))
+    a, d = line.points[k0:k1], line.seg[k0:k1]
+    qx, qy = x - a[:, 0], y - a[:, 1]
+    t = np.clip((qx * d[:, 0] + qy * d[:, 1]) / (line.seg_len[k0:k1] ** 2), 0.0, 1.0)
+    ex, ey = qx - t * d[:, 0], qy - t * d[:, 1]
+    dist2 = ex * ex + ey * ey
+    k = int(np.argmin(dist2))
+    cross = d[k, 0] * qy[k] - d[k, 1] * qx[k]
+    return float(line.s[k0 + k] + t[k] * line.seg_len[k0 + k]), math.sqrt(float(dist2[k])) * (1.0 if cross >= 0 else -1.0)
+
+
+def test_locate_kernel_matches_numpy() -> None:
+    """Polyline.locate (numba; the route tracker, every env step) gives the numpy formula's doubles."""
+    from sim.scene.polyline import Polyline
+
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        pts = np.cumsum(rng.normal(size=(int(rng.integers(2, 40)), 2)) * rng.uniform(0.1, 3.0), axis=0)
+        line = Polyline(pts)
+        for _ in range(50):
+            x, y = (pts[rng.integers(len(pts))] + rng.normal(size=2) * 2.0).tolist()
+            hint = None if rng.random() < 0.3 else float(rng.uniform(0.0, line.length))
+            assert np.array(line.locate(x, y, hint)).tobytes() == np.array(_locate_numpy(line, x, y, hint)).tobytes()
