@@ -74,7 +74,7 @@ def build_pool(descriptions: Any, texts: list[str], vectors: np.ndarray, *, eps:
         # The members' majority category; None (open vocabulary) only when no member has a category: a cluster
         # that joins "a statue" to a categorised description is that category's.
         named = {c: n for c, n in cats[int(lab)].items() if c is not None}
-        cat = sorted(named.items(), key=lambda kv: (-kv[1], kv[0]))[0][0] if named else None
+        cat = min(named.items(), key=lambda kv: (-kv[1], kv[0]))[0] if named else None
         rows.append({
             "description_id": "pool-" + hashlib.sha1(texts[rep].encode()).hexdigest()[:12],
             "text": texts[rep], "category": cat, "members": [texts[m] for m in order], "n_members": len(members),

@@ -40,9 +40,9 @@ class SignTable:
         code = f"{m['cc']}:{m['num']}"
         best = None
         for pattern, text, with_value in self.rows:
-            if len(pattern) == len(code) and all(p == c or (p == "x" and c.isdigit()) for p, c in zip(pattern, code)):
-                if best is None or pattern.count("x") < best[0].count("x"):
-                    best = (pattern, text, with_value)
+            fits = len(pattern) == len(code) and all(p == c or (p == "x" and c.isdigit()) for p, c in zip(pattern, code))
+            if fits and (best is None or pattern.count("x") < best[0].count("x")):
+                best = (pattern, text, with_value)
         if best is None:
             return GENERIC
         number = m["dash"] or (m["br"] if m["br"] and re.fullmatch(r"\d+(\.\d+)?( ?[a-z]+)?", m["br"]) else None)

@@ -107,8 +107,9 @@ class ObjaverseXLSource:
         except DownloadError as exc:
             return "", ("download_failed", str(exc)[:200])
         if sha256 and _sha256(path) != sha256:
-            return str(path), ("download_failed", f"sha256 of {path.name} differs from the Objaverse-XL annotation "
-                                                  f"(the file changed upstream); delete it to fetch it again")
+            why = (f"sha256 of {path.name} differs from the Objaverse-XL annotation (the file changed upstream); "
+                   f"delete it to fetch it again")
+            return str(path), ("download_failed", why)
         return str(path), None
 
     def items(self, limit: int | None = None) -> Iterator[SourceItem]:
