@@ -180,14 +180,16 @@ def dataset(
     cat = _catalog(catalog)
     t0 = time.perf_counter()
     cols = (TextColumn(f"[bold]{split.value}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn())
+    nodes: dict[str, int] = {}
     with _catalog_errors(), Progress(*cols) as bar:
         task = bar.add_task(split.value, total=count)
         rows = build_dataset(split.value, count, out, base=base,
                              catalog=cat, workers=workers, progress=lambda n: bar.advance(task, n),
-                             executor=ex, address=address)
+                             executor=ex, address=address, nodes=nodes)
     dt = time.perf_counter() - t0
     objs = sum(r["objects"] for r in rows)
-    typer.echo(f"{out}: {len(rows)} scenes, {objs} objects, {dt:.1f} s ({len(rows) / dt:.1f} scenes/s)")
+    where = f", on {len(nodes)} Ray node(s)" if ex == "ray" else ""
+    typer.echo(f"{out}: {len(rows)} scenes, {objs} objects, {dt:.1f} s ({len(rows) / dt:.1f} scenes/s){where}")
 
 
 @app.command()

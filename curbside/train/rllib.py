@@ -97,6 +97,8 @@ def train_rllib(algo: str, task: str, out: Path, *, steps: int, env_config: Mapp
                 address: str | None = None, progress: bool = True) -> Path:
     """Train PPO on RLlib for `steps` env steps with `num_env_runners` env runners (each stepping
     ceil(n_envs / runners) envs) on the Ray cluster at `address` (or one started here); returns the policy folder."""
+    import logging
+
     import ray
     from stable_baselines3.common.logger import configure
 
@@ -107,6 +109,7 @@ def train_rllib(algo: str, task: str, out: Path, *, steps: int, env_config: Mapp
     if not 1 <= num_env_runners <= 1024:
         raise ConfigError(f"num_env_runners must be in [1, 1024], got {num_env_runners}")
     envs_per_runner = max(1, math.ceil(n_envs / num_env_runners))
+    logging.getLogger("ray.rllib").setLevel(logging.ERROR)  # RLlib's notices about its API stacks, on every run
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     started = connect_ray(num_env_runners + 1, address)  # one CPU for the driver's learner

@@ -1,0 +1,238 @@
+"""Beyond one machine (issue 18): throughput with 1 vs 2 Ray workers, RLlib vs SB3, and a simulated 8-node run.
+
+Usage: python benchmarks/ray_scaling.py --budget {smoke,full} [--out DIR] [--skip-rllib]
+
+Prints and writes (ray_scaling.json, ray_scaling.csv under --out, default benchmarks/results/issue18):
+- scenes/s of `curbside scenes dataset` (the metaurban12k preset, 3 blocks) on a local Ray cluster of 1 and of 2
+  CPUs, timed after the workers have started and imported the simulator (the cluster start is reported apart);
+- eval episodes/s of `curbside sim eval` (PointNav, the expert) the same way (Ray workers keep the env they built
+  in the warm-up; the local run builds its env inside the timed call, ~0.1 s);
+- RLlib PPO env steps/s with 2 env runners (1 env each) against SB3 PPO with 2 envs in one process, on the same
+  task and hyperparameters (each trainer's own logs/progress.csv `time/fps`: env steps over the time since
+  training started, updates included, env and worker start-up excluded);
+- a simulated 8-node cluster (ray.cluster_utils.Cluster, 8 one-CPU raylets on this machine): scenes and eval
+  metrics aggregated from the nodes are compared byte for byte with a local run.
+Every Ray output is checked byte-identical to the local (in-process) run of the same seeds. The 1-minute load
+average is recorded before each timed part: other work on the machine slows the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+BUDGETS = {
+    "smoke": {"scenes": 6, "episodes": 6, "ppo_steps": 2048, "node_scenes": 8, "node_episodes": 8},
+    "full": {"scenes": 120, "episodes": 80, "ppo_steps": 16384, "node_scenes": 24, "node_episodes": 24},
+}
+SCENE_BASE = {"blocks": 3, "preset": "metaurban12k"}  # `curbside scenes dataset`'s defaults
+EVAL_ENV = "curbside/PointNav-v0"
+PPO_TASK_CONFIG: dict[str, Any] = {}  # the PointNav defaults, as `curbside train run` uses them
+NODES = 8
+
+
+def load1() -> float:
+    """The 1-minute load average now."""
+    return round(os.getloadavg()[0], 2)
+
+
+def tree_digest(folder: Path) -> str:
+    """sha256 over every file's relative path and bytes."""
+    h = hashlib.sha256()
+    for f in sorted(folder.rglob("*")):
+        if f.is_file():
+            h.update(str(f.relative_to(folder)).encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def _ray_local(cpus: int) -> float:
+    """Start a local Ray cluster of `cpus` CPUs; seconds it took."""
+    import ray
+
+    t0 = time.perf_counter()
+    os.environ.setdefault("RAY_AUTH_MODE", "disabled")
+    ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False)
+    return time.perf_counter() - t0
+
+
+def scenes_part(n: int, work: Path) -> dict[str, Any]:
+    """Scenes/s in-process and on Ray with 1 and 2 workers; whether all outputs are the same bytes."""
+    import ray
+
+    from sim.scene.dataset import build_dataset
+
+    out: dict[str, Any] = {"count": n, "config": SCENE_BASE}
+    build_dataset("finetune", 2, work / "warm0", base=SCENE_BASE, executor="local")  # imports, as the workers' warm-up
+    t0, load = time.perf_counter(), load1()
+    build_dataset("train", n, work / "scenes_local", base=SCENE_BASE, executor="local")
+    out["local"] = {"seconds": time.perf_counter() - t0, "scenes_per_s": n / (time.perf_counter() - t0), "load1": load}
+    digest = tree_digest(work / "scenes_local")
+    for w in (1, 2):
+        start = _ray_local(w)
+        try:
+            # Warm-up on other seeds (the finetune split): every worker starts and imports the generator.
+            build_dataset("finetune", 2 * w, work / f"warm{w}", base=SCENE_BASE, executor="ray", workers=w)
+            load, t0 = load1(), time.perf_counter()
+            build_dataset("train", n, work / f"scenes_ray{w}", base=SCENE_BASE, executor="ray", workers=w)
+            dt = time.perf_counter() - t0
+        finally:
+            ray.shutdown()
+        out[f"ray_{w}"] = {"seconds": dt, "scenes_per_s": n / dt, "cluster_start_s": start, "load1": load,
+                           "same_bytes_as_local": tree_digest(work / f"scenes_ray{w}") == digest}
+    out["speedup_2_vs_1"] = out["ray_2"]["scenes_per_s"] / out["ray_1"]["scenes_per_s"]
+    return out
+
+
+def eval_part(n: int) -> dict[str, Any]:
+    """Eval episodes/s in-process and on Ray with 1 and 2 workers; whether the summaries are the same bytes."""
+    import ray
+
+    from sim.eval import evaluate
+
+    out: dict[str, Any] = {"episodes": n, "env": EVAL_ENV, "policy": "expert"}
+    evaluate(EVAL_ENV, "expert", 2, {}, seed=10_000)  # imports, as the workers' warm-up (the env is built in both)
+    load, t0 = load1(), time.perf_counter()
+    local = json.dumps(evaluate(EVAL_ENV, "expert", n, {}, seed=0), sort_keys=True)
+    out["local"] = {"seconds": time.perf_counter() - t0, "episodes_per_s": n / (time.perf_counter() - t0),
+                    "load1": load}
+    for w in (1, 2):
+        start = _ray_local(w)
+        try:
+            evaluate(EVAL_ENV, "expert", 2 * w, {}, seed=10_000, executor="ray", workers=w)  # workers build their env
+            load, t0 = load1(), time.perf_counter()
+            summary = evaluate(EVAL_ENV, "expert", n, {}, seed=0, executor="ray", workers=w)
+            dt = time.perf_counter() - t0
+        finally:
+            ray.shutdown()
+        out[f"ray_{w}"] = {"seconds": dt, "episodes_per_s": n / dt, "cluster_start_s": start, "load1": load,
+                           "same_bytes_as_local": json.dumps(summary, sort_keys=True) == local}
+    out["speedup_2_vs_1"] = out["ray_2"]["episodes_per_s"] / out["ray_1"]["episodes_per_s"]
+    return out
+
+
+def _fps(run: Path) -> tuple[float, int]:
+    """(time/fps, time/total_timesteps) of the last row of a run's logs/progress.csv."""
+    with open(run / "logs" / "progress.csv", newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r.get("time/fps")]
+    return float(rows[-1]["time/fps"]), int(float(rows[-1]["time/total_timesteps"]))
+
+
+def ppo_part(steps: int, work: Path) -> dict[str, Any]:
+    """RLlib PPO with 2 env runners vs SB3 PPO with 2 envs in one process: env steps/s while training."""
+    from curbside.train.run import train
+
+    out: dict[str, Any] = {"task": "PointNav", "steps": steps, "hparams": "curbside.train.online.PPO_DEFAULTS"}
+    load = load1()
+    train("ppo", "PointNav", work / "sb3", steps=steps, env_config=PPO_TASK_CONFIG, n_envs=2, num_scenes=8,
+          progress=False, subprocess=False)
+    fps, total = _fps(work / "sb3")
+    out["sb3_one_process"] = {"envs": 2, "env_steps_per_s": fps, "env_steps": total, "load1": load}
+    load = load1()
+    train("ppo", "PointNav", work / "rllib", steps=steps, env_config=PPO_TASK_CONFIG, n_envs=2, num_scenes=8,
+          progress=False, executor="ray", num_env_runners=2)
+    fps, total = _fps(work / "rllib")
+    out["rllib_2_env_runners"] = {"envs": 2, "env_steps_per_s": fps, "env_steps": total, "load1": load}
+    out["ratio_rllib_vs_sb3"] = out["rllib_2_env_runners"]["env_steps_per_s"] / out["sb3_one_process"]["env_steps_per_s"]
+    return out
+
+
+def nodes_part(n_scenes: int, n_episodes: int, work: Path) -> dict[str, Any]:
+    """Scenes and eval on a simulated 8-node cluster against a local run: same bytes, and which nodes ran what."""
+    import ray
+    from ray.cluster_utils import Cluster
+
+    from sim.eval import evaluate
+    from sim.scene.dataset import build_dataset
+
+    base = {"blocks": 1}
+    build_dataset("test", n_scenes, work / "nodes_local", base=base, executor="local")
+    local_eval = json.dumps(evaluate("curbside/SocialNav-v0", "expert", n_episodes, {}, seed=0), sort_keys=True)
+    os.environ.setdefault("RAY_AUTH_MODE", "disabled")
+    t0 = time.perf_counter()
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
+    for _ in range(NODES - 1):
+        cluster.add_node(num_cpus=1)
+    cluster.wait_for_nodes()
+    ray.init(address=cluster.address, log_to_driver=False)
+    start = time.perf_counter() - t0
+    try:
+        scene_nodes: dict[str, int] = {}
+        build_dataset("test", n_scenes, work / "nodes_ray", base=base, executor="ray", nodes=scene_nodes)
+        eval_nodes: dict[str, int] = {}
+        sharded = json.dumps(evaluate("curbside/SocialNav-v0", "expert", n_episodes, {}, seed=0, executor="ray",
+                                      nodes=eval_nodes), sort_keys=True)
+        alive = sum(1 for n in ray.nodes() if n["Alive"])
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+    return {"nodes": NODES, "alive_nodes": alive, "cluster_start_s": start, "scenes": n_scenes,
+            "episodes": n_episodes, "scene_nodes_used": len(scene_nodes), "eval_nodes_used": len(eval_nodes),
+            "scenes_per_node": sorted(scene_nodes.values(), reverse=True),
+            "episodes_per_node": sorted(eval_nodes.values(), reverse=True),
+            "scenes_same_bytes": tree_digest(work / "nodes_ray") == tree_digest(work / "nodes_local"),
+            "eval_same_bytes": sharded == local_eval}
+
+
+def main(budget: str, out: Path, skip_rllib: bool = False) -> dict[str, Any]:
+    """Run every part; print and write the figures."""
+    b = BUDGETS[budget]
+    result: dict[str, Any] = {"budget": budget, "cpus": os.cpu_count(), "load1_start": load1(),
+                              "date": time.strftime("%Y-%m-%d %H:%M")}
+    work = Path(tempfile.mkdtemp(prefix="ray_scaling_"))
+    try:
+        result["scenes"] = scenes_part(b["scenes"], work)
+        print(f"scenes/s: local {result['scenes']['local']['scenes_per_s']:.2f}, Ray 1 worker "
+              f"{result['scenes']['ray_1']['scenes_per_s']:.2f}, 2 workers {result['scenes']['ray_2']['scenes_per_s']:.2f}"
+              f" ({result['scenes']['speedup_2_vs_1']:.2f}x)", flush=True)
+        result["eval"] = eval_part(b["episodes"])
+        print(f"eval episodes/s: local {result['eval']['local']['episodes_per_s']:.2f}, Ray 1 worker "
+              f"{result['eval']['ray_1']['episodes_per_s']:.2f}, 2 workers {result['eval']['ray_2']['episodes_per_s']:.2f}"
+              f" ({result['eval']['speedup_2_vs_1']:.2f}x)", flush=True)
+        if not skip_rllib:
+            result["ppo"] = ppo_part(b["ppo_steps"], work)
+            print(f"PPO env steps/s: RLlib 2 env runners {result['ppo']['rllib_2_env_runners']['env_steps_per_s']:.0f}, "
+                  f"SB3 one process {result['ppo']['sb3_one_process']['env_steps_per_s']:.0f} "
+                  f"({result['ppo']['ratio_rllib_vs_sb3']:.2f}x)", flush=True)
+        result["nodes8"] = nodes_part(b["node_scenes"], b["node_episodes"], work)
+        n8 = result["nodes8"]
+        print(f"8-node cluster: scenes on {n8['scene_nodes_used']} nodes, episodes on {n8['eval_nodes_used']}; "
+              f"scenes same bytes {n8['scenes_same_bytes']}, eval same bytes {n8['eval_same_bytes']}", flush=True)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    result["load1_end"] = load1()
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "ray_scaling.json").write_text(json.dumps(result, indent=2, sort_keys=True) + "\n")
+    rows = [("scenes/s", k, result["scenes"][k]["scenes_per_s"], result["scenes"][k]["load1"]) for k in ("local", "ray_1", "ray_2")]
+    rows += [("eval episodes/s", k, result["eval"][k]["episodes_per_s"], result["eval"][k]["load1"]) for k in ("local", "ray_1", "ray_2")]
+    if "ppo" in result:
+        rows += [("PPO env steps/s", k, result["ppo"][k]["env_steps_per_s"], result["ppo"][k]["load1"])
+                 for k in ("sb3_one_process", "rllib_2_env_runners")]
+    with open(out / "ray_scaling.csv", "w", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(["figure", "run", "value", "load1"])
+        w.writerows([(a, b_, f"{v:.3f}", ld) for a, b_, v, ld in rows])
+    print(f"wrote {out / 'ray_scaling.json'} and {out / 'ray_scaling.csv'}")
+    return result
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--budget", choices=sorted(BUDGETS), default="smoke")
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "issue18")
+    parser.add_argument("--skip-rllib", action="store_true", help="leave out the RLlib vs SB3 part")
+    args = parser.parse_args()
+    main(args.budget, args.out, args.skip_rllib)
