@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.agents.kinds import AGENT_KINDS, IDLE, KIND_NAMES, RUNNING, WALKING
 from sim.agents.crowd_kernels import carrots, headings, idle_tick, progress, rungs
+from sim.agents.kinds import AGENT_KINDS, IDLE, KIND_NAMES, RUNNING, WALKING
 from sim.agents.navgrid import JUMPS
 
 

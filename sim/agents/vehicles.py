@@ -38,8 +38,8 @@ from sim.agents.lanes import (
     build_lanes,
     connector_compatibility,
 )
-from sim.agents.vehicle_junctions import JunctionControl
 from sim.agents.vehicle_idm import follow, idm, in_boxes, lane_points, leaders
+from sim.agents.vehicle_junctions import JunctionControl
 from sim.agents.vehicle_routing import LaneRouting
 from sim.scene.scene import Scene, as_scene
 
@@ -141,7 +141,7 @@ class VehicleManager(LaneRouting, JunctionControl):
         if self.n:
             order = np.lexsort((self.s, self.lane_id))
             cl, cc, cs = self._cross_arrays
-            ls, ss, v, same, gap, dv, rear_s, rear_v, front, to_end, want = leaders(
+            ls, ss, v, _, gap, dv, rear_s, rear_v, front, to_end, want = leaders(
                 order, self.lane_id, self.s, self.v, self.next, self.lane_len, self.is_connector, self.granted,
                 self.occupied, cl, cc, cs, float(c["length"]), float(c["stop_gap"]), float(dt),
                 float(c["comfort_decel"]), float(c["junction_stop"]), len(self.lanes))

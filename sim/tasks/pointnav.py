@@ -138,7 +138,7 @@ class Reward:
         # calls on scalars: this runs every env step.
         disp = new_progress if self.progress == "max" else progress
         over = abs(lateral) - self.lateral_free
-        r = self.disp * disp - self.lateral * (over if over > 0.0 else 0.0) - self.steering * abs(d_steer) * abs(speed)
+        r = self.disp * disp - self.lateral * max(0.0, over) - self.steering * abs(d_steer) * abs(speed)
         if collided:
             r = r - self.crash
         if self.floor and 0.0 > r:
