@@ -34,6 +34,11 @@ class AlignedHeads:
         self.wt, self.bt = a["text.weight"].T.astype(np.float32), a["text.bias"].astype(np.float32)
         self.dim = int(self.b2.shape[0])
         self.feature_dim = int(self.mean.shape[0])
+        # The labelled calibration set (joint-space view embeddings, owner asset, asset category), when stored.
+        self.calibration = None
+        if "calibration_embeddings" in a:
+            self.calibration = (a["calibration_embeddings"].astype(np.float32), a["calibration_view_asset"],
+                                a["calibration_category"].astype(str))
 
     def image(self, features: np.ndarray) -> np.ndarray:
         """(n, dim) unit joint-space vectors of (n, feature_dim) frozen view features."""

@@ -27,6 +27,7 @@ from curbside.config import check_choice
 IMAGE_ENCODERS = ("aligned", "imagenet", "clip", "blip", "blip2", "none")
 AGGREGATES = ("max", "mean")
 CALIBRATIONS = ("softmax", "zscore", "none")
+THRESHOLDS = ("calibrated", "global")
 
 
 @dataclass(frozen=True)
@@ -71,11 +72,15 @@ class ScoringConfig:
     top_k_per_asset: int = 3
     top_k_per_description: int = 100
     threads: int = 1
+    # calibrated: a description with a category gets its own image-cosine threshold from the aligned scorer's
+    # labelled calibration set (AlignedEncoder.thresholds); others, and other scorers, use `threshold`.
+    thresholds: str = "calibrated"
 
     def __post_init__(self) -> None:
         check_choice(self.image_encoder, IMAGE_ENCODERS, what="image encoder")
         check_choice(self.aggregate, AGGREGATES, what="view aggregate")
         check_choice(self.calibration, CALIBRATIONS, what="score calibration")
+        check_choice(self.thresholds, THRESHOLDS, what="thresholds")
         if self.temperature <= 0:
             raise ValueError(f"temperature must be > 0 (softmax calibration), got {self.temperature}")
         if self.image_encoder in ("clip", "blip", "blip2") and not self.clip_model:
@@ -92,7 +97,8 @@ class ScoringConfig:
             img = f"{img}[{str(self.clip_model).rstrip('/').split('/')[-1]}]"
         text = (self.text_model or DEFAULT_TEXT_MODEL).rstrip("/").split("/")[-1]
         cal = {"softmax": f"sm{self.temperature:g}", "zscore": "z", "none": "raw"}[self.calibration]
-        return f"{img}+{text}:{self.aggregate}:w{self.image_weight:g}/{self.text_weight:g}:{cal}"
+        per_description = ":tcal" if self.thresholds == "calibrated" and self.image_encoder == "aligned" else ""
+        return f"{img}+{text}:{self.aggregate}:w{self.image_weight:g}/{self.text_weight:g}:{cal}{per_description}"
 
 
 def calibrate(scores: np.ndarray, method: str, temperature: float = 0.1) -> np.ndarray:
@@ -150,6 +156,9 @@ class Scorer:
             self.image_encoder = BlipEncoder(config.clip_model, kind=config.image_encoder)
         self.pool_text = self.text_encoder.encode(list(pool.texts))
         self.pool_image = self.image_encoder.encode_texts(list(pool.texts)) if self.image_encoder else None
+        self.description_thresholds = np.full(len(pool.ids), np.nan)
+        if config.thresholds == "calibrated" and hasattr(self.image_encoder, "thresholds"):
+            self.description_thresholds = self.image_encoder.thresholds(self.pool_image, list(pool.categories))
 
     def score(self, images: list[np.ndarray], metadata_text: str) -> AssetScores:
         """Score the (selected) views and the metadata text against every pool entry."""
@@ -187,9 +196,14 @@ class Scorer:
     def passes(self, scores: AssetScores, i: int) -> bool:
         """Whether pool entry i clears the absolute threshold (raw fused cosine) and the calibrated lift."""
         c = self.config
-        raw = scores.raw_fused if scores.raw_fused is not None else scores.fused
-        if raw[i] < c.threshold:
-            return False
+        own = self.description_thresholds[i]
+        if not np.isnan(own) and scores.image is not None:
+            if scores.image[i] < own:  # this description's own evidence bar, calibrated on labelled assets
+                return False
+        else:
+            raw = scores.raw_fused if scores.raw_fused is not None else scores.fused
+            if raw[i] < c.threshold:
+                return False
         if c.calibration == "softmax":
             return scores.fused[i] * len(scores.fused) >= c.min_lift
         if c.calibration == "zscore":

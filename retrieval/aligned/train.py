@@ -30,6 +30,7 @@ class TrainConfig:
 
     train_seeds: int = 24  # variants per category trained on
     heldout_seeds: int = 2  # variants per category reported on (the seeds `catalog eval` uses)
+    calibration_seeds: int = 2  # variants per category kept as the labelled set thresholds are calibrated on
     n_views: int = 12
     image_size: int = 160
     joint_dim: int = 384  # = MiniLM's width: aligned image embeddings fit the catalog's embeddings table
@@ -152,7 +153,7 @@ def train(cfg: TrainConfig, out: Path = DEFAULT_WEIGHTS, progress: bool = True) 
     """Build the data, fit the heads, write `out` (npz) and `out`.json (config, data sizes, held-out report)."""
     import torch
 
-    from retrieval.aligned.dataset import HELDOUT_SEED0, TRAIN_SEED0, build_split
+    from retrieval.aligned.dataset import CALIBRATION_SEED0, HELDOUT_SEED0, TRAIN_SEED0, build_split
     from retrieval.aligned.features import FEATURE_VERSION
     from retrieval.encoders.text import TextEncoder
     from retrieval.procedural import category_names
@@ -168,11 +169,21 @@ def train(cfg: TrainConfig, out: Path = DEFAULT_WEIGHTS, progress: bool = True) 
                               cfg.image_size, progress=progress)
     held = build_split(cats, list(range(HELDOUT_SEED0, HELDOUT_SEED0 + cfg.heldout_seeds)), cfg.n_views,
                        cfg.image_size, progress=progress)
+    calib = build_split(cats, list(range(CALIBRATION_SEED0, CALIBRATION_SEED0 + cfg.calibration_seeds)), cfg.n_views,
+                        cfg.image_size, progress=progress)
     t_data = time.perf_counter() - t0
     te = TextEncoder(None)
     texts, _, pos = caption_bank(train_split.attrs, cfg.captions_per_asset, cfg.seed)
     weights = fit(train_split, te.encode(texts), pos, cfg, progress)
     report = heldout_report(weights, held, te)
+    from retrieval.encoders.aligned import AlignedEncoder
+
+    # The labelled calibration set, as joint-space view embeddings: Scorers derive per-description thresholds
+    # from it for whatever pool they match against (AlignedEncoder.thresholds).
+    weights["calibration_embeddings"] = AlignedEncoder.from_arrays(weights, te).project_features(
+        calib.features).astype(np.float16)
+    weights["calibration_view_asset"] = calib.view_asset.astype(np.int32)
+    weights["calibration_category"] = np.array([a.category for a in calib.attrs])
     meta = {"config": asdict(cfg), "feature_version": FEATURE_VERSION, "text_model": te.name,
             "train_assets": len(train_split.attrs), "train_views": int(len(train_split.features)),
             "captions": len(texts), "final_loss": round(float(weights["final_loss"]), 4),

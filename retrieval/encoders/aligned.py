@@ -54,3 +54,32 @@ class AlignedEncoder:
     def encode_texts(self, texts: list[str]) -> np.ndarray:
         """(n, dim) unit embeddings of descriptions."""
         return self.heads.text(self.text_encoder.encode(list(texts)))
+
+    def thresholds(self, text_embeddings: np.ndarray, categories: list[str | None]) -> np.ndarray:
+        """Per description, the image cosine that best separates the calibration assets of its category from the
+        others (max F1 over the asset's best view); NaN where it has no category in the labelled set."""
+        out = np.full(len(categories), np.nan)
+        if self.heads.calibration is None:
+            return out
+        emb, owner, cats = self.heads.calibration
+        sims = np.asarray(text_embeddings, dtype=np.float32) @ emb.T  # (descriptions, calibration views)
+        best = np.full((len(categories), len(cats)), -np.inf)
+        for k in range(len(cats)):
+            best[:, k] = sims[:, owner == k].max(axis=1)
+        for d, cat in enumerate(categories):
+            if cat is not None and cat in set(cats):
+                out[d] = f1_threshold(best[d], cats == cat)
+        return out
+
+
+def f1_threshold(scores: np.ndarray, positive: np.ndarray) -> float:
+    """The threshold (midway between neighbouring scores) that maximises F1 of `scores >= t` against `positive`;
+    ties go to the lower threshold (more recall)."""
+    s = np.asarray(scores, dtype=np.float64)
+    order = np.argsort(-s, kind="stable")
+    s, pos = s[order], np.asarray(positive, dtype=bool)[order]
+    tp = np.cumsum(pos)
+    k = np.arange(1, len(s) + 1)  # predicted positives when the cut is after the k-th score
+    f1 = 2 * tp / (k + pos.sum())
+    i = int(np.flatnonzero(f1 == f1.max())[-1])
+    return float((s[i] + s[i + 1]) / 2) if i + 1 < len(s) else float(s[i] - 1e-6)

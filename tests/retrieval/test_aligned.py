@@ -58,7 +58,7 @@ def tiny_run(tmp_path_factory):
     """Two trainings of the heads on 3 categories x 3 seeds x 4 views, same config: (metadata, paths)."""
     from retrieval.aligned.train import TrainConfig, train
 
-    cfg = TrainConfig(train_seeds=3, heldout_seeds=1, n_views=4, image_size=96, hidden=64, captions_per_asset=8,
+    cfg = TrainConfig(train_seeds=3, heldout_seeds=1, calibration_seeds=2, n_views=4, image_size=96, hidden=64, captions_per_asset=8,
                       batch=24, steps=40, categories=("trash_bin", "bench", "traffic_cone"))
     out = tmp_path_factory.mktemp("aligned")
     metas = [train(cfg, out / f"run{k}" / "aligned.npz", progress=False) for k in range(2)]
@@ -105,3 +105,22 @@ def test_unknown_training_keys_and_categories_are_refused():
         train_config({"epochs": 3})
     with pytest.raises(ConfigError, match="unknown procedural categories"):
         train(TrainConfig(categories=("flying_car",)), progress=False)
+
+
+def test_f1_threshold_separates_positives_and_prefers_recall_on_ties():
+    from retrieval.encoders.aligned import f1_threshold
+
+    assert f1_threshold(np.array([0.2, 0.9, 0.3, 0.8]), np.array([False, True, False, True])) == pytest.approx(0.55)
+    # One positive below a negative: cutting below it (F1 0.857) beats cutting above it (F1 0.8).
+    t = f1_threshold(np.array([0.9, 0.8, 0.7, 0.6, 0.1]), np.array([True, True, False, True, False]))
+    assert t == pytest.approx(0.35)
+
+
+def test_calibrated_thresholds_exist_for_the_categories_of_the_labelled_set(tiny_run):
+    from retrieval.encoders.aligned import AlignedEncoder
+    from retrieval.encoders.text import TextEncoder
+
+    enc = AlignedEncoder(TextEncoder(None), weights=str(tiny_run[1][0]))
+    texts = ["a photo of a trash bin", "a photo of a bench", "a bronze statue"]
+    thr = enc.thresholds(enc.encode_texts(texts), ["trash_bin", "bench", None])
+    assert np.isfinite(thr[:2]).all() and np.isnan(thr[2]) and np.all(np.abs(thr[:2]) <= 1.0)
