@@ -208,8 +208,10 @@ class CatalogWriter:
         cols = list(RejectionRecord.__dataclass_fields__)
         return self._replace("rejections", ["source", "source_id", "stage"], rows, cols)
 
-    def upsert_embeddings(self, owner_kind: str, owner_ids: Sequence[str], vectors: np.ndarray, model: str | None = None) -> int:
-        """Insert or replace embedding vectors (rows of `vectors`, L2-normalised here) for the given owners."""
+    def upsert_embeddings(self, owner_kind: str, owner_ids: Sequence[str], vectors: np.ndarray,
+                          model: str | Sequence[str] | None = None) -> int:
+        """Insert or replace embedding vectors (rows of `vectors`, L2-normalised here) for the given owners; `model`
+        is one name for all rows or one per row."""
         vectors = np.asarray(vectors, dtype=np.float32)
         if vectors.ndim != 2 or vectors.shape[1] != self.embedding_dim:
             raise CatalogError(f"embeddings must have shape (n, {self.embedding_dim}), got {vectors.shape}")
@@ -219,17 +221,19 @@ class CatalogWriter:
             raise CatalogError("embedding vectors contain NaN or inf")
         norms = np.linalg.norm(vectors, axis=1, keepdims=True)
         vectors = vectors / np.maximum(norms, 1e-12)
-        model = model or self.embedding_model
         n = len(owner_ids)
+        models = [model or self.embedding_model] * n if model is None or isinstance(model, str) else list(model)
+        if len(models) != n:
+            raise CatalogError(f"{len(models)} model names for {n} vectors")
         if n == 0:
             return 0
-        if len(set(owner_ids)) != n:
+        if len(set(zip(owner_ids, models))) != n:
             raise CatalogError(f"embeddings: duplicate owner ids in one batch ({owner_kind}); pass each owner once")
         vec = pa.FixedSizeListArray.from_arrays(pa.array(vectors.reshape(-1)), self.embedding_dim)
         batch = pa.table({
             "owner_kind": [owner_kind] * n,
             "owner_id": list(owner_ids),
-            "model": [model] * n,
+            "model": models,
             "vector": vec,
         })
         self.con.register("_batch", batch)
@@ -320,8 +324,8 @@ class CatalogWriter:
                 self.upsert_embeddings(ASSET_IMAGE_KIND, [aid], np.asarray(image_embedding)[None, :],
                                        model=image_model)
             if view_embeddings is not None and len(view_ids):
-                for v, vec in zip(view_ids, np.asarray(view_embeddings)):
-                    self.upsert_embeddings(ASSET_VIEW_KIND, [aid], vec[None, :], model=f"{image_model}#view{int(v):02d}")
+                self.upsert_embeddings(ASSET_VIEW_KIND, [aid] * len(view_ids), np.asarray(view_embeddings),
+                                       model=[f"{image_model}#view{int(v):02d}" for v in view_ids])
             self.upsert_matches(matches)
             # Last: a resumed run treats an asset row with its content hash as a finished asset.
             self.upsert_assets([asset])

@@ -191,9 +191,10 @@ def render_step(item: SourceItem, obj: Path, bounds: np.ndarray, config: IngestC
     files = []
     for i, im in enumerate(images):
         path = out / "views" / f"view_{i:02d}.png"
-        Image.fromarray(im).save(path)
+        Image.fromarray(im).save(path, compress_level=1)  # fast zlib: 20 views an asset
         files.append(path)
-    contact_sheet(images, selected, title=f"{item.source}:{item.source_id}", scores=info).save(out / "contact_sheet.png")
+    contact_sheet(images, selected, title=f"{item.source}:{item.source_id}", scores=info).save(
+        out / "contact_sheet.png", compress_level=1)
     return Rendered(images, [s.azimuth for s in specs], [s.elevation for s in specs], selected, info, files)
 
 

@@ -102,46 +102,53 @@ def render_obj(
         p.removeBody(body, physicsClientId=cid)
 
 
-def informativeness(image: np.ndarray) -> float:
-    """Foreground coverage times gradient-orientation entropy (normalised to [0, 1]); 0 for an empty view."""
-    gray = image.astype(np.float32).mean(axis=2)
+DUPLICATE_COS = 0.995  # descriptor cosine above which a view repeats one already selected
+DESCRIPTOR_DIM = 8 * 4 + 16
+
+
+def view_statistics(image: np.ndarray) -> tuple[float, np.ndarray]:
+    """(informativeness, unit appearance descriptor) of a view, from one gradient pass (OpenCV).
+
+    informativeness: foreground coverage times the entropy of the magnitude-weighted gradient-orientation histogram
+    (8 bins over pixels with |grad| > 4, normalised to [0, 1]); 0 for an empty view. Descriptor: the hue-saturation
+    histogram of the object's pixels (8 x 4) and its magnitude-weighted edge-orientation histogram (16 bins),
+    each summing to 1, then unit length; zeros for an empty view.
+    """
+    import cv2
+
     fg = (image < 250).any(axis=2)
     coverage = float(fg.mean())
     if coverage == 0.0:
-        return 0.0
-    gy, gx = np.gradient(gray)
-    mag = np.hypot(gx, gy)
-    ang = np.mod(np.arctan2(gy, gx), np.pi)
+        return 0.0, np.zeros(DESCRIPTOR_DIM, dtype=np.float32)
+    gray = image.mean(axis=2, dtype=np.float32)
+    # Central differences (numpy.gradient's interior), angles folded onto [0, pi): edges have no direction.
+    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)
+    gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=1, scale=0.5)
+    # numpy's arctan2, not cv2.cartToPolar: the latter puts an exactly horizontal edge at 2pi - eps, not 0.
+    mag, ang = np.hypot(gx, gy), np.mod(np.arctan2(gy, gx), np.pi)
+    info = 0.0
     sel = mag > 4.0
-    if not sel.any():
-        return 0.0
-    hist, _ = np.histogram(ang[sel], bins=8, range=(0, np.pi), weights=mag[sel])
-    prob = hist / max(hist.sum(), 1e-9)
-    nz = prob[prob > 0]
-    entropy = float(-(nz * np.log(nz)).sum() / math.log(8))
-    return coverage * entropy
+    if sel.any():
+        hist = np.bincount(np.minimum((ang[sel] * (8 / np.pi)).astype(np.int64), 7), weights=mag[sel], minlength=8)
+        prob = hist / max(hist.sum(), 1e-9)
+        nz = prob[prob > 0]
+        info = coverage * float(-(nz * np.log(nz)).sum() / math.log(8))
+    hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
+    colour = cv2.calcHist([hsv], [0, 1], fg.astype(np.uint8), [8, 4], [0, 180, 0, 256]).ravel()
+    edges = np.bincount(np.minimum((ang * (16 / np.pi)).astype(np.int64), 15).ravel(), weights=mag.ravel(),
+                        minlength=16)
+    d = np.concatenate([colour / max(colour.sum(), 1e-9), edges / max(edges.sum(), 1e-9)]).astype(np.float32)
+    return info, d / max(float(np.linalg.norm(d)), 1e-12)
 
 
-DUPLICATE_COS = 0.995  # descriptor cosine above which a view repeats one already selected
+def informativeness(image: np.ndarray) -> float:
+    """Foreground coverage times gradient-orientation entropy (normalised to [0, 1]); 0 for an empty view."""
+    return view_statistics(image)[0]
 
 
 def view_descriptor(image: np.ndarray) -> np.ndarray:
-    """Unit appearance descriptor of a view (OpenCV): hue-saturation histogram of the object's pixels and its
-    magnitude-weighted edge-orientation histogram; a view of nothing gives zeros."""
-    import cv2
-
-    fg = ((image < 250).any(axis=2)).astype(np.uint8)
-    if not fg.any():
-        return np.zeros(8 * 4 + 16, dtype=np.float32)
-    hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
-    colour = cv2.calcHist([hsv], [0, 1], fg, [8, 4], [0, 180, 0, 256]).ravel()
-    gray = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY).astype(np.float32)
-    mag, ang = cv2.cartToPolar(cv2.Sobel(gray, cv2.CV_32F, 1, 0), cv2.Sobel(gray, cv2.CV_32F, 0, 1))
-    edges = np.bincount((np.mod(ang, np.pi) / np.pi * 16).astype(np.int64).ravel().clip(0, 15),
-                        weights=mag.ravel(), minlength=16)
-    parts = [colour / max(colour.sum(), 1e-9), edges / max(edges.sum(), 1e-9)]
-    d = np.concatenate(parts).astype(np.float32)
-    return d / max(float(np.linalg.norm(d)), 1e-12)
+    """Unit appearance descriptor of a view: colour and edge-orientation histograms (view_statistics)."""
+    return view_statistics(image)[1]
 
 
 def consensus(descriptors: np.ndarray) -> np.ndarray:
@@ -158,9 +165,10 @@ def consensus(descriptors: np.ndarray) -> np.ndarray:
 def select_informative(images: list[np.ndarray], k: int) -> tuple[list[int], list[float]]:
     """Indices of the `k` most informative views (coverage x edge entropy x consensus; ties to the lower index;
     near-duplicates of a chosen view skipped while others remain) and every view's score."""
-    desc = np.stack([view_descriptor(im) for im in images])
+    stats = [view_statistics(im) for im in images]
+    desc = np.stack([d for _, d in stats])
     agree = consensus(desc)
-    scores = [round(informativeness(im) * float(a), 9) for im, a in zip(images, agree)]
+    scores = [round(info * float(a), 9) for (info, _), a in zip(stats, agree)]
     order = sorted(range(len(images)), key=lambda i: (-scores[i], i))
     chosen: list[int] = []
     for i in order:
