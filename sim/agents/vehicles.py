@@ -128,7 +128,13 @@ class VehicleManager(LaneRouting, JunctionControl):
         return self.states()
 
     def step(self, dt: float, people_xy: np.ndarray | None = None) -> np.ndarray:
-        """Advance every vehicle by `dt` s; `people_xy` [n, 2] are agents and the ego (they make vehicles yield)."""
+        """Advance every vehicle by `dt` s; `people_xy` [n, 2] are agents and the ego (they make vehicles yield).
+        Returns states()."""
+        self.advance(dt, people_xy)
+        return self.states()
+
+    def advance(self, dt: float, people_xy: np.ndarray | None = None) -> None:
+        """step() without building its states (the env reads `poses()`)."""
         c = self.config
         self.occupied = np.zeros(len(self.crosswalks), dtype=bool)
         if self.n and people_xy is not None and len(people_xy) and self.crosswalks:
@@ -161,7 +167,6 @@ class VehicleManager(LaneRouting, JunctionControl):
             for i in np.flatnonzero(self.s >= self.lane_len[self.lane_id]).tolist():
                 self._leave_lane(i)
             self.prev_lane[self.s >= c["length"]] = -1  # its rear has left the lane behind it
-        return self.states()
 
     def add(self, lane: int, s: float, speed: float = 0.0, next_lane: int | None = None) -> int:
         """Put one more vehicle on `lane` at arc length `s` (scripted scenarios); returns its index."""
@@ -186,12 +191,17 @@ class VehicleManager(LaneRouting, JunctionControl):
         """Every vehicle's centre, velocity, heading and size as a structured array of VEHICLE_DTYPE."""
         out = np.zeros(self.n, dtype=VEHICLE_DTYPE)
         if self.n:
-            xy, seg = lane_points(self.lane_id, self.s, self.lane_off, self.lane_len, self.all_cum, self.all_pts)
-            yaw = np.arctan2(seg[:, 1], seg[:, 0])
-            out["x"], out["y"], out["yaw"] = xy[:, 0], xy[:, 1], yaw
+            out["x"], out["y"], out["yaw"] = x, y, yaw = self.poses()
             out["vx"], out["vy"] = self.v * np.cos(yaw), self.v * np.sin(yaw)
         out["length"], out["width"] = self.config["length"], self.config["width"]
         return out
+
+    def poses(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every vehicle's centre x, y and heading (the states' columns, without building the states)."""
+        if not self.n:
+            return np.zeros(0), np.zeros(0), np.zeros(0)
+        xy, seg = lane_points(self.lane_id, self.s, self.lane_off, self.lane_len, self.all_cum, self.all_pts)
+        return xy[:, 0].copy(), xy[:, 1].copy(), np.arctan2(seg[:, 1], seg[:, 0])
 
     def fronts(self) -> tuple[np.ndarray, np.ndarray]:
         """(lane index, arc length of the front bumper) of every vehicle."""

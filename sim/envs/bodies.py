@@ -63,10 +63,11 @@ class CohabitantBodies:
         self._yaw[:] = 0.0  # an episode's pictures must not depend on where the last one left the figures
         self._vehicle_cols, self._vehicle_ids = _NO_BOXES, np.zeros(0, dtype=np.int64)
 
-    def sync(self, kind_idx: np.ndarray, pos: np.ndarray, base_heights: np.ndarray, vehicles: np.ndarray) -> None:
-        """Place the agent bodies at `pos` (on `base_heights`) and the vehicle bodies at `vehicles`' states."""
+    def sync(self, kind_idx: np.ndarray, pos: np.ndarray, base_heights: np.ndarray,
+             vehicles: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+        """Place the agent bodies at `pos` (on `base_heights`) and the vehicle bodies at `vehicles`' (x, y, yaw)."""
         c = self.client
-        self._ensure(kind_idx, len(vehicles))
+        self._ensure(kind_idx, len(vehicles[0]))
         if len(pos):
             xyz = np.empty((len(pos), 3))
             xyz[:, :2] = pos
@@ -80,11 +81,11 @@ class CohabitantBodies:
                 p.resetBasePositionAndOrientation(self.agents[k], at, (0, 0, sz, cz), physicsClientId=c)
             self._xyz = xyz
         # The ray test's inputs: the shown vehicles' x, y and yaw (contiguous) and their body ids.
-        self._vehicle_cols = (vehicles["x"].copy(), vehicles["y"].copy(), vehicles["yaw"].copy())
-        self._vehicle_ids = np.asarray(self.vehicles[:len(vehicles)], dtype=np.int64)
-        if len(vehicles):
-            half_yaw = (0.5 * vehicles["yaw"]).tolist()
-            for body, x, y, h in zip(self.vehicles, vehicles["x"].tolist(), vehicles["y"].tolist(), half_yaw):
+        vx, vy, vyaw = self._vehicle_cols = tuple(np.ascontiguousarray(v, dtype=np.float64) for v in vehicles)
+        self._vehicle_ids = np.asarray(self.vehicles[:len(vx)], dtype=np.int64)
+        if len(vx):
+            half_yaw = (0.5 * vyaw).tolist()
+            for body, x, y, h in zip(self.vehicles, vx.tolist(), vy.tolist(), half_yaw):
                 p.resetBasePositionAndOrientation(body, [x, y, VEHICLE_HEIGHT / 2], [0, 0, math.sin(h), math.cos(h)],
                                                   physicsClientId=c)
 

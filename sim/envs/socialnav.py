@@ -51,7 +51,6 @@ class SocialNavEnv(PointNavEnv):
         self.traffic = VehicleManager(self.config["vehicles"])
         self.collision_kinds_all = [*self.collision_kinds_all, "agent", "vehicle"]
         self.bodies: CohabitantBodies | None = None  # per world, made with it (_on_scene)
-        self._vehicle_states: np.ndarray | None = None  # the traffic's states of this tick, shared by sync and obs
 
     # -- hooks -------------------------------------------------------------------------------------
     _WORLD_STATE = ("crowd", "traffic", "bodies")  # the world's collision kinds are its bodies' dict
@@ -102,14 +101,13 @@ class SocialNavEnv(PointNavEnv):
         self.crowd.advance(self.dt, ego)
         if self.config["traffic"]:
             people = np.concatenate([self.crowd.pos, [[ego.x, ego.y]]])
-            self._vehicle_states = self.traffic.step(self.dt, people)
+            self.traffic.advance(self.dt, people)
         self._sync_bodies()
         self._min_agent_distance = self._nearest_agent()
 
     # -- bodies ------------------------------------------------------------------------------------
     def _sync_bodies(self) -> None:
-        vehicles = self._vehicle_states if self._vehicle_states is not None else self.vehicle_states()
-        self._vehicle_states = None
+        vehicles = self.traffic.poses() if self.config["traffic"] else (np.zeros(0), np.zeros(0), np.zeros(0))
         crowd = self.crowd
         self.bodies.sync(crowd.kind_idx, crowd.pos, self._agent_base_heights(crowd.pos), vehicles)
 
