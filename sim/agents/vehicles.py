@@ -191,7 +191,7 @@ class VehicleManager(LaneRouting, JunctionControl):
         """Every vehicle's centre, velocity, heading and size as a structured array of VEHICLE_DTYPE."""
         out = np.zeros(self.n, dtype=VEHICLE_DTYPE)
         if self.n:
-            out["x"], out["y"], out["yaw"] = x, y, yaw = self.poses()
+            out["x"], out["y"], out["yaw"] = _, _, yaw = self.poses()
             out["vx"], out["vy"] = self.v * np.cos(yaw), self.v * np.sin(yaw)
         out["length"], out["width"] = self.config["length"], self.config["width"]
         return out
