@@ -111,32 +111,32 @@ def view_statistics(image: np.ndarray) -> tuple[float, np.ndarray]:
 
     informativeness: foreground coverage times the entropy of the magnitude-weighted gradient-orientation histogram
     (8 bins over pixels with |grad| > 4, normalised to [0, 1]); 0 for an empty view. Descriptor: the hue-saturation
-    histogram of the object's pixels (8 x 4) and its magnitude-weighted edge-orientation histogram (16 bins),
-    each summing to 1, then unit length; zeros for an empty view.
+    histogram of the object's pixels (8 x 4) and the magnitude-weighted edge-orientation histogram of the same edge
+    pixels (16 bins), each summing to 1, then unit length; zeros for an empty view.
     """
     import cv2
 
-    fg = (image < 250).any(axis=2)
-    coverage = float(fg.mean())
+    # Foreground = any channel below 250 (the background is pure white); OpenCV's range test is ~20x numpy's.
+    fg = cv2.inRange(image, (250, 250, 250), (255, 255, 255)) == 0
+    coverage = float(np.count_nonzero(fg)) / fg.size
     if coverage == 0.0:
         return 0.0, np.zeros(DESCRIPTOR_DIM, dtype=np.float32)
-    gray = image.mean(axis=2, dtype=np.float32)
-    # Central differences (numpy.gradient's interior), angles folded onto [0, pi): edges have no direction.
-    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)
+    gray = image.astype(np.float32) @ np.full(3, 1 / 3, dtype=np.float32)  # the channel mean
+    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)  # central differences (numpy.gradient's interior)
     gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=1, scale=0.5)
-    # numpy's arctan2, not cv2.cartToPolar: the latter puts an exactly horizontal edge at 2pi - eps, not 0.
-    mag, ang = np.hypot(gx, gy), np.mod(np.arctan2(gy, gx), np.pi)
-    info = 0.0
-    sel = mag > 4.0
+    sel = gx * gx + gy * gy > 16.0  # |grad| > 4: the edge pixels, a small part of the view
+    info, edges = 0.0, np.zeros(16)
     if sel.any():
-        hist = np.bincount(np.minimum((ang[sel] * (8 / np.pi)).astype(np.int64), 7), weights=mag[sel], minlength=8)
+        ex, ey = gx[sel], gy[sel]
+        # numpy's arctan2, not cv2.cartToPolar: the latter puts an exactly horizontal edge at 2pi - eps, not 0.
+        mag, ang = np.hypot(ex, ey), np.mod(np.arctan2(ey, ex), np.pi)
+        hist = np.bincount(np.minimum((ang * (8 / np.pi)).astype(np.int64), 7), weights=mag, minlength=8)
         prob = hist / max(hist.sum(), 1e-9)
         nz = prob[prob > 0]
         info = coverage * float(-(nz * np.log(nz)).sum() / math.log(8))
+        edges = np.bincount(np.minimum((ang * (16 / np.pi)).astype(np.int64), 15), weights=mag, minlength=16)
     hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
     colour = cv2.calcHist([hsv], [0, 1], fg.astype(np.uint8), [8, 4], [0, 180, 0, 256]).ravel()
-    edges = np.bincount(np.minimum((ang * (16 / np.pi)).astype(np.int64), 15).ravel(), weights=mag.ravel(),
-                        minlength=16)
     d = np.concatenate([colour / max(colour.sum(), 1e-9), edges / max(edges.sum(), 1e-9)]).astype(np.float32)
     return info, d / max(float(np.linalg.norm(d)), 1e-12)
 
