@@ -7,8 +7,8 @@ Prints and writes (ray_scaling.json, ray_scaling.csv under --out, default benchm
   CPUs, timed after the workers have started and imported the simulator (the cluster start is reported apart);
 - eval episodes/s of `curbside sim eval` (PointNav, the expert) the same way (Ray workers keep the env they built
   in the warm-up; the local run builds its env inside the timed call, ~0.1 s);
-- RLlib PPO env steps/s with 2 env runners (1 env each) against SB3 PPO with 2 envs in one process, on the same
-  task and hyperparameters (each trainer's own logs/progress.csv `time/fps`: env steps over the time since
+- RLlib PPO env steps/s with 2 env runners against SB3 PPO in one process with as many envs (2; and 8 with the
+  full budget), on the same task and hyperparameters (each trainer's own logs/progress.csv `time/fps`: env steps over the time since
   training started, updates included, env and worker start-up excluded);
 - a simulated 8-node cluster (ray.cluster_utils.Cluster, 8 one-CPU raylets on this machine): scenes and eval
   metrics aggregated from the nodes are compared byte for byte with a local run.
@@ -35,8 +35,9 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 BUDGETS = {
-    "smoke": {"scenes": 6, "episodes": 6, "ppo_steps": 2048, "node_scenes": 8, "node_episodes": 8},
-    "full": {"scenes": 120, "episodes": 80, "ppo_steps": 16384, "node_scenes": 24, "node_episodes": 24},
+    "smoke": {"scenes": 6, "episodes": 6, "ppo_steps": 2048, "ppo_envs": (2,), "node_scenes": 8, "node_episodes": 8},
+    "full": {"scenes": 120, "episodes": 80, "ppo_steps": 16384, "ppo_envs": (2, 8), "node_scenes": 24,
+             "node_episodes": 24},
 }
 SCENE_BASE = {"blocks": 3, "preset": "metaurban12k"}  # `curbside scenes dataset`'s defaults
 EVAL_ENV = "curbside/PointNav-v0"
@@ -131,22 +132,24 @@ def _fps(run: Path) -> tuple[float, int]:
     return float(rows[-1]["time/fps"]), int(float(rows[-1]["time/total_timesteps"]))
 
 
-def ppo_part(steps: int, work: Path) -> dict[str, Any]:
-    """RLlib PPO with 2 env runners vs SB3 PPO with 2 envs in one process: env steps/s while training."""
+def ppo_part(steps: int, envs: tuple[int, ...], work: Path) -> dict[str, Any]:
+    """RLlib PPO with 2 env runners vs SB3 PPO in one process, with the same number of envs: env steps/s while
+    training (2 envs: one per runner; 8 envs: four per runner, sampled as one vector in each runner)."""
     from curbside.train.run import train
 
     out: dict[str, Any] = {"task": "PointNav", "steps": steps, "hparams": "curbside.train.online.PPO_DEFAULTS"}
-    load = load1()
-    train("ppo", "PointNav", work / "sb3", steps=steps, env_config=PPO_TASK_CONFIG, n_envs=2, num_scenes=8,
-          progress=False, subprocess=False)
-    fps, total = _fps(work / "sb3")
-    out["sb3_one_process"] = {"envs": 2, "env_steps_per_s": fps, "env_steps": total, "load1": load}
-    load = load1()
-    train("ppo", "PointNav", work / "rllib", steps=steps, env_config=PPO_TASK_CONFIG, n_envs=2, num_scenes=8,
-          progress=False, executor="ray", num_env_runners=2)
-    fps, total = _fps(work / "rllib")
-    out["rllib_2_env_runners"] = {"envs": 2, "env_steps_per_s": fps, "env_steps": total, "load1": load}
-    out["ratio_rllib_vs_sb3"] = out["rllib_2_env_runners"]["env_steps_per_s"] / out["sb3_one_process"]["env_steps_per_s"]
+    for n in envs:
+        load = load1()
+        train("ppo", "PointNav", work / f"sb3_{n}", steps=steps, env_config=PPO_TASK_CONFIG, n_envs=n, num_scenes=8,
+              progress=False, subprocess=False)
+        fps, total = _fps(work / f"sb3_{n}")
+        out[f"sb3_one_process_{n}_envs"] = {"envs": n, "env_steps_per_s": fps, "env_steps": total, "load1": load}
+        load = load1()
+        train("ppo", "PointNav", work / f"rllib_{n}", steps=steps, env_config=PPO_TASK_CONFIG, n_envs=n,
+              num_scenes=8, progress=False, executor="ray", num_env_runners=2)
+        fps, total = _fps(work / f"rllib_{n}")
+        out[f"rllib_2_env_runners_{n}_envs"] = {"envs": n, "env_steps_per_s": fps, "env_steps": total, "load1": load}
+        out[f"ratio_rllib_vs_sb3_{n}_envs"] = fps / out[f"sb3_one_process_{n}_envs"]["env_steps_per_s"]
     return out
 
 
@@ -203,10 +206,12 @@ def main(budget: str, out: Path, skip_rllib: bool = False) -> dict[str, Any]:
               f"{result['eval']['ray_1']['episodes_per_s']:.2f}, 2 workers {result['eval']['ray_2']['episodes_per_s']:.2f}"
               f" ({result['eval']['speedup_2_vs_1']:.2f}x)", flush=True)
         if not skip_rllib:
-            result["ppo"] = ppo_part(b["ppo_steps"], work)
-            print(f"PPO env steps/s: RLlib 2 env runners {result['ppo']['rllib_2_env_runners']['env_steps_per_s']:.0f}, "
-                  f"SB3 one process {result['ppo']['sb3_one_process']['env_steps_per_s']:.0f} "
-                  f"({result['ppo']['ratio_rllib_vs_sb3']:.2f}x)", flush=True)
+            result["ppo"] = ppo_part(b["ppo_steps"], b["ppo_envs"], work)
+            for n in b["ppo_envs"]:
+                print(f"PPO env steps/s, {n} envs: RLlib 2 env runners "
+                      f"{result['ppo'][f'rllib_2_env_runners_{n}_envs']['env_steps_per_s']:.0f}, SB3 one process "
+                      f"{result['ppo'][f'sb3_one_process_{n}_envs']['env_steps_per_s']:.0f} "
+                      f"({result['ppo'][f'ratio_rllib_vs_sb3_{n}_envs']:.2f}x)", flush=True)
         result["nodes8"] = nodes_part(b["node_scenes"], b["node_episodes"], work)
         n8 = result["nodes8"]
         print(f"8-node cluster: scenes on {n8['scene_nodes_used']} nodes, episodes on {n8['eval_nodes_used']}; "
@@ -219,8 +224,8 @@ def main(budget: str, out: Path, skip_rllib: bool = False) -> dict[str, Any]:
     rows = [("scenes/s", k, result["scenes"][k]["scenes_per_s"], result["scenes"][k]["load1"]) for k in ("local", "ray_1", "ray_2")]
     rows += [("eval episodes/s", k, result["eval"][k]["episodes_per_s"], result["eval"][k]["load1"]) for k in ("local", "ray_1", "ray_2")]
     if "ppo" in result:
-        rows += [("PPO env steps/s", k, result["ppo"][k]["env_steps_per_s"], result["ppo"][k]["load1"])
-                 for k in ("sb3_one_process", "rllib_2_env_runners")]
+        rows += [("PPO env steps/s", k, v["env_steps_per_s"], v["load1"]) for k, v in result["ppo"].items()
+                 if isinstance(v, dict)]
     with open(out / "ray_scaling.csv", "w", newline="") as f:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(["figure", "run", "value", "load1"])
