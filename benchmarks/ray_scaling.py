@@ -1,6 +1,6 @@
 """Beyond one machine (issue 18): throughput with 1 vs 2 Ray workers, RLlib vs SB3, and a simulated 8-node run.
 
-Usage: python benchmarks/ray_scaling.py --budget {smoke,full} [--out DIR] [--skip-rllib]
+Usage: python benchmarks/ray_scaling.py --budget {smoke,full} [--out DIR] [--parts scenes,eval,ppo,nodes]
 
 Prints and writes (ray_scaling.json, ray_scaling.csv under --out, default benchmarks/results/issue18):
 - scenes/s of `curbside scenes dataset` (the metaurban12k preset, 3 blocks) on a local Ray cluster of 1 and of 2
@@ -190,47 +190,58 @@ def nodes_part(n_scenes: int, n_episodes: int, work: Path) -> dict[str, Any]:
             "eval_same_bytes": sharded == local_eval}
 
 
-def main(budget: str, out: Path, skip_rllib: bool = False) -> dict[str, Any]:
-    """Run every part; print and write the figures."""
+PARTS = ("scenes", "eval", "ppo", "nodes")
+
+
+def main(budget: str, out: Path, parts: tuple[str, ...] = PARTS) -> dict[str, Any]:
+    """Run the chosen parts; print and write the figures (ray_scaling.json/.csv, or ray_scaling_<parts>.* for some)."""
     b = BUDGETS[budget]
     result: dict[str, Any] = {"budget": budget, "cpus": os.cpu_count(), "load1_start": load1(),
                               "date": time.strftime("%Y-%m-%d %H:%M")}
     work = Path(tempfile.mkdtemp(prefix="ray_scaling_"))
     try:
-        result["scenes"] = scenes_part(b["scenes"], work)
-        print(f"scenes/s: local {result['scenes']['local']['scenes_per_s']:.2f}, Ray 1 worker "
-              f"{result['scenes']['ray_1']['scenes_per_s']:.2f}, 2 workers {result['scenes']['ray_2']['scenes_per_s']:.2f}"
-              f" ({result['scenes']['speedup_2_vs_1']:.2f}x)", flush=True)
-        result["eval"] = eval_part(b["episodes"])
-        print(f"eval episodes/s: local {result['eval']['local']['episodes_per_s']:.2f}, Ray 1 worker "
-              f"{result['eval']['ray_1']['episodes_per_s']:.2f}, 2 workers {result['eval']['ray_2']['episodes_per_s']:.2f}"
-              f" ({result['eval']['speedup_2_vs_1']:.2f}x)", flush=True)
-        if not skip_rllib:
+        if "scenes" in parts:
+            result["scenes"] = scenes_part(b["scenes"], work)
+            print(f"scenes/s: local {result['scenes']['local']['scenes_per_s']:.2f}, Ray 1 worker "
+                  f"{result['scenes']['ray_1']['scenes_per_s']:.2f}, 2 workers "
+                  f"{result['scenes']['ray_2']['scenes_per_s']:.2f} ({result['scenes']['speedup_2_vs_1']:.2f}x)", flush=True)
+        if "eval" in parts:
+            result["eval"] = eval_part(b["episodes"])
+            print(f"eval episodes/s: local {result['eval']['local']['episodes_per_s']:.2f}, Ray 1 worker "
+                  f"{result['eval']['ray_1']['episodes_per_s']:.2f}, 2 workers "
+                  f"{result['eval']['ray_2']['episodes_per_s']:.2f} ({result['eval']['speedup_2_vs_1']:.2f}x)", flush=True)
+        if "ppo" in parts:
             result["ppo"] = ppo_part(b["ppo_steps"], b["ppo_envs"], work)
             for n in b["ppo_envs"]:
                 print(f"PPO env steps/s, {n} envs: RLlib 2 env runners "
                       f"{result['ppo'][f'rllib_2_env_runners_{n}_envs']['env_steps_per_s']:.0f}, SB3 one process "
                       f"{result['ppo'][f'sb3_one_process_{n}_envs']['env_steps_per_s']:.0f} "
                       f"({result['ppo'][f'ratio_rllib_vs_sb3_{n}_envs']:.2f}x)", flush=True)
-        result["nodes8"] = nodes_part(b["node_scenes"], b["node_episodes"], work)
-        n8 = result["nodes8"]
-        print(f"8-node cluster: scenes on {n8['scene_nodes_used']} nodes, episodes on {n8['eval_nodes_used']}; "
-              f"scenes same bytes {n8['scenes_same_bytes']}, eval same bytes {n8['eval_same_bytes']}", flush=True)
+        if "nodes" in parts:
+            result["nodes8"] = n8 = nodes_part(b["node_scenes"], b["node_episodes"], work)
+            print(f"8-node cluster: scenes on {n8['scene_nodes_used']} nodes, episodes on {n8['eval_nodes_used']}; "
+                  f"scenes same bytes {n8['scenes_same_bytes']}, eval same bytes {n8['eval_same_bytes']}", flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     result["load1_end"] = load1()
     out.mkdir(parents=True, exist_ok=True)
-    (out / "ray_scaling.json").write_text(json.dumps(result, indent=2, sort_keys=True) + "\n")
-    rows = [("scenes/s", k, result["scenes"][k]["scenes_per_s"], result["scenes"][k]["load1"]) for k in ("local", "ray_1", "ray_2")]
-    rows += [("eval episodes/s", k, result["eval"][k]["episodes_per_s"], result["eval"][k]["load1"]) for k in ("local", "ray_1", "ray_2")]
+    stem = "ray_scaling" if tuple(parts) == PARTS else "ray_scaling_" + "_".join(parts)
+    (out / f"{stem}.json").write_text(json.dumps(result, indent=2, sort_keys=True) + "\n")
+    rows = []
+    if "scenes" in result:
+        rows += [("scenes/s", k, result["scenes"][k]["scenes_per_s"], result["scenes"][k]["load1"])
+                 for k in ("local", "ray_1", "ray_2")]
+    if "eval" in result:
+        rows += [("eval episodes/s", k, result["eval"][k]["episodes_per_s"], result["eval"][k]["load1"])
+                 for k in ("local", "ray_1", "ray_2")]
     if "ppo" in result:
         rows += [("PPO env steps/s", k, v["env_steps_per_s"], v["load1"]) for k, v in result["ppo"].items()
                  if isinstance(v, dict)]
-    with open(out / "ray_scaling.csv", "w", newline="") as f:
+    with open(out / f"{stem}.csv", "w", newline="") as f:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(["figure", "run", "value", "load1"])
         w.writerows([(a, b_, f"{v:.3f}", ld) for a, b_, v, ld in rows])
-    print(f"wrote {out / 'ray_scaling.json'} and {out / 'ray_scaling.csv'}")
+    print(f"wrote {out / (stem + '.json')} and {out / (stem + '.csv')}")
     return result
 
 
@@ -238,6 +249,9 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--budget", choices=sorted(BUDGETS), default="smoke")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "issue18")
-    parser.add_argument("--skip-rllib", action="store_true", help="leave out the RLlib vs SB3 part")
+    parser.add_argument("--parts", default=",".join(PARTS), help="comma-separated subset of " + ", ".join(PARTS))
     args = parser.parse_args()
-    main(args.budget, args.out, args.skip_rllib)
+    chosen = tuple(p for p in PARTS if p in args.parts.split(","))
+    if not chosen or set(args.parts.split(",")) - set(PARTS):
+        parser.error(f"--parts takes a comma-separated subset of {', '.join(PARTS)}")
+    main(args.budget, args.out, chosen)
