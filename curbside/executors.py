@@ -173,8 +173,9 @@ def _process_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | No
 
 
 def connect_ray(workers: int | None = None, address: str | None = None) -> bool:
-    """Connect to the Ray cluster at `address`, or start one on this machine with `workers` CPUs (every core when
-    None); True when this call started or joined it (the caller then shuts it down), False if already connected."""
+    """Connect to the Ray cluster at `address` (default: $RAY_ADDRESS), or start one on this machine with `workers`
+    CPUs (every core when None); True when this call started or joined it (the caller then shuts it down), False
+    if already connected."""
     import logging
     import os
 
@@ -184,6 +185,7 @@ def connect_ray(workers: int | None = None, address: str | None = None) -> bool:
         raise ConfigError("the ray executor needs Ray: pip install 'curbside[cluster]' (or ray[default])") from exc
     if ray.is_initialized():
         return False
+    address = address or os.environ.get("RAY_ADDRESS") or None  # Ray's own convention for "the cluster to use"
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")  # a local cluster for one run: no token to hand out
     quiet = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.WARNING,
              "configure_logging": True}
@@ -195,7 +197,8 @@ def connect_ray(workers: int | None = None, address: str | None = None) -> bool:
             raise ConfigError(f"cannot reach a Ray cluster at {address!r} ({exc}); start one with "
                               "`ray start --head` and pass the address it prints, or leave out --address") from exc
     else:
-        ray.init(num_cpus=workers or os.cpu_count() or 1, **quiet)
+        # address='local': a new cluster for this run, never one found in /tmp/ray or among this machine's processes
+        ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **quiet)
     return True
 
 

@@ -11,7 +11,13 @@ import typer
 
 from catalogs import DEFAULT_CATALOG  # light: only the schema constants
 from curbside.cli.errors import UsageError
-from curbside.cli.executor_options import EXECUTOR_HELP, Executor, address_option, check_executor_args, workers_option
+from curbside.cli.executor_options import (
+    EXECUTOR_HELP,
+    Executor,
+    address_option,
+    check_executor_args,
+    workers_option,
+)
 
 app = typer.Typer(help="Generate, render and collect urban scenes (scene specs as JSON).", no_args_is_help=True)
 

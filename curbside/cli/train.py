@@ -11,7 +11,13 @@ import typer
 from rich.console import Console
 
 from curbside.cli.errors import fail, parse_config_json
-from curbside.cli.executor_options import Executor, address_option, check_executor_args, executor_option, workers_option
+from curbside.cli.executor_options import (
+    Executor,
+    address_option,
+    check_executor_args,
+    executor_option,
+    workers_option,
+)
 from curbside.config import ConfigError
 
 app = typer.Typer(help="Train PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, BC or GAIL and evaluate them on a split.",

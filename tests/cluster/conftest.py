@@ -14,7 +14,8 @@ def ray_local() -> Iterator[None]:
     """A 2-CPU Ray cluster on this machine for the module's tests (the executors join it instead of starting one)."""
     ray = pytest.importorskip("ray")
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    # address='local': a new cluster, not one another test (or engineer) started on this machine
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         yield
     finally:

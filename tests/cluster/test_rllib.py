@@ -30,7 +30,8 @@ def test_rllib_ppo_trains_checkpoints_resumes_and_evaluates(tmp_path: Path, monk
 
     monkeypatch.setattr(rllib, "CHECKPOINT_EVERY", 128)
     monkeypatch.setenv("RAY_AUTH_MODE", "disabled")
-    ray.init(num_cpus=3, include_dashboard=False, log_to_driver=False)  # 2 env runners + the learner; kept for both runs
+    # 2 env runners + the learner, one cluster for both runs
+    ray.init(address="local", num_cpus=3, include_dashboard=False, log_to_driver=False)
     try:
         _train_resume_eval(tmp_path, capsys)
     finally:

@@ -62,7 +62,7 @@ def test_sim_eval_cli_prints_the_same_json_on_ray(ray_local, tmp_path: Path, cap
 def test_demos_are_byte_identical_on_ray(ray_local, tmp_path: Path) -> None:
     from curbside.train.demos import collect_demos
 
-    kw = dict(steps=250, noise=0.5, random_prob=0.3, num_scenes=2, env_config=EVAL_CFG, progress=False)
+    kw = {"steps": 250, "noise": 0.5, "random_prob": 0.3, "num_scenes": 2, "env_config": EVAL_CFG, "progress": False}
     a = collect_demos("PointNav", tmp_path / "local", **kw)
     b = collect_demos("PointNav", tmp_path / "ray", executor="ray", workers=2, **kw)
     assert (a["episodes"], a["steps"]) == (b["episodes"], b["steps"]) and a["steps"] >= 250
