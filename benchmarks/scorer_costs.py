@@ -96,7 +96,7 @@ def main() -> None:
     from retrieval.encoders.aligned import AlignedEncoder
     from retrieval.encoders.imagenet import ImageNetEncoder
 
-    encoders = {"aligned": lambda: AlignedEncoder(te), "imagenet": lambda: ImageNetEncoder(te, threads=1),
+    encoders = {"aligned": lambda: AlignedEncoder(te, threads=1), "imagenet": lambda: ImageNetEncoder(te, threads=1),
                 "clip": lambda: _hf_encoder("clip"), "blip": lambda: _hf_encoder("blip")}
     if not a.skip_blip2:
         encoders["blip2"] = lambda: _hf_encoder("blip2")

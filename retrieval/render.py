@@ -210,7 +210,8 @@ def contact_sheet(images: list[np.ndarray], selected: list[int] | None = None, c
             draw.text((x + 5, y + 4), f"{i}: {scores[i]:.2f}", fill=(0, 120, 0) if selected and i in selected
                       else (90, 90, 90))
     if scores is not None:
-        chars = max(20, cols * w // 6)
-        for n, line in enumerate((LEGEND[:chars], LEGEND[chars:2 * chars])):
+        import textwrap
+
+        for n, line in enumerate(textwrap.wrap(LEGEND, width=max(20, cols * w // 6))[:2]):
             draw.text((4, rows * h + top + 2 + 13 * n), line, fill=(0, 0, 0))
     return sheet
