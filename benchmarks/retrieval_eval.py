@@ -13,8 +13,8 @@ from pathlib import Path
 
 OUT = Path(__file__).parent / "results" / "issue17"
 SCORERS = {  # name -> ScoringConfig fields
-    "aligned (calibrated thresholds, default)": {"image_encoder": "aligned"},
-    "aligned (one global threshold)": {"image_encoder": "aligned", "thresholds": "global"},
+    "aligned (one global threshold, default)": {"image_encoder": "aligned"},
+    "aligned (calibrated thresholds)": {"image_encoder": "aligned", "thresholds": "calibrated"},
     "imagenet": {"image_encoder": "imagenet"},
     "text only (noisy names)": {"image_encoder": "none"},
 }

@@ -73,8 +73,9 @@ class ScoringConfig:
     top_k_per_description: int = 100
     threads: int = 1
     # calibrated: a description with a category gets its own image-cosine threshold from the aligned scorer's
-    # labelled calibration set (AlignedEncoder.thresholds); others, and other scorers, use `threshold`.
-    thresholds: str = "calibrated"
+    # labelled calibration set (AlignedEncoder.thresholds): more precise, less recall on shapes unlike the
+    # procedural library's (docs/retrieval.md); global: `threshold` for every description and scorer.
+    thresholds: str = "global"
 
     def __post_init__(self) -> None:
         check_choice(self.image_encoder, IMAGE_ENCODERS, what="image encoder")

@@ -19,6 +19,7 @@ Scorer = Enum("Scorer", {e: e for e in ("aligned", "imagenet", "clip", "blip", "
               type=str)  # retrieval.scoring.IMAGE_ENCODERS
 MeshSet = Enum("MeshSet", {e: e for e in ("procedural", "primitives")}, type=str)
 Calibration = Enum("Calibration", {e: e for e in ("softmax", "zscore", "none")}, type=str)  # scoring.CALIBRATIONS
+Thresholds = Enum("Thresholds", {e: e for e in ("global", "calibrated")}, type=str)  # scoring.THRESHOLDS
 MAX_VIEWS = 20  # retrieval.render.MAX_VIEWS, not imported so `--help` stays light (a test checks they agree)
 # --views, --scorer, --calibration and --per-category defaults equal IngestConfig / ScoringConfig / ProceduralSource's
 # (retrieval imports numpy and trimesh, so not imported here): tests/cli/test_cli_defaults.py keeps them equal.
@@ -51,6 +52,8 @@ def register(app: typer.Typer) -> None:
         clip_model: str = typer.Option(None, help="CLIP/BLIP/BLIP-2 weights folder (with --scorer clip|blip|blip2)"),
         views: int = typer.Option(20, min=1, max=MAX_VIEWS, help="rendered views per asset"),
         calibration: Calibration = typer.Option(Calibration.softmax.value, help="per-signal calibration over the pool"),
+        thresholds: Thresholds = typer.Option(Thresholds("global").value, help="global: one threshold; calibrated: "
+                                              "per description, from the aligned scorer's labelled set"),
         per_category: int = typer.Option(2, min=1, help="procedural variants per category"),
         objaverse_cache: Path = typer.Option(None, help="objaverse / objaverse-xl cache folder (default ~/.objaverse)"),
     ) -> None:
@@ -70,7 +73,8 @@ def register(app: typer.Typer) -> None:
         try:
             src = open_source(source, **opts)
             config = IngestConfig(n_views=views, scoring=ScoringConfig(
-                image_encoder=Scorer(scorer).value, clip_model=clip_model, calibration=Calibration(calibration).value))
+                image_encoder=Scorer(scorer).value, clip_model=clip_model, calibration=Calibration(calibration).value,
+                thresholds=Thresholds(thresholds).value))
         except (ValueError, FileNotFoundError) as exc:
             raise UsageError(str(exc)) from None
         with _catalog_errors(catalog), _source_errors():
@@ -89,6 +93,8 @@ def register(app: typer.Typer) -> None:
                                          "primitives: hand-built meshes the scorer never trained on"),
         limit: int = typer.Option(None, min=1, help="at most this many assets"),
         calibration: Calibration = typer.Option(Calibration.softmax.value, help="per-signal calibration over the pool"),
+        thresholds: Thresholds = typer.Option(Thresholds("global").value, help="global: one threshold; calibrated: "
+                                              "per description, from the aligned scorer's labelled set"),
     ) -> None:
         """Retrieval quality (category accuracy, precision@k) on a labelled set."""
         import tempfile
@@ -100,7 +106,8 @@ def register(app: typer.Typer) -> None:
 
         try:
             config = IngestConfig(scoring=ScoringConfig(image_encoder=Scorer(scorer).value, clip_model=clip_model,
-                                                        calibration=Calibration(calibration).value))
+                                                        calibration=Calibration(calibration).value,
+                                                        thresholds=Thresholds(thresholds).value))
         except (ValueError, FileNotFoundError) as exc:
             raise UsageError(str(exc)) from None
         with tempfile.TemporaryDirectory() as tmp, _source_errors():
