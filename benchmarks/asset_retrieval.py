@@ -11,7 +11,6 @@ import tempfile
 import time
 
 
-
 def main(n: int = 12, scorer: str = "aligned") -> None:
     """Ingest `n` procedural assets on one core and print assets/s per stage and the Objaverse table."""
     import json

@@ -19,9 +19,9 @@ OUT = Path(__file__).parent / "results" / "issue17"
 
 
 def _views(n: int = 3, size: int = 160) -> list[np.ndarray]:
-    from retrieval.aligned.dataset import render_asset
-
     import tempfile
+
+    from retrieval.aligned.dataset import render_asset
 
     with tempfile.TemporaryDirectory() as tmp:
         images, _ = render_asset("bench", 0, 12, size, (15.0, 40.0), Path(tmp))
@@ -102,8 +102,8 @@ def main() -> None:
         encoders["blip2"] = lambda: _hf_encoder("blip2")
     for name, make in encoders.items():
         enc = make()
-        img = _time(lambda: enc.encode_images(views))
-        txt = _time(lambda: enc.encode_texts(text))
+        img = _time(lambda e=enc: e.encode_images(views))
+        txt = _time(lambda e=enc: e.encode_texts(text))
         params = sum(p.numel() for p in enc.model.parameters()) if hasattr(enc, "model") and hasattr(
             enc.model, "parameters") else None
         rows.append({"scorer": name, "ms_3_views": round(1000 * img, 1), "ms_text": round(1000 * txt, 1),

@@ -185,7 +185,7 @@ def train(cfg: TrainConfig, out: Path = DEFAULT_WEIGHTS, progress: bool = True) 
     weights["calibration_view_asset"] = calib.view_asset.astype(np.int32)
     weights["calibration_category"] = np.array([a.category for a in calib.attrs])
     meta = {"config": asdict(cfg), "feature_version": FEATURE_VERSION, "text_model": te.name,
-            "train_assets": len(train_split.attrs), "train_views": int(len(train_split.features)),
+            "train_assets": len(train_split.attrs), "train_views": len(train_split.features),
             "captions": len(texts), "final_loss": round(float(weights["final_loss"]), 4),
             "seconds": {"data": round(t_data, 1), "total": round(time.perf_counter() - t0, 1)}, "heldout": report}
     write_npz({"feature_version": np.str_(FEATURE_VERSION), "text_model": np.str_(te.name),

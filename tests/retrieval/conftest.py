@@ -61,3 +61,14 @@ def mesh_folder(tmp_path_factory) -> dict:
                     "f_many_faces.stl": "too_many_faces", "g_missing_tex.obj": "missing_texture",
                     "h_thin.stl": "degenerate"},
     }
+
+
+def ingest_two_procedural(scoring, tmp_path):  # noqa: ANN001, ANN201 - (IngestReport, catalog path)
+    """Ingest two procedural assets (4 views, 2 scored) with `scoring` into a fresh catalog under `tmp_path`."""
+    from retrieval.ingest import IngestConfig, ingest
+    from retrieval.sources.procedural import ProceduralSource
+
+    cat = tmp_path / "c.duckdb"
+    report = ingest(ProceduralSource(per_category=1, work_dir=tmp_path / "proc"), cat,
+                    IngestConfig(n_views=4, n_informative=2, scoring=scoring), limit=2, progress=False)
+    return report, cat

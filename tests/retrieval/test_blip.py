@@ -9,9 +9,9 @@ import duckdb
 import numpy as np
 import pytest
 
-from retrieval.ingest import IngestConfig, ingest
 from retrieval.scoring import ScoringConfig
-from retrieval.sources.procedural import ProceduralSource
+
+from .conftest import ingest_two_procedural
 
 LAYERS = dict(hidden_size=32, intermediate_size=64, num_hidden_layers=2, num_attention_heads=2, initializer_range=0.5)
 
@@ -108,9 +108,7 @@ def test_ingest_with_blip_scorers(kind, tiny_blip, tiny_blip2, tmp_path):
     # Random weights carry no meaning: thresholds off, so the test sees the matches the scorer writes.
     folder = tiny_blip if kind == "blip" else tiny_blip2
     scoring = ScoringConfig(image_encoder=kind, clip_model=folder, threshold=-1.0, min_lift=0.0)
-    cat = tmp_path / "c.duckdb"
-    report = ingest(ProceduralSource(per_category=1, work_dir=tmp_path / "proc"), cat,
-                    IngestConfig(n_views=4, n_informative=2, scoring=scoring), limit=2, progress=False)
+    report, cat = ingest_two_procedural(scoring, tmp_path)
     assert (report.written, report.rejected) == (2, 0)
     con = duckdb.connect(str(cat), read_only=True)
     try:

@@ -6,9 +6,9 @@ import duckdb
 import numpy as np
 import pytest
 
-from retrieval.ingest import IngestConfig, ingest
 from retrieval.scoring import ScoringConfig
-from retrieval.sources.procedural import ProceduralSource
+
+from .conftest import ingest_two_procedural
 
 
 @pytest.fixture(scope="module")
@@ -69,9 +69,7 @@ def test_clip_encoder_missing_folder_is_a_clear_error(tmp_path):
 def test_ingest_with_clip_scorer(tiny_clip, tmp_path):
     # Random weights carry no meaning: thresholds off, so the test sees the matches the clip scorer writes.
     scoring = ScoringConfig(image_encoder="clip", clip_model=tiny_clip, threshold=-1.0, min_lift=0.0)
-    cat = tmp_path / "c.duckdb"
-    report = ingest(ProceduralSource(per_category=1, work_dir=tmp_path / "proc"), cat,
-                    IngestConfig(n_views=4, n_informative=2, scoring=scoring), limit=2, progress=False)
+    report, cat = ingest_two_procedural(scoring, tmp_path)
     assert (report.written, report.rejected) == (2, 0)
     con = duckdb.connect(str(cat), read_only=True)
     try:
