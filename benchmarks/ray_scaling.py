@@ -36,7 +36,7 @@ if str(ROOT) not in sys.path:
 
 BUDGETS = {
     "smoke": {"scenes": 6, "episodes": 6, "ppo_steps": 2048, "ppo_envs": (2,), "node_scenes": 8, "node_episodes": 8},
-    "full": {"scenes": 120, "episodes": 80, "ppo_steps": 16384, "ppo_envs": (2, 8), "node_scenes": 24,
+    "full": {"scenes": 300, "episodes": 80, "ppo_steps": 16384, "ppo_envs": (2, 8), "node_scenes": 24,
              "node_episodes": 24},
 }
 SCENE_BASE = {"blocks": 3, "preset": "metaurban12k"}  # `curbside scenes dataset`'s defaults
@@ -84,8 +84,9 @@ def scenes_part(n: int, work: Path) -> dict[str, Any]:
     for w in (1, 2):
         start = _ray_local(w)
         try:
-            # Warm-up on other seeds (the finetune split): every worker starts and imports the generator.
-            build_dataset("finetune", 2 * w, work / f"warm{w}", base=SCENE_BASE, executor="ray", workers=w)
+            # Warm-up on other seeds (the finetune split): every worker starts and imports the generator (8 scenes
+            # a worker: with 2 a worker, Ray could hand both of the first two to one worker, leaving the other cold).
+            build_dataset("finetune", 8 * w, work / f"warm{w}", base=SCENE_BASE, executor="ray", workers=w)
             load, t0 = load1(), time.perf_counter()
             build_dataset("train", n, work / f"scenes_ray{w}", base=SCENE_BASE, executor="ray", workers=w)
             dt = time.perf_counter() - t0
