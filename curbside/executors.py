@@ -166,6 +166,9 @@ def _process_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | No
                         progress(1)
             while window and window[0].done():
                 f = window.popleft()
+                # A future may finish between the count above and this check: count it here, once.
+                if f not in counted and progress:
+                    progress(1)
                 counted.discard(f)
                 yield f.result()
     finally:
