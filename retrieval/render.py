@@ -106,6 +106,13 @@ DUPLICATE_COS = 0.995  # descriptor cosine above which a view repeats one alread
 DESCRIPTOR_DIM = 8 * 4 + 16
 
 
+def foreground(image: np.ndarray) -> np.ndarray:
+    """Boolean mask of the object's pixels: any channel below 250 (renders have a pure white background)."""
+    import cv2
+
+    return cv2.inRange(image, (250, 250, 250), (255, 255, 255)) == 0  # OpenCV's range test: ~20x numpy's
+
+
 def view_statistics(image: np.ndarray) -> tuple[float, np.ndarray]:
     """(informativeness, unit appearance descriptor) of a view, from one gradient pass (OpenCV).
 
@@ -116,8 +123,7 @@ def view_statistics(image: np.ndarray) -> tuple[float, np.ndarray]:
     """
     import cv2
 
-    # Foreground = any channel below 250 (the background is pure white); OpenCV's range test is ~20x numpy's.
-    fg = cv2.inRange(image, (250, 250, 250), (255, 255, 255)) == 0
+    fg = foreground(image)
     coverage = float(np.count_nonzero(fg)) / fg.size
     if coverage == 0.0:
         return 0.0, np.zeros(DESCRIPTOR_DIM, dtype=np.float32)
@@ -139,16 +145,6 @@ def view_statistics(image: np.ndarray) -> tuple[float, np.ndarray]:
     colour = cv2.calcHist([hsv], [0, 1], fg.astype(np.uint8), [8, 4], [0, 180, 0, 256]).ravel()
     d = np.concatenate([colour / max(colour.sum(), 1e-9), edges / max(edges.sum(), 1e-9)]).astype(np.float32)
     return info, d / max(float(np.linalg.norm(d)), 1e-12)
-
-
-def informativeness(image: np.ndarray) -> float:
-    """Foreground coverage times gradient-orientation entropy (normalised to [0, 1]); 0 for an empty view."""
-    return view_statistics(image)[0]
-
-
-def view_descriptor(image: np.ndarray) -> np.ndarray:
-    """Unit appearance descriptor of a view: colour and edge-orientation histograms (view_statistics)."""
-    return view_statistics(image)[1]
 
 
 def consensus(descriptors: np.ndarray) -> np.ndarray:

@@ -19,14 +19,11 @@ FEATURE_DIM = 1280 + COLOUR_DIM + SHAPE_DIM
 FEATURE_VERSION = "effl0-160+hsv24+lab+shape3:v1"  # stored with trained heads: features and heads must agree
 
 
-def foreground(image: np.ndarray) -> np.ndarray:
-    """Boolean mask of the object's pixels: renders have a pure white background (retrieval.render)."""
-    return (image < 250).any(axis=2)
-
-
 def colour_features(image: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
     """Hue histogram of coloured pixels, value histogram of gray pixels (fractions of the object) and mean Lab."""
     import cv2
+
+    from retrieval.render import foreground
 
     fg = foreground(image) if mask is None else mask
     out = np.zeros(COLOUR_DIM, dtype=np.float32)
@@ -55,6 +52,7 @@ def shape_features(mask: np.ndarray) -> np.ndarray:
 def view_features(images: list[np.ndarray]) -> np.ndarray:
     """(n, FEATURE_DIM) float32 features of HxWx3 uint8 renders on white."""
     from retrieval.encoders.imagenet import pooled_features
+    from retrieval.render import foreground
 
     if not images:
         return np.zeros((0, FEATURE_DIM), dtype=np.float32)

@@ -70,8 +70,9 @@ class AlignedEncoder:
         best = np.full((len(categories), len(cats)), -np.inf)
         for k in range(len(cats)):
             best[:, k] = sims[:, owner == k].max(axis=1)
+        known = set(cats)
         for d, cat in enumerate(categories):
-            if cat is not None and cat in set(cats):
+            if cat is not None and cat in known:
                 out[d] = f1_threshold(best[d], cats == cat)
         return out
 
