@@ -1,6 +1,9 @@
 """MetaUrban Table 4 on curbside's runways: x-displacement and time until the trial ends (toppled, stuck, much slower,
-or the runway's end) for the delivery bot, the wheelchair and the mobility scooter driving straight ahead at full
-throttle on three runways of increasing difficulty (sim.terrain.runway), beside the paper's figures.
+or the runway's end) for the delivery bot, the wheelchair and the mobility scooter driving straight
+ahead on three runways of increasing difficulty (sim.terrain.runway), beside the paper's figures. Every machine holds
+the same speed, PAPER_SPEED (5 m/s: the paper's x-displacement over time to fall is 4.9-5.1 m/s for all three
+machines), with an ideal traction-limited drive, so the trial compares bodies and wheels on the terrain;
+`--speed 0` drives each machine at full throttle with its own engine and top speed instead.
 
     python benchmarks/table4.py --seeds 10 --out benchmarks/results/issue16
 
@@ -21,7 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.plots import beside_paper, save_panels  # noqa: E402
-from sim.terrain.runway import RUNWAYS, drive_forward  # noqa: E402
+from sim.terrain.runway import PAPER_SPEED, RUNWAYS, drive_forward  # noqa: E402
 
 MACHINES = ("delivery_bot", "wheelchair", "mobility_scooter")
 # MetaUrban (ICLR 2025) Table 4: x-displacement (m) per runway and machine; time to fall (s) on slopes.
@@ -34,8 +37,9 @@ def ranking(values: tuple[float, ...]) -> tuple[int, ...]:
     return tuple(int(i) for i in np.argsort(values, kind="stable"))
 
 
-def main(seeds: int = 10, out: Path | None = None, model: str = "force", speed: float | None = None) -> dict:
-    """Run every machine on every runway for `seeds` runways each; print and write the table."""
+def main(seeds: int = 10, out: Path | None = None, model: str = "force", speed: float | None = PAPER_SPEED) -> dict:
+    """Run every machine on every runway for `seeds` runways each (at `speed`, or full throttle when None); print
+    and write the table."""
     from rich.progress import track
 
     rows = []
@@ -97,6 +101,7 @@ if __name__ == "__main__":
     ap.add_argument("--out", type=Path, default=None, help="folder for table4.csv, .json and .png")
     ap.add_argument("--model", choices=("force", "wheels"), default="force",
                     help="machine model: the envs' force model, or driven wheel links (sim.terrain.wheels, experimental)")
-    ap.add_argument("--speed", type=float, default=None, help="one commanded speed (m/s) for every machine (default: full throttle)")
+    ap.add_argument("--speed", type=float, default=PAPER_SPEED,
+                    help=f"one speed (m/s) every machine holds (default {PAPER_SPEED}, the paper's); 0: full throttle")
     a = ap.parse_args()
-    main(a.seeds, a.out, a.model, a.speed)
+    main(a.seeds, a.out, a.model, a.speed or None)

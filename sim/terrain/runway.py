@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import pybullet as p
 
 from curbside.config import ConfigError
-from sim.machines import Machine, machine_spec
+from sim.machines import G, Machine, machine_spec
 from sim.meshes import mesh_shape
 from sim.terrain.heights import TileGeometry, grid_mesh, tile_surface
 from sim.terrain.wfc import SURFACES, Tile, collapse, tile_set
@@ -35,6 +35,10 @@ RUNWAYS: dict[str, dict[str, Any]] = {
     "roughs": {"shapes": ("flat", "rough"), "weights": {"flat": 0.25}, "geometry": TileGeometry(bump_height=0.06)},
 }
 TOPPLE_DEG = 60.0  # roll or pitch past this is a fall
+# MetaUrban's Table 4 trials move every machine at about the same speed: x-displacement over time to fall on its
+# slopes runway is 31.90 / 6.3 = 5.06, 34.58 / 6.9 = 5.01 and 38.07 / 7.7 = 4.94 m/s for the delivery bot,
+# wheelchair and scooter (a wheelchair's own top speed is 1.39 m/s). `drive_forward(speed=PAPER_SPEED)` does the same.
+PAPER_SPEED = 5.0
 
 
 @dataclass
@@ -106,7 +110,10 @@ def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int 
     """Table 4's trial: full throttle, no steering, on a fresh runway; returns the x-displacement (m), the time
     (s) until the trial ended, and why: `toppled`, `stuck` (less than 0.1 m in `stuck_time` s), `slow` (below
     `slow_fraction` of the machine's top speed for `stuck_time` s once it had reached it), `end` or `time`.
-    `model`: "wheels" (sim.terrain.wheels, driven wheel links) or "force" (the envs' machine model)."""
+    `model`: "wheels" (sim.terrain.wheels, driven wheel links) or "force" (the envs' machine model).
+    `speed`: one commanded speed (m/s) for every machine instead of full throttle; a machine whose top speed is
+    lower has it raised to `speed` for the trial, so that every machine meets the terrain at the same speed (the
+    paper's trials did: see PAPER_SPEED)."""
     from sim.terrain.wheels import WheeledMachine
 
     if model not in ("wheels", "force"):
@@ -119,6 +126,11 @@ def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int 
         p.setTimeStep(dt, physicsClientId=client)
         runway = build_runway(client, runway_name, seed)
         spec = machine_spec(machine)
+        if speed is not None:
+            # An ideal drive holds the common speed wherever traction allows: top speed well above it and an
+            # engine force of twice the traction limit, so the machines differ only in their bodies and wheels.
+            spec = replace(spec, v_max_kmh=max(spec.v_max, 2.0 * speed) * 3.6,
+                           engine_force=(2.0 * spec.mass * G * spec.friction,) * 2)
         x0, y0 = 1.0, runway.width / 2
         if model == "wheels":
             m: Any = WheeledMachine(client, spec)

@@ -15,7 +15,7 @@ from curbside.config import ConfigError
 from sim.envs import register_envs
 from sim.machines import Machine, machine_spec
 from sim.terrain.heights import TileGeometry, tile_surface
-from sim.terrain.runway import RUNWAYS, build_runway, drive_forward
+from sim.terrain.runway import PAPER_SPEED, RUNWAYS, build_runway, drive_forward
 from sim.terrain.wfc import SURFACES, allowed_east, allowed_north, collapse, tile_set
 
 TILES = tile_set(4)
@@ -189,3 +189,12 @@ def test_wheeled_machines_drive_straight_at_their_top_speed_on_flat_ground(name:
 def test_a_commanded_speed_must_be_positive() -> None:
     with pytest.raises(ConfigError, match="speed must be a number of m/s above 0"):
         drive_forward("wheelchair", "slopes", speed=0.0)
+
+
+def test_a_common_speed_is_held_by_every_machine_even_above_its_own_top_speed() -> None:
+    # Table 4's protocol (PAPER_SPEED): the wheelchair (1.39 m/s top speed) meets the terrain at the same speed as
+    # the others; at full throttle it cannot.
+    held = drive_forward("wheelchair", "roughs", seed=0, speed=PAPER_SPEED, max_time=3.0)
+    own = drive_forward("wheelchair", "roughs", seed=0, max_time=3.0)
+    assert own["x_displacement"] < 1.39 * 3.0
+    assert held["x_displacement"] > 0.6 * PAPER_SPEED * 3.0
