@@ -223,6 +223,15 @@ def _check_reachable(address: str, timeout: float = 5.0) -> None:
                           "`ray start --head` and pass the address it prints, or leave out --address") from None
 
 
+def in_flight(workers: int | None, cpus: int) -> int:
+    """How many tasks the ray executor keeps submitted at once on a cluster of `cpus` CPUs."""
+    # When the cluster has no more CPUs than `workers` (the local cluster this executor starts has exactly that
+    # many), Ray itself runs at most `cpus` tasks at once, and two a CPU keep every worker busy while the driver
+    # collects a result and submits the next: one in flight left a lone worker idle for each round trip (2 workers
+    # went from 1.6-1.76x to 1.86-2.12x of one). On a larger cluster `workers` is the limit on tasks in flight.
+    return 2 * cpus if workers is None or cpus <= workers else workers
+
+
 def on_node(fn: Callable[..., Any], item: Any, *args: Any) -> tuple[str, Any]:
     """(id of the Ray node this runs on, fn(item, *args)): the task the ray executor submits."""
     import ray
@@ -242,7 +251,7 @@ def _ray_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | None, 
         # The task is `on_node` named after fn (workers are titled ray::<name> while they run it).
         remote = ray.remote(num_cpus=1, max_retries=max_retries)(on_node).options(name=getattr(fn, "__name__", "item"))
         shared = [ray.put(fn)] + [ray.put(a) for a in args]
-        capacity = workers or max(2, 2 * int(ray.cluster_resources().get("CPU", 1)))
+        capacity = in_flight(workers, int(ray.cluster_resources().get("CPU", 1)))
         done: dict[int, Any] = {}
         it = enumerate(items)
         exhausted, next_out = False, 0

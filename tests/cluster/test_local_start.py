@@ -23,3 +23,12 @@ def test_run_map_starts_a_local_cluster_and_stops_it() -> None:
     # Ray would run its workers at +15; ours run at the driver's priority, as the process pool's do.
     assert {n for _, n in out} == {os.nice(0)}
     assert not ray.is_initialized()
+
+
+def test_two_tasks_a_cpu_stay_in_flight_on_a_cluster_sized_by_workers() -> None:
+    from curbside.executors import in_flight
+
+    # A lone worker gets its next task queued while the driver collects the last one (the local cluster has
+    # exactly `workers` CPUs, so Ray still runs one at a time); on a bigger cluster `workers` caps the tasks.
+    assert in_flight(1, 1) == 2 and in_flight(2, 2) == 4 and in_flight(None, 8) == 16
+    assert in_flight(4, 64) == 4
