@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields, replace
 from importlib import resources
 from typing import Any
@@ -132,6 +132,8 @@ class Machine:
         self.roll = 0.0
         self.position = (0.0, 0.0, 0.0)
         self.surface_friction = math.inf  # the ground's friction coefficient under the machine (terrain sets it)
+        # (x, y) -> that coefficient (sim.world.World.friction_at), read at every `sync`; None: set by the caller.
+        self.ground: Callable[[float, float], float] | None = None
         self.count_grade = True  # add the grade force (see command); terrain trials turn it off
 
     def _build_body(self) -> int:
@@ -238,6 +240,8 @@ class Machine:
         lin, _ = p.getBaseVelocity(self.body, physicsClientId=self.client)
         roll, pitch, yaw = p.getEulerFromQuaternion(orn)
         self.position = pos
+        if self.ground is not None:
+            self.surface_friction = self.ground(pos[0], pos[1])
         self.yaw = yaw
         self.pitch = pitch
         self.roll = roll

@@ -37,6 +37,10 @@ EGO = (1.0, 0.55, 0.0)
 COLLISION = (1.0, 0.24, 0.24)  # the ego while it touches something
 VEHICLE = (0.24, 0.24, 0.63)
 OUTLINE = (0.0, 0.0, 0.0)
+# Terrain surfaces (sim.terrain.wfc.SURFACES) as the runways colour their tiles (sim/terrain/runway.py).
+TERRAIN = {"asphalt": (0.25, 0.25, 0.27), "concrete": (0.7, 0.7, 0.68), "pavers": (0.65, 0.45, 0.35),
+           "grass": (0.35, 0.6, 0.3), "gravel": (0.55, 0.52, 0.47), "wet": (0.2, 0.22, 0.3)}
+ROUGH_SHADE = 0.8  # heaved or uneven ground is drawn a shade darker than its surface, so it stands out from the slab
 
 
 def category_color(category: str) -> tuple[float, float, float, float]:
@@ -50,3 +54,10 @@ def category_color(category: str) -> tuple[float, float, float, float]:
 def rgb255(c: tuple[float, ...]) -> tuple[int, int, int]:
     """The first three channels of a [0, 1] colour as 0-255 integers (PIL)."""
     return (int(255 * c[0]), int(255 * c[1]), int(255 * c[2]))
+
+
+def terrain_colour(kind: str, surface: str) -> tuple[float, float, float, float]:
+    """RGBA of a terrain patch (sim.terrain.patches): its surface's colour, a shade darker when rough."""
+    shade = ROUGH_SHADE if kind in ("roots", "rough") else 1.0
+    r, g, b = (shade * v for v in TERRAIN.get(surface, SURFACE["sidewalk"][:3]))
+    return (r, g, b, 1.0)

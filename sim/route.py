@@ -81,7 +81,9 @@ class RoutePlanner:
                  comfort: float = 0.75) -> None:
         self.scene = as_scene(scene)  # a dict is parsed (checked) here, once
         self.grid = g = self.scene.walkable
-        blocked = (g.mask == 0) | obstacle_mask(g, self.scene.objects)
+        # Entrance steps block routes as objects do (a stair's footprint; rough and slick ground is drivable).
+        steps = [t for t in self.scene.terrain if t["kind"] == "steps"]
+        blocked = (g.mask == 0) | obstacle_mask(g, [*self.scene.objects, *steps])
         # Distance from each cell centre to the nearest blocked cell's edge, in metres.
         clearance = ndimage.distance_transform_edt(~blocked) * g.resolution - 0.5 * g.resolution
         free = clearance >= half_width + margin

@@ -1,7 +1,7 @@
 """The one top-down drawing of a scene and what moves on it (PIL, no display), in the colours of `sim/palette.py`.
 
 Layers, bottom up: ground, roads (islands, lane lines), sidewalks (every zone, or buildings only), crosswalks
-and curb ramps, objects by object class, route, trajectory, vehicles, agents with trails, ego. Three callers
+and curb ramps, terrain patches by surface (stairs outlined, a line on each riser), objects by object class, route, trajectory, vehicles, agents with trails, ego. Three callers
 differ only in window, resolution and decoration: the scene plot (`sim.scene.render.render_scene`, a PNG with
 axes and legend), the agents' map frame (`sim.agents.render.draw_top_down`, `SocialNav render()`) and the
 rollout GIF (`sim.render.rollout_gif`).
@@ -30,8 +30,10 @@ from sim.palette import (
     VEHICLE,
     ZONE,
     rgb255,
+    terrain_colour,
 )
 from sim.scene.scene import Scene
+from sim.terrain.patches import riser_lines
 
 Colour = tuple[float, ...]  # RGB(A) floats in [0, 1], as in sim/palette.py
 
@@ -115,7 +117,7 @@ def object_colour(obj: dict[str, Any]) -> Colour:
 
 
 def draw_scene(c: Surface, scene: Scene | Mapping[str, Any], *, zones: bool = False) -> None:
-    """Roads, islands, lane lines, sidewalks, crosswalks, ramps and objects; `zones` colours every sidewalk zone.
+    """Roads, islands, lane lines, sidewalks, crosswalks, ramps, terrain and objects; `zones` colours every zone.
 
     Without `zones` (the frames) a sidewalk is one surface with its buildings; with it (the scene plot) each
     zone has its colour and curbs, clear paths and outlines are drawn.
@@ -147,6 +149,11 @@ def draw_scene(c: Surface, scene: Scene | Mapping[str, Any], *, zones: bool = Fa
             c.polygon(cw["polygon"], None, EDGE)
         for ramp in cw.get("ramps", []):
             c.polygon(ramp["polygon"], SURFACE["ramp"], edge, 0.5)
+    for patch in spec.get("terrain", []):
+        stair = patch["kind"] == "steps"
+        c.polygon(patch["footprint"], terrain_colour(patch["kind"], patch["surface"]), EDGE if stair else edge, 0.5)
+        for riser in riser_lines(patch):
+            c.line(riser, EDGE, 1.0)
     for obj in spec.get("objects", []):
         if obj.get("footprint"):
             c.polygon(obj["footprint"], object_colour(obj), edge, 0.5)

@@ -2,8 +2,10 @@
 sidewalks with curbs, curb ramps, crosswalks, buildings and static objects.
 
 Surfaces are static concave triangle meshes (extruded polygons: a constrained Delaunay triangulation of
-the top plus side walls, which are the curbs); ramps are convex wedges; objects get box collision from
-their `size` by default, or the convex hull of their catalog mesh when `collision="convex"`.
+the top plus side walls, which are the curbs); ramps are convex wedges; terrain patches (sim.terrain.patches) are
+meshes on the sidewalk slab with their surface's friction, bodies of kind "sidewalk" (a stair's riser is touched
+as a curb); objects get box collision from their `size` by default, or the convex hull of their catalog mesh when
+`collision="convex"`.
 A `World` is built once per scene; environments reuse it across resets on the same scene.
 """
 
@@ -19,8 +21,9 @@ from shapely.geometry import LineString, Point, Polygon
 from shapely.geometry.polygon import orient
 
 from sim.meshes import extrusion_mesh, mesh_shape, polygons
-from sim.palette import SURFACE, category_color
+from sim.palette import SURFACE, category_color, terrain_colour
 from sim.scene.scene import Scene, SceneError, as_scene
+from sim.terrain import patches
 
 # Body kinds: what a contact with or a ray hit on that body means.
 SURFACE_KINDS = ("ground", "sidewalk", "ramp")
@@ -123,6 +126,12 @@ class World:
                     height = float(rng.uniform(6.0, 18.0))
                     for poly in polygons(Polygon(zone["polygon"]).buffer(0)):
                         self._mesh_body("building", *extrusion_mesh(poly, 0.0, height), SURFACE["building"])
+        self.patch_index: dict[int, int] = {}  # body id -> index into scene.terrain
+        for k, rec in enumerate(scene.terrain):
+            body = self._mesh_body("sidewalk", *patches.mesh(rec), terrain_colour(rec["kind"], rec["surface"]))
+            p.changeDynamics(body, -1, lateralFriction=patches.friction(rec), physicsClientId=c)
+            self.patch_index[body] = k
+        self._friction = patches.FrictionIndex(scene.terrain)
         for i, obj in enumerate(scene.objects):
             body = self._build_object(obj)
             self.object_ids.append(body)
@@ -189,6 +198,10 @@ class World:
             if hit[0] >= 0:
                 return float(hit[3][2])
         return 0.0
+
+    def friction_at(self, x: float, y: float) -> float:
+        """Friction coefficient of the terrain patch under (x, y); inf off every patch (the tyres' own decides)."""
+        return self._friction(x, y)
 
     def object_category(self, body: int) -> str:
         """Category of the static object whose body id is `body` ('object' when unknown)."""

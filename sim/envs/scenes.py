@@ -163,6 +163,8 @@ def build_slot(slot: SceneSlot, scene: Scene, cfg: Mapping[str, Any], machine: A
     slot.world = World(scene, client=slot.client, collision=cfg["collision"], catalog=catalog,
                        visual_meshes=meshes, physics_dt=dt / int(cfg["physics_substeps"]))
     slot.machine = Machine(slot.client, machine)
+    if scene.terrain:
+        slot.machine.ground = slot.world.friction_at  # the patch under the machine limits its traction
     lid = cfg["lidar"]
     r0 = slot.machine.bounding_radius + 0.05
     high = {"beams": int(lid["beams"]), "range_m": float(lid["range"]), "height": float(lid["height"]),

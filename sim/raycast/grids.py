@@ -3,7 +3,8 @@
 The PyBullet world's static bodies that stop a horizontal ray at height H above the ground (sim/world.py): buildings
 (6-18 m tall), objects (a box from their base z to z + height) when base <= H <= top, and raised sidewalks (0 to the
 curb height, minus the curb ramps) when H <= curb height. Roads and crosswalks are visual only; the ground is below
-every ray. The machine's base sits on the sidewalk top (the curb height) or on the road (0), its `level`; the high
+every ray. Terrain patches (sim.terrain.patches) stop a scan below their top (a stair's steps; rough ground's bumps
+stay below the scans) and a body at a stair (rough and slick ground is driven over). The machine's base sits on the sidewalk top (the curb height) or on the road (0), its `level`; the high
 scan runs at base + `lidar.height`, the low scan at base + `lidar.low_height`, and the body spans base to base +
 the machine's height. Each (level, what) is an occupancy grid at `resolution` whose cells hold the distance to the
 nearest occupied cell in cells (chessboard, `scipy.ndimage.distance_transform_cdt`: never more than the Euclidean
@@ -27,6 +28,7 @@ from shapely.geometry import Polygon
 
 from sim.scene.grid import CROSSWALK, WalkableGrid, obstacle_mask, paint_many
 from sim.scene.scene import Scene
+from sim.terrain import patches
 from sim.world import sidewalk_solids
 
 FREE, OBJECT, BUILDING, CURB = 0, 1, 2, 3
@@ -94,6 +96,19 @@ def _ramp_tops(grid: WalkableGrid, wedges: list[tuple[np.ndarray, np.ndarray]]) 
     return top
 
 
+def _terrain_tops(grid: WalkableGrid, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """Per cell, the height of the highest terrain surface over it (-inf where none), and the cells of stairs."""
+    parts = sorted(((h, Polygon(c)) for rec in scene.terrain for c, h in patches.tops(rec)), key=lambda part: part[0])
+    ids = np.full(grid.mask.shape, -1, dtype=np.int32)
+    for k, (_, poly) in enumerate(parts):  # lowest first: a stair's higher parts paint over its lower ones
+        paint_many(ids, grid.origin, grid.resolution, [poly], k)
+    heights = np.array([h for h, _ in parts] + [-np.inf], dtype=np.float32)
+    stairs = np.zeros(grid.mask.shape, dtype=bool)
+    paint_many(stairs, grid.origin, grid.resolution,
+               [Polygon(r["footprint"]) for r in scene.terrain if r["kind"] == "steps"], True)
+    return heights[ids], stairs  # id -1 reads the last entry, -inf
+
+
 def _distance(occupied: np.ndarray) -> np.ndarray:
     """uint8 distance (cells) to the nearest occupied cell or the grid's edge, capped below FAR, in the FAR ring.
 
@@ -124,7 +139,8 @@ def build_grids(scene: Scene, *, resolution: float, lidar: dict[str, Any], body_
     kinds = np.zeros(shape, dtype=np.uint8)
     raised_mask = np.zeros(shape, dtype=bool)
     paint_many(raised_mask, grid.origin, resolution, raised, True)
-    kinds[raised_mask] = CURB
+    terrain_top, stairs = _terrain_tops(grid, scene)
+    kinds[raised_mask | stairs] = CURB  # a body meets a stair's riser as it meets a curb (sim.world.touching)
     building_mask = np.zeros(shape, dtype=bool)
     paint_many(building_mask, grid.origin, resolution, buildings, True)
     kinds[building_mask] = BUILDING
@@ -135,8 +151,10 @@ def build_grids(scene: Scene, *, resolution: float, lidar: dict[str, Any], body_
         occ = building_mask.copy()
         if lo <= curb:
             occ |= raised_mask
-        if lo == hi:  # a scan: the ramps' slopes stop it where they are higher; a body drives up them
-            occ |= ramp_top >= lo
+        if lo == hi:  # a scan: the ramps' slopes and the terrain stop it where they are higher; a body drives up ramps
+            occ |= (ramp_top >= lo) | (terrain_top >= lo)
+        else:  # a body: a stair rising above its base is a wall, rough and slick ground is driven over
+            occ |= stairs & (terrain_top > lo)
         chosen = [p for p, (b, t) in zip(objects, spans) if b <= hi and lo <= t]
         if chosen:
             occ |= obstacle_mask(grid, chosen)

@@ -7,6 +7,7 @@ from typing import Any
 
 from curbside.config import ConfigError, merge_strict
 from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule, check_table
+from sim.terrain.patches import KINDS as TERRAIN_KINDS
 
 BLOCK_CODES = {"S": "straight", "C": "curve", "X": "intersection", "T": "T-junction", "O": "roundabout"}
 
@@ -61,6 +62,9 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "exclude_categories": [],         # held-out categories (dataset splits)
     "grid_resolution": 0.25,
     "block_tries": 30,                # shapes/parameters tried per block before giving up
+    # Terrain patches on the sidewalks (sim.scene.terrain, docs/terrain.md): density 1 is a city's typical share,
+    # 0 none; kinds any of roots (tree-root heave), rough (uneven pavers), steps (entrances), slick (wet, gravel).
+    "terrain": {"density": 1.0, "kinds": list(TERRAIN_KINDS)},
 }
 
 
@@ -115,6 +119,8 @@ CONFIG_TABLE: dict[str, Rule] = {
     "exclude_categories": Rule("list", item=Rule("str")),
     "grid_resolution": Float(0.05, 2.0, hint="metres per walkable cell"),
     "block_tries": Int(1, 1000),
+    "terrain": {"density": Float(0.0, 10.0, hint="1 is a city's typical share of terrain patches, 0 none"),
+                "kinds": Rule("list", choices=TERRAIN_KINDS)},
 }
 
 
@@ -164,6 +170,7 @@ def resolve_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
     if bad:
         raise ConfigError(f"unknown categories {bad} in exclude_categories; valid: {', '.join(NAMES)}")
     cfg["exclude_categories"] = sorted(set(cfg["exclude_categories"]))
+    cfg["terrain"]["kinds"] = [k for k in TERRAIN_KINDS if k in cfg["terrain"]["kinds"]]  # one order, no repeats
     if cfg["country"] is not None:
         cfg["country"] = str(cfg["country"]).upper()
     return cfg

@@ -21,6 +21,7 @@ from sim.scene.roads import generate_network, lane_lines
 from sim.scene.scene import SPEC_VERSION
 from sim.scene.sidewalks import build_crosswalks, build_sidewalks
 from sim.scene.spec import canonical
+from sim.scene.terrain import place_terrain, terrain_stats
 
 
 def _open_catalog(catalog: Any) -> tuple[Any, str | None]:
@@ -95,6 +96,8 @@ def _generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any) -> d
             for sw in sidewalks:
                 placer.fill(sw, gap_scale=0.75 ** (round_ + 1))
 
+    terrain = place_terrain(sidewalks, placer, cfg, int(seed))  # after every object: none of them moves
+
     walk_polys = [sw.polygon for sw in sidewalks]
     cw_polys = [c.polygon for c in crosswalks]
     ramp_polys = [r for c in crosswalks for _, r in c.ramps]
@@ -130,6 +133,7 @@ def _generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any) -> d
         "templates": dict(sorted(Counter(sw.template for sw in sidewalks).items())),
         "crosswalks": len(crosswalks),
         "distribution": cfg["country"] or "uniform",
+        "terrain": terrain_stats(terrain),
     }
     spec = {
         "version": SPEC_VERSION,
@@ -172,4 +176,5 @@ def _generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any) -> d
     }
     spec = canonical(spec)
     spec["objects"] = objects  # placed in canonical form already (Placer.try_place)
+    spec["terrain"] = terrain  # likewise (sim.scene.terrain.patch_record)
     return spec

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.palette import EDGE, OBJECT_CLASS, SURFACE, ZONE
+from sim.palette import EDGE, OBJECT_CLASS, SURFACE, ZONE, terrain_colour
 from sim.scene.scene import Scene, as_scene
 from sim.topdown import Colour, dashes, draw_scene
 
@@ -94,6 +94,8 @@ def render_scene(spec: Scene | Mapping[str, Any], out: str | Path, *, dpi: int =
     handles = [Patch(color=SURFACE["road"][:3], label="road")] + [Patch(color=c, label=k.replace("_", " ")) for k, c in ZONE.items()]
     handles += [Patch(facecolor=SURFACE["crosswalk"][:3], edgecolor=EDGE, hatch="||||", label="crosswalk"),
                 Patch(color=SURFACE["ramp"][:3], label="curb ramp")]
+    kinds = sorted({(t["kind"], t["surface"]) for t in scene.terrain})  # only the terrain this scene holds
+    handles += [Patch(facecolor=terrain_colour(k, s)[:3], edgecolor=EDGE, label=f"{k} ({s})") for k, s in kinds]
     handles += [Patch(color=c, label=f"{k.replace('_', '-')} object" if k != "building" else "building facade")
                 for k, c in OBJECT_CLASS.items()]
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)

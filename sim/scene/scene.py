@@ -52,6 +52,7 @@ class Scene:
     stats: Mapping[str, Any]
     catalog: str | None
     source: str = "scene spec"
+    terrain: tuple[Record, ...] = ()  # terrain patches (sim.terrain.patches); specs from before terrain have none
 
     @classmethod
     def parse(cls, spec: Scene | Mapping[str, Any], source: str = "scene spec") -> Scene:
@@ -65,7 +66,7 @@ class Scene:
                    roads=tuple(spec["roads"]), sidewalks=tuple(spec["sidewalks"]),
                    crosswalks=tuple(spec["crosswalks"]), objects=tuple(spec["objects"]),
                    config=spec.get("config") or {}, stats=spec.get("stats") or {}, catalog=spec.get("catalog"),
-                   source=source)
+                   source=source, terrain=tuple(spec.get("terrain") or ()))
 
     @classmethod
     def load(cls, path: str | Path) -> Scene:
@@ -147,6 +148,7 @@ def check_spec(spec: Any, source: str = "scene spec") -> None:
                 raise SceneError(f"{source} {key}[{k}] needs a polygon of finite [x, y] points; {_REGENERATE}")
     if not _objects_ok(spec["objects"]):
         _check_objects(spec["objects"], source)
+    _check_terrain(spec.get("terrain") or [], source)
     _check_walkable(spec["walkable"], source)
 
 
@@ -206,6 +208,20 @@ def _check_objects(objects: list[Any], source: str) -> None:
             raise SceneError(f"{what} yaw must be a finite number, got {o.get('yaw')!r}; {_REGENERATE}")
         if "footprint" in o and not _finite(o["footprint"], 0):
             raise SceneError(f"{what} footprint must be finite [x, y] points; {_REGENERATE}")
+
+
+def _check_terrain(records: Any, source: str) -> None:
+    """Raise SceneError naming the first malformed terrain record (sim.terrain.patches.check says what is wrong)."""
+    from sim.terrain.patches import check
+
+    if not isinstance(records, list):
+        raise SceneError(f"{source} terrain must be a list, got {type(records).__name__}; {_REGENERATE}")
+    for k, rec in enumerate(records):
+        problem = check(rec)
+        if problem is None and not _finite(rec.get("footprint"), 0):
+            problem = "needs a footprint of finite [x, y] points"
+        if problem is not None:
+            raise SceneError(f"{source} terrain[{k}] {problem}; {_REGENERATE}")
 
 
 def _check_walkable(w: Any, source: str) -> None:
