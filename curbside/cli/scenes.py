@@ -81,6 +81,9 @@ def generate(
     catalog: Path | None = typer.Option(None, help=f"Asset catalog (default: {DEFAULT_CATALOG} if present)."),
     crosswalk_density: float = typer.Option(0.5, "--crosswalk-density",
                                             help="Fraction of crosswalk candidates built, in [0, 1]."),
+    terrain_density: float = typer.Option(1.0, "--terrain-density", help="Terrain patches (tree-root heave, uneven "
+                                          "pavers, entrance steps, wet ground): 1 a city's typical share, 0 none, "
+                                          "at most 10 (docs/terrain.md)."),
     from_file: Path | None = typer.Option(None, "--from", exists=True, dir_okay=False, readable=True,
                                           help="A custom scene YAML (blocks, templates, object pool and density, "
                                           "named objects, agent groups; docs/scenes.md) instead of the options."),
@@ -106,7 +109,7 @@ def generate(
                    f"({len(custom['place'])} named), {agents} agents in groups")
         return
     cfg = {"blocks": _blocks(blocks), "templates": templates, "object_density": object_density,
-           "country": country, "crosswalk_density": crosswalk_density}
+           "country": country, "crosswalk_density": crosswalk_density, "terrain": {"density": terrain_density}}
     resolve_config(cfg)  # a bad value (NaN, out of range) fails here, before the catalog warning or any work
     cat = _catalog(catalog)
     with _catalog_errors(), warnings.catch_warnings(record=True):
@@ -117,7 +120,8 @@ def generate(
     if st["fallback_categories"]:
         typer.secho(f"warning: default-size boxes for {', '.join(st['fallback_categories'])} (not in the catalog)", fg="yellow", err=True)
     typer.echo(f"{out}: blocks {st['blocks']}, {st['sidewalks']} sidewalks, {st['crosswalks']} crosswalks, "
-               f"{st['objects']} objects ({st['refused_total']} refused), route {st['route_length_m']:.0f} m")
+               f"{st['objects']} objects ({st['refused_total']} refused), {len(spec['terrain'])} terrain patches, "
+               f"route {st['route_length_m']:.0f} m")
 
 
 @app.command()
@@ -142,6 +146,9 @@ def dataset(
     count: int = typer.Option(100, min=1, max=MAX_COUNT, help="Number of scenes."),
     blocks: str = typer.Option("3", help="Blocks per scene (count 1-64 or codes)."),
     object_density: float = typer.Option(1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."),
+    terrain_density: float = typer.Option(1.0, "--terrain-density", help="Terrain patches (tree-root heave, uneven "
+                                          "pavers, entrance steps, wet ground): 1 a city's typical share, 0 none, "
+                                          "at most 10 (docs/terrain.md)."),
     catalog: Path | None = typer.Option(None, help=f"Asset catalog (default: {DEFAULT_CATALOG} if present)."),
     workers: int | None = workers_option(help="Worker processes (process; default: every core), or scenes at once "
                                          "on the cluster (ray; default: every cluster CPU)."),
@@ -179,7 +186,7 @@ def dataset(
     ex = check_executor_args(executor, address) if executor is not None else None
     if ex is None and address is not None:
         raise UsageError(f"--address {address} names a Ray cluster; add --executor ray (or leave out --address)")
-    base = {"blocks": _blocks(blocks), "object_density": object_density}
+    base = {"blocks": _blocks(blocks), "object_density": object_density, "terrain": {"density": terrain_density}}
     if preset.value != "none":
         base["preset"] = preset.value
     resolve_config(split_config(split.value, base)[0])  # bad values fail before the catalog warning and the bar

@@ -96,17 +96,25 @@ def _ramp_tops(grid: WalkableGrid, wedges: list[tuple[np.ndarray, np.ndarray]]) 
     return top
 
 
-def _terrain_tops(grid: WalkableGrid, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """Per cell, the height of the highest terrain surface over it (-inf where none), and the cells of stairs."""
-    parts = sorted(((h, Polygon(c)) for rec in scene.terrain for c, h in patches.tops(rec)), key=lambda part: part[0])
-    ids = np.full(grid.mask.shape, -1, dtype=np.int32)
-    for k, (_, poly) in enumerate(parts):  # lowest first: a stair's higher parts paint over its lower ones
-        paint_many(ids, grid.origin, grid.resolution, [poly], k)
-    heights = np.array([h for h, _ in parts] + [-np.inf], dtype=np.float32)
-    stairs = np.zeros(grid.mask.shape, dtype=bool)
-    paint_many(stairs, grid.origin, grid.resolution,
-               [Polygon(r["footprint"]) for r in scene.terrain if r["kind"] == "steps"], True)
-    return heights[ids], stairs  # id -1 reads the last entry, -inf
+def _terrain_tops(grid: WalkableGrid, scene: Scene) -> list[tuple[tuple[slice, slice], np.ndarray, bool]]:
+    """Per terrain patch: its window of the grid, the height of its surface over each cell there (-inf off it),
+    and whether it is a stair."""
+    out = []
+    res, (x0, y0), (h, w) = grid.resolution, grid.origin, grid.mask.shape
+    for rec in scene.terrain:
+        fp = np.asarray(rec["footprint"], dtype=np.float64)
+        c0, r0 = (max(int(math.floor((v - o) / res)) - 1, 0) for v, o in ((fp[:, 0].min(), x0), (fp[:, 1].min(), y0)))
+        c1 = min(int(math.ceil((fp[:, 0].max() - x0) / res)) + 1, w)
+        r1 = min(int(math.ceil((fp[:, 1].max() - y0) / res)) + 1, h)
+        if r1 <= r0 or c1 <= c0:
+            continue
+        parts = patches.tops(rec)  # lowest first: a stair's higher parts paint over its lower ones
+        ids = np.full((r1 - r0, c1 - c0), len(parts), dtype=np.int8)
+        for k, (corners, _) in enumerate(parts):
+            paint_many(ids, (x0 + c0 * res, y0 + r0 * res), res, [Polygon(corners)], k)
+        heights = np.array([top for _, top in parts] + [-np.inf], dtype=np.float32)
+        out.append(((slice(r0, r1), slice(c0, c1)), heights[ids], rec["kind"] == "steps"))
+    return out
 
 
 def _distance(occupied: np.ndarray) -> np.ndarray:
@@ -139,8 +147,8 @@ def build_grids(scene: Scene, *, resolution: float, lidar: dict[str, Any], body_
     kinds = np.zeros(shape, dtype=np.uint8)
     raised_mask = np.zeros(shape, dtype=bool)
     paint_many(raised_mask, grid.origin, resolution, raised, True)
-    terrain_top, stairs = _terrain_tops(grid, scene)
-    kinds[raised_mask | stairs] = CURB  # a body meets a stair's riser as it meets a curb (sim.world.touching)
+    kinds[raised_mask] = CURB
+    terrain = _terrain_tops(grid, scene)  # on the slab: a body meets a stair's riser as a curb (sim.world.touching)
     building_mask = np.zeros(shape, dtype=bool)
     paint_many(building_mask, grid.origin, resolution, buildings, True)
     kinds[building_mask] = BUILDING
@@ -151,10 +159,11 @@ def build_grids(scene: Scene, *, resolution: float, lidar: dict[str, Any], body_
         occ = building_mask.copy()
         if lo <= curb:
             occ |= raised_mask
-        if lo == hi:  # a scan: the ramps' slopes and the terrain stop it where they are higher; a body drives up ramps
-            occ |= (ramp_top >= lo) | (terrain_top >= lo)
-        else:  # a body: a stair rising above its base is a wall, rough and slick ground is driven over
-            occ |= stairs & (terrain_top > lo)
+        if lo == hi:  # a scan: the ramps' slopes stop it where they are higher; a body drives up them
+            occ |= ramp_top >= lo
+        for win, top, stair in terrain:  # a scan stops at terrain above it, a body at a stair above its base
+            if lo == hi or stair:
+                occ[win] |= top >= lo if lo == hi else top > lo
         chosen = [p for p, (b, t) in zip(objects, spans) if b <= hi and lo <= t]
         if chosen:
             occ |= obstacle_mask(grid, chosen)

@@ -54,19 +54,18 @@ def pieces(rec: Record) -> list[Piece]:
     return [((u - 0.5) * depth, (v - 0.5) * width, z)]
 
 
-def _skirt(x: np.ndarray, y: np.ndarray, z: np.ndarray, first: int) -> list[int]:
-    """Triangles of walls from a grid's border down to its feet (vertex `first` + k is the foot of border vertex
-    k, border vertices being the grid's own, indexed j * nx + i), facing outwards."""
-    ny, nx = z.shape
+def _skirt(nx: int, ny: int, first: int) -> tuple[np.ndarray, list[int]]:
+    """The border of an ny x nx grid (vertex j * nx + i), counter-clockwise seen from above, and the triangles of
+    walls from it down to its feet (vertex `first` + k is the foot of the border's k-th vertex), facing outwards."""
     ring = ([(0, i) for i in range(nx)] + [(j, nx - 1) for j in range(1, ny)]
             + [(ny - 1, i) for i in range(nx - 2, -1, -1)] + [(j, 0) for j in range(ny - 2, 0, -1)])
+    border = np.array([j * nx + i for j, i in ring])
     tris: list[int] = []
-    for k, (j, i) in enumerate(ring):  # counter-clockwise seen from above: outwards is to the right
-        jj, ii = ring[(k + 1) % len(ring)]
-        a, b = j * nx + i, jj * nx + ii
-        fa, fb = first + j * nx + i, first + jj * nx + ii
-        tris += [a, fa, fb, a, fb, b]
-    return tris
+    for k in range(len(ring)):  # outwards is to the right of a counter-clockwise border
+        kk = (k + 1) % len(ring)
+        a, b = int(border[k]), int(border[kk])
+        tris += [a, first + k, first + kk, a, first + kk, b]
+    return border, tris
 
 
 def mesh(rec: Record) -> tuple[list[list[float]], list[int]]:
@@ -79,12 +78,12 @@ def mesh(rec: Record) -> tuple[list[list[float]], list[int]]:
     for x, y, z in pieces(rec):
         top, idx = grid_mesh(x, y, z)
         top_a = np.asarray(top, dtype=np.float64)
-        foot = top_a.copy()
+        border, walls = _skirt(len(x), len(y), len(top_a))
+        foot = top_a[border]
         foot[:, 2] = -LIFT  # down to the slab top
-        m = len(top_a)
-        tris += [n + k for k in idx] + [n + k for k in _skirt(x, y, z, m)]
+        tris += [n + k for k in idx] + [n + k for k in walls]
         verts += [top_a, foot]
-        n += 2 * m
+        n += len(top_a) + len(foot)
     v = np.concatenate(verts)
     world = np.column_stack([x0 + v[:, 0] * c - v[:, 1] * s, y0 + v[:, 0] * s + v[:, 1] * c, base + LIFT + v[:, 2]])
     return world.tolist(), tris

@@ -35,6 +35,7 @@ def test_scene_options_match_the_generator_defaults() -> None:
     for command in ("generate", "dataset"):
         assert int(_default(scenes.app, command, "blocks")) == DEFAULT_CONFIG["blocks"]
         assert _default(scenes.app, command, "object_density") == DEFAULT_CONFIG["object_density"]
+        assert _default(scenes.app, command, "terrain_density") == DEFAULT_CONFIG["terrain"]["density"]
     assert _default(scenes.app, "generate", "templates") == DEFAULT_CONFIG["templates"]
     assert _default(scenes.app, "generate", "crosswalk_density") == DEFAULT_CONFIG["crosswalk_density"]
     assert _default(scenes.app, "generate", "country") == DEFAULT_CONFIG["country"]

@@ -96,6 +96,7 @@ def _cases(f: dict[str, Path]) -> list[list[str]]:
     cases += [[*gen, "--blocks", v] for v in ("0", "-1", "100000", "abc", "SQX", "", "65", "1.5")]
     cases += [[*gen, "--object-density", v] for v in ("nan", "inf", "-inf", "-1", "1e6", "abc", "")]
     cases += [[*gen, "--crosswalk-density", v] for v in ("nan", "2", "-0.1", "x")]
+    cases += [[*gen, "--terrain-density", v] for v in ("nan", "-1", "11")]
     cases += [[*gen, "--seed", v] for v in ("-5", "abc", "1e99")]
     cases += [[*gen, "--templates", v] for v in ("z", "", "ab9")]
     cases += [[*gen, "--out", str(f["dir"])], [*gen, "--catalog", str(f["garbage"])], [*gen, "--catalog", str(f["missing"])]]

@@ -15,6 +15,7 @@ from shapely.geometry import LineString, Polygon
 from curbside.config import ConfigError
 from sim.machines import Machine, machine_spec
 from sim.palette import EDGE, rgb255, terrain_colour
+from sim.raycast.grids import CURB as CURB_KIND
 from sim.raycast.grids import SIDEWALK_LEVEL, build_grids
 from sim.route import RoutePlanner
 from sim.scene import dumps, generate_scene
@@ -178,11 +179,12 @@ def test_stairs_are_walls_to_bodies_and_routes_rough_ground_is_not() -> None:
     grids = build_grids(scene, resolution=0.1, lidar={"height": 0.4, "low_height": 0.08}, body_height=1.0)
     body = grids.tables[SIDEWALK_LEVEL][2]
 
-    def cell(x: float, y: float) -> int:
+    def cell(x: float, y: float) -> tuple[int, int]:
         c, r = (int((v - o) / grids.resolution) for v, o in zip((x, y), grids.origin))
-        return int(body[r, c])
+        return r, c
 
-    assert cell(20.0, 8.75) == 0 and cell(9.5, Y_CLEAR) > 0
+    assert body[cell(20.0, 8.75)] == 0 and grids.kinds[cell(20.0, 8.75)] == CURB_KIND
+    assert body[cell(9.5, Y_CLEAR)] > 0
     for spec, free in ((_street(), True), (_street(_rough(19.0)), True), (scene, False)):
         planner = RoutePlanner(spec, half_width=0.1, margin=0.0)
         (r, c), = planner.grid.world_to_cell(np.array([[20.0, 8.625]]))  # a cell centre on the stair
