@@ -132,9 +132,10 @@ def generator_config(c: Mapping[str, Any]) -> dict[str, Any]:
 def generate_custom(c: Mapping[str, Any], catalog: Any = None) -> dict[str, Any]:
     """The scene spec of a checked custom scene: generated, then its named objects placed and its agent groups set."""
     from sim.scene import generate_scene
+    from sim.scene.terrain import terrain_stats
 
     spec = generate_scene(generator_config(c), int(c["seed"]), catalog)
-    objects = list(spec["objects"])
+    objects, terrain = list(spec["objects"]), list(spec["terrain"])
     curb = float(spec.get("curb_height", 0.15))
     for item in c["place"]:
         x, y, sidewalk = _locate(spec, item)
@@ -147,6 +148,7 @@ def generate_custom(c: Mapping[str, Any], catalog: Any = None) -> dict[str, Any]
         if hit:
             raise ConfigError(f"named objects {hit[0]!r} and {item['name']!r} overlap; move one of them")
         objects = [o for o in objects if o.get("name") or not Polygon(o["footprint"]).intersects(box)]  # named win
+        terrain = [t for t in terrain if not Polygon(t["footprint"]).intersects(box)]  # over terrain patches too
         objects.append({"id": "", "name": item["name"], "asset_id": item["asset_id"], "category": cat.name,
                         "object_class": cat.object_class, "zone": item["at"]["zone"] if isinstance(item["at"], Mapping)
                         else None, "sidewalk_id": sidewalk, "position": [round_value(x), round_value(y), curb if sidewalk else 0.0],
@@ -154,8 +156,10 @@ def generate_custom(c: Mapping[str, Any], catalog: Any = None) -> dict[str, Any]
                         "size": [round_value(float(v)) for v in (d, w, h)], "footprint": round_points(corners)})
     for k, o in enumerate(objects):
         o["id"] = f"o{k}"
-    spec["objects"] = objects
-    spec["stats"] = {**spec["stats"], "objects": len(objects)}
+    for k, t in enumerate(terrain):
+        t["id"] = f"t{k}"
+    spec["objects"], spec["terrain"] = objects, terrain
+    spec["stats"] = {**spec["stats"], "objects": len(objects), "terrain": terrain_stats(terrain)}
     if c["agents"]:
         spec["agents"] = {k: int(v) for k, v in sorted(c["agents"].items())}
     spec["custom"] = {"place": [item["name"] for item in c["place"]]}

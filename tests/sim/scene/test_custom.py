@@ -35,10 +35,11 @@ def test_the_example_scene_has_its_pool_named_objects_and_agent_groups(spec) -> 
     zone = next(z for z in sidewalk["zones"] if z["kind"] == "furnishing")
     assert Polygon(zone["polygon"]).contains(Point(bench["position"][:2]))
     assert bench["position"][2] == spec["curb_height"] and bench["yaw"] == pytest.approx(1.5708)
-    # Named objects win their place: no generated object overlaps them.
-    for o in spec["objects"]:
+    # Named objects win their place: no generated object or terrain patch overlaps them.
+    for o in spec["objects"] + spec["terrain"]:
         if not o.get("name"):
-            assert not Polygon(o["footprint"]).intersects(Polygon(bench["footprint"]))
+            assert not any(Polygon(o["footprint"]).intersects(Polygon(n["footprint"])) for n in named.values())
+    assert spec["terrain"] and [t["id"] for t in spec["terrain"]] == [f"t{k}" for k in range(len(spec["terrain"]))]
     assert spec["agents"] == {"delivery_robot": 1, "pedestrian": 12, "wheelchair_user": 2}
     assert [o["id"] for o in spec["objects"]] == [f"o{k}" for k in range(len(spec["objects"]))]
 
@@ -110,3 +111,14 @@ def test_conflicting_or_malformed_custom_scenes_say_so(change: dict, message: st
     base = yaml.safe_load(EXAMPLE.read_text())
     with pytest.raises(ConfigError, match=message):
         generate_custom(check_custom({**base, **change}))
+
+
+def test_a_named_object_removes_the_terrain_patch_in_its_way() -> None:
+    custom = load_custom(EXAMPLE)
+    plain = generate_custom({**custom, "place": []})
+    patch = plain["terrain"][0]
+    cone = {"name": "on_patch", "category": "traffic_cone", "at": patch["position"][:2]}
+    spec = generate_custom(check_custom({**load_custom(EXAMPLE), "place": [cone]}))
+    assert len(spec["terrain"]) == len(plain["terrain"]) - 1
+    assert patch["footprint"] not in [t["footprint"] for t in spec["terrain"]]
+    assert sum(spec["stats"]["terrain"].values()) == len(spec["terrain"])
