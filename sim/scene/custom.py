@@ -9,7 +9,7 @@ objects:
   density: 1.5             # rho_s
   pool: [bench, trash_bin, street_lamp, tree, bicycle]   # only these categories (default: all)
   country: FI              # category frequencies of a country (default: uniform)
-place:                     # named objects; generated objects in their way are removed
+place:                     # named objects; generated objects and terrain in their way are removed
   - {name: my_bench, category: bench, at: {sidewalk: r0-s0, along: 0.5, zone: furnishing}, yaw: 90}
   - {name: cone_1, category: traffic_cone, at: [12.0, -7.5]}
 agents:                    # agent groups for SocialNav (kind: count)
