@@ -19,11 +19,10 @@ import pybullet as p
 from curbside.config import ConfigError
 from sim.machines import G, Machine, machine_spec
 from sim.meshes import mesh_shape
+from sim.palette import TERRAIN
 from sim.terrain.heights import TileGeometry, grid_mesh, tile_surface
 from sim.terrain.wfc import SURFACES, Tile, collapse, tile_set
 
-SURFACE_COLOURS = {"asphalt": (0.25, 0.25, 0.27), "concrete": (0.7, 0.7, 0.68), "pavers": (0.65, 0.45, 0.35),
-                   "grass": (0.35, 0.6, 0.3), "gravel": (0.55, 0.52, 0.47), "wet": (0.2, 0.22, 0.3)}
 # Each runway: its tile shapes and weights, and its level height (m): slopes and ramps rise a 0.15 m level (7.5 %
 # and 10 % grades over 2 m tiles); stairs are small steps of 6 cm (3 cm curb lips to 8 cm garden steps decide
 # whether a wheel climbs them); rough ground has 6 cm bumps (tree roots, broken pavement).
@@ -82,7 +81,7 @@ def build_runway(client: int, name: str, seed: int = 0, cols: int = 50, rows: in
             u, v, z = tile_surface(tile, geo, rng)
             verts, tris = grid_mesh(c * geo.size + u * geo.size, r * geo.size + v * geo.size, z)
             col = mesh_shape(p.createCollisionShape, verts, tris, physicsClientId=client)
-            vis = mesh_shape(p.createVisualShape, verts, tris, rgbaColor=[*SURFACE_COLOURS[tile.surface], 1.0],
+            vis = mesh_shape(p.createVisualShape, verts, tris, rgbaColor=[*TERRAIN[tile.surface], 1.0],
                              physicsClientId=client)
             body = p.createMultiBody(0, col, vis, [0, 0, 0], physicsClientId=client)
             p.changeDynamics(body, -1, lateralFriction=SURFACES[tile.surface], physicsClientId=client)
