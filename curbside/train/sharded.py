@@ -1,16 +1,24 @@
-"""A vector env of N worker processes that each step a shard of several envs: one pipe round trip per worker per
-step instead of one per env.
+"""A vector env of N shards of envs: shard 0 stepped in this process, the others each in a worker process, all at
+once; one hand-over per worker per step instead of one per env.
 
-Gymnasium's AsyncVectorEnv runs one env per process; on this 2-core VM a step round trip (send the action, wake the
-worker, send the result back, wake the parent) costs 0.2-0.33 ms, so two PointNav workers (~2 ms a step) reach only
-~1.5x one process. With k envs per worker the round trip is paid once per k env steps. Semantics are Gymnasium's
-with `autoreset_mode=SAME_STEP`: a finished env is reset in the same step, its last observation and info under
-`final_obs` and `final_info` (a test checks the arrays and infos against `SyncVectorEnv` on the same seeds).
+Gymnasium's AsyncVectorEnv runs one env per process and blocks on a pipe for every hand-over. On this 2-core VM a
+PointNav step takes ~1 ms, and a vector env of two such workers reached only 0.7-1.1x one process although two
+independent processes reach 2.1x (benchmarks/vector_envs.py): a worker that blocks gives up its core, and every
+wake-up costs more than the pipe round trip itself. Here the parent steps shard 0 itself while the workers step
+theirs (N processes for N shards, not N + 1), and both sides hand over through semaphores polled for `spin`
+seconds before blocking, so a worker waiting for the next action keeps its core while the policy runs, and still
+sleeps through a PPO update. Spinning is turned off when there are more processes than cores.
+
+Semantics are Gymnasium's with `autoreset_mode=SAME_STEP`: a finished env is reset in the same step, its last
+observation and info under `final_obs` and `final_info` (a test checks the arrays and infos against
+`SyncVectorEnv` on the same seeds).
 """
 
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
+import time
 import traceback
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
@@ -31,66 +39,95 @@ def _step_one(env: gym.Env, action: Any) -> tuple[Any, float, bool, bool, dict[s
     return obs, float(reward), bool(terminated), bool(truncated), info
 
 
-def _worker(fns: list[Callable[[], gym.Env]], pipe: Connection, shm: Any, lo: int, shape: tuple[int, ...],
-            dtype: str) -> None:
+SPIN_S = 0.002  # seconds a waiting side polls its semaphore before blocking on it
+
+
+def wait_for(sem: Any, spin: float, alive: Callable[[], bool], poll: float = 1.0) -> None:
+    """Take `sem`, polling it for up to `spin` seconds (no syscall, the core stays hot) before blocking on it;
+    EOFError when `alive()` turns false while blocked (the other side died)."""
+    if spin > 0.0:
+        deadline = time.perf_counter() + spin
+        while time.perf_counter() < deadline:
+            if sem.acquire(False):
+                return
+    while not sem.acquire(timeout=poll):
+        if not alive():
+            raise EOFError("the other side of a ShardedVectorEnv hand-over died")
+
+
+def run_command(envs: Sequence[gym.Env], obs_out: np.ndarray, command: str, data: Any) -> Any:
+    """Carry out one command on a shard's envs (observations written into `obs_out`); the reply's payload."""
+    if command == "step":
+        rewards, terms, truncs, infos = [], [], [], []
+        for k, (env, action) in enumerate(zip(envs, data)):
+            obs_out[k], r, te, tr, info = _step_one(env, action)
+            rewards.append(r)
+            terms.append(te)
+            truncs.append(tr)
+            infos.append(info)
+        return rewards, terms, truncs, infos
+    if command == "reset":
+        seeds, options = data
+        infos = []
+        for k, (env, seed) in enumerate(zip(envs, seeds)):
+            obs_out[k], info = env.reset(seed=seed, options=options)
+            infos.append(info)
+        return infos
+    if command == "get_attr":
+        return [env.get_wrapper_attr(data) for env in envs]
+    if command == "set_attr":
+        name, values = data
+        for env, value in zip(envs, values):
+            env.set_wrapper_attr(name, value)
+        return None
+    name, args, kwargs = data  # "call"
+    out = []
+    for env in envs:
+        fn = env.get_wrapper_attr(name)
+        out.append(fn(*args, **kwargs) if callable(fn) else fn)
+    return out
+
+
+def _worker(fns: list[Callable[[], gym.Env]], pipe: Connection, go: Any, done: Any, spin: float, shm: Any, lo: int,
+            shape: tuple[int, ...], dtype: str) -> None:
     """Own envs lo..lo + len(fns) - 1: write their observations into the shared array, send the rest back."""
     envs: list[gym.Env] = []
     try:
         envs = [fn() for fn in fns]
         obs_out = np.frombuffer(shm.get_obj(), dtype=dtype).reshape(shape)[lo: lo + len(envs)]
         pipe.send(("ok", None))
+        done.release()
+        parent = os.getppid()
         while True:
-            command, data = pipe.recv()
-            if command == "step":
-                rewards, terms, truncs, infos = [], [], [], []
-                for k, (env, action) in enumerate(zip(envs, data)):
-                    obs_out[k], r, te, tr, info = _step_one(env, action)
-                    rewards.append(r)
-                    terms.append(te)
-                    truncs.append(tr)
-                    infos.append(info)
-                pipe.send(("ok", (rewards, terms, truncs, infos)))
-            elif command == "reset":
-                seeds, options = data
-                infos = []
-                for k, (env, seed) in enumerate(zip(envs, seeds)):
-                    obs_out[k], info = env.reset(seed=seed, options=options)
-                    infos.append(info)
-                pipe.send(("ok", infos))
-            elif command == "get_attr":
-                pipe.send(("ok", [env.get_wrapper_attr(data) for env in envs]))
-            elif command == "set_attr":
-                name, values = data
-                for env, value in zip(envs, values):
-                    env.set_wrapper_attr(name, value)
-                pipe.send(("ok", None))
-            elif command == "call":
-                name, args, kwargs = data
-                out = []
-                for env in envs:
-                    fn = env.get_wrapper_attr(name)
-                    out.append(fn(*args, **kwargs) if callable(fn) else fn)
-                pipe.send(("ok", out))
-            elif command == "close":
+            wait_for(go, spin, lambda: os.getppid() == parent)
+            command, data = pipe.recv()  # sent before `go` was released: no wait
+            if command == "close":
                 break
+            pipe.send(("ok", run_command(envs, obs_out, command, data)))
+            done.release()
     except (KeyboardInterrupt, EOFError):
         pass
     except Exception:  # the parent re-raises it with this traceback
         pipe.send(("error", traceback.format_exc()))
+        done.release()
     finally:
         for env in envs:
             env.close()
 
 
 class ShardedVectorEnv(VectorEnv):
-    """`len(env_fns)` envs in `workers` processes (env i in worker i * workers // n); Box observations only.
+    """`len(env_fns)` envs in `workers` shards (env i in shard i * workers // n); Box observations only.
 
-    `step_async`/`step_wait` let the caller work while the workers step (SB3 does, through VectorEnvAdapter).
+    `local`: shard 0 runs in this process (workers - 1 worker processes), else every shard has a process. `spin`:
+    seconds each side polls before blocking (SPIN_S; 0 where processes outnumber cores). `step_async`/`step_wait`
+    let the caller work while the workers step (SB3 does, through VectorEnvAdapter); the local shard steps in
+    `step_wait`.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}
 
-    def __init__(self, env_fns: Sequence[Callable[[], gym.Env]], workers: int, context: str = "forkserver") -> None:
+    def __init__(self, env_fns: Sequence[Callable[[], gym.Env]], workers: int, context: str = "forkserver",
+                 local: bool = True, spin: float | None = None) -> None:
         n = len(env_fns)
         if not 1 <= workers <= n:
             raise ValueError(f"workers must be in [1, {n}] (the number of envs), got {workers}")
@@ -111,33 +148,63 @@ class ShardedVectorEnv(VectorEnv):
         self._shm = ctx.Array(np.ctypeslib.as_ctypes_type(dtype), int(np.prod(shape)))
         self._obs = np.frombuffer(self._shm.get_obj(), dtype=dtype).reshape(shape)
         self._bounds = [(w * n // workers, (w + 1) * n // workers) for w in range(workers)]
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        self._spin = (SPIN_S if workers <= cores else 0.0) if spin is None else float(spin)
+        self._local: list[gym.Env] = []
+        self._local_bounds = self._bounds[0] if local else (0, 0)
         self._pipes: list[Connection] = []
         self._procs: list[Any] = []
-        for lo, hi in self._bounds:
+        self._sems: list[tuple[Any, Any]] = []  # (go, done) per worker
+        self.closed = False
+        for lo, hi in self._bounds[1:] if local else self._bounds:
             parent, child = ctx.Pipe()
+            go, done = ctx.Semaphore(0), ctx.Semaphore(0)
             fns = [CloudpickleWrapper(fn) for fn in env_fns[lo:hi]]  # closures travel to forkserver/spawn workers
-            proc = ctx.Process(target=_worker, args=(fns, child, self._shm, lo, shape, dtype.str),
-                               daemon=True)
+            proc = ctx.Process(target=_worker, args=(fns, child, go, done, self._spin, self._shm, lo, shape,
+                                                     dtype.str), daemon=True)
             proc.start()
             child.close()
             self._pipes.append(parent)
             self._procs.append(proc)
-        self.closed = False
+            self._sems.append((go, done))
+        try:
+            self._local = [fn() for fn in env_fns[slice(*self._local_bounds)]]  # built while the workers build theirs
+        except Exception:
+            self.close(terminate=True)
+            raise
         self._gather()  # every worker built its envs (or the first failure is raised here)
+
+    def _shards(self, per_shard: Sequence[Any] | None, data: Any) -> list[Any]:
+        return list(per_shard) if per_shard is not None else [data] * len(self._bounds)
+
+    def _run(self, command: str, per_shard: Sequence[Any] | None = None, data: Any = None) -> list[Any]:
+        """Send `command` to every worker, carry it out on the local shard meanwhile, and gather the replies."""
+        self._send(command, per_shard, data)
+        return self._finish(command, per_shard, data)
+
+    def _send(self, command: str, per_shard: Sequence[Any] | None = None, data: Any = None) -> None:
+        remote = self._shards(per_shard, data)[1 if self._local_bounds[1] else 0:]
+        for (go, _), pipe, payload in zip(self._sems, self._pipes, remote):
+            pipe.send((command, payload))
+            go.release()
+
+    def _finish(self, command: str, per_shard: Sequence[Any] | None, data: Any) -> list[Any]:
+        local = []
+        if self._local_bounds[1]:
+            lo, hi = self._local_bounds
+            local = [run_command(self._local, self._obs[lo:hi], command, self._shards(per_shard, data)[0])]
+        return local + self._gather()
 
     def _gather(self) -> list[Any]:
         out, errors = [], []
-        for pipe in self._pipes:
+        for (_, done), pipe, proc in zip(self._sems, self._pipes, self._procs):
+            wait_for(done, self._spin, proc.is_alive)
             status, data = pipe.recv()
             (errors if status == "error" else out).append(data)
         if errors:
             self.close(terminate=True)
             raise RuntimeError(f"a ShardedVectorEnv worker failed:\n{errors[0]}")
         return out
-
-    def _send(self, command: str, per_worker: Sequence[Any] | None = None, data: Any = None) -> None:
-        for w, pipe in enumerate(self._pipes):
-            pipe.send((command, per_worker[w] if per_worker is not None else data))
 
     def _batched(self, infos: list[dict[str, Any]]) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -152,18 +219,18 @@ class ShardedVectorEnv(VectorEnv):
             list(seed) if seed is not None else [None] * self.num_envs)
         if len(seeds) != self.num_envs:
             raise ValueError(f"reset got {len(seeds)} seeds for {self.num_envs} envs")
-        self._send("reset", [(seeds[lo:hi], options) for lo, hi in self._bounds])
-        infos = [i for part in self._gather() for i in part]
+        infos = [i for part in self._run("reset", [(seeds[lo:hi], options) for lo, hi in self._bounds]) for i in part]
         return self._obs.copy(), self._batched(infos)
 
     def step_async(self, actions: np.ndarray) -> None:
-        """Send every worker its shard's actions."""
+        """Send every worker its shard's actions (the local shard's wait for step_wait)."""
         actions = np.asarray(actions)
-        self._send("step", [actions[lo:hi] for lo, hi in self._bounds])
+        self._pending = [actions[lo:hi] for lo, hi in self._bounds]
+        self._send("step", self._pending)
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        """Wait for every worker: observations, rewards, terminations, truncations and the batched infos."""
-        parts = self._gather()
+        """Step the local shard, wait for every worker: observations, rewards, terminations, truncations, infos."""
+        parts = self._finish("step", self._pending, None)
         rewards = np.array([r for part in parts for r in part[0]], dtype=np.float64)
         terms = np.array([t for part in parts for t in part[1]], dtype=bool)
         truncs = np.array([t for part in parts for t in part[2]], dtype=bool)
@@ -176,30 +243,30 @@ class ShardedVectorEnv(VectorEnv):
 
     def get_attr(self, name: str) -> tuple[Any, ...]:
         """An attribute of every (wrapped) env."""
-        self._send("get_attr", data=name)
-        return tuple(v for part in self._gather() for v in part)
+        return tuple(v for part in self._run("get_attr", data=name) for v in part)
 
     def set_attr(self, name: str, values: Any) -> None:
         """Set an attribute of every env (one value, or one per env)."""
         if not isinstance(values, (list, tuple)):
             values = [values] * self.num_envs
-        self._send("set_attr", [(name, values[lo:hi]) for lo, hi in self._bounds])
-        self._gather()
+        self._run("set_attr", [(name, values[lo:hi]) for lo, hi in self._bounds])
 
     def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
         """Call a method of every env (or read an attribute that is not callable)."""
-        self._send("call", data=(name, args, kwargs))
-        return tuple(v for part in self._gather() for v in part)
+        return tuple(v for part in self._run("call", data=(name, args, kwargs)) for v in part)
 
     def close(self, terminate: bool = False, **kwargs: Any) -> None:
         """Stop the workers (politely unless `terminate`)."""
         if getattr(self, "closed", True):
             return
         self.closed = True
-        for pipe, proc in zip(self._pipes, self._procs):
+        for env in self._local:
+            env.close()
+        for pipe, proc, (go, _) in zip(self._pipes, self._procs, self._sems):
             if not terminate and proc.is_alive():
                 try:
                     pipe.send(("close", None))
+                    go.release()
                 except (BrokenPipeError, OSError):
                     pass
             proc.join(timeout=10)
