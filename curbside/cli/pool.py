@@ -51,7 +51,9 @@ def show(
     else:
         df = df.assign(rank_count=df["count"])
     df = df.sort_values(["rank_count", "cluster_id"], ascending=[False, True]).head(top)
-    rows = [{"cluster_id": int(r.cluster_id), "text": r.text, "category": r.category, "count": int(r.rank_count),
+    # Open-vocabulary entries have no category (pandas reads the NULL as NaN): None in JSON, "(open)" in the table.
+    rows = [{"cluster_id": int(r.cluster_id), "text": r.text,
+             "category": r.category if isinstance(r.category, str) else None, "count": int(r.rank_count),
              "n_members": int(r.n_members), "members": list(r.members)[:5], "sources": list(r.sources),
              "country_counts": json.loads(r.country_counts)} for r in df.itertuples()]
     if as_json:
@@ -64,6 +66,6 @@ def show(
     for col in ("id", "representative", "category", "count", "members", "sources", "example members"):
         table.add_column(col)
     for r in rows:
-        table.add_row(str(r["cluster_id"]), r["text"], r["category"], str(r["count"]), str(r["n_members"]),
+        table.add_row(str(r["cluster_id"]), r["text"], r["category"] or "(open)", str(r["count"]), str(r["n_members"]),
                       ",".join(r["sources"]), "; ".join(r["members"][1:4]))
     Console().print(table)

@@ -109,3 +109,19 @@ def test_dvc_yaml_stages_match_modules_and_params():
         assert st["cmd"] == f"python -m pipelines.{name} --params params.yaml"
         assert st["params"] == [name] and set(params[name]) == set(mod.DEFAULTS)
         assert st["metrics"], name
+
+
+def test_pool_show_renders_open_vocabulary_entries(descriptions, embedded, tmp_path):
+    """An entry without a category (open vocabulary) shows as "(open)" in the table and null in JSON."""
+    from typer.testing import CliRunner
+
+    from curbside.cli.main import app
+
+    texts, vecs, _ = embedded
+    open_rows = descriptions.assign(category=descriptions["category"].where(descriptions["category"] != "street_lamp"))
+    build_pool(open_rows, texts, vecs, eps=0.3, min_samples=2).to_parquet(tmp_path / "p.parquet")
+    argv = ["pool", "show", "--pool", str(tmp_path / "p.parquet")]
+    table = CliRunner().invoke(app, argv)
+    assert table.exit_code == 0 and "(open)" in table.output, table.output
+    rows = json.loads(CliRunner().invoke(app, [*argv, "--json"]).output)
+    assert any(r["category"] is None for r in rows) and all(r["category"] != "street_lamp" for r in rows)
