@@ -60,9 +60,10 @@ def env_fns(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, 
 def make_vec_env(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, *, split: str = "train",
                  subprocess: bool = True, seed: int = 0, workers: int | None = None,
                  wrappers: tuple[Callable[[gym.Env], gym.Env], ...] = ()) -> Any:
-    """An SB3 VecEnv over `n_envs` sharded envs: `workers` processes (default: one per core, at most n_envs) that
-    each step n_envs / workers envs with BLAS single-threaded (curbside.train.sharded), reset in the same step as
-    SB3 expects; SB3's DummyVecEnv in this process when `subprocess` is False."""
+    """An SB3 VecEnv over `n_envs` sharded envs: `workers` shards (default: one per core, at most n_envs), shard 0
+    in this process and the others in worker processes, that each step n_envs / workers envs with BLAS
+    single-threaded (curbside.train.sharded), reset in the same step as SB3 expects; SB3's DummyVecEnv in this
+    process when `subprocess` is False."""
     import os
 
     from stable_baselines3.common.monitor import Monitor

@@ -9,6 +9,11 @@ theirs (N processes for N shards, not N + 1), and both sides hand over through s
 seconds before blocking, so a worker waiting for the next action keeps its core while the policy runs, and still
 sleeps through a PPO update. Spinning is turned off when there are more processes than cores.
 
+The hand-over stays in lock-step whatever fails: an exception in the local shard is raised once every worker has
+replied, and a call interrupted while it waits (KeyboardInterrupt) has its replies read before the next; a worker
+that fails or dies closes the vector env and raises RuntimeError; a worker whose parent is gone (killed, even by
+SIGKILL) exits within a couple of seconds; replies larger than a socket's buffer pass (see INLINE_BYTES).
+
 Semantics are Gymnasium's with `autoreset_mode=SAME_STEP`: a finished env is reset in the same step, its last
 observation and info under `final_obs` and `final_info` (a test checks the arrays and infos against
 `SyncVectorEnv` on the same seeds).
@@ -16,16 +21,19 @@ observation and info under `final_obs` and `final_info` (a test checks the array
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import os
 import time
 import traceback
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
+from multiprocessing.reduction import ForkingPickler
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.error import AlreadyPendingCallError, ClosedEnvironmentError, NoAsyncCallError
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import CloudpickleWrapper, batch_space
 
@@ -40,6 +48,21 @@ def _step_one(env: gym.Env, action: Any) -> tuple[Any, float, bool, bool, dict[s
 
 
 SPIN_S = 0.002  # seconds a waiting side polls its semaphore before blocking on it
+# Messages up to this size are sent before the semaphore is released (the receiver finds them whole); a larger one
+# after, as the sender blocks once the socket's buffer (~90 KB of data here) fills, and the receiver only reads
+# after taking the semaphore: a 4-env shard's step infos with camera final_obs, or frames from call("render").
+INLINE_BYTES = 16_384
+
+
+def hand_over(pipe: Connection, sem: Any, message: Any) -> None:
+    """Send `message` through `pipe` and release `sem` for the receiver, in the order that cannot deadlock."""
+    data = ForkingPickler.dumps(message)
+    if len(data) <= INLINE_BYTES:
+        pipe.send_bytes(data)
+        sem.release()
+    else:
+        sem.release()
+        pipe.send_bytes(data)
 
 
 def wait_for(sem: Any, spin: float, alive: Callable[[], bool], poll: float = 1.0) -> None:
@@ -95,21 +118,24 @@ def _worker(fns: list[Callable[[], gym.Env]], pipe: Connection, go: Any, done: A
     try:
         envs = [fn() for fn in fns]
         obs_out = np.frombuffer(shm.get_obj(), dtype=dtype).reshape(shape)[lo: lo + len(envs)]
-        pipe.send(("ok", None))
-        done.release()
-        parent = os.getppid()
+        hand_over(pipe, done, ("ok", None))
+        # The process that made the vector env, by its sentinel: under forkserver os.getppid() is the fork server,
+        # which outlives a parent killed by SIGKILL.
+        parent = mp.parent_process()
+        alive = parent.is_alive if parent is not None else (lambda: True)
         while True:
-            wait_for(go, spin, lambda: os.getppid() == parent)
-            command, data = pipe.recv()  # sent before `go` was released: no wait
+            wait_for(go, spin, alive)
+            command, data = pipe.recv()  # a small one was sent before `go` was released: no wait
             if command == "close":
                 break
-            pipe.send(("ok", run_command(envs, obs_out, command, data)))
-            done.release()
+            hand_over(pipe, done, ("ok", run_command(envs, obs_out, command, data)))
     except (KeyboardInterrupt, EOFError):
         pass
     except Exception:  # the parent re-raises it with this traceback
-        pipe.send(("error", traceback.format_exc()))
-        done.release()
+        try:
+            hand_over(pipe, done, ("error", traceback.format_exc()))
+        except OSError:
+            pass  # the parent is gone
     finally:
         for env in envs:
             env.close()
@@ -149,12 +175,15 @@ class ShardedVectorEnv(VectorEnv):
         self._obs = np.frombuffer(self._shm.get_obj(), dtype=dtype).reshape(shape)
         self._bounds = [(w * n // workers, (w + 1) * n // workers) for w in range(workers)]
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-        self._spin = (SPIN_S if workers <= cores else 0.0) if spin is None else float(spin)
+        processes = workers if local else workers + 1  # the parent waits (spins) too
+        self._spin = (SPIN_S if processes <= cores else 0.0) if spin is None else float(spin)
+        self._pending: list[Any] | None = None  # the shards' actions between step_async and step_wait
         self._local: list[gym.Env] = []
         self._local_bounds = self._bounds[0] if local else (0, 0)
         self._pipes: list[Connection] = []
         self._procs: list[Any] = []
         self._sems: list[tuple[Any, Any]] = []  # (go, done) per worker
+        self._owed: list[bool] = []  # per worker: a reply not read yet (a call interrupted in _gather leaves some)
         self.closed = False
         for lo, hi in self._bounds[1:] if local else self._bounds:
             parent, child = ctx.Pipe()
@@ -167,6 +196,7 @@ class ShardedVectorEnv(VectorEnv):
             self._pipes.append(parent)
             self._procs.append(proc)
             self._sems.append((go, done))
+            self._owed.append(True)  # "ok" once its envs are built
         try:
             self._local = [fn() for fn in env_fns[slice(*self._local_bounds)]]  # built while the workers build theirs
         except Exception:
@@ -179,27 +209,64 @@ class ShardedVectorEnv(VectorEnv):
 
     def _run(self, command: str, per_shard: Sequence[Any] | None = None, data: Any = None) -> list[Any]:
         """Send `command` to every worker, carry it out on the local shard meanwhile, and gather the replies."""
+        if self._pending is not None:
+            raise AlreadyPendingCallError(f"{command} while a step is pending; call step_wait first", "step")
         self._send(command, per_shard, data)
         return self._finish(command, per_shard, data)
 
     def _send(self, command: str, per_shard: Sequence[Any] | None = None, data: Any = None) -> None:
+        if self.closed:
+            raise ClosedEnvironmentError(f"{command} on a closed ShardedVectorEnv")
+        if any(self._owed):
+            self._drain()  # replies a call interrupted in _gather (KeyboardInterrupt) left behind
+            if self.closed:
+                raise ClosedEnvironmentError(f"{command} on a ShardedVectorEnv whose worker died")
         remote = self._shards(per_shard, data)[1 if self._local_bounds[1] else 0:]
-        for (go, _), pipe, payload in zip(self._sems, self._pipes, remote):
-            pipe.send((command, payload))
-            go.release()
+        for w, ((go, _), pipe, payload) in enumerate(zip(self._sems, self._pipes, remote)):
+            try:
+                hand_over(pipe, go, (command, payload))
+            except OSError:  # BrokenPipeError: the worker is gone
+                self._died(w)
+            self._owed[w] = True
 
     def _finish(self, command: str, per_shard: Sequence[Any] | None, data: Any) -> list[Any]:
         local = []
         if self._local_bounds[1]:
             lo, hi = self._local_bounds
-            local = [run_command(self._local, self._obs[lo:hi], command, self._shards(per_shard, data)[0])]
+            try:
+                local = [run_command(self._local, self._obs[lo:hi], command, self._shards(per_shard, data)[0])]
+            except BaseException:
+                self._drain()  # the workers' replies to this command, or the next command would read them
+                raise
         return local + self._gather()
 
+    def _drain(self) -> None:
+        """Take the workers' replies still owed and drop them (a failure among them closes the env)."""
+        with contextlib.suppress(RuntimeError):  # _gather closed the env; the caller raises its own error
+            self._gather()
+
+    def _died(self, w: int) -> None:
+        """Close the vector env and raise RuntimeError: worker `w` is gone."""
+        proc = self._procs[w]
+        proc.join(timeout=1.0)
+        self.close(terminate=True)
+        raise RuntimeError(f"ShardedVectorEnv worker {w} (pid {proc.pid}) died (exit code {proc.exitcode}); the "
+                           "vector env is closed")
+
     def _gather(self) -> list[Any]:
+        """The replies owed, worker by worker; RuntimeError (the env closed) when a worker failed or died."""
         out, errors = [], []
-        for (_, done), pipe, proc in zip(self._sems, self._pipes, self._procs):
-            wait_for(done, self._spin, proc.is_alive)
-            status, data = pipe.recv()
+        for w, ((_, done), pipe, proc) in enumerate(zip(self._sems, self._pipes, self._procs)):
+            if not self._owed[w]:
+                continue
+            try:
+                wait_for(done, self._spin, proc.is_alive)
+                status, data = pipe.recv()
+            except (EOFError, OSError):
+                status = "died"
+            if status == "died":
+                self._died(w)
+            self._owed[w] = False
             (errors if status == "error" else out).append(data)
         if errors:
             self.close(terminate=True)
@@ -224,13 +291,19 @@ class ShardedVectorEnv(VectorEnv):
 
     def step_async(self, actions: np.ndarray) -> None:
         """Send every worker its shard's actions (the local shard's wait for step_wait)."""
+        if self._pending is not None:
+            raise AlreadyPendingCallError("step_async while a step is pending; call step_wait first", "step")
         actions = np.asarray(actions)
-        self._pending = [actions[lo:hi] for lo, hi in self._bounds]
-        self._send("step", self._pending)
+        pending = [actions[lo:hi] for lo, hi in self._bounds]
+        self._send("step", pending)
+        self._pending = pending
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step the local shard, wait for every worker: observations, rewards, terminations, truncations, infos."""
-        parts = self._finish("step", self._pending, None)
+        if self._pending is None:
+            raise NoAsyncCallError("step_wait without a pending step; call step_async first", "step")
+        pending, self._pending = self._pending, None
+        parts = self._finish("step", pending, None)
         rewards = np.array([r for part in parts for r in part[0]], dtype=np.float64)
         terms = np.array([t for part in parts for t in part[1]], dtype=bool)
         truncs = np.array([t for part in parts for t in part[2]], dtype=bool)
@@ -256,20 +329,40 @@ class ShardedVectorEnv(VectorEnv):
         return tuple(v for part in self._run("call", data=(name, args, kwargs)) for v in part)
 
     def close(self, terminate: bool = False, **kwargs: Any) -> None:
-        """Stop the workers (politely unless `terminate`)."""
+        """Stop the workers (politely unless `terminate`; one that does not stop within 10 s is terminated)."""
         if getattr(self, "closed", True):
             return
         self.closed = True
-        for env in self._local:
-            env.close()
-        for pipe, proc, (go, _) in zip(self._pipes, self._procs, self._sems):
-            if not terminate and proc.is_alive():
-                try:
-                    pipe.send(("close", None))
-                    go.release()
-                except (BrokenPipeError, OSError):
-                    pass
-            proc.join(timeout=10)
-            if proc.is_alive():
-                proc.terminate()
-            pipe.close()
+        self._pending = None
+        try:
+            for w, (pipe, proc, (go, _)) in enumerate(zip(self._pipes, self._procs, self._sems)):
+                if not terminate and proc.is_alive():
+                    if self._owed[w]:
+                        self._discard(w, 10.0)  # a worker blocked sending a pending step's reply never reads "close"
+                    try:
+                        hand_over(pipe, go, ("close", None))
+                    except OSError:
+                        pass
+            for pipe, proc in zip(self._pipes, self._procs):
+                proc.join(timeout=10)
+                if proc.is_alive():
+                    proc.terminate()
+                    proc.join()
+                pipe.close()
+        finally:
+            for env in self._local:
+                env.close()
+
+    def _discard(self, w: int, timeout: float) -> None:
+        """Read and drop worker `w`'s owed reply if it comes within `timeout` seconds."""
+        (_, done), pipe, proc = self._sems[w], self._pipes[w], self._procs[w]
+        deadline = time.monotonic() + timeout
+        while proc.is_alive() and time.monotonic() < deadline:
+            if done.acquire(timeout=0.05):
+                if pipe.poll(max(deadline - time.monotonic(), 0.0)):
+                    try:
+                        pipe.recv()
+                    except (EOFError, OSError):
+                        pass
+                self._owed[w] = False
+                return
