@@ -132,7 +132,8 @@ class Machine:
         self.roll = 0.0
         self.position = (0.0, 0.0, 0.0)
         self.surface_friction = math.inf  # the ground's friction coefficient under the machine (terrain sets it)
-        # (x, y) -> that coefficient (sim.world.World.friction_at), read at every `sync`; None: set by the caller.
+        # (x, y) -> that coefficient (sim.world.World.friction_at), read at `reset` and every `sync`; None: set by
+        # the caller.
         self.ground: Callable[[float, float], float] | None = None
         self.count_grade = True  # add the grade force (see command); terrain trials turn it off
 
@@ -185,6 +186,8 @@ class Machine:
         self.speed = self.steering = self.yaw_rate = self.pitch = 0.0
         self.yaw = yaw
         self.position = (x, y, z)
+        if self.ground is not None:  # else the first substep would use the friction where the last episode ended
+            self.surface_friction = self.ground(x, y)
         p.resetBasePositionAndOrientation(self.body, [x, y, z + 0.005], p.getQuaternionFromEuler([0, 0, yaw]),
                                           physicsClientId=self.client)
         p.resetBaseVelocity(self.body, [0, 0, 0], [0, 0, 0], physicsClientId=self.client)

@@ -25,6 +25,7 @@ KINDS = ("roots", "rough", "steps", "slick")
 ROUGH_KINDS = ("roots", "rough")  # bumps over the whole patch, drivable
 LIFT = 0.005  # metres between the slab top and a patch's edges: its colour shows over the slab, a wheel rolls over it
 RESOLUTION = 0.1  # metres between the samples of a rough patch's bumps (as the runways')
+MAX_SIDE, MAX_STEPS = 50.0, 50  # a record's depth and width (m) and steps: the mesh grows with them (generated: 3 m, 3)
 _COARSE = TileGeometry(size=1.0, resolution=0.5)  # flat and step tiles: exact with three samples a side
 Record = Mapping[str, Any]
 Piece = tuple[np.ndarray, np.ndarray, np.ndarray]  # local x [nx], local y [ny], heights z [ny, nx] above the slab
@@ -147,11 +148,17 @@ def check(rec: Any) -> str | None:
     if pos.shape != (3,) or size.shape != (3,) or not (np.isfinite(pos).all() and np.isfinite(size).all()
                                                        and math.isfinite(yaw)) or size.min() < 0:
         return "needs finite position [x, y, z], yaw and size [depth, width, height] (size >= 0)"
+    if max(size[0], size[1]) > MAX_SIDE:
+        return f"size must be at most {MAX_SIDE:g} m deep and wide, got {size[0]:g} x {size[1]:g}"
+    seed = rec.get("seed", 0)
+    if rec["kind"] in ROUGH_KINDS and (not isinstance(seed, int) or isinstance(seed, bool) or seed < 0):
+        return f"seed (of the bumps) must be an integer >= 0, got {seed!r}"
     if rec["kind"] == "steps":
         n, tread = rec.get("steps"), rec.get("tread")
-        if (not isinstance(n, int) or isinstance(n, bool) or n < 1 or not isinstance(tread, (int, float))
-                or not 0 < tread or n * tread > size[0] + 1e-3):
-            return "a stair needs steps (an integer >= 1) and a tread > 0 with steps x tread <= its depth"
+        if (not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_STEPS
+                or not isinstance(tread, (int, float)) or not 0 < tread or n * tread > size[0] + 1e-3):
+            return (f"a stair needs steps (an integer 1 to {MAX_STEPS}) and a tread > 0 with steps x tread <= its "
+                    "depth")
     return None
 
 

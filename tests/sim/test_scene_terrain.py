@@ -120,6 +120,13 @@ def test_bad_terrain_config_and_records_are_refused() -> None:
         Scene.parse(bad)
     with pytest.raises(SceneError, match=r"terrain\[0\] surface must be one of asphalt"):
         Scene.parse(_street({**_slick(10.0), "surface": "ice"}))
+    for seed in ("abc", -5, 1.5):  # World() raised ValueError from numpy for these
+        with pytest.raises(SceneError, match=r"terrain\[0\] seed \(of the bumps\) must be an integer >= 0"):
+            Scene.parse(_street({**_rough(8.0), "seed": seed}))
+    with pytest.raises(SceneError, match=r"terrain\[0\] size must be at most 50 m deep and wide, got 2.4 x 3000"):
+        Scene.parse(_street(_rough(8.0, length=3000.0)))  # a 0.1 m grid of 30 million samples
+    with pytest.raises(SceneError, match=r"terrain\[0\] a stair needs steps \(an integer 1 to 50\)"):
+        Scene.parse(_street({**_stair(20.0), "steps": 1000, "tread": 0.0001}))
 
 
 def _drive(spec: dict[str, Any], x1: float = 20.0) -> dict[str, np.ndarray]:
@@ -154,6 +161,18 @@ def test_a_machine_rides_the_bumps_and_reads_the_patch_friction() -> None:
     assert set(rough["mu"][(rough["x"] > 9.0) & (rough["x"] < 10.5)]) == {0.65}  # pavers
     assert set(rough["mu"][(rough["x"] > 15.0) & (rough["x"] < 16.5)]) == {0.45}  # wet
     assert set(rough["mu"][rough["x"] < 7.0]) == {math.inf} == set(flat["mu"])  # off patches the tyres decide
+
+
+def test_reset_reads_the_friction_under_the_new_position() -> None:
+    world = World(Scene.parse(_street(_slick(8.0))))
+    try:
+        m = Machine(world.client, machine_spec("wheelchair"))
+        m.ground = world.friction_at
+        for x, mu in ((9.5, 0.45), (4.0, math.inf), (9.5, 0.45)):  # on the wet patch, off it, on it again
+            m.reset(x, Y_CLEAR, world.surface_height(x, Y_CLEAR), 0.0, np.random.default_rng(0))
+            assert m.surface_friction == mu  # not the last episode's, before the first sync
+    finally:
+        world.close()
 
 
 def test_lidar_sees_a_step_and_the_grid_agrees_with_bullet() -> None:
