@@ -229,6 +229,7 @@ def in_flight(workers: int | None, cpus: int) -> int:
     # many), Ray itself runs at most `cpus` tasks at once, and two a CPU keep every worker busy while the driver
     # collects a result and submits the next: one in flight left a lone worker idle for each round trip (2 workers
     # went from 1.6-1.76x to 1.86-2.12x of one). On a larger cluster `workers` is the limit on tasks in flight.
+    cpus = max(cpus, 1)  # a cluster reporting less than one CPU: with none in flight the map would return nothing
     return 2 * cpus if workers is None or cpus <= workers else workers
 
 

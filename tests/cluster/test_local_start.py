@@ -32,3 +32,5 @@ def test_two_tasks_a_cpu_stay_in_flight_on_a_cluster_sized_by_workers() -> None:
     # exactly `workers` CPUs, so Ray still runs one at a time); on a bigger cluster `workers` caps the tasks.
     assert in_flight(1, 1) == 2 and in_flight(2, 2) == 4 and in_flight(None, 8) == 16
     assert in_flight(4, 64) == 4
+    # A cluster reporting less than one CPU: 0 in flight made the ray map return no results at all.
+    assert in_flight(None, 0) == 2 and in_flight(2, 0) == 2
