@@ -104,4 +104,6 @@ if __name__ == "__main__":
     ap.add_argument("--speed", type=float, default=PAPER_SPEED,
                     help=f"one speed (m/s) every machine holds (default {PAPER_SPEED}, the paper's); 0: full throttle")
     a = ap.parse_args()
+    if not 0.0 <= a.speed < 100.0:  # NaN fails too
+        ap.error(f"--speed must be 0 (full throttle) or a speed in m/s below 100, got {a.speed}")
     main(a.seeds, a.out, a.model, a.speed or None)

@@ -106,13 +106,13 @@ def friction_at(runway: Runway, x: float, y: float) -> float:
 def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int = 0, *, model: str = "force",
                   speed: float | None = None, dt: float = 0.02, max_time: float = 200.0, stuck_time: float = 2.0,
                   slow_fraction: float = 0.25) -> dict[str, Any]:
-    """Table 4's trial: full throttle, no steering, on a fresh runway; returns the x-displacement (m), the time
+    """Table 4's trial: straight ahead, no steering, on a fresh runway; returns the x-displacement (m), the time
     (s) until the trial ended, and why: `toppled`, `stuck` (less than 0.1 m in `stuck_time` s), `slow` (below
-    `slow_fraction` of the machine's top speed for `stuck_time` s once it had reached it), `end` or `time`.
+    `slow_fraction` of the top speed, or of `speed`, for `stuck_time` s once it had reached it), `end` or `time`.
     `model`: "wheels" (sim.terrain.wheels, driven wheel links) or "force" (the envs' machine model).
-    `speed`: one commanded speed (m/s) for every machine instead of full throttle; a machine whose top speed is
-    lower has it raised to `speed` for the trial, so that every machine meets the terrain at the same speed (the
-    paper's trials did: see PAPER_SPEED)."""
+    `speed`: None drives the machine at full throttle with its own engine and top speed; a number (m/s) is held by
+    every machine through an ideal drive (top speed raised to at least twice `speed`, engine force twice the
+    traction limit), so that all meet the terrain at the same speed (the paper's trials did: see PAPER_SPEED)."""
     from sim.terrain.wheels import WheeledMachine
 
     if model not in ("wheels", "force"):
