@@ -76,8 +76,8 @@ def test_a_call_interrupted_while_it_waits_leaves_no_stale_reply() -> None:
     venv = ShardedVectorEnv(counters(2), workers=2, local=False)
     try:
         venv.reset(seed=0)
-        with pytest.raises(Interrupted), alarm(0.2):
-            venv.step(_actions(2, e1=SLOW))  # worker 1 sleeps 0.5 s; the parent is interrupted waiting for it
+        with pytest.raises(Interrupted), alarm(0.3):
+            venv.step(_actions(2, e1=SLOW))  # worker 1 sleeps 1 s; the parent is interrupted waiting for it
         with alarm(30):
             obs, *_, info = venv.step(_actions(2))
         _in_step(venv, info)

@@ -11,7 +11,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-RAISE, EXIT, BIG, SLOW = 99.0, -99.0, 50.0, 7.0  # actions: raise ValueError, os._exit(3), a 400 KB info, sleep 0.5 s
+RAISE, EXIT, BIG, SLOW = 99.0, -99.0, 50.0, 7.0  # actions: raise ValueError, os._exit(3), a 400 KB info, sleep 1 s
 
 
 class Counter(gym.Env):
@@ -36,7 +36,7 @@ class Counter(gym.Env):
         if a == EXIT:
             os._exit(3)
         if a == SLOW:
-            time.sleep(0.5)
+            time.sleep(1.0)
         self.n += 1
         info: dict[str, Any] = {"n": self.n}
         if a == BIG:
