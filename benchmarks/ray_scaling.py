@@ -4,7 +4,8 @@ Usage: python benchmarks/ray_scaling.py --budget {smoke,full} [--out DIR] [--par
 
 Prints and writes (ray_scaling.json, ray_scaling.csv under --out, default benchmarks/results/issue18):
 - scenes/s of `curbside scenes dataset` (the metaurban12k preset, 3 blocks) on a local Ray cluster of 1 and of 2
-  CPUs, timed after the workers have started and imported the simulator (the cluster start is reported apart);
+  CPUs, timed after the workers have started and imported the simulator (the cluster start is reported apart), in
+  `rounds` back-to-back pairs (1 worker, then 2; 3 pairs with the full budget), the figure the median pair's ratio;
 - eval episodes/s of `curbside sim eval` (PointNav, the expert) the same way (Ray workers keep the env they built
   in the warm-up; the local run builds its env inside the timed call, ~0.1 s);
 - RLlib PPO env steps/s with 2 env runners against SB3 PPO in one process with as many envs (2; and 8 with the
@@ -35,9 +36,10 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 BUDGETS = {
-    "smoke": {"scenes": 6, "episodes": 6, "ppo_steps": 2048, "ppo_envs": (2,), "node_scenes": 8, "node_episodes": 8},
+    "smoke": {"scenes": 6, "episodes": 6, "ppo_steps": 2048, "ppo_envs": (2,), "node_scenes": 8, "node_episodes": 8,
+              "rounds": 1},
     "full": {"scenes": 300, "episodes": 80, "ppo_steps": 16384, "ppo_envs": (2, 8), "node_scenes": 24,
-             "node_episodes": 24},
+             "node_episodes": 24, "rounds": 3},
 }
 SCENE_BASE = {"blocks": 3, "preset": "metaurban12k"}  # `curbside scenes dataset`'s defaults
 EVAL_ENV = "curbside/PointNav-v0"
@@ -69,8 +71,21 @@ def _ray_local(cpus: int) -> float:
     return time.perf_counter() - t0
 
 
-def scenes_part(n: int, work: Path) -> dict[str, Any]:
-    """Scenes/s in-process and on Ray with 1 and 2 workers; whether all outputs are the same bytes."""
+def _pair_up(out: dict[str, Any], rate: str) -> None:
+    """Summarise paired rounds: each round's 2-vs-1 ratio, their median (the figure), and the median round's
+    runs as `ray_1` / `ray_2` (the machine's speed drifts between runs minutes apart: pairs taken back to back
+    compare like with like)."""
+    ones, twos = out["rounds_ray_1"], out["rounds_ray_2"]
+    ratios = [b[rate] / a[rate] for a, b in zip(ones, twos)]
+    mid = sorted(range(len(ratios)), key=ratios.__getitem__)[len(ratios) // 2]
+    out["ray_1"], out["ray_2"] = ones[mid], twos[mid]
+    out["round_speedups"] = ratios
+    out["speedup_2_vs_1"] = ratios[mid]
+
+
+def scenes_part(n: int, work: Path, rounds: int = 1) -> dict[str, Any]:
+    """Scenes/s in-process and on Ray with 1 and 2 workers (`rounds` pairs); whether all outputs are the same
+    bytes."""
     import ray
 
     from sim.scene.dataset import build_dataset
@@ -81,25 +96,28 @@ def scenes_part(n: int, work: Path) -> dict[str, Any]:
     build_dataset("train", n, work / "scenes_local", base=SCENE_BASE, executor="local")
     out["local"] = {"seconds": time.perf_counter() - t0, "scenes_per_s": n / (time.perf_counter() - t0), "load1": load}
     digest = tree_digest(work / "scenes_local")
-    for w in (1, 2):
-        start = _ray_local(w)
-        try:
-            # Warm-up on other seeds (the finetune split): every worker starts and imports the generator (8 scenes
-            # a worker: with 2 a worker, Ray could hand both of the first two to one worker, leaving the other cold).
-            build_dataset("finetune", 8 * w, work / f"warm{w}", base=SCENE_BASE, executor="ray", workers=w)
-            load, t0 = load1(), time.perf_counter()
-            build_dataset("train", n, work / f"scenes_ray{w}", base=SCENE_BASE, executor="ray", workers=w)
-            dt = time.perf_counter() - t0
-        finally:
-            ray.shutdown()
-        out[f"ray_{w}"] = {"seconds": dt, "scenes_per_s": n / dt, "cluster_start_s": start, "load1": load,
-                           "same_bytes_as_local": tree_digest(work / f"scenes_ray{w}") == digest}
-    out["speedup_2_vs_1"] = out["ray_2"]["scenes_per_s"] / out["ray_1"]["scenes_per_s"]
+    for r in range(rounds):  # 1 then 2 workers, back to back, `rounds` times: the ratio of each pair
+        for w in (1, 2):
+            start = _ray_local(w)
+            try:
+                # Warm-up on other seeds (the finetune split): every worker starts and imports the generator (8
+                # scenes a worker: with 2 a worker, Ray could hand both of the first two to one worker).
+                build_dataset("finetune", 8 * w, work / f"warm{w}_{r}", base=SCENE_BASE, executor="ray", workers=w)
+                load, t0 = load1(), time.perf_counter()
+                build_dataset("train", n, work / f"scenes_ray{w}_{r}", base=SCENE_BASE, executor="ray", workers=w)
+                dt = time.perf_counter() - t0
+            finally:
+                ray.shutdown()
+            out.setdefault(f"rounds_ray_{w}", []).append(
+                {"seconds": dt, "scenes_per_s": n / dt, "cluster_start_s": start, "load1": load,
+                 "same_bytes_as_local": tree_digest(work / f"scenes_ray{w}_{r}") == digest})
+    _pair_up(out, "scenes_per_s")
     return out
 
 
-def eval_part(n: int) -> dict[str, Any]:
-    """Eval episodes/s in-process and on Ray with 1 and 2 workers; whether the summaries are the same bytes."""
+def eval_part(n: int, rounds: int = 1) -> dict[str, Any]:
+    """Eval episodes/s in-process and on Ray with 1 and 2 workers (`rounds` pairs); whether the summaries are the
+    same bytes."""
     import ray
 
     from sim.eval import evaluate
@@ -110,18 +128,20 @@ def eval_part(n: int) -> dict[str, Any]:
     local = json.dumps(evaluate(EVAL_ENV, "expert", n, {}, seed=0), sort_keys=True)
     out["local"] = {"seconds": time.perf_counter() - t0, "episodes_per_s": n / (time.perf_counter() - t0),
                     "load1": load}
-    for w in (1, 2):
-        start = _ray_local(w)
-        try:
-            evaluate(EVAL_ENV, "expert", 2 * w, {}, seed=10_000, executor="ray", workers=w)  # workers build their env
-            load, t0 = load1(), time.perf_counter()
-            summary = evaluate(EVAL_ENV, "expert", n, {}, seed=0, executor="ray", workers=w)
-            dt = time.perf_counter() - t0
-        finally:
-            ray.shutdown()
-        out[f"ray_{w}"] = {"seconds": dt, "episodes_per_s": n / dt, "cluster_start_s": start, "load1": load,
-                           "same_bytes_as_local": json.dumps(summary, sort_keys=True) == local}
-    out["speedup_2_vs_1"] = out["ray_2"]["episodes_per_s"] / out["ray_1"]["episodes_per_s"]
+    for r in range(rounds):  # 1 then 2 workers, back to back, `rounds` times (see _pair_up)
+        for w in (1, 2):
+            start = _ray_local(w)
+            try:
+                evaluate(EVAL_ENV, "expert", 2 * w, {}, seed=10_000, executor="ray", workers=w)  # workers build envs
+                load, t0 = load1(), time.perf_counter()
+                summary = evaluate(EVAL_ENV, "expert", n, {}, seed=0, executor="ray", workers=w)
+                dt = time.perf_counter() - t0
+            finally:
+                ray.shutdown()
+            out.setdefault(f"rounds_ray_{w}", []).append(
+                {"seconds": dt, "episodes_per_s": n / dt, "cluster_start_s": start, "load1": load,
+                 "same_bytes_as_local": json.dumps(summary, sort_keys=True) == local})
+    _pair_up(out, "episodes_per_s")
     return out
 
 
@@ -193,6 +213,11 @@ def nodes_part(n_scenes: int, n_episodes: int, work: Path) -> dict[str, Any]:
 PARTS = ("scenes", "eval", "ppo", "nodes")
 
 
+def _ratios(part: dict[str, Any]) -> str:
+    """The rounds' 2-vs-1 ratios as text."""
+    return ", ".join(f"{r:.2f}x" for r in part["round_speedups"])
+
+
 def main(budget: str, out: Path, parts: tuple[str, ...] = PARTS) -> dict[str, Any]:
     """Run the chosen parts; print and write the figures (ray_scaling.json/.csv, or ray_scaling_<parts>.* for some)."""
     b = BUDGETS[budget]
@@ -201,15 +226,17 @@ def main(budget: str, out: Path, parts: tuple[str, ...] = PARTS) -> dict[str, An
     work = Path(tempfile.mkdtemp(prefix="ray_scaling_"))
     try:
         if "scenes" in parts:
-            result["scenes"] = scenes_part(b["scenes"], work)
+            result["scenes"] = scenes_part(b["scenes"], work, b["rounds"])
             print(f"scenes/s: local {result['scenes']['local']['scenes_per_s']:.2f}, Ray 1 worker "
                   f"{result['scenes']['ray_1']['scenes_per_s']:.2f}, 2 workers "
-                  f"{result['scenes']['ray_2']['scenes_per_s']:.2f} ({result['scenes']['speedup_2_vs_1']:.2f}x)", flush=True)
+                  f"{result['scenes']['ray_2']['scenes_per_s']:.2f} ({result['scenes']['speedup_2_vs_1']:.2f}x, the median of "
+                  f"{_ratios(result['scenes'])})", flush=True)
         if "eval" in parts:
-            result["eval"] = eval_part(b["episodes"])
+            result["eval"] = eval_part(b["episodes"], b["rounds"])
             print(f"eval episodes/s: local {result['eval']['local']['episodes_per_s']:.2f}, Ray 1 worker "
                   f"{result['eval']['ray_1']['episodes_per_s']:.2f}, 2 workers "
-                  f"{result['eval']['ray_2']['episodes_per_s']:.2f} ({result['eval']['speedup_2_vs_1']:.2f}x)", flush=True)
+                  f"{result['eval']['ray_2']['episodes_per_s']:.2f} ({result['eval']['speedup_2_vs_1']:.2f}x, the median of "
+                  f"{_ratios(result['eval'])})", flush=True)
         if "ppo" in parts:
             result["ppo"] = ppo_part(b["ppo_steps"], b["ppo_envs"], work)
             for n in b["ppo_envs"]:
