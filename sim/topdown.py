@@ -1,10 +1,10 @@
 """The one top-down drawing of a scene and what moves on it (PIL, no display), in the colours of `sim/palette.py`.
 
-Layers, bottom up: ground, roads (islands, lane lines), sidewalks (every zone, or buildings only), crosswalks
-and curb ramps, terrain patches by surface (stairs outlined, a line on each riser), objects by object class, route, trajectory, vehicles, agents with trails, ego. Three callers
-differ only in window, resolution and decoration: the scene plot (`sim.scene.render.render_scene`, a PNG with
-axes and legend), the agents' map frame (`sim.agents.render.draw_top_down`, `SocialNav render()`) and the
-rollout GIF (`sim.render.rollout_gif`).
+Layers, bottom up: ground, roads (islands, lane lines), sidewalks (every zone, or buildings only), crosswalks and
+curb ramps, terrain patches by surface (stairs outlined, a line on each riser), objects by object class, route,
+trajectory, vehicles, agents with trails, ego. Three callers differ only in window, resolution and decoration: the
+scene plot (`sim.scene.render.render_scene`, a PNG with axes and legend), the agents' map frame
+(`sim.agents.render.draw_top_down`, `SocialNav render()`) and the rollout GIF (`sim.render.rollout_gif`).
 """
 
 from __future__ import annotations

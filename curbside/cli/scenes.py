@@ -6,6 +6,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from enum import Enum
 from pathlib import Path
+from typing import Any
 
 import typer
 
@@ -20,6 +21,12 @@ from curbside.cli.executor_options import (
 )
 
 app = typer.Typer(help="Generate, render and collect urban scenes (scene specs as JSON).", no_args_is_help=True)
+
+
+def _terrain_density_option() -> Any:
+    """The --terrain-density option of `generate` and `dataset`."""
+    return typer.Option(1.0, "--terrain-density", help="Terrain patches (tree-root heave, uneven pavers, entrance "
+                        "steps, wet ground): 1 a city's typical share, 0 none, at most 10 (docs/terrain.md).")
 
 
 # Choices as Enums so `--help` lists them and a typo fails before any work (names kept in sync by tests).
@@ -81,9 +88,7 @@ def generate(
     catalog: Path | None = typer.Option(None, help=f"Asset catalog (default: {DEFAULT_CATALOG} if present)."),
     crosswalk_density: float = typer.Option(0.5, "--crosswalk-density",
                                             help="Fraction of crosswalk candidates built, in [0, 1]."),
-    terrain_density: float = typer.Option(1.0, "--terrain-density", help="Terrain patches (tree-root heave, uneven "
-                                          "pavers, entrance steps, wet ground): 1 a city's typical share, 0 none, "
-                                          "at most 10 (docs/terrain.md)."),
+    terrain_density: float = _terrain_density_option(),
     from_file: Path | None = typer.Option(None, "--from", exists=True, dir_okay=False, readable=True,
                                           help="A custom scene YAML (blocks, templates, object pool and density, "
                                           "named objects, agent groups; docs/scenes.md) instead of the options."),
@@ -146,9 +151,7 @@ def dataset(
     count: int = typer.Option(100, min=1, max=MAX_COUNT, help="Number of scenes."),
     blocks: str = typer.Option("3", help="Blocks per scene (count 1-64 or codes)."),
     object_density: float = typer.Option(1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."),
-    terrain_density: float = typer.Option(1.0, "--terrain-density", help="Terrain patches (tree-root heave, uneven "
-                                          "pavers, entrance steps, wet ground): 1 a city's typical share, 0 none, "
-                                          "at most 10 (docs/terrain.md)."),
+    terrain_density: float = _terrain_density_option(),
     catalog: Path | None = typer.Option(None, help=f"Asset catalog (default: {DEFAULT_CATALOG} if present)."),
     workers: int | None = workers_option(help="Worker processes (process; default: every core), or scenes at once "
                                          "on the cluster (ray; default: every cluster CPU)."),

@@ -4,12 +4,13 @@ The PyBullet world's static bodies that stop a horizontal ray at height H above 
 (6-18 m tall), objects (a box from their base z to z + height) when base <= H <= top, and raised sidewalks (0 to the
 curb height, minus the curb ramps) when H <= curb height. Roads and crosswalks are visual only; the ground is below
 every ray. Terrain patches (sim.terrain.patches) stop a scan below their top (a stair's steps; rough ground's bumps
-stay below the scans) and a body at a stair (rough and slick ground is driven over). The machine's base sits on the sidewalk top (the curb height) or on the road (0), its `level`; the high
-scan runs at base + `lidar.height`, the low scan at base + `lidar.low_height`, and the body spans base to base +
-the machine's height. Each (level, what) is an occupancy grid at `resolution` whose cells hold the distance to the
-nearest occupied cell in cells (chessboard, `scipy.ndimage.distance_transform_cdt`: never more than the Euclidean
-distance, so a march step stays safe, and 3-4x faster to build; 0 = occupied, capped at 254); a ring of RING cells
-around the grid holds 255, the value rays read once they leave the scene (`sim.raycast.march`).
+stay below the scans) and a body at a stair (rough and slick ground is driven over). The machine's base sits on the
+sidewalk top (the curb height) or on the road (0), its `level`; the high scan runs at base + `lidar.height`, the low
+scan at base + `lidar.low_height`, and the body spans base to base + the machine's height. Each (level, what) is an
+occupancy grid at `resolution` whose cells hold the distance to the nearest occupied cell in cells (chessboard,
+`scipy.ndimage.distance_transform_cdt`: never more than the Euclidean distance, so a march step stays safe, and 3-4x
+faster to build; 0 = occupied, capped at 254); a ring of RING cells around the grid holds 255, the value rays read
+once they leave the scene (`sim.raycast.march`).
 
 The batched env uses all three grids of both levels; the PyBullet env's `sim.sensors.GridLidar` the two scans only
 (`body_height` None).

@@ -71,8 +71,7 @@ def _skirt(nx: int, ny: int, first: int) -> tuple[np.ndarray, list[int]]:
 
 def mesh(rec: Record) -> tuple[list[list[float]], list[int]]:
     """World vertices and triangles of the patch: its tile surfaces `LIFT` above the slab, with skirts."""
-    x0, y0, base = (float(v) for v in rec["position"])
-    c, s = math.cos(float(rec["yaw"])), math.sin(float(rec["yaw"]))
+    base = float(rec["position"][2])
     verts: list[np.ndarray] = []
     tris: list[int] = []
     n = 0
@@ -86,17 +85,21 @@ def mesh(rec: Record) -> tuple[list[list[float]], list[int]]:
         verts += [top_a, foot]
         n += len(top_a) + len(foot)
     v = np.concatenate(verts)
-    world = np.column_stack([x0 + v[:, 0] * c - v[:, 1] * s, y0 + v[:, 0] * s + v[:, 1] * c, base + LIFT + v[:, 2]])
+    world = np.column_stack([to_world(rec, v[:, :2]), base + LIFT + v[:, 2]])
     return world.tolist(), tris
+
+
+def to_world(rec: Record, local: np.ndarray) -> np.ndarray:
+    """World [N, 2] of points [N, 2] in the patch's local frame (x along `yaw`, origin at its centre)."""
+    x0, y0 = float(rec["position"][0]), float(rec["position"][1])
+    c, s = math.cos(float(rec["yaw"])), math.sin(float(rec["yaw"]))
+    return np.column_stack([x0 + local[:, 0] * c - local[:, 1] * s, y0 + local[:, 0] * s + local[:, 1] * c])
 
 
 def _corners(rec: Record, x_lo: float, x_hi: float) -> np.ndarray:
     """World corners [4, 2] of the part of the patch between local x_lo and x_hi (its whole width)."""
-    x0, y0 = float(rec["position"][0]), float(rec["position"][1])
-    c, s = math.cos(float(rec["yaw"])), math.sin(float(rec["yaw"]))
     hw = 0.5 * float(rec["size"][1])
-    local = np.array([[x_lo, -hw], [x_hi, -hw], [x_hi, hw], [x_lo, hw]])
-    return np.column_stack([x0 + local[:, 0] * c - local[:, 1] * s, y0 + local[:, 0] * s + local[:, 1] * c])
+    return to_world(rec, np.array([[x_lo, -hw], [x_hi, -hw], [x_hi, hw], [x_lo, hw]]))
 
 
 def risers(rec: Record) -> list[float]:
