@@ -13,6 +13,7 @@ from scipy import ndimage
 from scipy.sparse import diags
 from scipy.sparse.csgraph import dijkstra
 
+from sim.astar import astar_chain
 from sim.scene.grid import SIDEWALK, grid_graph, obstacle_mask
 from sim.scene.polyline import Polyline
 from sim.scene.scene import Scene, as_scene
@@ -103,6 +104,10 @@ class RoutePlanner:
         prefer = half_width + margin + comfort
         self.penalty = 1.0 + 2.0 * np.clip(1.0 - clearance / prefer, 0.0, 1.0)
         self.graph = grid_graph(self.free, g.resolution, cost=self.penalty)
+        sidewalk = g.mask[rows, cols] == SIDEWALK
+        candidates = np.nonzero(sidewalk)[0] if sidewalk.any() else np.arange(len(rows))
+        # Per node: on a sidewalk; the nodes routes start and end on; their world (x, y).
+        self._starts = (sidewalk, candidates, g.cell_to_world(np.stack([rows[candidates], cols[candidates]], -1)))
 
     def _nearest_node(self, x: float, y: float) -> int:
         pts = self.grid.cell_to_world(np.stack([self.rows, self.cols], -1))
@@ -169,28 +174,24 @@ class RoutePlanner:
 
     def sample(self, rng: np.random.Generator, min_length: float = 5.0, max_length: float = 60.0,
                tries: int = 20, spacing: float = 0.25) -> Route:
-        """Draw a start on a sidewalk cell and a goal whose shortest-path distance is in [min, max]; plan it.
+        """Draw a start on a sidewalk cell and a goal on a sidewalk cell within `max_length` of it (straight line);
+        plan it (A*, `sim.astar`) and keep it when its length is in [min, max], else draw both again.
 
         Routes longer than LONG_ROUTE (120 m) are chained legs (`_sample_legs`): in a 1-3 block scene no two
         points are 400 m apart, but a delivery round along both sides of the streets is.
         """
-        sidewalk = self.grid.mask[self.rows, self.cols] == SIDEWALK
-        candidates = np.nonzero(sidewalk)[0]
-        if len(candidates) == 0:
-            candidates = np.arange(len(self.rows))
+        sidewalk, candidates, xy = self._starts
         if min_length > LONG_ROUTE:
             return self._sample_legs(rng, min_length, max_length, candidates, sidewalk, spacing)
         for _ in range(tries):
-            start = int(candidates[rng.integers(len(candidates))])
-            dist, pred = dijkstra(self.graph, indices=start, limit=1.5 * max_length, return_predecessors=True)
-            ok = np.nonzero((dist >= min_length) & np.isfinite(dist) & sidewalk)[0]
-            if len(ok) == 0:
+            k = int(rng.integers(len(candidates)))
+            near = np.nonzero(np.hypot(xy[:, 0] - xy[k, 0], xy[:, 1] - xy[k, 1]) <= max_length)[0]
+            start, goal = int(candidates[k]), int(candidates[near[rng.integers(len(near))]])
+            # The cost bound is Dijkstra's old search radius: edges near obstacles cost up to 3x their length.
+            cost, chain = astar_chain(self.graph, self.rows, self.cols, self.grid.resolution, start, goal,
+                                      1.5 * max_length)
+            if cost < min_length or not chain:
                 continue
-            goal = int(ok[rng.integers(len(ok))])
-            chain = [goal]
-            while chain[-1] != start:
-                chain.append(int(pred[chain[-1]]))
-            chain.reverse()
             route = self._route(chain, spacing)
             if min_length <= route.length <= max_length:
                 return route
