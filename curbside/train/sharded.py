@@ -14,6 +14,10 @@ replied, and a call interrupted while it waits (KeyboardInterrupt) has its repli
 that fails or dies closes the vector env and raises RuntimeError; a worker whose parent is gone (killed, even by
 SIGKILL) exits within a couple of seconds; replies larger than a socket's buffer pass (see INLINE_BYTES).
 
+A step passes through shared memory only (`Shared`): actions, observations, rewards and flags in shared arrays, the
+infos pickled into a per-worker buffer, the semaphores the only system calls; other commands, and infos too big for
+the buffer, go through the worker's pipe. The local shard's infos are batched while the workers step.
+
 Semantics are Gymnasium's with `autoreset_mode=SAME_STEP`: a finished env is reset in the same step, its last
 observation and info under `final_obs` and `final_info` (a test checks the arrays and infos against
 `SyncVectorEnv` on the same seeds).
@@ -24,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing as mp
 import os
+import pickle
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -78,17 +83,38 @@ def wait_for(sem: Any, spin: float, alive: Callable[[], bool], poll: float = 1.0
             raise EOFError("the other side of a ShardedVectorEnv hand-over died")
 
 
-def run_command(envs: Sequence[gym.Env], obs_out: np.ndarray, command: str, data: Any) -> Any:
-    """Carry out one command on a shard's envs (observations written into `obs_out`); the reply's payload."""
+class Shared:
+    """The arrays every process of a ShardedVectorEnv maps: per env its observation, action, reward and flags; per
+    worker a control word (reply size) and a buffer for its step infos. Built in the parent, rebuilt from the same
+    raw buffers in a worker (`views`)."""
+
+    def __init__(self, ctx: Any, n: int, workers: int, obs_space: gym.spaces.Box, act_space: gym.Space) -> None:
+        self.spec = {"obs": ((n, *obs_space.shape), np.dtype(obs_space.dtype).str),
+                     "rewards": ((n,), "<f8"), "terms": ((n,), "|b1"), "truncs": ((n,), "|b1"),
+                     "command": ((max(workers, 1),), "<i8"), "reply": ((max(workers, 1),), "<i8"), "infos": ((max(workers, 1), INLINE_BYTES), "|u1")}
+        if isinstance(act_space, gym.spaces.Box):  # other action spaces travel through the pipe
+            self.spec["actions"] = ((n, *act_space.shape), np.dtype(act_space.dtype).str)
+        self.raw = {k: ctx.RawArray("b", int(np.prod(shape)) * np.dtype(dt).itemsize)
+                    for k, (shape, dt) in self.spec.items()}
+
+    def views(self) -> dict[str, np.ndarray]:
+        """numpy arrays over the shared buffers (call in the process that uses them)."""
+        return {k: np.frombuffer(self.raw[k], dtype=dt).reshape(shape) for k, (shape, dt) in self.spec.items()}
+
+
+def run_command(envs: Sequence[gym.Env], arrays: dict[str, np.ndarray], lo: int, command: str, data: Any) -> Any:
+    """Carry out one command on a shard's envs lo.. (observations, and a step's rewards and flags, written into the
+    shared `arrays`); the reply's payload (a step's: its infos)."""
+    obs_out = arrays["obs"][lo: lo + len(envs)]
     if command == "step":
-        rewards, terms, truncs, infos = [], [], [], []
-        for k, (env, action) in enumerate(zip(envs, data)):
-            obs_out[k], r, te, tr, info = _step_one(env, action)
-            rewards.append(r)
-            terms.append(te)
-            truncs.append(tr)
+        infos = []
+        rewards, terms, truncs = arrays["rewards"], arrays["terms"], arrays["truncs"]
+        # A copy: the parent writes the next step's actions into the shared array while an env may keep this one.
+        actions = arrays["actions"][lo: lo + len(envs)].copy() if data is None else data
+        for k, (env, action) in enumerate(zip(envs, actions)):
+            obs_out[k], rewards[lo + k], terms[lo + k], truncs[lo + k], info = _step_one(env, action)
             infos.append(info)
-        return rewards, terms, truncs, infos
+        return infos
     if command == "reset":
         seeds, options = data
         infos = []
@@ -111,29 +137,50 @@ def run_command(envs: Sequence[gym.Env], obs_out: np.ndarray, command: str, data
     return out
 
 
-def _worker(fns: list[Callable[[], gym.Env]], pipe: Connection, go: Any, done: Any, spin: float, shm: Any, lo: int,
-            shape: tuple[int, ...], dtype: str) -> None:
-    """Own envs lo..lo + len(fns) - 1: write their observations into the shared array, send the rest back."""
+STEP, PIPE = 1, 0  # a worker's command word: step on the shared actions, or read the command from the pipe
+
+
+def reply(pipe: Connection, sem: Any, arrays: dict[str, np.ndarray], w: int, status: str, payload: Any) -> None:
+    """Worker `w`'s reply: a step's infos through its shared buffer when they fit, anything else through the pipe
+    (the reply word tells the parent which: the infos' size, or -1)."""
+    if status == "step":
+        data = ForkingPickler.dumps(payload)
+        if len(data) <= INLINE_BYTES:
+            arrays["infos"][w, :len(data)] = np.frombuffer(data, dtype=np.uint8)
+            arrays["reply"][w] = len(data)
+            sem.release()
+            return
+        status = "ok"
+    arrays["reply"][w] = -1
+    hand_over(pipe, sem, (status, payload))
+
+
+def _worker(fns: list[Callable[[], gym.Env]], pipe: Connection, go: Any, done: Any, spin: float, shared: Shared,
+            w: int, lo: int) -> None:
+    """Worker `w`, owning envs lo..lo + len(fns) - 1: observations, rewards and flags into the shared arrays, the
+    rest back through its buffer or pipe."""
     envs: list[gym.Env] = []
+    arrays = shared.views()
     try:
         envs = [fn() for fn in fns]
-        obs_out = np.frombuffer(shm.get_obj(), dtype=dtype).reshape(shape)[lo: lo + len(envs)]
-        hand_over(pipe, done, ("ok", None))
+        reply(pipe, done, arrays, w, "ok", None)
         # The process that made the vector env, by its sentinel: under forkserver os.getppid() is the fork server,
         # which outlives a parent killed by SIGKILL.
         parent = mp.parent_process()
         alive = parent.is_alive if parent is not None else (lambda: True)
         while True:
             wait_for(go, spin, alive)
-            command, data = pipe.recv()  # a small one was sent before `go` was released: no wait
+            # A small pipe message was sent before `go` was released: no wait.
+            command, data = ("step", None) if arrays["command"][w] == STEP else pipe.recv()
             if command == "close":
                 break
-            hand_over(pipe, done, ("ok", run_command(envs, obs_out, command, data)))
+            payload = run_command(envs, arrays, lo, command, data)
+            reply(pipe, done, arrays, w, "step" if command == "step" else "ok", payload)
     except (KeyboardInterrupt, EOFError):
         pass
     except Exception:  # the parent re-raises it with this traceback
         try:
-            hand_over(pipe, done, ("error", traceback.format_exc()))
+            reply(pipe, done, arrays, w, "error", traceback.format_exc())
         except OSError:
             pass  # the parent is gone
     finally:
@@ -169,10 +216,9 @@ class ShardedVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, n)
         self.metadata = {**type(self).metadata, "render_modes": []}
         ctx = mp.get_context(context)
-        shape = (n, *self.single_observation_space.shape)
-        dtype = np.dtype(self.single_observation_space.dtype)
-        self._shm = ctx.Array(np.ctypeslib.as_ctypes_type(dtype), int(np.prod(shape)))
-        self._obs = np.frombuffer(self._shm.get_obj(), dtype=dtype).reshape(shape)
+        self._shared = Shared(ctx, n, workers, self.single_observation_space, self.single_action_space)
+        self._arrays = self._shared.views()
+        self._obs = self._arrays["obs"]
         self._bounds = [(w * n // workers, (w + 1) * n // workers) for w in range(workers)]
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
         processes = workers if local else workers + 1  # the parent waits (spins) too
@@ -185,12 +231,12 @@ class ShardedVectorEnv(VectorEnv):
         self._sems: list[tuple[Any, Any]] = []  # (go, done) per worker
         self._owed: list[bool] = []  # per worker: a reply not read yet (a call interrupted in _gather leaves some)
         self.closed = False
-        for lo, hi in self._bounds[1:] if local else self._bounds:
+        for w, (lo, hi) in enumerate(self._bounds[1:] if local else self._bounds):
             parent, child = ctx.Pipe()
             go, done = ctx.Semaphore(0), ctx.Semaphore(0)
             fns = [CloudpickleWrapper(fn) for fn in env_fns[lo:hi]]  # closures travel to forkserver/spawn workers
-            proc = ctx.Process(target=_worker, args=(fns, child, go, done, self._spin, self._shm, lo, shape,
-                                                     dtype.str), daemon=True)
+            proc = ctx.Process(target=_worker, args=(fns, child, go, done, self._spin, self._shared, w, lo),
+                               daemon=True)
             proc.start()
             child.close()
             self._pipes.append(parent)
@@ -222,19 +268,30 @@ class ShardedVectorEnv(VectorEnv):
             if self.closed:
                 raise ClosedEnvironmentError(f"{command} on a ShardedVectorEnv whose worker died")
         remote = self._shards(per_shard, data)[1 if self._local_bounds[1] else 0:]
-        for w, ((go, _), pipe, payload) in enumerate(zip(self._sems, self._pipes, remote)):
+        shared_step = command == "step" and "actions" in self._arrays
+        for w, payload in enumerate(remote):
             try:
-                hand_over(pipe, go, (command, payload))
+                self._post(w, (command, None if shared_step else payload))
             except OSError:  # BrokenPipeError: the worker is gone
                 self._died(w)
             self._owed[w] = True
 
+    def _post(self, w: int, message: tuple[str, Any]) -> None:
+        """Hand worker `w` a command: a step on the shared actions by its command word alone, else by its pipe."""
+        go = self._sems[w][0]
+        if message[0] == "step" and message[1] is None:
+            self._arrays["command"][w] = STEP
+            go.release()
+        else:
+            self._arrays["command"][w] = PIPE
+            hand_over(self._pipes[w], go, message)
+
     def _finish(self, command: str, per_shard: Sequence[Any] | None, data: Any) -> list[Any]:
         local = []
         if self._local_bounds[1]:
-            lo, hi = self._local_bounds
             try:
-                local = [run_command(self._local, self._obs[lo:hi], command, self._shards(per_shard, data)[0])]
+                payload = self._shards(per_shard, data)[0]
+                local = [run_command(self._local, self._arrays, self._local_bounds[0], command, payload)]
             except BaseException:
                 self._drain()  # the workers' replies to this command, or the next command would read them
                 raise
@@ -261,7 +318,8 @@ class ShardedVectorEnv(VectorEnv):
                 continue
             try:
                 wait_for(done, self._spin, proc.is_alive)
-                status, data = pipe.recv()
+                size = int(self._arrays["reply"][w])
+                status, data = ("ok", pickle.loads(self._arrays["infos"][w, :size])) if size >= 0 else pipe.recv()
             except (EOFError, OSError):
                 status = "died"
             if status == "died":
@@ -294,6 +352,11 @@ class ShardedVectorEnv(VectorEnv):
         if self._pending is not None:
             raise AlreadyPendingCallError("step_async while a step is pending; call step_wait first", "step")
         actions = np.asarray(actions)
+        if "actions" in self._arrays:
+            if actions.shape != self._arrays["actions"].shape:
+                raise ValueError(f"step got actions of shape {actions.shape}; this vector env of {self.num_envs} "
+                                 f"envs takes {self._arrays['actions'].shape}")
+            self._arrays["actions"][:] = actions
         pending = [actions[lo:hi] for lo, hi in self._bounds]
         self._send("step", pending)
         self._pending = pending
@@ -303,11 +366,22 @@ class ShardedVectorEnv(VectorEnv):
         if self._pending is None:
             raise NoAsyncCallError("step_wait without a pending step; call step_async first", "step")
         pending, self._pending = self._pending, None
-        parts = self._finish("step", pending, None)
-        rewards = np.array([r for part in parts for r in part[0]], dtype=np.float64)
-        terms = np.array([t for part in parts for t in part[1]], dtype=bool)
-        truncs = np.array([t for part in parts for t in part[2]], dtype=bool)
-        return self._obs.copy(), rewards, terms, truncs, self._batched([i for part in parts for i in part[3]])
+        infos: dict[str, Any] = {}
+        lo, hi = self._local_bounds
+        if hi:
+            try:
+                local = run_command(self._local, self._arrays, lo, "step", pending[0])
+            except BaseException:
+                self._drain()  # the workers' replies to this step, or the next command would read them
+                raise
+            for i, info in enumerate(local, lo):  # batched while the workers step
+                infos = self._add_info(infos, info, i)
+        bounds = self._bounds[1:] if hi else self._bounds
+        for (lo, _), part in zip(bounds, self._gather()):
+            for i, info in enumerate(part, lo):
+                infos = self._add_info(infos, info, i)
+        a = self._arrays
+        return self._obs.copy(), a["rewards"].copy(), a["terms"].copy(), a["truncs"].copy(), infos
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every env once (finished ones are reset in the same step)."""
@@ -340,7 +414,7 @@ class ShardedVectorEnv(VectorEnv):
                     if self._owed[w]:
                         self._discard(w, 10.0)  # a worker blocked sending a pending step's reply never reads "close"
                     try:
-                        hand_over(pipe, go, ("close", None))
+                        self._post(w, ("close", None))
                     except OSError:
                         pass
             for pipe, proc in zip(self._pipes, self._procs):
@@ -359,7 +433,8 @@ class ShardedVectorEnv(VectorEnv):
         deadline = time.monotonic() + timeout
         while proc.is_alive() and time.monotonic() < deadline:
             if done.acquire(timeout=0.05):
-                if pipe.poll(max(deadline - time.monotonic(), 0.0)):
+                # A step's infos in the shared buffer leave nothing in the pipe.
+                if self._arrays["reply"][w] < 0 and pipe.poll(max(deadline - time.monotonic(), 0.0)):
                     try:
                         pipe.recv()
                     except (EOFError, OSError):

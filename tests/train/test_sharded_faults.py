@@ -170,3 +170,28 @@ def test_workers_exit_when_their_parent_is_killed(tmp_path: Path) -> None:
     finally:
         if parent.poll() is None:
             parent.kill()
+
+
+def test_discrete_actions_travel_by_pipe_and_bad_action_shapes_are_refused() -> None:
+    from tests.train.toy_envs import Chooser
+
+    venv = ShardedVectorEnv([lambda i=i: Chooser(i) for i in range(4)], workers=2)
+    try:
+        venv.reset(seed=0)
+        obs, rewards, terms, truncs, info = venv.step(np.array([0, 1, 2, 1]))
+        np.testing.assert_array_equal(rewards, [0.0, 1.0, 2.0, 1.0])
+        np.testing.assert_array_equal(terms, [False, False, True, False])
+        # Env 2 ended and was reset in the same step: its step's info is under final_info.
+        assert info["_a"].tolist() == [True, True, False, True] and info["a"][[0, 1, 3]].tolist() == [0, 1, 1]
+        assert info["_final_obs"].tolist() == [False, False, True, False] and info["final_info"]["a"][2] == 2
+    finally:
+        venv.close()
+    venv = ShardedVectorEnv(counters(4), workers=2)
+    try:
+        venv.reset(seed=0)
+        with pytest.raises(ValueError, match=r"actions of shape \(4,\).*takes \(4, 1\)"):
+            venv.step(np.zeros(4))
+        _, _, _, _, info = venv.step(_actions(4))  # still in lock-step after the refusal
+        _in_step(venv, info)
+    finally:
+        venv.close()

@@ -35,10 +35,11 @@ def test_keyboard_episodes_are_recorded_as_a_minari_dataset(tmp_path) -> None:
 
     # Episodes end only when the user says so: no out-of-route, off-walkable or collision ends.
     # No terrain: the script's key presses were written for this seed's route in a scene without it (entrance steps
-    # change the planner's routes, and on the new one the scripted turn drives into an obstacle and topples).
+    # change the planner's routes, and on the new one the scripted turn drives into an obstacle and topples). Seed 0:
+    # since routes are planned by A*, seed 3's route has the scripted turn end an episode early too.
     loose = {"route_length": [30.0, 60.0], "out_of_route_distance": 100.0, "terminate_off_walkable": False,
              "collision_steps": 0, "scene": {"terrain": {"density": 0.0}}}
-    summary = teleop("PointNav", tmp_path, env_config=loose, max_steps=100, seed=3,
+    summary = teleop("PointNav", tmp_path, env_config=loose, max_steps=100, seed=0,
                      before_step=press)
     assert summary["episodes"] == 2 and summary["steps"] == 34 and summary["device"] == "keyboard"
     data, meta = load_demos(tmp_path / "curbside" / "pointnav-teleop-v0")

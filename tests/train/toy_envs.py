@@ -51,3 +51,22 @@ class Counter(gym.Env):
 def counters(n: int) -> list[Callable[[], gym.Env]]:
     """Factories of Counter 0..n-1."""
     return [lambda i=i: Counter(i) for i in range(n)]
+
+
+class Chooser(gym.Env):
+    """Discrete actions (they cannot share memory, so they travel through the pipe): reward = the action chosen,
+    terminated on action 2."""
+
+    def __init__(self, index: int) -> None:
+        self.index = index
+        self.observation_space = gym.spaces.Box(-1e9, 1e9, (1,), np.float64)
+        self.action_space = gym.spaces.Discrete(3)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+        """Observation: the env's index."""
+        super().reset(seed=seed)
+        return np.array([float(self.index)]), {}
+
+    def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Reward the action; end the episode on 2."""
+        return np.array([float(self.index)]), float(action), int(action) == 2, False, {"a": int(action)}
