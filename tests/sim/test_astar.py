@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 import pytest
 from scipy.sparse.csgraph import dijkstra
@@ -28,7 +30,7 @@ def test_astar_cost_is_dijkstras(planner: RoutePlanner) -> None:
             assert cost == pytest.approx(dist[goal], rel=1e-12, abs=1e-12)
             # The chain is a path of graph edges whose weights add up to the cost.
             assert chain[0] == start and chain[-1] == goal
-            assert sum(g[a, b] for a, b in zip(chain[:-1], chain[1:])) == pytest.approx(cost, rel=1e-12, abs=1e-12)
+            assert sum(g[a, b] for a, b in pairwise(chain)) == pytest.approx(cost, rel=1e-12, abs=1e-12)
 
 
 def test_astar_limit(planner: RoutePlanner) -> None:

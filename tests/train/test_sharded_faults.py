@@ -178,7 +178,7 @@ def test_discrete_actions_travel_by_pipe_and_bad_action_shapes_are_refused() -> 
     venv = ShardedVectorEnv([lambda i=i: Chooser(i) for i in range(4)], workers=2)
     try:
         venv.reset(seed=0)
-        obs, rewards, terms, truncs, info = venv.step(np.array([0, 1, 2, 1]))
+        _, rewards, terms, _, info = venv.step(np.array([0, 1, 2, 1]))
         np.testing.assert_array_equal(rewards, [0.0, 1.0, 2.0, 1.0])
         np.testing.assert_array_equal(terms, [False, False, True, False])
         # Env 2 ended and was reset in the same step: its step's info is under final_info.
