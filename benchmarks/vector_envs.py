@@ -6,13 +6,14 @@ Every side runs the bench scene (sim.bench.bench_scene) under the same fixed act
 wall-clock second. Target (issue 14): with N = cores workers the vector env reaches >= 1.8x one process on the
 2-core dev machine. Measured, one after another in each of R rounds (this VM's speed drifts by 20 % over minutes,
 so each ratio divides two rates taken seconds apart, and the summary is the median round):
-  one       one env stepped in this process (resets included, as a vector env has them);
+  one       one env stepped in a process of its own (resets included, as a vector env has them);
   sharded   curbside.train.sharded.ShardedVectorEnv, N workers of K envs (the training harness's vector env);
   async     Gymnasium's AsyncVectorEnv (`gymnasium.make_vec(..., vectorization_mode="async")`), N workers of 1 env;
   barrier   N processes each stepping its own env, held in lock-step by a semaphore barrier and passing no data:
             what any synchronous vector env of N workers could reach at best (it waits for the slower step);
   ceiling   the same N processes never synchronised: what the cores give.
 Every env and process is built once and kept between rounds; each timed run starts after WARMUP untimed steps.
+Every process stepping envs has BLAS limited to one thread, as the training harness's workers have.
 Run it on an otherwise idle machine.
 """
 
@@ -45,17 +46,6 @@ def make_env(task: str, spec: dict) -> gym.Env:
     """The bench env of `task` on scene `spec` (SocialNav with 20 agents and traffic)."""
     extra = SOCIALNAV_BENCH if task == "SocialNav" else {}
     return gym.make(f"curbside/{task}-v0", config={"scene_spec": spec, **extra})
-
-
-def run_env(env: gym.Env, steps: int) -> float:
-    """Env steps per wall second of `env` over `steps` steps (finished episodes reset), after WARMUP steps."""
-    for k in range(-WARMUP, steps):
-        if k == 0:
-            t0 = time.perf_counter()
-        _, _, term, trunc, _ = env.step(ACTIONS[k % len(ACTIONS)])
-        if term or trunc:
-            env.reset()
-    return steps / (time.perf_counter() - t0)
 
 
 def run_vector(venv: gym.vector.VectorEnv, steps: int) -> float:
@@ -145,8 +135,7 @@ def main() -> None:
         ap.error(f"--parts must include 'one' and name only {', '.join(PARTS)}")
     spec = bench_scene()
     fn = single_thread_worker(partial(make_env, args.task, spec))
-    one = make_env(args.task, spec)
-    one.reset(seed=0)
+    one = Steppers(args.task, spec, 1)  # a process of its own: this one holds the sharded env's local shard
     sides: dict[str, Any] = {}
     if "sharded" in parts:
         sides["sharded"] = ShardedVectorEnv([fn] * (args.workers * args.per_worker), workers=args.workers)
@@ -158,7 +147,7 @@ def main() -> None:
         venv.reset(seed=0)
     rounds = []
     for r in range(args.rounds):
-        rates = {"one": run_env(one, args.steps)}
+        rates = {"one": one.rate(args.steps, False)}
         for name, venv in sides.items():
             rates[name] = run_vector(venv, args.steps)
         for name, sync in (("barrier", True), ("ceiling", False)):
@@ -170,9 +159,9 @@ def main() -> None:
         print(json.dumps(row), flush=True)
     for venv in sides.values():
         venv.close()
-    if steppers is not None:
-        steppers.close()
-    one.close()
+    for procs in (one, steppers):
+        if procs is not None:
+            procs.close()
     summary = {"task": args.task, "workers": args.workers, "sharded_envs_per_worker": args.per_worker,
                "steps": args.steps, "rounds": args.rounds, "cpu_count": os.cpu_count(),
                "loadavg_1min": round(os.getloadavg()[0], 2),

@@ -77,3 +77,38 @@ def test_a_failing_worker_raises_its_traceback_and_bad_shapes_are_refused() -> N
         ShardedVectorEnv([fns[0], _broken], workers=2)
     with pytest.raises(ValueError, match="workers must be in"):
         ShardedVectorEnv(fns, workers=3)
+
+
+def test_add_info_builds_gymnasiums_arrays() -> None:
+    """ShardedVectorEnv's leaner _add_info gives Gymnasium's arrays: the same keys, dtypes, masks and values."""
+    infos = [{"cost": 0.5, "n": 3, "ok": True, "kinds": ["object"], "why": None, "v": np.float32(2.0),
+              "img": np.ones((2, 3), dtype=np.uint8), "final_obs": np.zeros(4),
+              "final_info": {"episode": {"r": 1.5, "l": 7}, "end_reason": "goal"}},
+             {},
+             {"cost": 1, "ok": False, "kinds": [], "why": "stuck", "v": np.float32(-1.0),
+              "img": np.zeros((2, 3), dtype=np.uint8), "extra": {"deep": {"x": 1.0}}}]
+
+    def batched(add: object, venv: object) -> dict:
+        out: dict = {}
+        for i, info in enumerate(infos):
+            out = add(venv, out, info, i)
+        return out
+
+    class Bare(ShardedVectorEnv):
+        def __init__(self) -> None:  # only num_envs: _add_info reads nothing else
+            self.num_envs = len(infos)
+
+    venv = Bare()
+    ours, ref = batched(ShardedVectorEnv._add_info, venv), batched(gym.vector.VectorEnv._add_info, venv)
+
+    def same(a: dict, b: dict) -> None:
+        assert a.keys() == b.keys()
+        for k, x in a.items():
+            y = b[k]
+            if isinstance(x, dict):
+                same(x, y)
+            else:
+                assert x.dtype == y.dtype and x.shape == y.shape, k
+                assert [repr(v) for v in x.ravel()] == [repr(v) for v in y.ravel()], k
+
+    same(ours, ref)
