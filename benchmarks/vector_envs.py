@@ -33,7 +33,8 @@ import gymnasium as gym
 import numpy as np
 
 import sim  # noqa: F401  (registers the env ids)
-from curbside.train.sharded import ShardedVectorEnv, wait_for
+from curbside.train.handover import wait_for
+from curbside.train.sharded import ShardedVectorEnv
 from curbside.train.vec import single_thread_worker
 from sim.bench import SOCIALNAV_BENCH, bench_scene
 
