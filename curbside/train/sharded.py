@@ -201,9 +201,11 @@ class ShardedVectorEnv(VectorEnv):
             array = vector_infos.get(key)
             mask_key = "_" + key
             if array.__class__ is np.ndarray and value.__class__ is not dict and key != "final_obs":
-                array[env_num] = value
-                vector_infos[mask_key][env_num] = True
-                continue
+                mask = vector_infos.get(mask_key)
+                if mask is not None:  # None: `key` is itself an earlier key's mask ("_x" after "x")
+                    array[env_num] = value
+                    mask[env_num] = True
+                    continue
             if key == "final_obs":  # unbatched: an object array of the envs' own observations
                 if array is None:
                     array = np.empty(n, dtype=object)  # None everywhere
@@ -211,13 +213,14 @@ class ShardedVectorEnv(VectorEnv):
             elif isinstance(value, dict):
                 array = self._add_info({} if array is None else array, value, env_num)
             else:
-                kind = type(value)
-                if kind in (int, float, bool) or issubclass(kind, np.number):
-                    array = np.zeros(n, dtype=kind)
-                elif isinstance(value, np.ndarray):
-                    array = np.zeros((n, *value.shape), dtype=value.dtype)
-                else:
-                    array = np.empty(n, dtype=object)  # None everywhere
+                if array is None:  # else an earlier env's (a dict, when envs disagree: Gymnasium keeps it too)
+                    kind = type(value)
+                    if kind in (int, float, bool) or issubclass(kind, np.number):
+                        array = np.zeros(n, dtype=kind)
+                    elif isinstance(value, np.ndarray):
+                        array = np.zeros((n, *value.shape), dtype=value.dtype)
+                    else:
+                        array = np.empty(n, dtype=object)  # None everywhere
                 array[env_num] = value
             mask = vector_infos.get(mask_key)
             if mask is None:

@@ -112,3 +112,24 @@ def test_add_info_builds_gymnasiums_arrays() -> None:
                 assert [repr(v) for v in x.ravel()] == [repr(v) for v in y.ravel()], k
 
     same(ours, ref)
+
+
+@pytest.mark.parametrize("infos", [
+    [{"x": {"a": 1}}, {"x": 2}],  # a dict, then a plain value: Gymnasium keeps the dict (the value under key 1)
+    [{"x": 1}, {"_x": 5}],  # a key named like an earlier key's mask
+    [{"x": 1, "_x": 5}],
+])
+def test_add_info_matches_gymnasium_on_odd_infos(infos: list[dict]) -> None:
+    """Where envs' infos disagree in kind, or a key looks like a mask, _add_info still gives Gymnasium's dict."""
+
+    class Bare(ShardedVectorEnv):
+        def __init__(self) -> None:  # only num_envs: _add_info reads nothing else
+            self.num_envs = 3
+
+    venv = Bare()
+    ours: dict = {}
+    ref: dict = {}
+    for i, info in enumerate(infos):
+        ours = ShardedVectorEnv._add_info(venv, ours, info, i)
+        ref = gym.vector.VectorEnv._add_info(venv, ref, info, i)
+    _equal(ours, ref)
