@@ -248,6 +248,8 @@ class ShardedVectorEnv(VectorEnv):
             if actions.shape != self._arrays["actions"].shape:
                 raise ValueError(f"step got actions of shape {actions.shape}; this vector env of {self.num_envs} "
                                  f"envs takes {self._arrays['actions'].shape}")
+            if any(self._owed) and not self.closed:
+                self._drain()  # a step an interrupted call left running may not have read its actions yet
             self._arrays["actions"][:] = actions
         pending = [actions[lo:hi] for lo, hi in self._bounds]
         self._send("step", pending)

@@ -4,11 +4,13 @@ with a step pending, a parent killed by SIGKILL (tests/train/toy_envs.py: a chea
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -82,6 +84,29 @@ def test_a_call_interrupted_while_it_waits_leaves_no_stale_reply() -> None:
             obs, *_, info = venv.step(_actions(2))
         _in_step(venv, info)
         assert obs[:, 1].tolist() == [2.0, 2.0]
+    finally:
+        venv.close()
+
+
+def test_a_step_an_interrupt_left_running_keeps_its_own_actions() -> None:
+    venv = ShardedVectorEnv(counters(2), workers=2, local=False)
+    pid = venv._procs[1].pid
+    try:
+        venv.reset(seed=0)
+        os.kill(pid, signal.SIGSTOP)  # worker 1 cannot read its step's actions before the parent gives up
+        try:
+            with pytest.raises(Interrupted), alarm(0.3):
+                venv.step(_actions(2))
+            threading.Timer(0.5, os.kill, (pid, signal.SIGCONT)).start()
+            with alarm(30):
+                # The next step's actions must not reach the interrupted step (it ran on them, raised, and the
+                # drain closed the env): the next step is the one that fails.
+                venv.step_async(_actions(2, e1=RAISE))
+                with pytest.raises(RuntimeError, match="env 1 was asked to fail"):
+                    venv.step_wait()
+        finally:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGCONT)
     finally:
         venv.close()
 
