@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -136,6 +137,7 @@ def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int 
             m.reset(x0, y0, surface_at(runway, x0, y0), 0.0)
         else:
             m = Machine(client, spec)
+            m.ground = partial(friction_at, runway)  # the tile under the machine limits its traction
             m.count_grade = False  # the slopes' pull comes from Bullet's gravity alone (sim/machines.py)
             m.reset(x0, y0, surface_at(runway, x0, y0), 0.0, np.random.default_rng(seed))
         m.engine_force = float(np.max(spec.engine_force))  # the same strongest drive in every trial
@@ -144,8 +146,6 @@ def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int 
             if model == "wheels":
                 m.drive(1.0, speed)  # the tiles' friction acts on the wheels' contacts
             else:
-                x, y, _ = m.position
-                m.surface_friction = friction_at(runway, x, y)
                 # A common `speed` is held by throttling the drive towards it (full throttle below it).
                 m.command(0.0, 1.0 if speed is None else min(max(4.0 * (speed - m.speed) / speed, 0.0), 1.0), dt)
             p.stepSimulation(physicsClientId=client)
