@@ -64,13 +64,14 @@ def wait_for(sem: Any, spin: float, alive: Callable[[], bool], poll: float = 1.0
 
 class Shared:
     """The arrays every process of a ShardedVectorEnv maps: per env its observation, action, reward and flags; per
-    worker a control word (reply size) and a buffer for its step infos. Built in the parent, rebuilt from the same
+    worker its command word, its reply word (the infos' size) and a buffer for its step infos. Built in the parent, rebuilt from the same
     raw buffers in a worker (`views`)."""
 
     def __init__(self, ctx: Any, n: int, workers: int, obs_space: gym.spaces.Box, act_space: gym.Space) -> None:
         self.spec = {"obs": ((n, *obs_space.shape), np.dtype(obs_space.dtype).str),
                      "rewards": ((n,), "<f8"), "terms": ((n,), "|b1"), "truncs": ((n,), "|b1"),
-                     "command": ((max(workers, 1),), "<i8"), "reply": ((max(workers, 1),), "<i8"), "infos": ((max(workers, 1), INLINE_BYTES), "|u1")}
+                     "command": ((workers,), "<i8"), "reply": ((workers,), "<i8"),
+                     "infos": ((workers, INLINE_BYTES), "|u1")}
         if isinstance(act_space, gym.spaces.Box):  # other action spaces travel through the pipe
             self.spec["actions"] = ((n, *act_space.shape), np.dtype(act_space.dtype).str)
         self.raw = {k: ctx.RawArray("b", int(np.prod(shape)) * np.dtype(dt).itemsize)
@@ -135,7 +136,7 @@ def reply(pipe: Connection, sem: Any, arrays: dict[str, np.ndarray], w: int, sta
 
 
 def serve(fns: list[Callable[[], gym.Env]], pipe: Connection, go: Any, done: Any, spin: float, shared: Shared,
-            w: int, lo: int) -> None:
+          w: int, lo: int) -> None:
     """Worker `w`, owning envs lo..lo + len(fns) - 1: observations, rewards and flags into the shared arrays, the
     rest back through its buffer or pipe."""
     envs: list[gym.Env] = []

@@ -122,9 +122,11 @@ class ShardedVectorEnv(VectorEnv):
             self._drain()  # replies a call interrupted in _gather (KeyboardInterrupt) left behind
             if self.closed:
                 raise ClosedEnvironmentError(f"{command} on a ShardedVectorEnv whose worker died")
-        remote = self._shards(per_shard, data)[1 if self._local_bounds[1] else 0:]
+        first = 1 if self._local_bounds[1] else 0
         shared_step = command == "step" and "actions" in self._arrays
-        for w, payload in enumerate(remote):
+        for w, ((lo, hi), payload) in enumerate(zip(self._bounds[first:], self._shards(per_shard, data)[first:])):
+            if shared_step:  # after the drain above: a step an interrupted call left running has read its own
+                self._arrays["actions"][lo:hi] = payload
             try:
                 self._post(w, (command, None if shared_step else payload))
             except OSError:  # BrokenPipeError: the worker is gone
@@ -244,13 +246,9 @@ class ShardedVectorEnv(VectorEnv):
         if self._pending is not None:
             raise AlreadyPendingCallError("step_async while a step is pending; call step_wait first", "step")
         actions = np.asarray(actions)
-        if "actions" in self._arrays:
-            if actions.shape != self._arrays["actions"].shape:
-                raise ValueError(f"step got actions of shape {actions.shape}; this vector env of {self.num_envs} "
-                                 f"envs takes {self._arrays['actions'].shape}")
-            if any(self._owed) and not self.closed:
-                self._drain()  # a step an interrupted call left running may not have read its actions yet
-            self._arrays["actions"][:] = actions
+        if "actions" in self._arrays and actions.shape != self._arrays["actions"].shape:
+            raise ValueError(f"step got actions of shape {actions.shape}; this vector env of {self.num_envs} envs "
+                             f"takes {self._arrays['actions'].shape}")
         pending = [actions[lo:hi] for lo, hi in self._bounds]
         self._send("step", pending)
         self._pending = pending
