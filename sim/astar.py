@@ -1,4 +1,4 @@
-"""A* between two cells of the route planner's grid graph (numba).
+"""A* between two cells of the route planner's grid graph (numba): `RoutePlanner.sample` and `RoutePlanner.plan`.
 
 `RoutePlanner.sample` once ran Dijkstra from the start over every cell within 90 m (25,680 cells, 2.7 ms on the
 bench scene, 1.6 tries a reset) to draw a goal among the cells it reached; an episode's reset took 5-7 ms, and in a

@@ -125,13 +125,10 @@ class RoutePlanner:
     def plan(self, start: Sequence[float], goal: Sequence[float], spacing: float = 0.25) -> Route:
         """The smoothed route between two given world points (each snapped to the nearest usable cell)."""
         a, b = self._nearest_node(*start[:2]), self._nearest_node(*goal[:2])
-        dist, pred = dijkstra(self.graph, indices=a, return_predecessors=True)
-        if not np.isfinite(dist[b]):
+        _, chain = astar_chain(self.graph, self.rows, self.cols, self.grid.resolution, a, b, math.inf)
+        if not chain:
             raise RouteError(f"no path from {list(start)} to {list(goal)} for this machine")
-        chain = [b]
-        while chain[-1] != a:
-            chain.append(int(pred[chain[-1]]))
-        return self._route(chain[::-1], spacing)
+        return self._route(chain, spacing)
 
     def geodesic_length(self, route: Route, upto: float | None = None, step: float = 0.1) -> float:
         """Length of the shortest path from the route's start to its point at arc length `upto` (default: goal).
@@ -187,7 +184,8 @@ class RoutePlanner:
             k = int(rng.integers(len(candidates)))
             near = np.nonzero(np.hypot(xy[:, 0] - xy[k, 0], xy[:, 1] - xy[k, 1]) <= max_length)[0]
             start, goal = int(candidates[k]), int(candidates[near[rng.integers(len(near))]])
-            # The cost bound is Dijkstra's old search radius: edges near obstacles cost up to 3x their length.
+            # Bounded so that a hopeless search ends early; above max_length because edges near obstacles cost up
+            # to 3x their length.
             cost, chain = astar_chain(self.graph, self.rows, self.cols, self.grid.resolution, start, goal,
                                       1.5 * max_length)
             if cost < min_length or not chain:
