@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from retrieval.render import foreground
-
 BACKBONE_SIZE = 160  # EfficientNet input side: 2x cheaper than 224 on a CPU, accuracy the same here (docs)
 HUE_BINS = 18  # 20 degrees each
 GRAY_EDGES = (45, 90, 140, 190, 225)  # value edges of black, dark gray, gray, light gray, off-white, white
@@ -24,6 +22,8 @@ FEATURE_VERSION = "effl0-160+hsv24+lab+shape3:v1"  # stored with trained heads: 
 def colour_features(image: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
     """Hue histogram of coloured pixels, value histogram of gray pixels (fractions of the object) and mean Lab."""
     import cv2
+
+    from retrieval.render import foreground
 
     fg = foreground(image) if mask is None else mask
     out = np.zeros(COLOUR_DIM, dtype=np.float32)
@@ -52,6 +52,7 @@ def shape_features(mask: np.ndarray) -> np.ndarray:
 def view_features(images: list[np.ndarray]) -> np.ndarray:
     """(n, FEATURE_DIM) float32 features of HxWx3 uint8 renders on white."""
     from retrieval.encoders.imagenet import pooled_features
+    from retrieval.render import foreground
 
     if not images:
         return np.zeros((0, FEATURE_DIM), dtype=np.float32)
