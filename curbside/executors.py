@@ -249,8 +249,11 @@ def _ray_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | None, 
     try:
         # max_retries: Ray reruns a task whose worker process died (not one whose code raised: that is a bug or
         # bad input, and would fail again).
-        # The task is `on_node` named after fn (workers are titled ray::<name> while they run it).
-        remote = ray.remote(num_cpus=1, max_retries=max_retries)(on_node).options(name=getattr(fn, "__name__", "item"))
+        # The task is `on_node` named after fn (workers are titled ray::<name> while they run it). SPREAD: with two
+        # tasks a CPU in flight (`in_flight`), Ray's default policy may queue them all on the driver's node while the
+        # other nodes start their workers (seen on a loaded 3-node test cluster: 8 of 8 on the head).
+        remote = ray.remote(num_cpus=1, max_retries=max_retries, scheduling_strategy="SPREAD")(on_node).options(
+            name=getattr(fn, "__name__", "item"))
         shared = [ray.put(fn)] + [ray.put(a) for a in args]
         capacity = in_flight(workers, int(ray.cluster_resources().get("CPU", 1)))
         done: dict[int, Any] = {}
