@@ -45,12 +45,22 @@ def run_cmd(
     task: str = typer.Option("PointNav", help="PointNav or SocialNav."),
     out: Path = typer.Option(Path("outputs/train/run"), help="Output folder: run.json, policy, checkpoints, logs."),
     steps: int = typer.Option(200_000, min=1, help="Env steps (online, GAIL) or gradient steps (IQL, TD3+BC, BC)."),
+    protocol: str = typer.Option("curbside", help="Experimental protocol: curbside (learnable defaults) or paper "
+                                 "(MetaUrban's scenes, splits and hyper-parameters); docs/protocols.md."),
+    backend: str = typer.Option("pybullet", help="Envs of online training: pybullet (the reference) or batched "
+                                "(sim.batched, PointNav on flat ground, many envs in one numpy pass)."),
+    split: str = typer.Option("train", help="Split to train on: train or finetune (test and unseen are for evaluation)."),
+    init_from: Optional[Path] = typer.Option(None, "--init-from", help="Start from this run's policy (a PPO-family "
+                                             "run of the same task and observations): fine-tuning."),
     demos: Optional[Path] = typer.Option(None, help="Demonstration dataset folder from `curbside demos collect`."),
-    envs: int = typer.Option(8, min=1, max=256, help="Parallel env workers (online algorithms and GAIL)."),
-    scenes: int = typer.Option(64, min=1, help="Train-split scenes, sharded across the workers."),
+    envs: Optional[int] = typer.Option(None, min=1, max=256, help="Parallel envs (online algorithms and GAIL); default: the protocol's."),
+    scenes: Optional[int] = typer.Option(None, min=1, help="Scenes of the split episodes draw from; default: the protocol's."),
     seed: int = typer.Option(0, min=0, help="Seed of the run."),
+    seeds: Optional[str] = typer.Option(None, help="Comma-separated seeds (e.g. 0,1,2): one run each in OUT/seed_<s>, "
+                                        "their final evaluations aggregated as mean +/- std in OUT/seeds.json."),
     resume: bool = typer.Option(False, help="Continue from the latest checkpoint in --out."),
     eval_every: int = typer.Option(0, min=0, help="Evaluate on the test split every N env steps (0: never)."),
+    eval_episodes: Optional[int] = typer.Option(None, min=1, help="Episodes per learning-curve evaluation; default: the protocol's."),
     config: Optional[str] = typer.Option(None, help="Env config overrides as a JSON object."),
     executor: Executor = typer.Option("local", help="local: SB3 with --envs envs in local processes; ray: RLlib PPO "
                                       "(ppo, ppo_et) with --num-env-runners env runners on a Ray cluster (--address)."),
@@ -58,14 +68,20 @@ def run_cmd(
                                         "(--executor ray), each stepping --envs / runners envs."),
     address: Optional[str] = address_option(),
 ) -> None:
-    """Train one algorithm on the train split; the policy, logs (CSV + TensorBoard) and checkpoints go to --out."""
+    """Train one algorithm on a split under a protocol; the policy, logs (CSV + TensorBoard) and checkpoints go to --out."""
+    from curbside.train.online import check_init_from
     from curbside.train.policies import check_algo
-    from curbside.train.run import train
+    from curbside.train.run import check_backend, resolve_run, train
 
     cfg = parse_config_json(config)
     ex = check_executor_args(executor, address)
     try:
         check_algo(algo)
+        check_backend(backend, task, algo)
+        seed_list = _parse_seeds(seeds) if seeds is not None else [seed]
+        if split in ("test", "unseen"):
+            raise ConfigError(f"--split {split} is held out for evaluation; train on train or finetune")
+        r = resolve_run(algo, task, protocol=protocol, env_config=cfg, n_envs=envs, num_scenes=scenes, split=split)
         if ex == "process":
             raise ConfigError("training runs on --executor local (SB3; --envs already steps envs in local processes) "
                               "or ray (RLlib)")
@@ -76,13 +92,37 @@ def run_cmd(
                               "and pass the folder it prints")
         if algo in ("iql", "td3bc", "bc", "gail") and demos is None:
             raise ConfigError(f"{algo} learns from demonstrations: pass --demos DIR (collect with `curbside demos collect --task {task}`)")
-        _check_env_config(task, cfg, "train")
+        if init_from is not None:
+            if algo not in ("ppo", "ppo_lag", "ppo_et"):
+                raise ConfigError(f"--init-from fine-tunes PPO, PPO-Lag and PPO-ET; {algo} starts from scratch")
+            check_init_from(init_from, algo, task, r["env_config"])
+        _check_env_config(task, r["env_config"], split)
     except (ConfigError, ValueError, FileNotFoundError) as e:
         raise fail(str(e)) from None
-    path = train(algo, task, out, steps=steps, env_config=cfg, n_envs=envs, num_scenes=scenes, seed=seed,
-                 demos=demos, resume=resume, eval_every=eval_every, executor=ex, num_env_runners=num_env_runners,
-                 address=address)
-    Console(stderr=True).print(f"[green]trained[/] {algo} on {task}: {path}", highlight=False)
+    for s in seed_list:
+        run_out = out / f"seed_{s}" if seeds is not None else out
+        path = train(algo, task, run_out, steps=steps, protocol=protocol, backend=backend, split=split,
+                     env_config=cfg, n_envs=envs, num_scenes=scenes, seed=s, demos=demos, resume=resume,
+                     init_from=init_from, eval_every=eval_every, eval_episodes=eval_episodes, executor=ex,
+                     num_env_runners=num_env_runners, address=address)
+        Console(stderr=True).print(f"[green]trained[/] {algo} on {task} ({protocol}, {split}, seed {s}): {path}",
+                                   highlight=False)
+    if seeds is not None:
+        from curbside.train.seeds import aggregate_seeds
+
+        summary = aggregate_seeds(out, seed_list)
+        typer.echo(json.dumps(summary, sort_keys=True))
+
+
+def _parse_seeds(text: str) -> list[int]:
+    """`--seeds 0,1,2` as distinct non-negative integers."""
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ConfigError(f"--seeds must be comma-separated integers such as 0,1,2, got {text!r}") from None
+    if not values or min(values) < 0 or len(set(values)) != len(values):
+        raise ConfigError(f"--seeds must be distinct integers >= 0 such as 0,1,2, got {text!r}")
+    return values
 
 
 @app.command("ppo")
@@ -90,8 +130,8 @@ def ppo_cmd(
     task: str = typer.Option("PointNav", help="PointNav or SocialNav."),
     out: Path = typer.Option(Path("outputs/train/ppo"), help="Output folder: run.json, policy, checkpoints, logs."),
     steps: int = typer.Option(200_000, min=1, help="Env steps."),
-    envs: int = typer.Option(8, min=1, max=256, help="Parallel envs (in all)."),
-    scenes: int = typer.Option(64, min=1, help="Train-split scenes, sharded across the workers or env runners."),
+    envs: Optional[int] = typer.Option(None, min=1, max=256, help="Parallel envs (in all); default: the protocol's (8)."),
+    scenes: Optional[int] = typer.Option(None, min=1, help="Train-split scenes, sharded across the workers or env runners; default: 64."),
     seed: int = typer.Option(0, min=0, help="Seed of the run."),
     resume: bool = typer.Option(False, help="Continue from the latest checkpoint in --out."),
     eval_every: int = typer.Option(0, min=0, help="Evaluate on the test split every N env steps (0: never)."),
@@ -103,14 +143,16 @@ def ppo_cmd(
     """Train PPO (`train run --algo ppo`); with --executor ray on RLlib, env runners spread over the cluster."""
     run_cmd(algo="ppo", task=task, out=out, steps=steps, demos=None, envs=envs, scenes=scenes, seed=seed,
             resume=resume, eval_every=eval_every, config=config, executor=executor, num_env_runners=num_env_runners,
-            address=address)
+            address=address, protocol="curbside", backend="pybullet", split="train", init_from=None, seeds=None,
+            eval_episodes=None)
 
 
 @app.command("eval")
 def eval_cmd(
     run_dir: Path = typer.Argument(..., help="A folder written by `curbside train run`."),
     split: str = typer.Option("test", help="train, test, unseen or finetune."),
-    episodes: int = typer.Option(50, min=1, help="Episodes (seeds seed..seed+N-1)."),
+    episodes: Optional[int] = typer.Option(None, min=1, help="Episodes (seeds seed..seed+N-1); default: the run's "
+                                           "protocol's (curbside 50, paper 200)."),
     seed: int = typer.Option(0, min=0, help="Seed of the first episode."),
     config: Optional[str] = typer.Option(None, help="Env config overrides as a JSON object (default: the run's)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
@@ -119,13 +161,18 @@ def eval_cmd(
     from curbside.train.evaluate import evaluate_policy
     from curbside.train.policies import load_policy
 
+    from curbside.train.protocols import protocol as get_protocol
+
     try:
         act, run = load_policy(run_dir)
         cfg = {**run.get("env_config", {}), **parse_config_json(config)}
         _check_env_config(run["task"], cfg, split)
+        proto = get_protocol(run.get("protocol", "curbside"))
     except (ConfigError, ValueError, FileNotFoundError) as e:
         raise fail(str(e)) from None
-    summary = evaluate_policy(act, run["task"], cfg, split=split, episodes=episodes, seed=seed, progress=not as_json)
+    episodes = episodes or proto.eval_episodes
+    summary = evaluate_policy(act, run["task"], cfg, split=split, episodes=episodes, seed=seed, progress=not as_json,
+                              num_scenes=proto.eval_scenes)
     summary["algo"] = run["algo"]
     if as_json:
         typer.echo(json.dumps(summary, sort_keys=True))

@@ -9,8 +9,9 @@ from typing import Any
 
 
 def SplitEvalCallback(task: str, env_config: Mapping[str, Any], every: int, episodes: int, split: str,
-                      csv_path: Path) -> Any:
-    """An SB3 callback that evaluates the current policy on `split` every `every` env steps into `csv_path`."""
+                      csv_path: Path, at_start: bool = False) -> Any:
+    """An SB3 callback that evaluates the current policy on `split` every `every` env steps into `csv_path` (and
+    before the first step with `at_start`: a fine-tuned run's first row is its source policy's evaluation)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     from curbside.train.evaluate import evaluate_policy
@@ -19,6 +20,11 @@ def SplitEvalCallback(task: str, env_config: Mapping[str, Any], every: int, epis
         def __init__(self) -> None:
             super().__init__()
             self.next_at = every
+
+        def _on_training_start(self) -> None:
+            self.next_at = (self.num_timesteps // every + 1) * every  # a resumed run goes on where it was
+            if at_start:
+                self.record()
 
         def _on_step(self) -> bool:
             if self.num_timesteps >= self.next_at:
@@ -41,7 +47,8 @@ def SplitEvalCallback(task: str, env_config: Mapping[str, Any], every: int, epis
 def append_eval_row(csv_path: Path, steps: int, summary: Mapping[str, Any], logger: Any, split: str) -> None:
     """Append one evaluation (SR, SPL, cost, route completion, SNS) at `steps` to the learning-curve CSV and record
     it in the SB3 `logger` under eval_<split>/ (shared by the SB3 and RLlib trainers)."""
-    row = {"steps": steps, **{k: summary[k] for k in ("sr", "spl", "cost", "route_completion", "sns") if k in summary}}
+    row = {"steps": steps, **{k: summary[k] for k in ("sr", "spl", "cost", "route_completion", "sns", "path_length")
+                              if k in summary}}
     new = not csv_path.exists()
     with open(csv_path, "a", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(row))

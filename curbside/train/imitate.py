@@ -22,34 +22,47 @@ def _transitions(tr: Transitions) -> Any:
 
 
 def train_bc(demos: Transitions, out: Path, *, steps: int, observation_space: Any, action_space: Any,
-             seed: int = 0, batch_size: int = 256, net_arch: tuple[int, ...] = (256, 256), progress: bool = True) -> Path:
-    """Behaviour cloning for `steps` minibatches; the policy (an SB3 ActorCriticPolicy) goes to `policy.zip`."""
+             seed: int = 0, hparams: Mapping[str, Any] | None = None, progress: bool = True) -> Path:
+    """Behaviour cloning for `steps` minibatches: maximise the log-likelihood of the demonstrated actions under an SB3
+    ActorCriticPolicy (imitation's BC loss: - log p(a|s) - 1e-3 entropy), saved as `policy.zip`; a loss log beside.
+
+    The loop is plain torch on tensors built once (a minibatch is an index draw): imitation's BC rebuilt a data loader
+    of dicts every epoch, ~120 ms a minibatch on this 2-core machine against ~2 ms here.
+    """
+    import csv
+
     import torch
-    from imitation.algorithms import bc
-    from imitation.util import logger as imit_logger
     from stable_baselines3.common.policies import ActorCriticPolicy
 
+    h = {"learning_rate": 1e-3, "batch_size": 256, "net_arch": [256, 256], **(hparams or {})}
     torch.set_num_threads(2)
     torch.manual_seed(seed)
-    log = imit_logger.configure(str(out / "logs"), format_strs=["csv"])
-    policy = ActorCriticPolicy(observation_space, action_space, lr_schedule=lambda _: 1e-3, net_arch=list(net_arch))
-    trainer = bc.BC(observation_space=observation_space, action_space=action_space, demonstrations=_transitions(demos),
-                    policy=policy, rng=np.random.default_rng(seed), batch_size=batch_size, device="cpu",
-                    custom_logger=log)
-    with warnings.catch_warnings():
-        # imitation logs a loss tensor through float(): harmless, and not the user's to fix.
-        warnings.filterwarnings("ignore", message="Converting a tensor with requires_grad")
-        # imitation's own bars are nested tqdm lines per epoch: one rich bar over the minibatches instead.
-        with progress_bar("bc minibatches", steps, progress) as update:
-            done = [0]
-
-            def tick() -> None:
-                done[0] += 1
-                update(done[0])
-
-            trainer.train(n_batches=steps, log_interval=max(steps // 10, 1), progress_bar=False, on_batch_end=tick)
+    lr, batch = float(h["learning_rate"]), int(h["batch_size"])
+    policy = ActorCriticPolicy(observation_space, action_space, lr_schedule=lambda _: lr, net_arch=list(h["net_arch"]))
+    obs = torch.as_tensor(demos.obs, dtype=torch.float32)
+    acts = torch.as_tensor(np.clip(demos.actions, action_space.low, action_space.high), dtype=torch.float32)
+    gen = torch.Generator().manual_seed(seed)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "logs").mkdir(exist_ok=True)
+    rows = []
+    policy.set_training_mode(True)
+    with progress_bar("bc minibatches", steps, progress) as update:
+        for k in range(1, steps + 1):
+            idx = torch.randint(len(obs), (min(batch, len(obs)),), generator=gen)
+            _, log_prob, entropy = policy.evaluate_actions(obs[idx], acts[idx])
+            loss = -log_prob.mean() - 1e-3 * (entropy.mean() if entropy is not None else 0.0)
+            policy.optimizer.zero_grad()
+            loss.backward()
+            policy.optimizer.step()
+            if k % max(steps // 100, 1) == 0 or k == steps:
+                rows.append({"minibatches": k, "loss": float(loss.detach()), "log_prob": float(log_prob.detach().mean())})
+                update(k)
+    with open(out / "logs" / "progress.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
     path = out / "policy.zip"
-    trainer.policy.save(str(path))
+    policy.save(str(path))
     return path
 
 
@@ -68,9 +81,11 @@ def train_gail(demos: Transitions, out: Path, *, steps: int, venv: Any, hparams:
     log = imit_logger.configure(str(out / "logs"), format_strs=["csv"])
     learner = PPO("MlpPolicy", venv, seed=seed, device="cpu", **ppo_kwargs(hparams))
     reward_net = BasicRewardNet(venv.observation_space, venv.action_space, normalize_input_layer=RunningNorm)
-    batch = min(512, len(demos))
-    gail = GAIL(demonstrations=_transitions(demos), demo_batch_size=batch, gen_replay_buffer_capacity=max(4096, batch),
-                n_disc_updates_per_round=4, venv=venv, gen_algo=learner, reward_net=reward_net,
+    batch = min(int(hparams.get("demo_batch_size", 512)), len(demos))
+    rollout = int(learner.n_steps) * venv.num_envs
+    gail = GAIL(demonstrations=_transitions(demos), demo_batch_size=batch, gen_replay_buffer_capacity=max(rollout, batch),
+                n_disc_updates_per_round=int(hparams.get("disc_updates_per_round", 4)), venv=venv, gen_algo=learner,
+                reward_net=reward_net, disc_opt_kwargs={"lr": float(hparams.get("disc_lr", 1e-3))},
                 allow_variable_horizon=True, custom_logger=log)
     gail.train(total_timesteps=steps)
     path = out / "policy.zip"

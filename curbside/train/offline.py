@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import logging
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -31,8 +32,23 @@ def mdp_dataset(tr: Transitions) -> Any:
                                      action_space=d3rlpy.ActionSpace.CONTINUOUS)
 
 
+def offline_config(algo: str, hparams: Mapping[str, Any]) -> Any:
+    """d3rlpy's config of `algo` (iql, td3bc) with a protocol's hyper-parameters (curbside.train.protocols)."""
+    import d3rlpy
+
+    h = dict(hparams)
+    lr = float(h.get("learning_rate", 3e-4))
+    common = {"batch_size": int(h.get("batch_size", 256)), "gamma": float(h.get("gamma", 0.99)),
+              "tau": float(h.get("tau", 5e-3)), "actor_learning_rate": lr, "critic_learning_rate": lr}
+    if algo == "iql":
+        return d3rlpy.algos.IQLConfig(**common, expectile=float(h.get("expectile", 0.7)),
+                                      weight_temp=float(h.get("beta", 3.0)))
+    return d3rlpy.algos.TD3PlusBCConfig(**common, alpha=float(h.get("alpha", 2.5)),
+                                        update_actor_interval=int(h.get("actor_delay", 2)))
+
+
 def train_offline(algo: str, demos: Transitions, out: Path, *, steps: int, seed: int = 0,
-                  batch_size: int = 256, progress: bool = True) -> Path:
+                  hparams: Mapping[str, Any] | None = None, progress: bool = True) -> Path:
     """Train IQL or TD3+BC for `steps` gradient steps; write `policy.d3` (config + weights) and a CSV log."""
     import d3rlpy
     import torch
@@ -40,8 +56,7 @@ def train_offline(algo: str, demos: Transitions, out: Path, *, steps: int, seed:
     _quiet_d3rlpy()
     torch.set_num_threads(2)
     d3rlpy.seed(seed)
-    configs = {"iql": d3rlpy.algos.IQLConfig, "td3bc": d3rlpy.algos.TD3PlusBCConfig}
-    learner = configs[algo](batch_size=batch_size).create(device="cpu")
+    learner = offline_config(algo, hparams or {}).create(device="cpu")
     ds = mdp_dataset(demos)
     # d3rlpy runs steps // per_epoch epochs: an epoch length that divides `steps` trains exactly `steps`.
     per_epoch = next(d for d in range(min(1000, steps), 0, -1) if steps % d == 0)

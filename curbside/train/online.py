@@ -4,7 +4,8 @@ PPO-Lag and PPO-ET are PPO with a small, explicit change each (Ray et al. 2019's
 2021's early termination as used by MetaUrban's Table 1):
 - PPO-Lag trains on r - lambda * c, and after every rollout raises lambda by `lag_lr` * (mean episode cost -
   `cost_limit`) (never below 0), so the policy trades progress against the cost budget.
-- PPO-ET ends an episode at its first cost step with `et_penalty`: the simplest hard constraint.
+- PPO-ET ends an episode once its cost exceeds `cost_limit` (the env's `max_episode_cost`; MetaUrban's rule), with
+  the reward's `stuck` penalty.
 """
 
 from __future__ import annotations
@@ -14,35 +15,20 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
+from curbside.config import ConfigError
+
 ONLINE_ALGOS = ("ppo", "ppo_lag", "ppo_et")
-PPO_DEFAULTS: dict[str, Any] = {
-    "learning_rate": 3e-4, "n_steps": 512, "batch_size": 256, "n_epochs": 10, "gamma": 0.99, "gae_lambda": 0.95,
-    "clip_range": 0.2, "ent_coef": 0.0, "vf_coef": 0.5, "max_grad_norm": 0.5, "net_arch": [256, 256],
-    "log_std_init": -0.5, "cost_limit": 1.0, "lag_lr": 0.05, "lag_init": 0.1, "et_penalty": -5.0,
-}
+SAFE_KEYS = ("cost_limit", "lag_lr", "lag_init", "et_penalty")  # PPO-Lag / PPO-ET settings, not SB3 PPO arguments
+GAIL_KEYS = ("demo_batch_size", "disc_updates_per_round", "disc_lr")
+CHECKPOINT_EVERY = 25_000  # env steps between checkpoints: a killed run loses minutes, not hours
 
 
-class EarlyTermination(gym.Wrapper):
-    """PPO-ET: the first step whose info["cost"] is 1 ends the episode, with `penalty` added to its reward."""
-
-    def __init__(self, env: gym.Env, penalty: float = -5.0) -> None:
-        super().__init__(env)
-        self.penalty = float(penalty)
-
-    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
-        """Step; end the episode on a cost step (metrics are still reported by the env's own end)."""
-        obs, r, term, trunc, info = self.env.step(action)
-        if info.get("cost", 0.0) > 0 and not (term or trunc):
-            r += self.penalty
-            term = True
-            u = self.env.unwrapped
-            metrics = u._episode_metrics()
-            info.update(metrics, metrics=metrics, episode_cost=metrics.get("cost", 1.0), cost=1.0,
-                        is_success=False, early_terminated=True)
-        return obs, r, term, trunc, info
+def early_termination_config(env_config: Mapping[str, Any], cost_limit: float) -> dict[str, Any]:
+    """PPO-ET's training env config: the episode ends, failed, once its cost exceeds `cost_limit` (the env's
+    `max_episode_cost`, with the reward's `stuck` term as its penalty)."""
+    return {**env_config, "max_episode_cost": float(cost_limit)}
 
 
 def _lagrange_callback(lag_lr: float, cost_limit: float, lam0: float, state: Path) -> Any:
@@ -83,42 +69,47 @@ def _lagrange_callback(lag_lr: float, cost_limit: float, lam0: float, state: Pat
 
 def ppo_kwargs(hparams: Mapping[str, Any]) -> dict[str, Any]:
     """The SB3 PPO keyword arguments of our hyperparameters (net_arch and log_std_init go to policy_kwargs)."""
-    h = dict(hparams)
-    extra = {k: h.pop(k) for k in ("cost_limit", "lag_lr", "lag_init", "et_penalty")}
-    del extra
+    h = {k: v for k, v in hparams.items() if k not in SAFE_KEYS + GAIL_KEYS + ("train_batch",)}
     policy_kwargs = {"net_arch": list(h.pop("net_arch")), "log_std_init": float(h.pop("log_std_init"))}
     return dict(h, policy_kwargs=policy_kwargs)
 
 
 def train_online(algo: str, task: str, out: Path, *, steps: int, env_config: Mapping[str, Any], n_envs: int,
                  num_scenes: int, hparams: Mapping[str, Any], seed: int = 0, resume: bool = False,
-                 eval_every: int = 0, eval_episodes: int = 20, eval_split: str = "test",
-                 progress: bool = True, subprocess: bool = True) -> Path:
-    """Train `algo` on the train split for `steps` env steps; checkpoints, CSV/TensorBoard logs and the final
-    policy (`policy.zip`) go to `out`; returns the policy path. `resume` continues from `out/checkpoints`."""
+                 eval_every: int = 0, eval_episodes: int = 20, eval_split: str = "test", progress: bool = True,
+                 subprocess: bool = True, split: str = "train", backend: str = "pybullet",
+                 init_from: Path | None = None, meta: Mapping[str, Any] | None = None) -> Path:
+    """Train `algo` on `split` for `steps` env steps; checkpoints, CSV/TensorBoard logs and the final policy
+    (`policy.zip`) go to `out`; returns the policy path. `resume` continues from `out/checkpoints`; `init_from`
+    starts from another run's policy (its evaluation is the curve's first row when `eval_every` > 0)."""
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
     from stable_baselines3.common.logger import configure
 
     from curbside.train.callbacks import SplitEvalCallback
-    from curbside.train.envs import make_vec_env
+    from curbside.train.envs import make_training_vec
 
-    torch.set_num_threads(1)  # the env workers need the cores; a 256x256 MLP does not
     out.mkdir(parents=True, exist_ok=True)
-    wrappers: tuple = ()
-    if algo == "ppo_et":
-        pen = float(hparams["et_penalty"])
-        wrappers = (lambda e: EarlyTermination(e, pen),)
-    vec = make_vec_env(task, env_config, n_envs, num_scenes, subprocess=subprocess, seed=seed, wrappers=wrappers)
     ckpt_dir = out / "checkpoints"
     latest = _latest_checkpoint(ckpt_dir) if resume else None
+    source = check_init_from(init_from, algo, task, env_config) if init_from is not None and latest is None else None
+    train_config = early_termination_config(env_config, hparams["cost_limit"]) if algo == "ppo_et" else dict(env_config)
+    # The batched env runs in this process (its LiDAR march uses every core between updates): torch may too.
+    torch.set_num_threads(2 if backend == "batched" else 1)
+    vec = make_training_vec(task, train_config, n_envs, num_scenes, backend=backend, split=split, seed=seed,
+                            subprocess=subprocess)
+    kwargs = ppo_kwargs(hparams)
     if latest is not None:
         model = PPO.load(latest, env=vec, device="cpu")
+    elif source is not None:
+        policy_kwargs = kwargs.pop("policy_kwargs")
+        model = PPO("MlpPolicy", vec, seed=seed, device="cpu", verbose=0, policy_kwargs=policy_kwargs, **kwargs)
+        model.policy.load_state_dict(PPO.load(source, device="cpu").policy.state_dict())
     else:
-        model = PPO("MlpPolicy", vec, seed=seed, device="cpu", verbose=0, **ppo_kwargs(hparams))
+        model = PPO("MlpPolicy", vec, seed=seed, device="cpu", verbose=0, **kwargs)
     model.set_logger(configure(str(out / "logs"), ["csv", "tensorboard"]))
-    callbacks: list = [CheckpointCallback(max(100_000 // n_envs, 1), str(ckpt_dir), name_prefix="policy")]
+    callbacks: list = [CheckpointCallback(max(CHECKPOINT_EVERY // n_envs, 1), str(ckpt_dir), name_prefix="policy")]
     if algo == "ppo_lag":
         state = out / "lagrange.json"
         if latest is None and state.exists():
@@ -126,10 +117,15 @@ def train_online(algo: str, task: str, out: Path, *, steps: int, env_config: Map
         callbacks.append(_lagrange_callback(float(hparams["lag_lr"]), float(hparams["cost_limit"]),
                                             float(hparams["lag_init"]), state))
     if eval_every > 0:
-        callbacks.append(SplitEvalCallback(task, env_config, eval_every, eval_episodes, eval_split, out / "eval_curve.csv"))
+        curve = out / "eval_curve.csv"
+        if latest is None and curve.exists():
+            curve.unlink()  # a fresh run writes a fresh curve
+        callbacks.append(SplitEvalCallback(task, env_config, eval_every, eval_episodes, eval_split, curve,
+                                           at_start=latest is None))
     (out / "run.json").write_text(json.dumps({"algo": algo, "task": task, "steps": steps, "n_envs": n_envs,
                                               "num_scenes": num_scenes, "seed": seed, "hparams": dict(hparams),
-                                              "env_config": dict(env_config)}, indent=2, default=str))
+                                              "env_config": dict(env_config), **dict(meta or {})},
+                                             indent=2, default=str))
     remaining = max(steps - model.num_timesteps, 0)
     try:
         model.learn(remaining, callback=CallbackList(callbacks), progress_bar=progress,
@@ -139,6 +135,42 @@ def train_online(algo: str, task: str, out: Path, *, steps: int, env_config: Map
     path = out / "policy.zip"
     model.save(path)
     return path
+
+
+def check_init_from(run_dir: Path, algo: str, task: str, env_config: Mapping[str, Any]) -> Path:
+    """The policy file of the run `run_dir` that a PPO-family run of `task` can start from; a ConfigError when it is
+    not one (another task, algorithm family or observation space)."""
+    from curbside.train.policies import read_run
+
+    run = read_run(Path(run_dir))
+    if run["algo"] not in ONLINE_ALGOS + ("gail",) or run.get("engine") == "rllib":
+        raise ConfigError(f"--init-from {run_dir} is a {run['algo']} run; {algo} starts from a PPO, PPO-Lag, PPO-ET "
+                          "or GAIL run trained with --executor local")
+    if run["task"] != task:
+        raise ConfigError(f"--init-from {run_dir} was trained on {run['task']}, not {task}; start from a {task} run")
+    mine, theirs = observation_shape(task, env_config), observation_shape(run["task"], run.get("env_config", {}))
+    if mine != theirs:
+        raise ConfigError(f"--init-from {run_dir} observes {theirs}, this run {mine}: train with the source run's "
+                          "lidar and observation settings")
+    path = Path(run_dir) / "policy.zip"
+    if not path.is_file():
+        raise ConfigError(f"{path} is missing; the source run did not finish: resume it with `curbside train run "
+                          f"--resume --out {run_dir}`")
+    return path
+
+
+def observation_shape(task: str, env_config: Mapping[str, Any]) -> tuple[int, ...]:
+    """The observation shape of `task`'s env under `env_config` (the table's layout, no scene built)."""
+    import gymnasium as gym
+
+    import sim  # noqa: F401
+    from curbside.train.envs import env_id, split_config
+
+    env = gym.make(env_id(task), config=split_config(env_config, "train", 1))
+    try:
+        return tuple(env.observation_space.shape or ())
+    finally:
+        env.close()
 
 
 def _latest_checkpoint(ckpt_dir: Path) -> Path | None:

@@ -5,7 +5,7 @@ Layout of `out` (as SB3's runs): run.json (with "engine": "rllib"), logs/progres
 (SB3's logger, SB3's key names), checkpoints/policy_<steps>_steps/ (RLlib checkpoints, one every ~100k env steps),
 policy/ (the final checkpoint, which `curbside train eval` loads), eval_curve.csv with --eval-every.
 
-The hyperparameters are the SB3 baselines' (curbside.train.online.PPO_DEFAULTS) mapped onto RLlib's names; a rollout
+The hyperparameters are the SB3 baselines' (curbside.train.protocols) mapped onto RLlib's names; a rollout
 of n_steps per env feeds each update as in SB3. What RLlib does differently: the policy's log-std is an output of
 the network rather than a free parameter (log_std_init is unused), and advantages are computed by RLlib's GAE.
 """
@@ -39,19 +39,19 @@ def make_rllib_env(ctx: Mapping[str, Any]) -> Any:
 
     import sim  # noqa: F401  (registers the env ids in the env runner's process)
     from curbside.train.envs import env_id, split_config
-    from curbside.train.online import EarlyTermination
+    from curbside.train.online import early_termination_config
 
     n, runners = int(ctx["num_scenes"]), max(int(getattr(ctx, "num_workers", 0) or 0), 1)
     k = max(int(getattr(ctx, "worker_index", 0) or 0) - 1, 0)
     lo, hi = k * n // runners, (k + 1) * n // runners
     if hi <= lo:
         lo, hi = k % n, k % n + 1
-    cfg = split_config(ctx["env_config"], "train", hi - lo, scene_seed=lo)
-    cfg.setdefault("scene_cache", hi - lo)
-    env = gym.make(env_id(ctx["task"]), config=cfg)
+    base = ctx["env_config"]
     if ctx["algo"] == "ppo_et":
-        env = EarlyTermination(env, float(ctx["et_penalty"]))
-    return env
+        base = early_termination_config(base, float(ctx["cost_limit"]))
+    cfg = split_config(base, "train", hi - lo, scene_seed=lo)
+    cfg.setdefault("scene_cache", hi - lo)
+    return gym.make(env_id(ctx["task"]), config=cfg)
 
 
 def ppo_config(algo: str, task: str, env_config: Mapping[str, Any], hparams: Mapping[str, Any], *,
@@ -67,7 +67,7 @@ def ppo_config(algo: str, task: str, env_config: Mapping[str, Any], hparams: Map
     h = dict(hparams)
     n_envs = num_env_runners * envs_per_runner
     ctx = {"task": task, "env_config": dict(env_config), "num_scenes": num_scenes, "algo": algo,
-           "et_penalty": float(h["et_penalty"])}
+           "cost_limit": float(h["cost_limit"])}
     return (
         PPOConfig()
         .environment(rllib_env_name(task), env_config=ctx)

@@ -1,4 +1,5 @@
-"""One entry point for every baseline: `train(algo, task, out, ...)` picks online RL, offline RL or imitation."""
+"""One entry point for every baseline: `train(algo, task, out, ...)` picks online RL, offline RL or imitation under a
+protocol (curbside.train.protocols), on a split, from scratch or from a trained run."""
 
 from __future__ import annotations
 
@@ -7,68 +8,127 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from curbside.config import ConfigError
 from curbside.train.policies import check_algo
 
+BACKENDS = ("pybullet", "batched")  # the PyBullet envs (the reference), or sim.batched (PointNav, flat ground)
 
-def train(algo: str, task: str, out: Path, *, steps: int, env_config: Mapping[str, Any] | None = None,
-          n_envs: int = 8, num_scenes: int = 64, seed: int = 0, demos: Path | None = None, resume: bool = False,
-          eval_every: int = 0, hparams: Mapping[str, Any] | None = None, progress: bool = True,
-          subprocess: bool = True, executor: str = "local", num_env_runners: int = 2,
-          address: str | None = None) -> Path:
-    """Train `algo` on `task`'s train split; write run.json and the policy into `out`; return the policy path.
 
-    `executor` "ray" trains PPO (or PPO-ET) on Ray RLlib with `num_env_runners` env runners on the cluster at
-    `address` (curbside.train.rllib), into the same layout; "local" is SB3 with `n_envs` envs in local processes.
-    """
-    from curbside.train.online import ONLINE_ALGOS, PPO_DEFAULTS, train_online
+def check_backend(backend: str, task: str, algo: str) -> str:
+    """`backend` if it can train `algo` on `task`; otherwise a ConfigError that names what can."""
+    if backend not in BACKENDS:
+        raise ConfigError(f"unknown backend {backend!r}; valid: {', '.join(BACKENDS)}")
+    if backend == "batched" and task != "PointNav":
+        raise ConfigError(f"the batched backend steps PointNav only; train {task} with --backend pybullet")
+    if backend == "batched" and algo not in ("ppo", "ppo_lag", "ppo_et", "gail"):
+        raise ConfigError(f"{algo} learns from demonstrations, not from an env backend: drop --backend batched")
+    return backend
+
+
+def resolve_run(algo: str, task: str, *, protocol: str = "curbside", env_config: Mapping[str, Any] | None = None,
+                n_envs: int | None = None, num_scenes: int | None = None, split: str = "train",
+                hparams: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """What a run trains with: the protocol's env config, envs, scenes of `split` and `algo`'s hyper-parameters,
+    each overridden by the caller's values (None keeps the protocol's)."""
+    from curbside.train.envs import SPLITS
+    from curbside.train.protocols import ppo_hparams
+    from curbside.train.protocols import protocol as get_protocol
 
     check_algo(algo)
+    proto = get_protocol(protocol)
+    if split not in SPLITS:
+        raise ConfigError(f"unknown split {split!r}; valid: {', '.join(SPLITS)}")
+    cfg = {**proto.env_config, **(env_config or {})}
+    if "split" in (env_config or {}) and env_config["split"] != split:  # type: ignore[index]
+        raise ConfigError(f"config.split {env_config['split']!r} differs from --split {split!r}; "  # type: ignore[index]
+                          "choose the training split with --split")
+    cfg.pop("split", None)
+    envs = int(n_envs or proto.n_envs)
+    h = {**proto.algo_hparams(algo), **(hparams or {})}
+    if algo in ("ppo", "ppo_lag", "ppo_et", "gail"):
+        h = ppo_hparams(h, envs)
+    return {"protocol": proto.name, "env_config": cfg, "n_envs": envs, "split": split, "hparams": h,
+            "num_scenes": int(num_scenes or proto.scenes(split))}
+
+
+def train(algo: str, task: str, out: Path, *, steps: int, protocol: str = "curbside", backend: str = "pybullet",
+          split: str = "train", env_config: Mapping[str, Any] | None = None, n_envs: int | None = None,
+          num_scenes: int | None = None, seed: int = 0, demos: Path | None = None, resume: bool = False,
+          init_from: Path | None = None, eval_every: int = 0, eval_episodes: int | None = None,
+          hparams: Mapping[str, Any] | None = None, progress: bool = True, subprocess: bool = True,
+          executor: str = "local", num_env_runners: int = 2, address: str | None = None) -> Path:
+    """Train `algo` on `task`'s `split` under `protocol`; write run.json and the policy into `out`; return the policy
+    path.
+
+    `backend` "batched" steps the online algorithms' envs in sim.batched (PointNav); evaluation always runs on the
+    PyBullet env. `init_from` starts from a trained run's policy (same algorithm family, task and observations).
+    `executor` "ray" trains PPO (or PPO-ET) on Ray RLlib with `num_env_runners` env runners on the cluster at
+    `address` (curbside.train.rllib), into the same layout; "local" is SB3 with `n_envs` envs.
+    """
+    from curbside.train.online import ONLINE_ALGOS, train_online
+    from curbside.train.protocols import protocol as get_protocol
+
+    check_algo(algo)
+    check_backend(backend, task, algo)
+    r = resolve_run(algo, task, protocol=protocol, env_config=env_config, n_envs=n_envs, num_scenes=num_scenes,
+                    split=split, hparams=hparams)
+    cfg, h, envs, scenes = r["env_config"], r["hparams"], r["n_envs"], r["num_scenes"]
+    proto = get_protocol(protocol)
+    episodes = int(eval_episodes or proto.curve_episodes)
     out = Path(out)
-    cfg = dict(env_config or {})
-    h = {**PPO_DEFAULTS, **(hparams or {})}
     if executor not in ("local", "ray"):
-        from curbside.config import ConfigError
         raise ConfigError(f"training runs on executor local (SB3, envs in local processes) or ray (RLlib), got "
                           f"{executor!r}")
     if executor == "ray":
+        if init_from is not None or split != "train" or backend != "pybullet":
+            raise ConfigError("--executor ray trains from scratch on the train split with the PyBullet envs; drop "
+                              "--init-from, --split and --backend, or use --executor local")
         from curbside.train.rllib import train_rllib
-        return train_rllib(algo, task, out, steps=steps, env_config=cfg, n_envs=n_envs, num_env_runners=num_env_runners,
-                           num_scenes=num_scenes, hparams=h, seed=seed, resume=resume, eval_every=eval_every,
+        return train_rllib(algo, task, out, steps=steps, env_config=cfg, n_envs=envs, num_env_runners=num_env_runners,
+                           num_scenes=scenes, hparams=h, seed=seed, resume=resume, eval_every=eval_every,
                            address=address, progress=progress)
+    meta = {"protocol": r["protocol"], "split": split, "backend": backend,
+            "init_from": None if init_from is None else str(init_from)}
     if algo in ONLINE_ALGOS:
-        return train_online(algo, task, out, steps=steps, env_config=cfg, n_envs=n_envs, num_scenes=num_scenes,
-                            hparams=h, seed=seed, resume=resume, eval_every=eval_every, progress=progress,
-                            subprocess=subprocess)
+        return train_online(algo, task, out, steps=steps, env_config=cfg, n_envs=envs, num_scenes=scenes, hparams=h,
+                            seed=seed, resume=resume, eval_every=eval_every, eval_episodes=episodes,
+                            progress=progress, subprocess=subprocess, split=split, backend=backend,
+                            init_from=init_from, meta=meta)
     from curbside.train.demos import load_demos
 
-    assert demos is not None, f"{algo} needs demonstrations"
-    transitions, meta = load_demos(demos)
+    if demos is None:
+        raise ConfigError(f"{algo} learns from demonstrations: pass --demos DIR (collect with `curbside demos "
+                          f"collect --task {task}`)")
+    transitions, demos_meta = load_demos(demos)
+    if demos_meta.get("task", task) != task:
+        raise ConfigError(f"the demonstrations at {demos} are of {demos_meta['task']}, not {task}; collect {task} "
+                          f"demonstrations with `curbside demos collect --task {task}`")
     out.mkdir(parents=True, exist_ok=True)
     (out / "run.json").write_text(json.dumps({"algo": algo, "task": task, "steps": steps, "seed": seed,
-                                              "demos": str(demos), "demos_meta": meta, "env_config": cfg,
-                                              "n_envs": n_envs, "num_scenes": num_scenes}, indent=2, default=str))
+                                              "demos": str(demos), "demos_meta": demos_meta, "env_config": cfg,
+                                              "n_envs": envs, "num_scenes": scenes, "hparams": h, **meta},
+                                             indent=2, default=str))
     import gymnasium as gym
 
     import sim  # noqa: F401
     from curbside.train.envs import env_id, make_vec_env, split_config
 
-    probe = gym.make(env_id(task), config=split_config(cfg, "train", 1))
+    probe = gym.make(env_id(task), config=split_config(cfg, split, 1))
     obs_space, act_space = probe.observation_space, probe.action_space
     probe.close()
     if transitions.obs.shape[1:] != obs_space.shape:
-        from curbside.config import ConfigError
         raise ConfigError(f"the demonstrations' observations have shape {transitions.obs.shape[1:]}, the env's "
                           f"{obs_space.shape}; collect them again with the same env config")
     if algo in ("iql", "td3bc"):
         from curbside.train.offline import train_offline
-        return train_offline(algo, transitions, out, steps=steps, seed=seed, progress=progress)
+        return train_offline(algo, transitions, out, steps=steps, hparams=h, seed=seed, progress=progress)
     if algo == "bc":
         from curbside.train.imitate import train_bc
         return train_bc(transitions, out, steps=steps, observation_space=obs_space, action_space=act_space, seed=seed,
-                        batch_size=int((hparams or {}).get("batch_size", 256)), progress=progress)
+                        hparams=h, progress=progress)
     from curbside.train.imitate import train_gail
 
-    vec = make_vec_env(task, cfg, n_envs, num_scenes, subprocess=subprocess, seed=seed)
+    vec = make_vec_env(task, cfg, envs, scenes, split=split, subprocess=subprocess, seed=seed)
     try:
         return train_gail(transitions, out, steps=steps, venv=vec, hparams=h, seed=seed)
     finally:

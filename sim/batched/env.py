@@ -49,7 +49,7 @@ class BatchedPointNav(VectorEnv):
 
     Autoreset is SAME_STEP (as curbside.train.sharded): a finished env is reset within `step`; its last observation is
     `info["final_obs"][i]` and its last info (with the episode's metrics) is `info["final_info"]` under mask
-    `info["_final_info"]`. Per-step info: `cost`, `route_completion`, `out_of_route`, `stuck`, and `collisions`
+    `info["_final_info"]`. Per-step info: `cost`, `route_completion`, `out_of_route`, `stuck`, `cost_exceeded`, and `collisions`
     (bit mask of the kinds touched: `sim.batched.episodes.KIND_BITS`).
     """
 
@@ -186,17 +186,17 @@ class BatchedPointNav(VectorEnv):
         s, lat = self.routes.locate(d.x, d.y, ep.progress)
         progress, new_progress, collided = ep.advance(d.x - x0, d.y - y0, s, lat, hits)
         self._locate_level()
-        succeeded, out, stuck = ep.end(self.routes.length, self.labels != 0, hits != 0)
+        succeeded, out, stuck, over = ep.end(self.routes.length, self.labels != 0, hits != 0)
         reward = self.reward_fn.batch(progress, new_progress, lat, steer - ep.last_action[:, 0], d.speed, collided,
-                                      succeeded, out, stuck).astype(np.float64)
+                                      succeeded, out, stuck | over).astype(np.float64)
         ep.last_action = a
-        terminated = succeeded | out | stuck
+        terminated = succeeded | out | stuck | over
         truncated = ~terminated & (ep.steps >= ep.horizon)
         obs = self._observe()
         on = np.ones(self.num_envs, dtype=bool)
         info: dict[str, Any] = {
             "cost": collided.astype(np.float64), "route_completion": np.minimum(ep.max_progress / self.routes.length, 1.0),
-            "out_of_route": out, "stuck": stuck, "collisions": hits}
+            "out_of_route": out, "stuck": stuck, "cost_exceeded": over, "collisions": hits}
         info.update({f"_{k}": on for k in list(info)})
         done = terminated | truncated
         if done.any():

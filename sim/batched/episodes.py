@@ -30,6 +30,7 @@ class Episodes:
         self.stuck_steps = int(cfg["stuck_steps"])
         self.collision_steps = int(cfg["collision_steps"])
         self.off_walkable_ends = bool(cfg["terminate_off_walkable"])
+        self.max_cost = None if cfg["max_episode_cost"] is None else float(cfg["max_episode_cost"])
         self.cost_bits = sum(KIND_BITS[k] for k in cfg["cost_kinds"] if k in KIND_BITS)
         f = lambda: np.zeros(n)  # noqa: E731
         i = lambda: np.zeros(n, dtype=np.int64)  # noqa: E731
@@ -64,8 +65,9 @@ class Episodes:
         return progress, new_progress, collided
 
     def end(self, length: np.ndarray, on_walkable: np.ndarray, in_contact: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(succeeded, out of route, stuck) of every env after its step (`Termination.__call__`)."""
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(succeeded, out of route, stuck, cost exceeded) of every env after its step (`Termination.__call__` and
+        `Termination.cost_exceeded`)."""
         succeeded = self.max_progress >= self.success_completion * length
         off = np.abs(self.lateral) > self.out_of_route_distance
         if self.off_walkable_ends:
@@ -80,4 +82,6 @@ class Episodes:
             pinned |= self.steps - self.mark_step >= self.stuck_steps
         if self.collision_steps > 0:
             pinned |= self.contact_run >= self.collision_steps
-        return succeeded, out, ~(succeeded | out) & pinned
+        stuck = ~(succeeded | out) & pinned
+        over = np.zeros(self.n, dtype=bool) if self.max_cost is None else self.cost_total > self.max_cost
+        return succeeded, out, stuck, ~(succeeded | out | stuck) & over

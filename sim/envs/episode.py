@@ -26,15 +26,17 @@ class Episode:
     out_of_route: bool = False
     stuck: bool = False
     toppled: bool = False  # rolled or pitched past config.topple_angle
+    cost_exceeded: bool = False  # the episode's cost passed config.max_episode_cost
     last_action: np.ndarray = field(default_factory=lambda: np.zeros(2, dtype=np.float64))
 
     def step_info(self, collided: bool, hits: set[str], route_length: float) -> dict[str, object]:
         """The per-step `info`: cost, route completion, kinds touched, and why the episode ended (if it did)."""
         reason = next((name for name, hit in (("success", self.succeeded), ("toppled", self.toppled),
-                                               ("out_of_route", self.out_of_route), ("stuck", self.stuck)) if hit), None)
+                                               ("out_of_route", self.out_of_route), ("stuck", self.stuck),
+                                               ("cost_exceeded", self.cost_exceeded)) if hit), None)
         return {"cost": float(collided), "route_completion": min(self.max_progress / route_length, 1.0),
                 "collision_kinds": sorted(hits), "out_of_route": self.out_of_route, "stuck": self.stuck,
-                "toppled": self.toppled, "end_reason": reason}
+                "toppled": self.toppled, "cost_exceeded": self.cost_exceeded, "end_reason": reason}
 
     def advance(self, start: tuple[float, float], end: tuple[float, float], s: float, lateral: float, hits: set[str],
                 collided: bool) -> tuple[float, float]:

@@ -256,11 +256,13 @@ class PointNavEnv(gym.Env):
         ep.succeeded, ep.out_of_route, ep.stuck = self.termination(
             ep.steps, ep.max_progress, self.route.length, lat, lambda: self.planner.grid.label_at(x, y) != 0, bool(hits))
         ep.toppled = not ep.succeeded and max(abs(m.roll), abs(m.pitch)) > self.termination.topple
+        ep.cost_exceeded = not (ep.succeeded or ep.out_of_route or ep.stuck or ep.toppled) and \
+            self.termination.cost_exceeded(ep.cost_total)
         d_steer = steer - ep.last_action[0]
         reward = self.reward_fn(progress, new_progress, lat, d_steer, m.speed, collided, ep.succeeded, ep.out_of_route,
-                                ep.stuck or ep.toppled)
+                                ep.stuck or ep.toppled or ep.cost_exceeded)
         ep.last_action = a
-        terminated = ep.succeeded or ep.out_of_route or ep.stuck or ep.toppled
+        terminated = ep.succeeded or ep.out_of_route or ep.stuck or ep.toppled or ep.cost_exceeded
         truncated = (not terminated) and ep.steps >= ep.horizon
         for meas in self.measures:
             meas.update(self)

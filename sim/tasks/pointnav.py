@@ -52,6 +52,7 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "stuck_steps": 100,               # end the episode when the route progress grew < stuck_distance in this many steps (0: never)
     "stuck_distance": 0.5,            # metres of new progress that count as moving on
     "collision_steps": 30,            # end the episode after this many consecutive steps in contact (0: never)
+    "max_episode_cost": None,         # end the episode, failed, once its cost exceeds this (PPO-ET's rule; None: never)
     "topple_angle": 60.0,             # degrees of roll or pitch that end the episode as toppled
     "cost_kinds": ["object", "building"],  # contacts that cost (the paper: objects and buildings, not curbs)
     "lidar": {"beams": 240, "range": 50.0, "height": 0.4, "encoding": "log",
@@ -199,6 +200,7 @@ CONFIG_TABLE: dict[str, Any] = {
     "stuck_steps": Int(0, 10_000_000),
     "stuck_distance": Pos(1000.0),
     "collision_steps": Int(0, 10_000_000),
+    "max_episode_cost": Float(0.0, 1e9, none=True),
     "topple_angle": Float(1.0, 180.0, hint="degrees"),
     "cost_kinds": Rule("list", choices=COLLISION_KINDS),
     "lidar": LIDAR_TABLE,
@@ -275,6 +277,7 @@ class Termination:
     collision_steps: int
     off_walkable_ends: bool  # leaving the walkable area ends the episode as out of route
     topple: float = float(np.radians(60.0))  # roll or pitch (rad) past which the machine has toppled
+    max_cost: float | None = None  # episode cost past which the episode ends (PPO-ET's rule); None: never
     mark: tuple[int, float] = (0, 0.0)  # (step, max progress) when progress last grew by stuck_distance
     contact_run: int = 0  # consecutive steps in contact
 
@@ -283,7 +286,12 @@ class Termination:
         """A fresh detector for one episode of a task config."""
         return cls(float(cfg["success_completion"]), float(cfg["out_of_route_distance"]), float(cfg["stuck_distance"]),
                    int(cfg["stuck_steps"]), int(cfg["collision_steps"]), bool(cfg["terminate_off_walkable"]),
-                   float(np.radians(cfg["topple_angle"])))
+                   float(np.radians(cfg["topple_angle"])),
+                   None if cfg["max_episode_cost"] is None else float(cfg["max_episode_cost"]))
+
+    def cost_exceeded(self, cost_total: float) -> bool:
+        """Whether an episode that has cost `cost_total` so far ends for it (cost above `max_cost`)."""
+        return self.max_cost is not None and cost_total > self.max_cost
 
     def __call__(self, steps: int, max_progress: float, route_length: float, lateral: float,
                  on_walkable: Callable[[], bool], in_contact: bool) -> tuple[bool, bool, bool]:

@@ -39,11 +39,10 @@ def test_rllib_ppo_trains_checkpoints_resumes_and_evaluates(tmp_path: Path, monk
 
 
 def _train_resume_eval(tmp_path: Path, capsys) -> None:
-    from curbside.train.online import PPO_DEFAULTS
     from curbside.train.run import train
 
     run = tmp_path / "run"
-    h = {**PPO_DEFAULTS, **TINY}
+    h = dict(TINY)
     policy = train("ppo", "PointNav", run, steps=256, env_config=CFG, n_envs=2, num_scenes=2, hparams=h,
                    executor="ray", num_env_runners=2, progress=False)
     meta = json.loads((run / "run.json").read_text())

@@ -70,19 +70,41 @@ def test_ppo_lag_raises_lambda_when_cost_exceeds_the_limit(tmp_path) -> None:
     assert lam[-1] > 0.0
 
 
-def test_ppo_et_ends_the_episode_on_the_first_cost_step(spec) -> None:
+@pytest.mark.parametrize("limit", [0.0, 1.0, 3.0])
+def test_ppo_et_ends_the_episode_once_its_cost_exceeds_the_limit(spec, limit) -> None:
+    # MetaUrban's PPO-ET rule: the episode stops when the cost exceeds the limit (not at the first cost step).
     import gymnasium as gym
 
-    from curbside.train.online import EarlyTermination
+    from curbside.train.online import early_termination_config
 
-    env = EarlyTermination(gym.make("curbside/PointNav-v0", config={"scene_spec": spec, "terminate_off_walkable": False,
-                                                                   "out_of_route_distance": 50.0}), penalty=-5.0)
+    base = {"scene_spec": spec, "terminate_off_walkable": False, "out_of_route_distance": 50.0, "collision_steps": 0}
+    env = gym.make("curbside/PointNav-v0", config=early_termination_config(base, limit))
     env.reset(seed=0, options={"start": [10.0, 7.0], "goal": [25.0, 7.0]})
-    for k in range(100):
-        _, r, term, trunc, info = env.step([0.0, 1.0])
-        if term:
+    costs = []
+    for k in range(300):
+        _, r, term, trunc, info = env.step([0.0, 1.0])  # straight into the trash bin on the sidewalk
+        costs.append(info["cost"])
+        if term or trunc:
             break
-    assert info["early_terminated"] and info["cost"] == 1.0 and info["episode_cost"] == 1.0 and r < -4.0
+    assert term and info["cost_exceeded"] and info["end_reason"] == "cost_exceeded"
+    assert sum(costs) == info["episode_cost"] == int(limit) + 1  # the first step past the limit ends it
+    assert not any(np.cumsum(costs)[:-1] > limit)
+
+
+def test_batched_env_ends_episodes_at_the_same_cost_as_the_pybullet_env(spec) -> None:
+    from curbside.train.online import early_termination_config
+    from sim.batched import BatchedPointNav
+
+    base = {"scene_spec": spec, "terminate_off_walkable": False, "out_of_route_distance": 50.0, "collision_steps": 0}
+    env = BatchedPointNav(1, config=early_termination_config(base, 2.0))
+    env.reset(seed=0, options={"start": [10.0, 7.0], "goal": [25.0, 7.0]})
+    total = 0.0
+    for k in range(300):
+        _, _, term, trunc, info = env.step(np.array([[0.0, 1.0]]))
+        total += info["cost"][0]
+        if term[0] or trunc[0]:
+            break
+    assert term[0] and info["final_info"]["cost_exceeded"][0] and total == 3.0
 
 
 def test_resume_continues_from_the_latest_checkpoint(tmp_path) -> None:

@@ -1,0 +1,157 @@
+"""Named experimental protocols: everything an experiment's numbers depend on, in one declaration each.
+
+A protocol fixes the scenes (env config preset, split sizes, the scene seeds), the episode rules (horizon, reward,
+cost kinds), every algorithm's hyper-parameters, the demonstrations and the evaluation (episodes, seed). A run
+records its protocol in run.json; `curbside train run --protocol NAME` applies it.
+
+- `paper`: MetaUrban's (ICLR 2025, Sec. 4 and the appendix tables "Experiment details"): MetaUrban-12K-scale scenes,
+  the paper's split sizes, its hyper-parameters and PPO-ET rule, 200 evaluation episodes a split. Where the paper is
+  silent or contradicts itself, the choice and its reason are in docs/protocols.md.
+- `curbside`: the project's learnable defaults (sparse scenes, 10-60 m routes, SB3's usual PPO settings), for quick
+  experiments and the tests.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+from curbside.config import ConfigError
+
+SPLIT_NAMES = ("train", "test", "unseen", "finetune")
+
+
+def _frozen(d: Mapping[str, Any]) -> Mapping[str, Any]:
+    return MappingProxyType(dict(d))
+
+
+@dataclass(frozen=True)
+class Demonstrations:
+    """How a protocol's demonstration set is made: `steps` in all, a fraction `policy_fraction` of the episodes
+    driven by a trained PPO policy of the protocol (the rest by the noisy expert, `expert_noise`), aiming at
+    `target_success`."""
+
+    steps: int
+    policy_fraction: float
+    expert_noise: float
+    target_success: float
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """One experimental protocol (see the module docstring); read it through `protocol(name)`."""
+
+    name: str
+    description: str
+    env_config: Mapping[str, Any]          # env config every run of the protocol starts from (task-independent)
+    split_scenes: Mapping[str, int]        # scenes in each split (train draws episodes from all of its scenes)
+    n_envs: int                            # parallel envs of online training
+    hparams: Mapping[str, Mapping[str, Any]]  # per algorithm (curbside.train.policies.ALGOS)
+    demos: Demonstrations
+    eval_episodes: int                     # episodes per split in an evaluation
+    eval_seed: int = 0                     # seed of the first evaluation episode
+    eval_scenes: int = 50                  # scenes of the split an evaluation draws from
+    curve_episodes: int = 20               # episodes per point of a learning curve
+    sources: Mapping[str, str] = field(default_factory=dict)  # where each value comes from
+
+    def algo_hparams(self, algo: str) -> dict[str, Any]:
+        """The hyper-parameters of `algo` under this protocol (a copy)."""
+        if algo not in self.hparams:
+            raise ConfigError(f"protocol {self.name!r} has no hyper-parameters for {algo!r}; valid: "
+                              f"{', '.join(self.hparams)}")
+        return dict(self.hparams[algo])
+
+    def scenes(self, split: str) -> int:
+        """How many scenes the protocol's `split` holds."""
+        if split not in self.split_scenes:
+            raise ConfigError(f"unknown split {split!r}; valid: {', '.join(self.split_scenes)}")
+        return int(self.split_scenes[split])
+
+
+# PPO as SB3 names it. `train_batch` is the paper's "train batch" (env steps per update, across envs): a run sets
+# SB3's n_steps = train_batch // n_envs. The curbside values are SB3's usual ones with 8 envs of 512 steps.
+CURBSIDE_PPO: dict[str, Any] = {
+    "learning_rate": 3e-4, "train_batch": 4_096, "batch_size": 256, "n_epochs": 10, "gamma": 0.99, "gae_lambda": 0.95,
+    "clip_range": 0.2, "ent_coef": 0.0, "vf_coef": 0.5, "max_grad_norm": 0.5, "net_arch": [256, 256],
+    "log_std_init": -0.5, "cost_limit": 1.0, "lag_lr": 0.05, "lag_init": 0.1, "et_penalty": -5.0,
+}
+# MetaUrban, ICLR 2025, appendix table of PPO / PPO-Lag / PPO-ET hyper-parameters: horizon 1,000, lr 5e-5, gamma 0.99,
+# GAE lambda 0.95, clip 0.2, train batch 25,600, SGD minibatch 256, value-loss coefficient 1.0, entropy 0.0, cost
+# limit 1. Not in the paper (docs/protocols.md): epochs per batch, network, initial log-std, the Lagrange multiplier's
+# step and start, the early-termination penalty.
+PAPER_PPO: dict[str, Any] = {
+    **CURBSIDE_PPO, "learning_rate": 5e-5, "train_batch": 25_600, "batch_size": 256, "vf_coef": 1.0, "ent_coef": 0.0,
+    "gamma": 0.99, "gae_lambda": 0.95, "clip_range": 0.2, "cost_limit": 1.0,
+}
+CURBSIDE_OFFLINE = {"learning_rate": 3e-4, "batch_size": 256, "gamma": 0.99, "tau": 5e-3}
+HPARAMS_CURBSIDE: dict[str, dict[str, Any]] = {
+    "ppo": CURBSIDE_PPO, "ppo_lag": CURBSIDE_PPO, "ppo_et": CURBSIDE_PPO,
+    "iql": {**CURBSIDE_OFFLINE, "expectile": 0.7, "beta": 3.0},
+    "td3bc": {**CURBSIDE_OFFLINE, "alpha": 2.5, "actor_delay": 2},
+    "bc": {"learning_rate": 1e-3, "batch_size": 256, "net_arch": [256, 256]},
+    "gail": {**CURBSIDE_PPO, "demo_batch_size": 512, "disc_updates_per_round": 4, "disc_lr": 1e-3},
+}
+# MetaUrban, ICLR 2025, appendix tables of IQL, TD3+BC, BC and GAIL hyper-parameters.
+HPARAMS_PAPER: dict[str, dict[str, Any]] = {
+    "ppo": PAPER_PPO, "ppo_lag": PAPER_PPO, "ppo_et": PAPER_PPO,
+    "iql": {"learning_rate": 1e-4, "batch_size": 256, "gamma": 0.99, "tau": 5e-3, "expectile": 0.7, "beta": 3.0,
+            "log_std_range": [-5.0, 2.0]},
+    "td3bc": {"learning_rate": 1e-4, "batch_size": 256, "gamma": 0.99, "tau": 5e-3, "alpha": 2.5, "actor_delay": 2},
+    "bc": {"learning_rate": 1e-4, "batch_size": 64, "net_arch": [256, 256], "epochs": 40},
+    "gail": {**PAPER_PPO, "learning_rate": 1e-4, "train_batch": 12_800, "demo_batch_size": 64, "n_epochs": 5,
+             "disc_updates_per_round": 2_000, "disc_lr": 3e-3, "clip_range": 0.2},
+}
+
+PROTOCOLS: dict[str, Protocol] = {
+    "curbside": Protocol(
+        name="curbside",
+        description="the project's learnable defaults: sparse scenes, 10-60 m routes, 64 training scenes",
+        env_config=_frozen({}),
+        split_scenes=_frozen({"train": 64, "test": 50, "unseen": 50, "finetune": 64}),
+        n_envs=8,
+        hparams=_frozen({k: _frozen(v) for k, v in HPARAMS_CURBSIDE.items()}),
+        demos=Demonstrations(steps=30_000, policy_fraction=0.0, expert_noise=0.7, target_success=0.6),
+        eval_episodes=50,
+    ),
+    "paper": Protocol(
+        name="paper",
+        description="MetaUrban's: MetaUrban-12K-scale scenes and splits, the paper's hyper-parameters, 200 "
+                    "evaluation episodes a split",
+        env_config=_frozen({"preset": "metaurban12k"}),
+        split_scenes=_frozen({"train": 12_800, "test": 1_000, "unseen": 100, "finetune": 1_000}),
+        n_envs=64,
+        hparams=_frozen({k: _frozen(v) for k, v in HPARAMS_PAPER.items()}),
+        demos=Demonstrations(steps=30_000, policy_fraction=0.8, expert_noise=0.7, target_success=0.6),
+        eval_episodes=200,
+        eval_scenes=100,
+        sources=_frozen({
+            "split_scenes": "MetaUrban, ICLR 2025, Sec. 4 (MetaUrban-12K: train 12,800, test 1,000, unseen 100, "
+                            "finetune 1,000)",
+            "hparams": "MetaUrban, ICLR 2025, appendix hyper-parameter tables (PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, "
+                       "BC, GAIL)",
+            "demos": "MetaUrban, ICLR 2025, appendix: 30,000 steps, 80 % from a trained PPO policy, ~60 % success",
+            "env_config": "docs/protocols.md: the metaurban12k preset (scenes, 250-650 m routes, horizon rule)",
+        }),
+    ),
+}
+
+
+def protocol(name: str) -> Protocol:
+    """The protocol called `name`; unknown names raise listing the valid ones."""
+    if not isinstance(name, str) or name not in PROTOCOLS:
+        raise ConfigError(f"unknown protocol {name!r}; valid: {', '.join(PROTOCOLS)}")
+    return PROTOCOLS[name]
+
+
+def ppo_hparams(hparams: Mapping[str, Any], n_envs: int) -> dict[str, Any]:
+    """SB3 PPO hyper-parameters: `train_batch` (env steps per update) becomes the per-env `n_steps` for `n_envs`
+    envs (rounded down), unless `n_steps` is given explicitly."""
+    h = dict(hparams)
+    batch = int(h.pop("train_batch", 0))
+    if "n_steps" not in h:
+        if batch < n_envs:
+            raise ConfigError(f"a train batch of {batch} env steps cannot feed {n_envs} envs; use fewer envs")
+        h["n_steps"] = batch // n_envs
+    return h

@@ -1,0 +1,149 @@
+"""Protocols (curbside, paper), the batched training backend, fine-tuning from a run, the finetune split and seeds:
+real SB3 and d3rlpy, real envs."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from curbside.train.protocols import PROTOCOLS, protocol
+from curbside.train.run import resolve_run, train
+from tests.helpers import cli, one_error_line
+
+CFG = {"lidar": {"beams": 24, "low_beams": 8}, "route_length": [5.0, 25.0], "scene": {"blocks": 1}}
+TINY = {"n_steps": 64, "batch_size": 64, "n_epochs": 1, "net_arch": [32, 32]}
+
+
+def test_paper_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
+    # MetaUrban, ICLR 2025, appendix tables: the values a paper run trains with, down to the SB3 objects.
+    ppo = resolve_run("ppo", "PointNav", protocol="paper")
+    h = ppo["hparams"]
+    assert (h["learning_rate"], h["gamma"], h["gae_lambda"], h["clip_range"], h["batch_size"], h["vf_coef"],
+            h["ent_coef"], h["cost_limit"]) == (5e-5, 0.99, 0.95, 0.2, 256, 1.0, 0.0, 1.0)
+    assert h["n_steps"] * ppo["n_envs"] == 25_600  # the paper's train batch
+    assert ppo["env_config"]["preset"] == "metaurban12k" and ppo["num_scenes"] == 12_800
+    assert [protocol("paper").scenes(s) for s in ("train", "test", "unseen", "finetune")] == [12_800, 1_000, 100, 1_000]
+    assert protocol("paper").eval_episodes >= 200
+    bc = resolve_run("bc", "PointNav", protocol="paper")["hparams"]
+    assert (bc["learning_rate"], bc["batch_size"], bc["epochs"]) == (1e-4, 64, 40)
+    iql = resolve_run("iql", "PointNav", protocol="paper")["hparams"]
+    assert (iql["learning_rate"], iql["tau"], iql["beta"], iql["expectile"]) == (1e-4, 5e-3, 3.0, 0.7)
+    td3 = resolve_run("td3bc", "PointNav", protocol="paper")["hparams"]
+    assert (td3["learning_rate"], td3["alpha"], td3["actor_delay"]) == (1e-4, 2.5, 2)
+    gail = resolve_run("gail", "PointNav", protocol="paper")["hparams"]
+    assert (gail["learning_rate"], gail["disc_lr"], gail["demo_batch_size"], gail["n_epochs"]) == (1e-4, 3e-3, 64, 5)
+    assert gail["n_steps"] * 64 == 12_800  # the sample batch
+
+    from stable_baselines3 import PPO
+
+    from curbside.train.envs import make_training_vec
+    from curbside.train.online import ppo_kwargs
+
+    vec = make_training_vec("PointNav", CFG, 2, 2, subprocess=False)
+    try:
+        model = PPO("MlpPolicy", vec, device="cpu", **ppo_kwargs(resolve_run("ppo", "PointNav", protocol="paper",
+                                                                              n_envs=2)["hparams"]))
+    finally:
+        vec.close()
+    assert (model.learning_rate, model.vf_coef, model.n_steps * 2, model.batch_size) == (5e-5, 1.0, 25_600, 256)
+    from curbside.train.offline import offline_config
+
+    cfg = offline_config("iql", iql)
+    assert (cfg.actor_learning_rate, cfg.critic_learning_rate, cfg.weight_temp, cfg.expectile, cfg.tau) == \
+        (1e-4, 1e-4, 3.0, 0.7, 5e-3)
+
+
+def test_curbside_protocol_keeps_the_learnable_defaults() -> None:
+    r = resolve_run("ppo", "PointNav")
+    assert r["env_config"] == {} and r["n_envs"] == 8 and r["num_scenes"] == 64
+    assert r["hparams"]["learning_rate"] == 3e-4 and r["hparams"]["n_steps"] == 512
+    assert set(PROTOCOLS) == {"curbside", "paper"}
+
+
+def _curve(run: Path) -> list[dict[str, float]]:
+    with open(run / "eval_curve.csv", newline="") as f:
+        return [{k: float(v) for k, v in row.items() if v != ""} for row in csv.DictReader(f)]
+
+
+def test_batched_backend_trains_ppo_and_the_finetune_split_trains(tmp_path) -> None:
+    src = tmp_path / "src"
+    train("ppo", "PointNav", src, steps=256, backend="batched", env_config=CFG, n_envs=4, num_scenes=2,
+          hparams=TINY, progress=False)
+    run = json.loads((src / "run.json").read_text())
+    assert (run["backend"], run["split"], run["protocol"]) == ("batched", "train", "curbside")
+    from stable_baselines3 import PPO
+
+    assert PPO.load(src / "policy.zip").num_timesteps >= 256
+    fine = tmp_path / "fine"
+    train("ppo", "PointNav", fine, steps=128, split="finetune", env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY,
+          progress=False, subprocess=False)
+    assert json.loads((fine / "run.json").read_text())["split"] == "finetune"
+    assert PPO.load(fine / "policy.zip").num_timesteps >= 128
+
+
+def test_init_from_reproduces_the_source_policys_evaluation_before_training(tmp_path) -> None:
+    from curbside.train.evaluate import evaluate_policy
+    from curbside.train.policies import load_policy
+
+    src = tmp_path / "src"
+    train("ppo", "PointNav", src, steps=128, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY, progress=False,
+          subprocess=False)
+    act, _ = load_policy(src)
+    source_eval = evaluate_policy(act, "PointNav", CFG, split="test", episodes=3, progress=False)
+    fine = tmp_path / "fine"
+    train("ppo", "PointNav", fine, steps=128, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY, progress=False,
+          subprocess=False, init_from=src, eval_every=10_000, eval_episodes=3, split="finetune")
+    first = _curve(fine)[0]
+    assert first["steps"] == 0
+    for k in ("sr", "spl", "cost", "route_completion", "path_length"):
+        assert first[k] == pytest.approx(source_eval[k])
+    # and it is a real start: a run from scratch evaluates otherwise
+    scratch = tmp_path / "scratch"
+    train("ppo", "PointNav", scratch, steps=128, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY, seed=5,
+          progress=False, subprocess=False, eval_every=10_000, eval_episodes=3)
+    assert _curve(scratch)[0]["path_length"] != pytest.approx(source_eval["path_length"])
+
+
+def test_seeds_are_aggregated_as_mean_and_std(tmp_path, capsys) -> None:
+    code, out, err = cli(["train", "run", "--algo", "ppo", "--steps", "64", "--envs", "2", "--scenes", "2",
+                          "--seeds", "0,1", "--eval-every", "64", "--eval-episodes", "2", "--config", json.dumps(CFG),
+                          "--out", str(tmp_path)], capsys)
+    assert code == 0, err
+    summary = json.loads((tmp_path / "seeds.json").read_text())
+    assert summary["evaluated"] == [0, 1] and summary["sr"]["n"] == 2
+    finals = [summary["runs"][s]["route_completion"] for s in ("0", "1")]
+    assert summary["route_completion"]["mean"] == pytest.approx(np.mean(finals))
+    assert summary["route_completion"]["std"] == pytest.approx(np.std(finals))
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["--protocol", "papr"], "unknown protocol 'papr'; valid: curbside, paper"),
+    (["--backend", "gpu"], "unknown backend 'gpu'; valid: pybullet, batched"),
+    (["--backend", "batched", "--task", "SocialNav"], "the batched backend steps PointNav only"),
+    (["--split", "test"], "--split test is held out for evaluation"),
+    (["--split", "validation"], "unknown split 'validation'"),
+    (["--seeds", "0,x"], "--seeds must be comma-separated integers"),
+    (["--config", '{"split": "test"}'], "config.split 'test' differs from --split 'train'"),
+])
+def test_bad_protocol_backend_split_or_seeds_is_one_line_exit_2(tmp_path, capsys, args, expected) -> None:
+    line = one_error_line(*cli(["train", "run", "--out", str(tmp_path / "run"), *args], capsys))
+    assert expected in line
+
+
+def test_init_from_another_task_or_observation_space_is_one_line_exit_2(tmp_path, capsys) -> None:
+    src = tmp_path / "src"
+    train("ppo", "PointNav", src, steps=64, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY, progress=False,
+          subprocess=False)
+    base = ["train", "run", "--out", str(tmp_path / "run"), "--init-from", str(src)]
+    line = one_error_line(*cli([*base, "--task", "SocialNav"], capsys))
+    assert "was trained on PointNav, not SocialNav" in line
+    line = one_error_line(*cli([*base, "--config", json.dumps({**CFG, "lidar": {"beams": 48, "low_beams": 8}})], capsys))
+    assert "observes (61,), this run (85,)" in line
+    line = one_error_line(*cli([*base, "--algo", "bc", "--demos", str(src)], capsys))
+    assert "no demonstration dataset" in line or "--init-from fine-tunes PPO" in line
+    line = one_error_line(*cli(["train", "run", "--out", str(tmp_path / "r2"), "--init-from", str(tmp_path)], capsys))
+    assert "not a training run" in line
