@@ -6,8 +6,10 @@ microseconds rather than one SQL round trip each.
 
 from __future__ import annotations
 
+import copy
 import json
 import re
+import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -159,13 +161,18 @@ class CatalogReader:
                 rows = con.execute(f"SELECT {cols} FROM assets ORDER BY asset_id").fetchall()
         finally:
             con.close()
-        self._records: dict[str, AssetRecord] = {}
+        records: dict[str, AssetRecord] = {}
         for row in rows:
             d = dict(zip(ASSET_COLUMNS, row))
             d["params"] = json.loads(d["params"]) if d["params"] else {}
             d["zones"] = list(d["zones"])
             d["synonyms"] = list(d["synonyms"])
-            self._records[d["asset_id"]] = AssetRecord(**d)
+            records[d["asset_id"]] = AssetRecord(**d)
+        self._index(records)
+
+    def _index(self, records: dict[str, AssetRecord]) -> None:
+        """The lookup tables of `records` (all of the catalog's, or one side of its asset split)."""
+        self._records = records
         recs = list(self._records.values())
         self.table = AssetTable(
             asset_id=np.array([r.asset_id for r in recs], dtype=object),
@@ -189,6 +196,22 @@ class CatalogReader:
 
     def __len__(self) -> int:
         return len(self.table)
+
+    def asset_split(self, side: str) -> CatalogReader:
+        """A view of one side of the catalog's asset split: `held_out` (what the unseen and finetune scene splits draw
+        from) or `seen` (train and test). Per category, the assets are ordered by the CRC-32 of their id and the first
+        fifth (rounded up; none for a category of one asset) is held out: deterministic, whatever the catalog's order,
+        and an asset keeps its side when others are added."""
+        if side not in ("seen", "held_out"):
+            raise ValueError(f"unknown asset split side {side!r}; valid: seen, held_out")
+        held: set[str] = set()
+        for ix in self._by_category.values():
+            ids = sorted((str(self.table.asset_id[i]) for i in ix), key=lambda a: (zlib.crc32(a.encode()), a))
+            if len(ids) >= 2:
+                held.update(ids[: -(-len(ids) // 5)])
+        view = copy.copy(self)
+        view._index({a: r for a, r in self._records.items() if (a in held) == (side == "held_out")})
+        return view
 
     def categories(self) -> dict[str, int]:
         """Number of assets per category, sorted by category name."""

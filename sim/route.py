@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 from scipy import ndimage
-from scipy.sparse import diags
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from sim.astar import astar_chain
@@ -104,6 +104,7 @@ class RoutePlanner:
         prefer = half_width + margin + comfort
         self.penalty = 1.0 + 2.0 * np.clip(1.0 - clearance / prefer, 0.0, 1.0)
         self.graph = grid_graph(self.free, g.resolution, cost=self.penalty)
+        self._edge_rows: np.ndarray | None = None  # row of each stored edge (built on the first long route)
         sidewalk = g.mask[rows, cols] == SIDEWALK
         candidates = np.nonzero(sidewalk)[0] if sidewalk.any() else np.arange(len(rows))
         # Per node: on a sidewalk; the nodes routes start and end on; their world (x, y).
@@ -218,12 +219,17 @@ class RoutePlanner:
             behind |= (jj - j0) * heading[0] + (ii - i0) * heading[1] < -0.5 / self.grid.resolution
         behind &= (ii - i0) ** 2 + (jj - j0) ** 2 <= r * r
         nodes = self.node[sl][behind]
-        keep = np.ones(self.graph.shape[0])
-        keep[nodes[nodes >= 0]] = 0.0
-        d = diags(keep)
-        graph = (d @ self.graph @ d).tocsr()
-        graph.eliminate_zeros()
-        return graph
+        keep = np.ones(self.graph.shape[0], dtype=bool)
+        keep[nodes[nodes >= 0]] = False
+        # The graph's edges between kept nodes, filtered in place of the CSR arrays (the same matrix as
+        # diag(keep) @ graph @ diag(keep) without its zeros, at a fraction of two sparse products' cost).
+        g = self.graph
+        if self._edge_rows is None:
+            self._edge_rows = np.repeat(np.arange(g.shape[0]), np.diff(g.indptr))
+        kept = keep[self._edge_rows] & keep[g.indices]
+        indptr = np.zeros(g.shape[0] + 1, dtype=g.indptr.dtype)
+        np.cumsum(np.bincount(self._edge_rows[kept], minlength=g.shape[0]), out=indptr[1:])
+        return csr_matrix((g.data[kept], g.indices[kept], indptr), shape=g.shape)
 
     def _goes_on(self, chain: list[int], cur: int, ahead_m: float = 20.0) -> bool:
         """Whether open space lies `ahead_m` onwards from the chain's end without turning back."""

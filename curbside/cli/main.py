@@ -5,7 +5,7 @@ from __future__ import annotations
 import typer
 
 from curbside import __version__
-from curbside.cli import catalog, pool, scenes, sim, train
+from curbside.cli import catalog, experiment, pool, scenes, sim, train
 from curbside.cli.errors import run
 
 app = typer.Typer(
@@ -21,6 +21,7 @@ app.add_typer(sim.app, name="sim")
 app.add_typer(pool.app, name="pool")
 app.add_typer(train.app, name="train")
 app.add_typer(train.demos_app, name="demos")
+app.add_typer(experiment.app, name="experiment")
 
 
 def _version(value: bool) -> None:

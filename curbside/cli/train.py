@@ -189,6 +189,9 @@ def collect_cmd(
     steps: int = typer.Option(30_000, min=1, max=10_000_000, help="Steps to record (whole episodes)."),
     noise: float = typer.Option(0.7, min=0.0, max=5.0, help="Std of the Gaussian noise added to the expert's actions."),
     random_prob: float = typer.Option(0.0, min=0.0, max=1.0, help="Fraction of fully random episodes."),
+    policy: Optional[Path] = typer.Option(None, help="A trained PPO-family run of the task: drives --policy-fraction "
+                                          "of the episodes (the paper: 80 % from a trained PPO policy)."),
+    policy_fraction: float = typer.Option(0.0, min=0.0, max=1.0, help="Fraction of episodes driven by --policy."),
     scenes: int = typer.Option(64, min=1, help="Train-split scenes to draw episodes from."),
     seed: int = typer.Option(0, min=0, help="Seed of the first episode."),
     config: Optional[str] = typer.Option(None, help="Env config overrides as a JSON object."),
@@ -206,10 +209,17 @@ def collect_cmd(
     ex = check_executor_args(executor, address)
     try:
         _check_env_config(task, cfg, "train")
+        if policy_fraction > 0 and policy is None:
+            raise ConfigError("--policy-fraction needs --policy RUN (a trained PPO run of the task)")
+        if policy is not None:
+            from curbside.train.online import check_init_from
+
+            check_init_from(policy, "ppo", task, cfg)
     except (ConfigError, ValueError, FileNotFoundError) as e:
         raise fail(str(e)) from None
     os.environ.setdefault("MINARI_DATASETS_PATH", str(out))
     summary = collect_demos(task, out, steps=steps, noise=noise, random_prob=random_prob, env_config=cfg,
-                            num_scenes=scenes, seed=seed, executor=ex, workers=workers, address=address)
+                            num_scenes=scenes, seed=seed, executor=ex, workers=workers, address=address,
+                            policy=policy, policy_fraction=policy_fraction)
     typer.echo(f"{summary['path']}: {summary['episodes']} episodes, {summary['steps']} steps, "
                f"success rate {summary['success_rate']:.2f}")

@@ -4,6 +4,8 @@ arrays for d3rlpy and `imitation`.
 The demonstrator is the pure-pursuit expert (sim.expert) with Gaussian action noise of std `noise`, plus,
 with probability `random_prob` per episode, a fully random episode: noise brings the success rate near the
 paper's ~60 % mix of good and failed driving (noise 0.7 gives 0.6-0.7 on both tasks), which offline RL needs to learn what not to do.
+With `policy` (a trained PPO-family run) a fraction `policy_fraction` of the episodes is driven by that policy (its
+stochastic actions), as the paper's 80 % of demonstrations come from a trained PPO policy.
 """
 
 from __future__ import annotations
@@ -46,7 +48,8 @@ def dataset_id(task: str) -> str:
 def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0.7, random_prob: float = 0.0,
                   env_config: Mapping[str, Any] | None = None, num_scenes: int = 64, seed: int = 0,
                   progress: bool = True, executor: str = "local", workers: int | None = None,
-                  address: str | None = None) -> dict[str, Any]:
+                  address: str | None = None, policy: Path | None = None, policy_fraction: float = 0.0
+                  ) -> dict[str, Any]:
     """Drive the noisy expert on the train split until `steps` steps (whole episodes); write a Minari dataset
     under `out` (its datasets root) and return a summary: path, episodes, steps, success rate.
 
@@ -61,13 +64,20 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
     import sim  # noqa: F401
     from curbside.executors import run_map
 
-    if steps < 1 or not 0.0 <= noise < 10 or not 0.0 <= random_prob <= 1.0:
-        raise ConfigError("demos need steps >= 1, 0 <= noise < 10 and 0 <= random_prob <= 1")
+    if steps < 1 or not 0.0 <= noise < 10 or not 0.0 <= random_prob <= 1.0 or not 0.0 <= policy_fraction <= 1.0:
+        raise ConfigError("demos need steps >= 1, 0 <= noise < 10, 0 <= random_prob <= 1 and 0 <= policy_fraction <= 1")
+    policy_file = None
+    if policy is not None and policy_fraction > 0:
+        from curbside.train.online import check_init_from
+
+        policy_file = str(check_init_from(Path(policy), "ppo", task, dict(env_config or {})).resolve())
+    elif policy_fraction > 0:
+        raise ConfigError("a policy fraction needs --policy RUN (a trained PPO run of the task)")
     did = dataset_id(task)
     cfg = split_config(env_config, "train", num_scenes)
     env = gym.make(env_id(task), config=cfg)
-    job = (env_id(task), cfg, float(noise), float(random_prob), int(seed))
-    total, successes = 0, 0
+    job = (env_id(task), cfg, float(noise), float(random_prob), int(seed), policy_file, float(policy_fraction))
+    total, successes, by_policy = 0, 0, 0
     buffers: list[Any] = []
     try:
         with progress_bar(f"demos {task}", steps, progress) as update:
@@ -78,6 +88,7 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
             try:
                 for episode, success in episodes:
                     successes += int(success)
+                    by_policy += int(episode.source == "policy")
                     total += len(episode)
                     buffers.append(episode.buffer(len(buffers)))
                     update(total)
@@ -85,27 +96,31 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
                         break
             finally:
                 episodes.close()
-        summary = write_dataset(buffers, env, out, did, algorithm=f"PurePursuitExpert(noise={noise}, random_prob={random_prob})",
+        algorithm = f"PurePursuitExpert(noise={noise}, random_prob={random_prob})"
+        if policy_file is not None:
+            algorithm = f"{policy_fraction:.0%} PPO policy {policy}, the rest {algorithm}"
+        summary = write_dataset(buffers, env, out, did, algorithm=algorithm,
                                 description=f"{task} demonstrations on the train split: the pure-pursuit expert with "
                                 "Gaussian action noise (curbside demos collect).")
     finally:
         env.close()
     summary.update({"steps": total, "success_rate": successes / max(len(buffers), 1), "noise": noise,
-                    "random_prob": random_prob, "task": task})
+                    "random_prob": random_prob, "task": task, "policy": None if policy is None else str(policy),
+                    "policy_fraction": policy_fraction, "policy_episodes": by_policy})
     (Path(summary["path"]) / "curbside.json").write_text(json.dumps(summary, indent=2))
     return summary
 
 
-def demo_episode(k: int, job: tuple[str, dict[str, Any], float, float, int]) -> tuple[EpisodeRecorder, bool]:
-    """Episode `k` of a collection (`job`: env id, env config, noise, random_prob, seed) and whether it
-    succeeded; it depends on (seed, k) alone, so any worker, or a retry, records the same steps."""
+def demo_episode(k: int, job: tuple[Any, ...]) -> tuple[EpisodeRecorder, bool]:
+    """Episode `k` of a collection (`job`: env id, env config, noise, random_prob, seed, policy file, policy fraction)
+    and whether it succeeded; it depends on (seed, k) alone, so any worker, or a retry, records the same steps."""
     import gymnasium as gym
 
     import sim  # noqa: F401
     from curbside.executors import worker_state
     from sim.expert import PurePursuitExpert
 
-    eid, cfg, noise, random_prob, seed = job
+    eid, cfg, noise, random_prob, seed, policy_file, policy_fraction = job
     env = worker_state("demo_env", json.dumps([eid, cfg], sort_keys=True, default=str),
                        lambda: gym.make(eid, config=dict(cfg)))
     expert = PurePursuitExpert()
@@ -114,10 +129,22 @@ def demo_episode(k: int, job: tuple[str, dict[str, Any], float, float, int]) -> 
     obs, _ = env.reset(seed=ep_seed)
     env.action_space.seed(ep_seed)
     random_episode = rng.random() < random_prob
-    episode = EpisodeRecorder(obs, ep_seed)
+    model = None
+    if policy_file is not None and rng.random() < policy_fraction:
+        import torch
+        from stable_baselines3 import PPO
+
+        model = worker_state("demo_policy", policy_file, lambda: PPO.load(policy_file, device="cpu"))
+        torch.manual_seed(int(rng.integers(2**31)))  # the policy's own action noise, per episode
+    episode = EpisodeRecorder(obs, ep_seed, "policy" if model is not None else "random" if random_episode else "expert")
     done, info = False, {}
     while not done:
-        a = env.action_space.sample() if random_episode else expert.act(env) + rng.normal(0.0, noise, 2)
+        if model is not None:
+            a = model.predict(obs, deterministic=False)[0]
+        elif random_episode:
+            a = env.action_space.sample()
+        else:
+            a = expert.act(env) + rng.normal(0.0, noise, 2)
         a = np.clip(a, -1, 1).astype(np.float32)
         obs, r, term, trunc, info = env.step(a)
         episode.add(a, obs, r, term, trunc)
@@ -128,8 +155,9 @@ def demo_episode(k: int, job: tuple[str, dict[str, Any], float, float, int]) -> 
 class EpisodeRecorder:
     """One episode's observations, actions, rewards and end flags, as Minari's EpisodeBuffer wants them."""
 
-    def __init__(self, first_obs: Any, seed: int | None) -> None:
+    def __init__(self, first_obs: Any, seed: int | None, source: str = "expert") -> None:
         self.seed = seed
+        self.source = source  # who drove: expert, random or policy
         self.cols: dict[str, list] = {"observations": [first_obs], "actions": [], "rewards": [], "terminations": [],
                                       "truncations": []}
 

@@ -12,6 +12,7 @@ from curbside.config import ConfigError
 
 TASKS = {"PointNav": "curbside/PointNav-v0", "SocialNav": "curbside/SocialNav-v0"}
 SPLITS = ("train", "test", "unseen", "finetune")
+MAX_WORKER_SCENES = 16  # built worlds a training worker keeps (a paper-scale world holds ~100 MB)
 
 
 def env_id(task: str) -> str:
@@ -33,7 +34,8 @@ def split_config(base: Mapping[str, Any] | None, split: str, num_scenes: int, sc
 def env_fns(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, split: str = "train",
             wrappers: tuple[Callable[[gym.Env], gym.Env], ...] = ()) -> list[Callable[[], gym.Env]]:
     """`n_envs` env constructors; worker k gets scenes [k n / N, (k + 1) n / N) of the split (n = num_scenes,
-    N = n_envs; with fewer scenes than workers, worker k gets scene k mod n), all held in its scene cache."""
+    N = n_envs; with fewer scenes than workers, worker k gets scene k mod n), up to MAX_WORKER_SCENES of them held
+    in its scene cache."""
     eid = env_id(task)
 
     def make(k: int) -> Callable[[], gym.Env]:
@@ -47,7 +49,7 @@ def env_fns(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, 
             import sim  # noqa: F401  (registers the env ids, in this process or a spawned worker)
 
             cfg = split_config(config, split, hi - lo, scene_seed=lo)
-            cfg.setdefault("scene_cache", hi - lo)
+            cfg.setdefault("scene_cache", min(hi - lo, MAX_WORKER_SCENES))
             env: gym.Env = gym.make(eid, config=cfg)
             for w in wrappers:
                 env = w(env)

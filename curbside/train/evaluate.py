@@ -39,3 +39,38 @@ def evaluate_policy(act: Callable[[np.ndarray], np.ndarray], task: str, env_conf
     summary = summarize(rows)
     summary["split"] = split
     return summary
+
+
+def evaluate_policy_batched(act_batch: Callable[[np.ndarray], np.ndarray], env_config: Mapping[str, Any], *,
+                            split: str = "test", episodes: int = 50, seed: int = 0, num_scenes: int = EVAL_SCENES,
+                            n_envs: int = 50) -> dict[str, Any]:
+    """PointNav metrics of `act_batch(obs [n, d]) -> actions [n, 2]` on the batched env (sim.batched), episode for
+    episode the ones `evaluate_policy` runs on the PyBullet env: episode k uses seed `seed + k` (batched sub-env i
+    reset with seed s draws PointNavEnv.reset(seed=s)'s scene and route), in waves of `n_envs` episodes.
+
+    Returns sr, route_completion, cost (episode cost) and episodes: the transfer gap is the PyBullet figure minus this.
+    """
+    from sim.batched import BatchedPointNav
+
+    cfg = split_config(env_config, split, num_scenes)
+    cfg.update(scene_cache=max(1, min(num_scenes, n_envs)), route_pool=0, scene_steps=0)
+    rows: list[dict[str, float]] = []
+    env = BatchedPointNav(n_envs, config=cfg)
+    try:
+        for first in range(seed, seed + episodes, n_envs):
+            n = min(n_envs, seed + episodes - first)
+            obs, _ = env.reset(seed=[first + i for i in range(n_envs)])
+            finished: dict[int, dict[str, float]] = {}
+            while len(finished) < n:
+                obs, _, term, trunc, info = env.step(np.asarray(act_batch(obs), dtype=np.float32).reshape(n_envs, 2))
+                for i in np.nonzero(term | trunc)[0].tolist():
+                    if i < n and i not in finished:
+                        fi = info["final_info"]
+                        finished[i] = {"success": float(fi["is_success"][i]), "cost": float(fi["episode_cost"][i]),
+                                       "route_completion": float(fi["route_completion"][i])}
+            rows.extend(finished[i] for i in range(n))
+    finally:
+        env.close()
+    return {"sr": float(np.mean([r["success"] for r in rows])), "cost": float(np.mean([r["cost"] for r in rows])),
+            "route_completion": float(np.mean([r["route_completion"] for r in rows])), "episodes": len(rows),
+            "split": split, "env": "batched"}

@@ -78,10 +78,13 @@ def train_online(algo: str, task: str, out: Path, *, steps: int, env_config: Map
                  num_scenes: int, hparams: Mapping[str, Any], seed: int = 0, resume: bool = False,
                  eval_every: int = 0, eval_episodes: int = 20, eval_split: str = "test", progress: bool = True,
                  subprocess: bool = True, split: str = "train", backend: str = "pybullet",
-                 init_from: Path | None = None, meta: Mapping[str, Any] | None = None) -> Path:
+                 backend_config: Mapping[str, Any] | None = None, init_from: Path | None = None,
+                 meta: Mapping[str, Any] | None = None) -> Path:
     """Train `algo` on `split` for `steps` env steps; checkpoints, CSV/TensorBoard logs and the final policy
     (`policy.zip`) go to `out`; returns the policy path. `resume` continues from `out/checkpoints`; `init_from`
-    starts from another run's policy (its evaluation is the curve's first row when `eval_every` > 0)."""
+    starts from another run's policy (its evaluation is the curve's first row when `eval_every` > 0).
+    `backend_config` holds env keys of the training backend alone (sim.batched's scene_steps, route_pool): the
+    evaluations and run.json's env_config leave them out."""
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
@@ -97,8 +100,8 @@ def train_online(algo: str, task: str, out: Path, *, steps: int, env_config: Map
     train_config = early_termination_config(env_config, hparams["cost_limit"]) if algo == "ppo_et" else dict(env_config)
     # The batched env runs in this process (its LiDAR march uses every core between updates): torch may too.
     torch.set_num_threads(2 if backend == "batched" else 1)
-    vec = make_training_vec(task, train_config, n_envs, num_scenes, backend=backend, split=split, seed=seed,
-                            subprocess=subprocess)
+    vec = make_training_vec(task, {**train_config, **(backend_config or {})}, n_envs, num_scenes, backend=backend,
+                            split=split, seed=seed, subprocess=subprocess)
     kwargs = ppo_kwargs(hparams)
     if latest is not None:
         model = PPO.load(latest, env=vec, device="cpu")

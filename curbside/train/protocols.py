@@ -54,6 +54,7 @@ class Protocol:
     eval_seed: int = 0                     # seed of the first evaluation episode
     eval_scenes: int = 50                  # scenes of the split an evaluation draws from
     curve_episodes: int = 20               # episodes per point of a learning curve
+    batched_config: Mapping[str, Any] = field(default_factory=dict)  # extra env config of the batched backend
     sources: Mapping[str, str] = field(default_factory=dict)  # where each value comes from
 
     def algo_hparams(self, algo: str) -> dict[str, Any]:
@@ -119,13 +120,18 @@ PROTOCOLS: dict[str, Protocol] = {
         name="paper",
         description="MetaUrban's: MetaUrban-12K-scale scenes and splits, the paper's hyper-parameters, 200 "
                     "evaluation episodes a split",
-        env_config=_frozen({"preset": "metaurban12k"}),
+        # LiDAR grids at 0.1 m: a paper-scale scene's grids at the default 0.05 m hold ~40 M cells, and 64 envs in
+        # 64 scenes would pass the 2**31 cells the batched tracer indexes (docs/protocols.md).
+        env_config=_frozen({"preset": "metaurban12k", "lidar": {"resolution": 0.1}}),
         split_scenes=_frozen({"train": 12_800, "test": 1_000, "unseen": 100, "finetune": 1_000}),
         n_envs=64,
         hparams=_frozen({k: _frozen(v) for k, v in HPARAMS_PAPER.items()}),
         demos=Demonstrations(steps=30_000, policy_fraction=0.8, expert_noise=0.7, target_success=0.6),
         eval_episodes=200,
         eval_scenes=100,
+        # A paper-scale scene costs ~2 s to build and a long route ~0.1 s to plan: each env keeps its scene for 20,000
+        # steps and each scene a pool of 16 routes (docs/protocols.md).
+        batched_config=_frozen({"scene_steps": 20_000, "route_pool": 16}),
         sources=_frozen({
             "split_scenes": "MetaUrban, ICLR 2025, Sec. 4 (MetaUrban-12K: train 12,800, test 1,000, unseen 100, "
                             "finetune 1,000)",

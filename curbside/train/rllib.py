@@ -50,7 +50,7 @@ def make_rllib_env(ctx: Mapping[str, Any]) -> Any:
     if ctx["algo"] == "ppo_et":
         base = early_termination_config(base, float(ctx["cost_limit"]))
     cfg = split_config(base, "train", hi - lo, scene_seed=lo)
-    cfg.setdefault("scene_cache", hi - lo)
+    cfg.setdefault("scene_cache", min(hi - lo, 16))
     return gym.make(env_id(ctx["task"]), config=cfg)
 
 

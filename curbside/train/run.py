@@ -44,6 +44,7 @@ def resolve_run(algo: str, task: str, *, protocol: str = "curbside", env_config:
                           "choose the training split with --split")
     cfg.pop("split", None)
     envs = int(n_envs or proto.n_envs)
+    num_scenes = num_scenes or cfg.pop("num_scenes", None)  # an experiment's scene count (ablation b) is env config
     h = {**proto.algo_hparams(algo), **(hparams or {})}
     if algo in ("ppo", "ppo_lag", "ppo_et", "gail"):
         h = ppo_hparams(h, envs)
@@ -93,6 +94,7 @@ def train(algo: str, task: str, out: Path, *, steps: int, protocol: str = "curbs
         return train_online(algo, task, out, steps=steps, env_config=cfg, n_envs=envs, num_scenes=scenes, hparams=h,
                             seed=seed, resume=resume, eval_every=eval_every, eval_episodes=episodes,
                             progress=progress, subprocess=subprocess, split=split, backend=backend,
+                            backend_config=proto.batched_config if backend == "batched" else {},
                             init_from=init_from, meta=meta)
     from curbside.train.demos import load_demos
 

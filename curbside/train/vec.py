@@ -109,7 +109,10 @@ class VectorEnvAdapter(VecEnv):
         return [values[i] for i in self._get_indices(indices)]
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
-        """An attribute of the (wrapped) sub-envs."""
+        """An attribute of the (wrapped) sub-envs; a VectorEnv without sub-env objects (a batched env) answers for
+        all of them."""
+        if not hasattr(self.venv, "get_attr"):
+            return self._select([getattr(self.venv, attr_name)] * self.num_envs, indices)
         return self._select(self.venv.get_attr(attr_name), indices)
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:

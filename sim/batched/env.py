@@ -35,15 +35,17 @@ from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, chec
 BATCHED_DEFAULTS: dict[str, Any] = {
     **DEFAULT_CONFIG,
     "route_pool": 0,           # routes kept per scene and drawn from once full (0: plan every reset, as PointNav)
+    "scene_steps": 0,          # an env keeps its scene until it has stepped this many steps there (0: a draw every reset)
 }
-BATCHED_TABLE: dict[str, Any] = {**CONFIG_TABLE, "route_pool": Int(0, 1_000_000)}
+BATCHED_TABLE: dict[str, Any] = {**CONFIG_TABLE, "route_pool": Int(0, 1_000_000), "scene_steps": Int(0, 10**9)}
 # PointNav keys the batched env cannot honour: (key, the value it needs, why).
 PYBULLET_ONLY = (("gui", False, "there is no PyBullet world to show"),
                  ("collision", "box", "objects are their spec boxes; convex hulls need the PyBullet env"))
 
 
 class BatchedPointNav(VectorEnv):
-    """`num_envs` PointNav episodes in one numpy pass; `config` as PointNavEnv's plus `route_pool`.
+    """`num_envs` PointNav episodes in one numpy pass; `config` as PointNavEnv's plus `route_pool` and `scene_steps`
+    (scene builds cost seconds at paper scale: an env that keeps its scene for many steps amortises them).
 
     The LiDARs and the collision test read the scene's distance grids at `lidar.resolution` (sim.raycast.grids).
 
@@ -96,6 +98,7 @@ class BatchedPointNav(VectorEnv):
         self.rngs = [np.random.default_rng() for _ in range(n)]
         self.built: list[BuiltScene | None] = [None] * n
         self.slots = np.zeros(n, dtype=np.int64)
+        self.scene_steps_left = np.zeros(n, dtype=np.int64)
         self.level = np.zeros(n, dtype=np.int64)
         self.labels = np.zeros(n, dtype=np.int64)
         self._started = False
@@ -126,11 +129,13 @@ class BatchedPointNav(VectorEnv):
         lengths, horizons = np.zeros(self.num_envs), np.zeros(self.num_envs, dtype=np.int64)
         for k in envs.tolist():
             rng = self.rngs[k]
-            key, load = self.sources.draw(rng)
-            old = self.built[k]
-            if old is not None:
-                self.store.release(old)
-            b = self.built[k] = self.store.acquire(key, load)
+            b = self.built[k]
+            if b is None or self.scene_steps_left[k] <= 0:
+                key, load = self.sources.draw(rng)
+                if b is not None:
+                    self.store.release(b)
+                b = self.built[k] = self.store.acquire(key, load)
+                self.scene_steps_left[k] = int(cfg["scene_steps"])
             self.slots[k] = b.slot
             route = self.store.route(b, rng, options, k)
             yaw = route.heading_at(0.0)
@@ -190,6 +195,7 @@ class BatchedPointNav(VectorEnv):
         reward = self.reward_fn.batch(progress, new_progress, lat, steer - ep.last_action[:, 0], d.speed, collided,
                                       succeeded, out, stuck | over).astype(np.float64)
         ep.last_action = a
+        self.scene_steps_left -= 1
         terminated = succeeded | out | stuck | over
         truncated = ~terminated & (ep.steps >= ep.horizon)
         obs = self._observe()

@@ -60,6 +60,7 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "country": None,                  # None: uniform categories; else ISO alpha-2 row of the distribution table
     "distribution_path": "data/distribution/distribution.parquet",
     "exclude_categories": [],         # held-out categories (dataset splits)
+    "assets": "all",                  # catalog assets drawn: all, seen (train, test) or held_out (unseen, finetune)
     "grid_resolution": 0.25,
     "block_tries": 30,                # shapes/parameters tried per block before giving up
     # Terrain patches on the sidewalks (sim.scene.terrain, docs/terrain.md): density 1 is a city's typical share,
@@ -117,6 +118,7 @@ CONFIG_TABLE: dict[str, Rule] = {
     "country": Rule("str", none=True, hint="an ISO alpha-2 code such as FI"),
     "distribution_path": Rule("path"),
     "exclude_categories": Rule("list", item=Rule("str")),
+    "assets": Choice("all", "seen", "held_out"),
     "grid_resolution": Float(0.05, 2.0, hint="metres per walkable cell"),
     "block_tries": Int(1, 1000),
     "terrain": {"density": Float(0.0, 10.0, hint="1 is a city's typical share of terrain patches, 0 none"),

@@ -11,13 +11,15 @@ import numpy as np
 
 from curbside.config import check_choice
 
-# Categories held out of train/test and seen only in unseen/finetune (with template g).
+# Categories held out of train/test and seen only in unseen/finetune (with template g); within the other categories a
+# fifth of the catalog's assets is held out the same way (catalogs.reader.CatalogReader.asset_split).
 HELD_OUT_CATEGORIES = ["drinking_fountain", "e_scooter", "food_cart", "kiosk", "phone_booth", "shopping_bag", "vending_machine"]
 SPLITS: dict[str, dict[str, Any]] = {
-    "train": {"templates": "abcdef", "exclude_categories": HELD_OUT_CATEGORIES, "seed_offset": 0},
-    "test": {"templates": "abcdef", "exclude_categories": HELD_OUT_CATEGORIES, "seed_offset": 1_000_000},
-    "unseen": {"templates": "g", "exclude_categories": [], "seed_offset": 2_000_000},
-    "finetune": {"templates": "g", "exclude_categories": [], "seed_offset": 3_000_000},
+    "train": {"templates": "abcdef", "exclude_categories": HELD_OUT_CATEGORIES, "assets": "seen", "seed_offset": 0},
+    "test": {"templates": "abcdef", "exclude_categories": HELD_OUT_CATEGORIES, "assets": "seen",
+             "seed_offset": 1_000_000},
+    "unseen": {"templates": "g", "exclude_categories": [], "assets": "held_out", "seed_offset": 2_000_000},
+    "finetune": {"templates": "g", "exclude_categories": [], "assets": "held_out", "seed_offset": 3_000_000},
 }
 SUMMARY_KEYS = (
     "objects", "buildings", "refused_total", "route_length_m", "clear_path_length_m",
@@ -32,6 +34,7 @@ def split_config(split: str, base: dict[str, Any] | None = None) -> tuple[dict[s
     cfg = dict(base or {})
     cfg["templates"] = s["templates"]
     cfg["exclude_categories"] = sorted(set(cfg.get("exclude_categories", [])) | set(s["exclude_categories"]))
+    cfg["assets"] = s["assets"]  # unseen and finetune scenes draw catalog assets train and test never use
     return cfg, int(s["seed_offset"])
 
 

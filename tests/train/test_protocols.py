@@ -147,3 +147,22 @@ def test_init_from_another_task_or_observation_space_is_one_line_exit_2(tmp_path
     assert "no demonstration dataset" in line or "--init-from fine-tunes PPO" in line
     line = one_error_line(*cli(["train", "run", "--out", str(tmp_path / "r2"), "--init-from", str(tmp_path)], capsys))
     assert "not a training run" in line
+
+
+def test_demonstrations_mix_a_trained_policy_with_the_noisy_expert(tmp_path, capsys) -> None:
+    from curbside.train.demos import collect_demos
+
+    src = tmp_path / "ppo"
+    train("ppo", "PointNav", src, steps=64, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY, progress=False,
+          subprocess=False)
+    mixed = collect_demos("PointNav", tmp_path / "mixed", steps=400, env_config=CFG, num_scenes=2, progress=False,
+                          policy=src, policy_fraction=0.5)
+    assert 0 < mixed["policy_episodes"] < mixed["episodes"]  # both sources drove, per the episode's own draw
+    again = collect_demos("PointNav", tmp_path / "again", steps=400, env_config=CFG, num_scenes=2, progress=False,
+                          policy=src, policy_fraction=0.5)
+    assert (again["policy_episodes"], again["steps"]) == (mixed["policy_episodes"], mixed["steps"])  # deterministic
+    line = one_error_line(*cli(["demos", "collect", "--policy-fraction", "0.8", "--out", str(tmp_path / "x")], capsys))
+    assert "--policy-fraction needs --policy RUN" in line
+    line = one_error_line(*cli(["demos", "collect", "--task", "SocialNav", "--policy", str(src), "--out",
+                                str(tmp_path / "x")], capsys))
+    assert "was trained on PointNav, not SocialNav" in line

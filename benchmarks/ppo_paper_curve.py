@@ -1,0 +1,103 @@
+"""PPO's learning curve under the `paper` protocol on the batched backend, test SR measured on the PyBullet env,
+and the transfer gap of the final policy (the same episodes on the PyBullet env and on the batched env).
+
+Usage: python benchmarks/ppo_paper_curve.py [--steps 5000000] [--eval-every 500000] [--curve-episodes 20]
+       [--final-episodes 200] [--run outputs/train/ppo_paper_batched] [--out benchmarks/results/ppo_paper_curve]
+
+Training is `curbside train run --protocol paper --backend batched --resume`: a stopped run goes on from its last
+checkpoint (every 25,000 env steps), and a finished one is only evaluated. Writes curve.csv (env steps, test SR, SPL,
+cost, route completion on `--curve-episodes` PyBullet episodes), transfer.json (the final policy on
+`--final-episodes` test episodes: PyBullet, batched, their SR difference) and curve.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import shlex
+import shutil
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--steps", type=int, default=5_000_000)
+    ap.add_argument("--eval-every", type=int, default=500_000)
+    ap.add_argument("--curve-episodes", type=int, default=20)
+    ap.add_argument("--final-episodes", type=int, default=200)
+    ap.add_argument("--run", type=Path, default=ROOT / "outputs" / "train" / "ppo_paper_batched")
+    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "ppo_paper_curve")
+    args = ap.parse_args()
+
+    from stable_baselines3 import PPO
+
+    from curbside.train.evaluate import evaluate_policy, evaluate_policy_batched
+    from curbside.train.policies import read_run
+    from curbside.train.protocols import protocol
+    from curbside.train.run import train
+
+    proto = protocol("paper")
+    policy = args.run / "policy.zip"
+    done = policy.is_file() and PPO.load(policy, device="cpu").num_timesteps >= args.steps
+    t0 = time.perf_counter()
+    if not done:
+        train("ppo", "PointNav", args.run, steps=args.steps, protocol="paper", backend="batched", resume=True,
+              eval_every=args.eval_every, eval_episodes=args.curve_episodes)
+    train_s = time.perf_counter() - t0
+    model = PPO.load(policy, device="cpu")
+    cfg = read_run(args.run)["env_config"]
+    act = lambda obs: model.predict(obs, deterministic=True)[0]  # noqa: E731
+    pybullet = evaluate_policy(act, "PointNav", cfg, split="test", episodes=args.final_episodes,
+                               num_scenes=proto.eval_scenes)
+    batched = evaluate_policy_batched(act, cfg, split="test", episodes=args.final_episodes,
+                                      num_scenes=proto.eval_scenes)
+    args.out.mkdir(parents=True, exist_ok=True)
+    if (args.run / "eval_curve.csv").is_file():
+        shutil.copy(args.run / "eval_curve.csv", args.out / "curve.csv")
+    transfer = {
+        "command": "python benchmarks/" + " ".join(shlex.quote(a) for a in [Path(__file__).name, *sys.argv[1:]]),
+        "steps": int(model.num_timesteps), "episodes": args.final_episodes, "split": "test",
+        "pybullet": {k: pybullet[k] for k in ("sr", "spl", "cost", "route_completion")},
+        "batched": {k: batched[k] for k in ("sr", "cost", "route_completion")},
+        "transfer_gap_sr": pybullet["sr"] - batched["sr"], "target_gap": 0.05,
+        "train_seconds_this_call": round(train_s)}
+    (args.out / "transfer.json").write_text(json.dumps(transfer, indent=2) + "\n")
+    print(json.dumps(transfer, indent=2))
+    plot(args.out)
+
+
+def plot(out: Path) -> None:
+    """curve.png: test SR and route completion (PyBullet) over env steps, the final transfer points beside."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = list(csv.DictReader(open(out / "curve.csv", newline=""))) if (out / "curve.csv").is_file() else []
+    transfer = json.loads((out / "transfer.json").read_text())
+    fig, ax = plt.subplots(figsize=(6.5, 3.6))
+    steps = [int(r["steps"]) / 1e6 for r in rows]
+    ax.plot(steps, [float(r["sr"]) for r in rows], marker="o", label="test SR (PyBullet)")
+    ax.plot(steps, [float(r["route_completion"]) for r in rows], marker=".", ls="--", label="test route completion")
+    end = transfer["steps"] / 1e6
+    ax.scatter([end], [transfer["pybullet"]["sr"]], marker="*", s=120, color="C0",
+               label=f"final SR, PyBullet ({transfer['episodes']} ep.)")
+    ax.scatter([end], [transfer["batched"]["sr"]], marker="x", s=80, color="C3", label="final SR, batched env")
+    ax.axhline(0.66, color="gray", ls=":", lw=1, label="paper PPO test SR 0.66")
+    ax.set_xlabel("env steps (millions), paper protocol, batched backend")
+    ax.set_ylim(0, 1)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "curve.png", dpi=120)
+
+
+if __name__ == "__main__":
+    main()

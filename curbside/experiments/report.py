@@ -1,0 +1,116 @@
+"""An experiment's report: results.csv (one row per run, seed and evaluated split, beside the paper's numbers) and a
+PNG of success rates beside the paper's, under benchmarks/results/<experiment>/."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from curbside.experiments.runner import DEFAULT_ROOT
+from curbside.experiments.spec import Experiment, load_experiment
+
+COLUMNS = ("experiment", "task", "method", "split", "setting", "seed", "steps", "sr", "spl", "sns", "cost",
+           "paper_sr", "paper_spl", "paper_sns", "paper_cost")
+
+
+def paper_cell(exp: Experiment, task: str, method: str, split: str, setting: str) -> dict[str, float]:
+    """The paper's numbers for one row of `exp` (empty where the paper publishes none)."""
+    from curbside.train import paper
+
+    kind = exp.paper
+    if kind == "table1":
+        return paper.PAPER_TABLE1.get((task, split, method), {})
+    if kind == "table2" and split == "test":
+        machine, _, block = setting.partition(":")
+        return paper.PAPER_TABLE2.get(machine, {}).get(block, {})
+    if kind == "table5_horizon" and split == "test":
+        return paper.PAPER_TABLE5_HORIZON.get(setting, {})
+    if kind == "table5_pedestrians" and split == "test":
+        return paper.PAPER_TABLE5_PEDESTRIANS.get(setting, {})
+    if kind == "ablation_generalisation":
+        return paper.PAPER_ABLATION_GENERALISATION.get(setting, {})
+    if kind == "ablation_scaling" and split == "test" and setting.isdigit():
+        return paper.PAPER_ABLATION_SCALING.get(int(setting), {})
+    if kind == "seed_robustness":
+        cell = paper.PAPER_SEED_ROBUSTNESS.get(split, {})
+        return {"sr": cell["sr"]} if cell else {}
+    return {}
+
+
+def rows_of(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> list[dict[str, Any]]:
+    """The rows of every finished (run, seed) of `exp` at `budget`."""
+    from curbside.experiments.runner import run_dir
+
+    rows = []
+    for run in exp.runs:
+        for seed in run.seeds:
+            f = run_dir(root, exp, budget, run, seed) / "result.json"
+            if not f.is_file():
+                continue
+            result = json.loads(f.read_text())
+            for split, ev in result["evals"].items():
+                paper = paper_cell(exp, run.task, run.method, split, run.setting)
+                rows.append({"experiment": exp.name, "task": run.task, "method": run.method, "split": split,
+                             "setting": run.setting, "seed": seed, "steps": result["steps"],
+                             **{k: ev.get(k, "") for k in ("sr", "spl", "sns", "cost")},
+                             **{f"paper_{k}": paper.get(k, "") for k in ("sr", "spl", "sns", "cost")}})
+    return rows
+
+
+def write_report(name: str, budget: str, *, root: Path = DEFAULT_ROOT,
+                 out_root: Path = Path("benchmarks/results")) -> Path:
+    """Write out_root/<experiment>/results.csv, results.png and report.json; return the CSV path."""
+    exp = load_experiment(name)
+    rows = rows_of(exp, budget, root)
+    out = Path(out_root) / exp.name
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "results.csv"
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(COLUMNS))
+        writer.writeheader()
+        writer.writerows(rows)
+    from curbside.experiments.runner import run_dir
+
+    expected = sum(len(r.seeds) for r in exp.runs)
+    finished = sum((run_dir(root, exp, budget, r, s) / "result.json").is_file() for r in exp.runs for s in r.seeds)
+    (out / "report.json").write_text(json.dumps({
+        "experiment": exp.name, "title": exp.title, "budget": budget, "protocol": exp.protocol,
+        "runs_finished": finished, "runs_declared": expected,
+        "command": f"curbside experiment run {exp.name} --budget {budget} && curbside experiment report {exp.name} "
+                   f"--budget {budget}"}, indent=2) + "\n")
+    plot(exp, rows, out / "results.png", budget)
+    return path
+
+
+def plot(exp: Experiment, rows: list[dict[str, Any]], path: Path, budget: str) -> None:
+    """Success rate per (task, method, setting) and split: ours (mean, std over seeds) beside the paper's."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    splits = sorted({r["split"] for r in rows}) or ["test"]
+    fig, axes = plt.subplots(1, len(splits), figsize=(max(5.0, 0.6 * len(exp.runs) + 2) * len(splits) / 1.5, 4),
+                             squeeze=False)
+    for ax, split in zip(axes[0], splits):
+        sel = [r for r in rows if r["split"] == split]
+        keys = list(dict.fromkeys((r["task"], r["method"], r["setting"]) for r in sel))
+        labels = [" ".join(x for x in (t[:1] + "N" if t else "", m, s) if x) for t, m, s in keys]
+        ours = [[float(r["sr"]) for r in sel if (r["task"], r["method"], r["setting"]) == k] for k in keys]
+        paper = [next((r["paper_sr"] for r in sel if (r["task"], r["method"], r["setting"]) == k and
+                       r["paper_sr"] != ""), np.nan) for k in keys]
+        x = np.arange(len(keys))
+        ax.bar(x - 0.2, [np.mean(o) for o in ours], 0.4, yerr=[np.std(o) for o in ours], label=f"curbside ({budget})",
+               color="#3b7dd8")
+        ax.bar(x + 0.2, [float(p) for p in paper], 0.4, label="MetaUrban paper", color="#bbbbbb")
+        ax.set_xticks(x, labels, rotation=45, ha="right", fontsize=7)
+        ax.set_ylim(0, 1)
+        ax.set_title(f"{exp.title}: {split} SR", fontsize=9)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -1,0 +1,125 @@
+"""Run an experiment: train every (run, seed) that has no result yet, evaluate it on its splits, write result.json.
+
+Layout: ROOT/<experiment>/<budget>/<run id>/seed_<s>/ holds the training run (run.json, checkpoints, policy) and
+result.json (written last, atomically): a run with a result.json is finished and never redone; a run without one
+resumes from its latest checkpoint. Demonstrations for offline and imitation runs are collected once per task under
+ROOT/<experiment>/<budget>/demos/<task>/.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from curbside.experiments.spec import Experiment, Run, budget_of, load_experiment
+
+ONLINE = ("ppo", "ppo_lag", "ppo_et")
+DEFAULT_ROOT = Path("outputs/experiments")
+
+
+def run_dir(root: Path, exp: Experiment, budget: str, run: Run, seed: int) -> Path:
+    """Where (run, seed) of `exp` at `budget` trains and keeps its result."""
+    return Path(root) / exp.name / budget / run.id / f"seed_{seed}"
+
+
+def _steps(b: dict[str, Any], method: str) -> int:
+    if method in ONLINE or method == "gail":
+        return int(b["online_steps"])
+    return int(b["bc_steps"] if method == "bc" else b["offline_steps"])
+
+
+def _write_json(path: Path, data: dict[str, Any]) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2, sort_keys=True, default=str))
+    os.replace(tmp, path)
+
+
+def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]) -> Path:
+    """The task's demonstrations for this experiment and budget (collected on first use)."""
+    from curbside.train.demos import collect_demos, dataset_id
+    from curbside.train.protocols import protocol
+
+    base = Path(root) / exp.name / budget / "demos" / run.task
+    path = base / dataset_id(run.task)
+    if not (path / "curbside.json").is_file():
+        proto = protocol(exp.protocol)
+        # The protocol's mix: a share of the episodes from this experiment's trained PPO of the task (seed 0), when
+        # the experiment has one and it has finished; the noisy expert drives the rest (or all, without one).
+        ppo = next((r for r in exp.runs if r.task == run.task and r.method == "ppo" and r.train), None)
+        source = run_dir(root, exp, budget, ppo, ppo.seeds[0]) if ppo is not None else None
+        use = source is not None and (source / "result.json").is_file() and proto.demos.policy_fraction > 0
+        collect_demos(run.task, base, steps=int(b["demos_steps"]), noise=proto.demos.expert_noise,
+                      env_config={**proto.env_config, **run.env}, num_scenes=int(b["scenes"] or 64), progress=False,
+                      policy=source if use else None, policy_fraction=proto.demos.policy_fraction if use else 0.0)
+    return path
+
+
+def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: list[str] | None = None,
+                   progress: bool = True, log: Callable[[str], None] = print) -> list[dict[str, Any]]:
+    """Train and evaluate every (run, seed) of experiment `name` at `budget` that has no result; return all results."""
+    from curbside.config import ConfigError
+    from curbside.train.evaluate import evaluate_policy
+    from curbside.train.policies import load_policy, read_run
+    from curbside.train.protocols import protocol
+    from curbside.train.run import train
+
+    exp = load_experiment(name)
+    b = budget_of(exp, budget)
+    proto = protocol(exp.protocol)
+    if only:
+        unknown = sorted(set(only) - {r.id for r in exp.runs})
+        if unknown:
+            raise ConfigError(f"unknown run id(s) {unknown} in {exp.name}; valid: {', '.join(r.id for r in exp.runs)}")
+    results = []
+    for run in exp.runs:
+        if only and run.id not in only:
+            continue
+        for seed in run.seeds:
+            out = run_dir(root, exp, budget, run, seed)
+            done = out / "result.json"
+            if done.is_file():
+                results.append(json.loads(done.read_text()))
+                continue
+            online = run.method in ONLINE
+            backend = run.backend or b["backend"]
+            if run.task != "PointNav" or run.method not in ONLINE + ("gail",) or backend != "batched":
+                backend = "pybullet"
+            if run.method == "gail":
+                backend = "pybullet"  # imitation's GAIL steps an SB3 VecEnv of its own making
+            init_from = run_dir(root, exp, budget, next(r for r in exp.runs if r.id == run.init), seed) \
+                if run.init else None
+            demos = _demos(root, exp, budget, run, b) if not online and run.train else None
+            steps = _steps(b, run.method)
+            t0 = time.time()
+            out.mkdir(parents=True, exist_ok=True)
+            policy_dir = out
+            if run.train:
+                log(f"[{exp.name} {budget}] {run.id} seed {seed}: training {run.method} on {run.task} {run.split} "
+                    f"for {steps:,} steps")
+                train(run.method, run.task, out, steps=steps, protocol=exp.protocol, backend=backend, split=run.split,
+                      env_config=run.env, n_envs=b["n_envs"], num_scenes=b["scenes"], seed=seed, demos=demos,
+                      resume=True, init_from=init_from, eval_every=int(b["eval_every"]) if online else 0,
+                      eval_episodes=int(b["curve_episodes"]), hparams=b["hparams"], progress=progress)
+            else:
+                assert init_from is not None
+                policy_dir, steps = init_from, 0
+                log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating the policy of {run.init}")
+            train_s = time.time() - t0
+            act, meta = load_policy(policy_dir)
+            evals = {}
+            for split in run.evaluate:
+                cfg = {**read_run(policy_dir).get("env_config", {}), **run.env, **run.eval_env}
+                evals[split] = evaluate_policy(act, run.task, cfg, split=split, episodes=int(b["episodes"]),
+                                               num_scenes=proto.eval_scenes, progress=progress)
+                log(f"    {split}: SR {evals[split]['sr']:.2f}  SPL {evals[split]['spl']:.2f}  "
+                    f"Cost {evals[split]['cost']:.2f}")
+            result = {"experiment": exp.name, "budget": budget, "run": run.id, "task": run.task,
+                      "method": run.method, "split": run.split, "setting": run.setting, "seed": seed, "steps": steps,
+                      "backend": backend, "train_s": round(train_s, 1), "protocol": exp.protocol, "evals": evals}
+            _write_json(done, result)
+            results.append(result)
+    return results

@@ -1,0 +1,98 @@
+"""The experiment runner and report: every shipped file loads, a killed experiment resumes without redoing finished
+runs, the report writes the issue's columns beside the paper's numbers; bad input is one line, exit 2."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from curbside.config import ConfigError
+from curbside.experiments.report import COLUMNS, paper_cell, write_report
+from curbside.experiments.runner import run_experiment
+from curbside.experiments.spec import load_experiment, names
+from tests.helpers import cli, one_error_line
+
+CFG = {"lidar": {"beams": 24, "low_beams": 8}, "route_length": [5.0, 25.0], "scene": {"blocks": 1}}
+TINY = {"online_steps": 128, "episodes": 1, "n_envs": 2, "scenes": 2, "backend": "pybullet",
+        "hparams": {"n_steps": 64, "batch_size": 64, "n_epochs": 1, "net_arch": [32, 32]}}
+
+
+def test_every_shipped_experiment_loads_with_its_paper_numbers() -> None:
+    assert {"table1_paper", "table2", "table5_horizon", "table5_pedestrians", "ablation_generalisation",
+            "ablation_scaling", "ablation_static_density", "ablation_dynamic_density", "seed_robustness"} <= set(names())
+    t1 = load_experiment("table1_paper")
+    assert len(t1.runs) == 14 and sum(len(r.seeds) for r in t1.runs) == 18 and t1.protocol == "paper"
+    cells = {(r.task, s, r.method) for r in t1.runs for s in r.evaluate}
+    assert len(cells) == 28 and all(paper_cell(t1, t, m, s, "") for t, s, m in cells)
+    t2 = load_experiment("table2")
+    assert all(paper_cell(t2, r.task, r.method, "test", r.setting) for r in t2.runs)
+    scaling = load_experiment("ablation_scaling")
+    assert [int(r.setting) for r in scaling.runs] == [5, 50, 200, 1000]
+
+
+def _experiment(tmp_path: Path) -> Path:
+    spec = {"name": "tiny", "title": "tiny", "paper": "table1", "protocol": "curbside", "evaluate": ["test"],
+            "runs": [{"id": "a", "task": "PointNav", "method": "ppo", "seeds": [0, 1], "env": CFG},
+                     {"id": "b", "task": "PointNav", "method": "ppo", "seeds": [0, 1], "init": "a", "train": False,
+                      "evaluate": ["unseen"]}],
+            "budgets": {"smoke": TINY}}
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    return path
+
+
+def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, monkeypatch) -> None:
+    import curbside.train.run as run_module
+
+    real = run_module.train
+    calls: list[tuple[str, int]] = []
+
+    def killed_on_second(algo, task, out, **kw):
+        calls.append((Path(out).parent.name, kw["seed"]))
+        if len(calls) == 2:
+            raise KeyboardInterrupt  # the run is killed while training seed 1
+        return real(algo, task, out, **kw)
+
+    exp, root = _experiment(tmp_path), tmp_path / "runs"
+    monkeypatch.setattr(run_module, "train", killed_on_second)
+    with pytest.raises(KeyboardInterrupt):
+        run_experiment(str(exp), "smoke", root=root, progress=False, log=lambda s: None)
+    first = root / "tiny" / "smoke" / "a" / "seed_0" / "result.json"
+    assert first.is_file() and not (root / "tiny" / "smoke" / "a" / "seed_1" / "result.json").exists()
+    stamp = first.stat().st_mtime_ns
+
+    calls.clear()
+    monkeypatch.setattr(run_module, "train", lambda *a, **kw: (calls.append((Path(a[2]).parent.name, kw["seed"])),
+                                                                real(*a, **kw))[1])
+    results = run_experiment(str(exp), "smoke", root=root, progress=False, log=lambda s: None)
+    assert calls == [("a", 1)]  # only the killed run trains again; b evaluates a's policies without training
+    assert first.stat().st_mtime_ns == stamp and len(results) == 4
+    assert {r["run"]: r["steps"] for r in results} == {"a": 128, "b": 0}
+
+    out = write_report(str(exp), "smoke", root=root, out_root=tmp_path / "report")
+    with open(out, newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert tuple(rows[0]) == COLUMNS and len(rows) == 4
+    assert {(r["split"], r["paper_sr"]) for r in rows} == {("test", "0.66"), ("unseen", "0.49")}
+    assert (out.parent / "results.png").stat().st_size > 0
+    assert json.loads((out.parent / "report.json").read_text())["runs_finished"] == 4
+
+
+def test_bad_experiment_input_is_one_line_exit_2(tmp_path, capsys) -> None:
+    line = one_error_line(*cli(["experiment", "run", "table9"], capsys))
+    assert "unknown experiment 'table9'; valid: ablation_dynamic_density" in line
+    line = one_error_line(*cli(["experiment", "run", "table1_paper", "--budget", "huge"], capsys))
+    assert "unknown budget 'huge'; valid: smoke, small, paper" in line
+    line = one_error_line(*cli(["experiment", "run", "table1_paper", "--only", "PointNav-dqn"], capsys))
+    assert "unknown run id(s) ['PointNav-dqn']" in line
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump({"name": "bad", "runs": [{"task": "PointNav", "method": "ppo", "sedes": [1]}]}))
+    line = one_error_line(*cli(["experiment", "report", str(bad)], capsys))
+    assert "unknown key(s) 'sedes'" in line and "seeds" in line
+    bad.write_text(yaml.safe_dump({"name": "bad", "runs": [{"task": "PointNav", "method": "ppo", "init": "later"}]}))
+    with pytest.raises(ConfigError, match="must name an earlier run"):
+        load_experiment(str(bad))
