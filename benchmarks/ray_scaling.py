@@ -157,7 +157,7 @@ def ppo_part(steps: int, envs: tuple[int, ...], work: Path) -> dict[str, Any]:
     training (2 envs: one per runner; 8 envs: four per runner, sampled as one vector in each runner)."""
     from curbside.train.run import train
 
-    out: dict[str, Any] = {"task": "PointNav", "steps": steps, "hparams": "curbside.train.online.PPO_DEFAULTS"}
+    out: dict[str, Any] = {"task": "PointNav", "steps": steps, "hparams": "curbside.train.protocols (curbside)"}
     for n in envs:
         load = load1()
         train("ppo", "PointNav", work / f"sb3_{n}", steps=steps, env_config=PPO_TASK_CONFIG, n_envs=n, num_scenes=8,

@@ -59,6 +59,20 @@ def main() -> None:
     samples = [(len(built), rss_mb(), time.perf_counter() - t0)]
     rng = np.random.default_rng(0)
     peak = samples[-1][1]
+    args.out.mkdir(parents=True, exist_ok=True)
+
+    def write(done: bool) -> dict:
+        """summary.json after every sample: a stopped run leaves what it measured."""
+        summary = {
+            "command": "python benchmarks/" + " ".join(shlex.quote(a) for a in [Path(__file__).name, *sys.argv[1:]]),
+            "scenes_target": args.scenes, "envs": args.envs, "scene_cache": cfg["scene_cache"], "finished": done,
+            "scenes_built": len(built), "peak_rss_mb": round(peak), "target_mb": 8192,
+            "seconds": round(time.perf_counter() - t0), "build_s_per_scene":
+            round((time.perf_counter() - t0) / max(len(built), 1), 2),
+            "samples": [{"scenes_built": n, "rss_mb": round(r), "seconds": round(s)} for n, r, s in samples]}
+        (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        return summary
+
     while len(built) < args.scenes:
         # One env at a time draws a fresh scene: its old one is released to the LRU.
         k = int(rng.integers(args.envs))
@@ -68,16 +82,10 @@ def main() -> None:
         peak = max(peak, rss)
         if len(built) % 25 == 0 and samples[-1][0] != len(built):
             samples.append((len(built), rss, time.perf_counter() - t0))
+            write(False)
             print(f"{len(built)} scenes built, RSS {rss:,.0f} MB (peak {peak:,.0f}), {samples[-1][2]:.0f} s", flush=True)
     env.close()
-    args.out.mkdir(parents=True, exist_ok=True)
-    summary = {
-        "command": "python benchmarks/" + " ".join(shlex.quote(a) for a in [Path(__file__).name, *sys.argv[1:]]),
-        "scenes": args.scenes, "envs": args.envs, "scene_cache": cfg["scene_cache"], "peak_rss_mb": round(peak),
-        "target_mb": 8192, "seconds": round(time.perf_counter() - t0), "build_s_per_scene":
-        round((time.perf_counter() - t0) / max(len(built), 1), 2),
-        "samples": [{"scenes_built": n, "rss_mb": round(r), "seconds": round(s)} for n, r, s in samples]}
-    (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    summary = write(True)
     import matplotlib
 
     matplotlib.use("Agg")

@@ -197,20 +197,29 @@ class CatalogReader:
     def __len__(self) -> int:
         return len(self.table)
 
-    def asset_split(self, side: str) -> CatalogReader:
+    def asset_split(self, side: str, held_out_categories: tuple[str, ...] = ()) -> CatalogReader:
         """A view of one side of the catalog's asset split: `held_out` (what the unseen and finetune scene splits draw
         from) or `seen` (train and test). Per category, the assets are ordered by the CRC-32 of their id and the first
         fifth (rounded up; none for a category of one asset) is held out: deterministic, whatever the catalog's order,
-        and an asset keeps its side when others are added."""
+        and an asset keeps its side when others are added. Categories in `held_out_categories` (which seen scenes
+        never place) are held out whole. Views are kept: a dataset asks for the same side scene after scene."""
         if side not in ("seen", "held_out"):
             raise ValueError(f"unknown asset split side {side!r}; valid: seen, held_out")
+        key = (side, tuple(sorted(held_out_categories)))
+        views = self.__dict__.setdefault("_split_views", {})
+        if key in views:
+            return views[key]
         held: set[str] = set()
-        for ix in self._by_category.values():
+        for category, ix in self._by_category.items():
             ids = sorted((str(self.table.asset_id[i]) for i in ix), key=lambda a: (zlib.crc32(a.encode()), a))
-            if len(ids) >= 2:
+            if category in held_out_categories:
+                held.update(ids)
+            elif len(ids) >= 2:
                 held.update(ids[: -(-len(ids) // 5)])
         view = copy.copy(self)
+        view.__dict__["_split_views"] = {}
         view._index({a: r for a, r in self._records.items() if (a in held) == (side == "held_out")})
+        views[key] = view
         return view
 
     def categories(self) -> dict[str, int]:

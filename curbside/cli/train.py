@@ -81,7 +81,8 @@ def run_cmd(
         seed_list = _parse_seeds(seeds) if seeds is not None else [seed]
         if split in ("test", "unseen"):
             raise ConfigError(f"--split {split} is held out for evaluation; train on train or finetune")
-        r = resolve_run(algo, task, protocol=protocol, env_config=cfg, n_envs=envs, num_scenes=scenes, split=split)
+        r = resolve_run(algo, task, protocol=protocol, env_config=cfg, n_envs=envs, num_scenes=scenes, split=split,
+                        backend=backend)
         if ex == "process":
             raise ConfigError("training runs on --executor local (SB3; --envs already steps envs in local processes) "
                               "or ray (RLlib)")
@@ -95,7 +96,7 @@ def run_cmd(
         if init_from is not None:
             if algo not in ("ppo", "ppo_lag", "ppo_et"):
                 raise ConfigError(f"--init-from fine-tunes PPO, PPO-Lag and PPO-ET; {algo} starts from scratch")
-            check_init_from(init_from, algo, task, r["env_config"])
+            check_init_from(init_from, algo, task, r["env_config"], r["hparams"]["net_arch"])
         _check_env_config(task, r["env_config"], split)
     except (ConfigError, ValueError, FileNotFoundError) as e:
         raise fail(str(e)) from None
@@ -165,7 +166,9 @@ def eval_cmd(
 
     try:
         act, run = load_policy(run_dir)
-        cfg = {**run.get("env_config", {}), **parse_config_json(config)}
+        from curbside.train.protocols import deep_merge
+
+        cfg = deep_merge(run.get("env_config", {}), parse_config_json(config))
         _check_env_config(run["task"], cfg, split)
         proto = get_protocol(run.get("protocol", "curbside"))
     except (ConfigError, ValueError, FileNotFoundError) as e:

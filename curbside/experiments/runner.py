@@ -41,19 +41,22 @@ def _write_json(path: Path, data: dict[str, Any]) -> None:
 def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]) -> Path:
     """The task's demonstrations for this experiment and budget (collected on first use)."""
     from curbside.train.demos import collect_demos, dataset_id
-    from curbside.train.protocols import protocol
+    from curbside.train.protocols import deep_merge, protocol
 
     base = Path(root) / exp.name / budget / "demos" / run.task
     path = base / dataset_id(run.task)
-    if not (path / "curbside.json").is_file():
-        proto = protocol(exp.protocol)
-        # The protocol's mix: a share of the episodes from this experiment's trained PPO of the task (seed 0), when
-        # the experiment has one and it has finished; the noisy expert drives the rest (or all, without one).
-        ppo = next((r for r in exp.runs if r.task == run.task and r.method == "ppo" and r.train), None)
-        source = run_dir(root, exp, budget, ppo, ppo.seeds[0]) if ppo is not None else None
-        use = source is not None and (source / "result.json").is_file() and proto.demos.policy_fraction > 0
+    proto = protocol(exp.protocol)
+    # The protocol's mix: a share of the episodes from this experiment's trained PPO of the task (seed 0), when the
+    # experiment has one and it has finished; the noisy expert drives the rest (or all, without one). A set collected
+    # before that PPO finished is collected again once it has.
+    ppo = next((r for r in exp.runs if r.task == run.task and r.method == "ppo" and r.train), None)
+    source = run_dir(root, exp, budget, ppo, ppo.seeds[0]) if ppo is not None else None
+    use = source is not None and (source / "result.json").is_file() and proto.demos.policy_fraction > 0
+    meta = path / "curbside.json"
+    have = json.loads(meta.read_text()).get("policy_fraction", 0.0) if meta.is_file() else None
+    if have is None or (use and have != proto.demos.policy_fraction):
         collect_demos(run.task, base, steps=int(b["demos_steps"]), noise=proto.demos.expert_noise,
-                      env_config={**proto.env_config, **run.env}, num_scenes=int(b["scenes"] or 64), progress=False,
+                      env_config=deep_merge(proto.env_config, run.env), num_scenes=int(b["scenes"] or 64), progress=False,
                       policy=source if use else None, policy_fraction=proto.demos.policy_fraction if use else 0.0)
     return path
 
@@ -64,7 +67,7 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
     from curbside.config import ConfigError
     from curbside.train.evaluate import evaluate_policy
     from curbside.train.policies import load_policy, read_run
-    from curbside.train.protocols import protocol
+    from curbside.train.protocols import deep_merge, protocol
     from curbside.train.run import train
 
     exp = load_experiment(name)
@@ -101,7 +104,8 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
                 log(f"[{exp.name} {budget}] {run.id} seed {seed}: training {run.method} on {run.task} {run.split} "
                     f"for {steps:,} steps")
                 train(run.method, run.task, out, steps=steps, protocol=exp.protocol, backend=backend, split=run.split,
-                      env_config=run.env, n_envs=b["n_envs"], num_scenes=b["scenes"], seed=seed, demos=demos,
+                      env_config=run.env, n_envs=b["n_envs"], num_scenes=run.env.get("num_scenes") or b["scenes"],
+                      seed=seed, demos=demos,
                       resume=True, init_from=init_from, eval_every=int(b["eval_every"]) if online else 0,
                       eval_episodes=int(b["curve_episodes"]), hparams=b["hparams"], progress=progress)
             else:
@@ -112,7 +116,7 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
             act, meta = load_policy(policy_dir)
             evals = {}
             for split in run.evaluate:
-                cfg = {**read_run(policy_dir).get("env_config", {}), **run.env, **run.eval_env}
+                cfg = deep_merge(deep_merge(read_run(policy_dir).get("env_config", {}), run.env), run.eval_env)
                 evals[split] = evaluate_policy(act, run.task, cfg, split=split, episodes=int(b["episodes"]),
                                                num_scenes=proto.eval_scenes, progress=progress)
                 log(f"    {split}: SR {evals[split]['sr']:.2f}  SPL {evals[split]['spl']:.2f}  "

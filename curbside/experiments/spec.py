@@ -75,7 +75,12 @@ def load_experiment(name: str) -> Experiment:
     from curbside.train.envs import SPLITS, TASKS
     from curbside.train.policies import check_algo
 
-    raw = _strict(yaml.safe_load(path.read_text()), EXPERIMENT_KEYS, f"experiment {path.name}")
+    try:
+        text = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as e:
+        first = str(e).splitlines()[0][:120]
+        raise ConfigError(f"experiment {path.name} is not valid YAML ({first}); fix the file") from None
+    raw = _strict(text, EXPERIMENT_KEYS, f"experiment {path.name}")
     paper = raw.get("paper", "none")
     if paper not in PAPER_KINDS:
         raise ConfigError(f"experiment {path.name}: unknown paper table {paper!r}; valid: {', '.join(PAPER_KINDS)}")

@@ -23,6 +23,7 @@ def SplitEvalCallback(task: str, env_config: Mapping[str, Any], every: int, epis
 
         def _on_training_start(self) -> None:
             self.next_at = (self.num_timesteps // every + 1) * every  # a resumed run goes on where it was
+            drop_rows_after(csv_path, self.num_timesteps)  # rows a killed run wrote past its last checkpoint
             if at_start:
                 self.record()
 
@@ -44,11 +45,38 @@ def SplitEvalCallback(task: str, env_config: Mapping[str, Any], every: int, epis
     return _SplitEval()
 
 
+def drop_rows_after(csv_path: Path, steps: int) -> None:
+    """Remove the rows of a learning curve past `steps` (a resumed run evaluates those steps again)."""
+    if not csv_path.is_file():
+        return
+    with open(csv_path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    keep = [r for r in rows if int(float(r["steps"])) <= steps]
+    if len(keep) < len(rows):
+        tmp = csv_path.with_name(csv_path.name + ".tmp")
+        with open(tmp, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(keep)
+        tmp.replace(csv_path)
+
+
 def append_eval_row(csv_path: Path, steps: int, summary: Mapping[str, Any], logger: Any, split: str) -> None:
     """Append one evaluation (SR, SPL, cost, route completion, SNS) at `steps` to the learning-curve CSV and record
     it in the SB3 `logger` under eval_<split>/ (shared by the SB3 and RLlib trainers)."""
     row = {"steps": steps, **{k: summary[k] for k in ("sr", "spl", "cost", "route_completion", "sns", "path_length")
                               if k in summary}}
+    old: list[dict[str, str]] = []
+    if csv_path.exists():
+        with open(csv_path, newline="") as f:
+            reader = csv.DictReader(f)
+            if list(reader.fieldnames or []) != list(row):  # a curve of another column set: rewrite it in this one
+                old = list(reader)
+    if old:
+        with open(csv_path, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(row), extrasaction="ignore", restval="")
+            w.writeheader()
+            w.writerows(old)
     new = not csv_path.exists()
     with open(csv_path, "a", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(row))

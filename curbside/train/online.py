@@ -20,7 +20,7 @@ import numpy as np
 from curbside.config import ConfigError
 
 ONLINE_ALGOS = ("ppo", "ppo_lag", "ppo_et")
-SAFE_KEYS = ("cost_limit", "lag_lr", "lag_init", "et_penalty")  # PPO-Lag / PPO-ET settings, not SB3 PPO arguments
+SAFE_KEYS = ("cost_limit", "lag_lr", "lag_init")  # PPO-Lag / PPO-ET settings, not SB3 PPO arguments
 GAIL_KEYS = ("demo_batch_size", "disc_updates_per_round", "disc_lr")
 CHECKPOINT_EVERY = 25_000  # env steps between checkpoints: a killed run loses minutes, not hours
 
@@ -96,7 +96,8 @@ def train_online(algo: str, task: str, out: Path, *, steps: int, env_config: Map
     out.mkdir(parents=True, exist_ok=True)
     ckpt_dir = out / "checkpoints"
     latest = _latest_checkpoint(ckpt_dir) if resume else None
-    source = check_init_from(init_from, algo, task, env_config) if init_from is not None and latest is None else None
+    source = (check_init_from(init_from, algo, task, env_config, hparams["net_arch"])
+              if init_from is not None and latest is None else None)
     train_config = early_termination_config(env_config, hparams["cost_limit"]) if algo == "ppo_et" else dict(env_config)
     # The batched env runs in this process (its LiDAR march uses every core between updates): torch may too.
     torch.set_num_threads(2 if backend == "batched" else 1)
@@ -140,9 +141,10 @@ def train_online(algo: str, task: str, out: Path, *, steps: int, env_config: Map
     return path
 
 
-def check_init_from(run_dir: Path, algo: str, task: str, env_config: Mapping[str, Any]) -> Path:
-    """The policy file of the run `run_dir` that a PPO-family run of `task` can start from; a ConfigError when it is
-    not one (another task, algorithm family or observation space)."""
+def check_init_from(run_dir: Path, algo: str, task: str, env_config: Mapping[str, Any],
+                    net_arch: list[int] | None = None) -> Path:
+    """The policy file of the run `run_dir` that a PPO-family run of `task` (with network `net_arch`, when given) can
+    start from; a ConfigError when it is not one (another task, algorithm family, observation space or network)."""
     from curbside.train.policies import read_run
 
     run = read_run(Path(run_dir))
@@ -155,6 +157,10 @@ def check_init_from(run_dir: Path, algo: str, task: str, env_config: Mapping[str
     if mine != theirs:
         raise ConfigError(f"--init-from {run_dir} observes {theirs}, this run {mine}: train with the source run's "
                           "lidar and observation settings")
+    theirs_arch = list(run.get("hparams", {}).get("net_arch", []))
+    if net_arch is not None and theirs_arch and theirs_arch != list(net_arch):
+        raise ConfigError(f"--init-from {run_dir} has a {theirs_arch} network, this run {list(net_arch)}: train with "
+                          "the source run's net_arch")
     path = Path(run_dir) / "policy.zip"
     if not path.is_file():
         raise ConfigError(f"{path} is missing; the source run did not finish: resume it with `curbside train run "

@@ -30,13 +30,11 @@ def _frozen(d: Mapping[str, Any]) -> Mapping[str, Any]:
 @dataclass(frozen=True)
 class Demonstrations:
     """How a protocol's demonstration set is made: `steps` in all, a fraction `policy_fraction` of the episodes
-    driven by a trained PPO policy of the protocol (the rest by the noisy expert, `expert_noise`), aiming at
-    `target_success`."""
+    driven by a trained PPO policy of the protocol (the rest by the noisy expert, `expert_noise`)."""
 
     steps: int
     policy_fraction: float
     expert_noise: float
-    target_success: float
 
 
 @dataclass(frozen=True)
@@ -47,11 +45,11 @@ class Protocol:
     description: str
     env_config: Mapping[str, Any]          # env config every run of the protocol starts from (task-independent)
     split_scenes: Mapping[str, int]        # scenes in each split (train draws episodes from all of its scenes)
-    n_envs: int                            # parallel envs of online training
+    n_envs: int                            # parallel envs of online training on the batched backend
+    pybullet_envs: int                     # ... and on the PyBullet envs (a process per core steps its share)
     hparams: Mapping[str, Mapping[str, Any]]  # per algorithm (curbside.train.policies.ALGOS)
     demos: Demonstrations
     eval_episodes: int                     # episodes per split in an evaluation
-    eval_seed: int = 0                     # seed of the first evaluation episode
     eval_scenes: int = 50                  # scenes of the split an evaluation draws from
     curve_episodes: int = 20               # episodes per point of a learning curve
     batched_config: Mapping[str, Any] = field(default_factory=dict)  # extra env config of the batched backend
@@ -76,7 +74,7 @@ class Protocol:
 CURBSIDE_PPO: dict[str, Any] = {
     "learning_rate": 3e-4, "train_batch": 4_096, "batch_size": 256, "n_epochs": 10, "gamma": 0.99, "gae_lambda": 0.95,
     "clip_range": 0.2, "ent_coef": 0.0, "vf_coef": 0.5, "max_grad_norm": 0.5, "net_arch": [256, 256],
-    "log_std_init": -0.5, "cost_limit": 1.0, "lag_lr": 0.05, "lag_init": 0.1, "et_penalty": -5.0,
+    "log_std_init": -0.5, "cost_limit": 1.0, "lag_lr": 0.05, "lag_init": 0.1,
 }
 # MetaUrban, ICLR 2025, appendix table of PPO / PPO-Lag / PPO-ET hyper-parameters: horizon 1,000, lr 5e-5, gamma 0.99,
 # GAE lambda 0.95, clip 0.2, train batch 25,600, SGD minibatch 256, value-loss coefficient 1.0, entropy 0.0, cost
@@ -97,10 +95,9 @@ HPARAMS_CURBSIDE: dict[str, dict[str, Any]] = {
 # MetaUrban, ICLR 2025, appendix tables of IQL, TD3+BC, BC and GAIL hyper-parameters.
 HPARAMS_PAPER: dict[str, dict[str, Any]] = {
     "ppo": PAPER_PPO, "ppo_lag": PAPER_PPO, "ppo_et": PAPER_PPO,
-    "iql": {"learning_rate": 1e-4, "batch_size": 256, "gamma": 0.99, "tau": 5e-3, "expectile": 0.7, "beta": 3.0,
-            "log_std_range": [-5.0, 2.0]},
+    "iql": {"learning_rate": 1e-4, "batch_size": 256, "gamma": 0.99, "tau": 5e-3, "expectile": 0.7, "beta": 3.0},
     "td3bc": {"learning_rate": 1e-4, "batch_size": 256, "gamma": 0.99, "tau": 5e-3, "alpha": 2.5, "actor_delay": 2},
-    "bc": {"learning_rate": 1e-4, "batch_size": 64, "net_arch": [256, 256], "epochs": 40},
+    "bc": {"learning_rate": 1e-4, "batch_size": 64, "net_arch": [256, 256]},  # 40 epochs: 18,750 minibatches
     "gail": {**PAPER_PPO, "learning_rate": 1e-4, "train_batch": 12_800, "demo_batch_size": 64, "n_epochs": 5,
              "disc_updates_per_round": 2_000, "disc_lr": 3e-3, "clip_range": 0.2},
 }
@@ -113,7 +110,8 @@ PROTOCOLS: dict[str, Protocol] = {
         split_scenes=_frozen({"train": 64, "test": 50, "unseen": 50, "finetune": 64}),
         n_envs=8,
         hparams=_frozen({k: _frozen(v) for k, v in HPARAMS_CURBSIDE.items()}),
-        demos=Demonstrations(steps=30_000, policy_fraction=0.0, expert_noise=0.7, target_success=0.6),
+        demos=Demonstrations(steps=30_000, policy_fraction=0.0, expert_noise=0.7),
+        pybullet_envs=8,
         eval_episodes=50,
     ),
     "paper": Protocol(
@@ -126,7 +124,8 @@ PROTOCOLS: dict[str, Protocol] = {
         split_scenes=_frozen({"train": 12_800, "test": 1_000, "unseen": 100, "finetune": 1_000}),
         n_envs=64,
         hparams=_frozen({k: _frozen(v) for k, v in HPARAMS_PAPER.items()}),
-        demos=Demonstrations(steps=30_000, policy_fraction=0.8, expert_noise=0.7, target_success=0.6),
+        demos=Demonstrations(steps=30_000, policy_fraction=0.8, expert_noise=0.7),
+        pybullet_envs=8,
         eval_episodes=200,
         eval_scenes=100,
         # A paper-scale scene costs ~2 s to build and a long route ~0.1 s to plan: each env keeps its scene for 20,000
@@ -142,6 +141,14 @@ PROTOCOLS: dict[str, Protocol] = {
         }),
     ),
 }
+
+
+def deep_merge(base: Mapping[str, Any], over: Mapping[str, Any] | None) -> dict[str, Any]:
+    """`base` updated by `over`, nested mappings merged key by key (a partial `lidar` keeps the protocol's others)."""
+    out = dict(base)
+    for k, v in (over or {}).items():
+        out[k] = deep_merge(out[k], v) if isinstance(out.get(k), Mapping) and isinstance(v, Mapping) else v
+    return out
 
 
 def protocol(name: str) -> Protocol:

@@ -94,7 +94,7 @@ def _latest_checkpoint(ckpt_dir: Path) -> Path | None:
 def train_rllib(algo: str, task: str, out: Path, *, steps: int, env_config: Mapping[str, Any], n_envs: int,
                 num_env_runners: int, num_scenes: int, hparams: Mapping[str, Any], seed: int = 0,
                 resume: bool = False, eval_every: int = 0, eval_episodes: int = 20, eval_split: str = "test",
-                address: str | None = None, progress: bool = True) -> Path:
+                address: str | None = None, progress: bool = True, meta: Mapping[str, Any] | None = None) -> Path:
     """Train PPO on RLlib for `steps` env steps with `num_env_runners` env runners (each stepping
     ceil(n_envs / runners) envs) on the Ray cluster at `address` (or one started here); returns the policy folder."""
     import logging
@@ -128,6 +128,7 @@ def train_rllib(algo: str, task: str, out: Path, *, steps: int, env_config: Mapp
             "algo": algo, "task": task, "steps": steps, "n_envs": num_env_runners * envs_per_runner,
             "num_scenes": num_scenes, "seed": seed, "hparams": dict(hparams), "env_config": dict(env_config),
             "engine": "rllib", "num_env_runners": num_env_runners, "envs_per_runner": envs_per_runner,
+            **dict(meta or {}),
         }, indent=2, default=str))
         logger = configure(str(out / "logs"), ["csv", "tensorboard"])
         next_ckpt = (done // CHECKPOINT_EVERY + 1) * CHECKPOINT_EVERY

@@ -20,30 +20,31 @@ def check_backend(backend: str, task: str, algo: str) -> str:
         raise ConfigError(f"unknown backend {backend!r}; valid: {', '.join(BACKENDS)}")
     if backend == "batched" and task != "PointNav":
         raise ConfigError(f"the batched backend steps PointNav only; train {task} with --backend pybullet")
-    if backend == "batched" and algo not in ("ppo", "ppo_lag", "ppo_et", "gail"):
-        raise ConfigError(f"{algo} learns from demonstrations, not from an env backend: drop --backend batched")
+    if backend == "batched" and algo not in ("ppo", "ppo_lag", "ppo_et"):
+        raise ConfigError(f"the batched backend trains ppo, ppo_lag and ppo_et; train {algo} with --backend pybullet")
     return backend
 
 
 def resolve_run(algo: str, task: str, *, protocol: str = "curbside", env_config: Mapping[str, Any] | None = None,
                 n_envs: int | None = None, num_scenes: int | None = None, split: str = "train",
-                hparams: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """What a run trains with: the protocol's env config, envs, scenes of `split` and `algo`'s hyper-parameters,
-    each overridden by the caller's values (None keeps the protocol's)."""
+                hparams: Mapping[str, Any] | None = None, backend: str = "pybullet") -> dict[str, Any]:
+    """What a run trains with: the protocol's env config (the caller's merged key by key), envs (the protocol's for
+    `backend`), scenes of `split` and `algo`'s hyper-parameters, each overridden by the caller's values (None keeps
+    the protocol's)."""
     from curbside.train.envs import SPLITS
-    from curbside.train.protocols import ppo_hparams
+    from curbside.train.protocols import deep_merge, ppo_hparams
     from curbside.train.protocols import protocol as get_protocol
 
     check_algo(algo)
     proto = get_protocol(protocol)
     if split not in SPLITS:
         raise ConfigError(f"unknown split {split!r}; valid: {', '.join(SPLITS)}")
-    cfg = {**proto.env_config, **(env_config or {})}
+    cfg = deep_merge(proto.env_config, env_config)
     if "split" in (env_config or {}) and env_config["split"] != split:  # type: ignore[index]
         raise ConfigError(f"config.split {env_config['split']!r} differs from --split {split!r}; "  # type: ignore[index]
                           "choose the training split with --split")
     cfg.pop("split", None)
-    envs = int(n_envs or proto.n_envs)
+    envs = int(n_envs or (proto.n_envs if backend == "batched" else proto.pybullet_envs))
     num_scenes = num_scenes or cfg.pop("num_scenes", None)  # an experiment's scene count (ablation b) is env config
     h = {**proto.algo_hparams(algo), **(hparams or {})}
     if algo in ("ppo", "ppo_lag", "ppo_et", "gail"):
@@ -72,7 +73,7 @@ def train(algo: str, task: str, out: Path, *, steps: int, protocol: str = "curbs
     check_algo(algo)
     check_backend(backend, task, algo)
     r = resolve_run(algo, task, protocol=protocol, env_config=env_config, n_envs=n_envs, num_scenes=num_scenes,
-                    split=split, hparams=hparams)
+                    split=split, hparams=hparams, backend=backend)
     cfg, h, envs, scenes = r["env_config"], r["hparams"], r["n_envs"], r["num_scenes"]
     proto = get_protocol(protocol)
     episodes = int(eval_episodes or proto.curve_episodes)
@@ -87,7 +88,8 @@ def train(algo: str, task: str, out: Path, *, steps: int, protocol: str = "curbs
         from curbside.train.rllib import train_rllib
         return train_rllib(algo, task, out, steps=steps, env_config=cfg, n_envs=envs, num_env_runners=num_env_runners,
                            num_scenes=scenes, hparams=h, seed=seed, resume=resume, eval_every=eval_every,
-                           address=address, progress=progress)
+                           address=address, progress=progress,
+                           meta={"protocol": r["protocol"], "split": split, "backend": backend})
     meta = {"protocol": r["protocol"], "split": split, "backend": backend,
             "init_from": None if init_from is None else str(init_from)}
     if algo in ONLINE_ALGOS:

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-METRICS = ("sr", "spl", "cost", "route_completion", "sns")
+METRICS = ("sr", "spl", "cost", "route_completion", "sns", "path_length")
 
 
 def final_evaluation(run_dir: Path) -> dict[str, float] | None:

@@ -62,7 +62,9 @@ def _generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any) -> d
     cfg = resolve_config(config)
     reader, catalog_name = _open_catalog(catalog)
     if reader is not None and cfg["assets"] != "all":
-        reader = reader.asset_split(cfg["assets"])
+        from sim.scene.dataset import HELD_OUT_CATEGORIES
+
+        reader = reader.asset_split(cfg["assets"], tuple(HELD_OUT_CATEGORIES))
     rng = np.random.default_rng(int(seed))
     freq = load_distribution(cfg["country"], cfg["distribution_path"]) if cfg["country"] else None
     sampler = CategorySampler(cfg["exclude_categories"], freq)

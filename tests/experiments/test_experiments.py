@@ -93,6 +93,9 @@ def test_bad_experiment_input_is_one_line_exit_2(tmp_path, capsys) -> None:
     bad.write_text(yaml.safe_dump({"name": "bad", "runs": [{"task": "PointNav", "method": "ppo", "sedes": [1]}]}))
     line = one_error_line(*cli(["experiment", "report", str(bad)], capsys))
     assert "unknown key(s) 'sedes'" in line and "seeds" in line
+    bad.write_text("runs: [ {task: PointNav")
+    line = one_error_line(*cli(["experiment", "run", str(bad), "--budget", "smoke"], capsys))
+    assert "is not valid YAML" in line
     bad.write_text(yaml.safe_dump({"name": "bad", "runs": [{"task": "PointNav", "method": "ppo", "init": "later"}]}))
     with pytest.raises(ConfigError, match="must name an earlier run"):
         load_experiment(str(bad))

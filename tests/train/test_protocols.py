@@ -29,14 +29,17 @@ def test_paper_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
     assert [protocol("paper").scenes(s) for s in ("train", "test", "unseen", "finetune")] == [12_800, 1_000, 100, 1_000]
     assert protocol("paper").eval_episodes >= 200
     bc = resolve_run("bc", "PointNav", protocol="paper")["hparams"]
-    assert (bc["learning_rate"], bc["batch_size"], bc["epochs"]) == (1e-4, 64, 40)
+    assert (bc["learning_rate"], bc["batch_size"]) == (1e-4, 64)
+    from curbside.experiments.spec import budget_of, load_experiment
+
+    assert budget_of(load_experiment("table1_paper"), "paper")["bc_steps"] == 40 * 30_000 // 64  # 40 epochs
     iql = resolve_run("iql", "PointNav", protocol="paper")["hparams"]
     assert (iql["learning_rate"], iql["tau"], iql["beta"], iql["expectile"]) == (1e-4, 5e-3, 3.0, 0.7)
     td3 = resolve_run("td3bc", "PointNav", protocol="paper")["hparams"]
     assert (td3["learning_rate"], td3["alpha"], td3["actor_delay"]) == (1e-4, 2.5, 2)
     gail = resolve_run("gail", "PointNav", protocol="paper")["hparams"]
     assert (gail["learning_rate"], gail["disc_lr"], gail["demo_batch_size"], gail["n_epochs"]) == (1e-4, 3e-3, 64, 5)
-    assert gail["n_steps"] * 64 == 12_800  # the sample batch
+    assert gail["n_steps"] * 8 == 12_800  # the sample batch, over the PyBullet backend's 8 envs
 
     from stable_baselines3 import PPO
 
@@ -55,6 +58,15 @@ def test_paper_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
     cfg = offline_config("iql", iql)
     assert (cfg.actor_learning_rate, cfg.critic_learning_rate, cfg.weight_temp, cfg.expectile, cfg.tau) == \
         (1e-4, 1e-4, 3.0, 0.7, 5e-3)
+
+
+def test_protocol_envs_follow_the_backend_and_configs_merge_key_by_key() -> None:
+    batched = resolve_run("ppo", "PointNav", protocol="paper", backend="batched")
+    pybullet = resolve_run("ppo", "PointNav", protocol="paper", backend="pybullet")
+    assert (batched["n_envs"], batched["hparams"]["n_steps"]) == (64, 400)
+    assert (pybullet["n_envs"], pybullet["hparams"]["n_steps"]) == (8, 3_200)
+    lidar = resolve_run("ppo", "PointNav", protocol="paper", env_config={"lidar": {"beams": 120}})["env_config"]["lidar"]
+    assert lidar == {"resolution": 0.1, "beams": 120}  # the protocol's grid resolution survives a partial override
 
 
 def test_curbside_protocol_keeps_the_learnable_defaults() -> None:
@@ -108,22 +120,26 @@ def test_init_from_reproduces_the_source_policys_evaluation_before_training(tmp_
     assert _curve(scratch)[0]["path_length"] != pytest.approx(source_eval["path_length"])
 
 
-def test_seeds_are_aggregated_as_mean_and_std(tmp_path, capsys) -> None:
-    code, out, err = cli(["train", "run", "--algo", "ppo", "--steps", "64", "--envs", "2", "--scenes", "2",
-                          "--seeds", "0,1", "--eval-every", "64", "--eval-episodes", "2", "--config", json.dumps(CFG),
-                          "--out", str(tmp_path)], capsys)
-    assert code == 0, err
-    summary = json.loads((tmp_path / "seeds.json").read_text())
+def test_seeds_are_aggregated_as_mean_and_std(tmp_path) -> None:
+    from curbside.train.seeds import aggregate_seeds
+
+    for s in (0, 1):  # what `train run --seeds 0,1` runs, one folder a seed
+        train("ppo", "PointNav", tmp_path / f"seed_{s}", steps=64, env_config=CFG, n_envs=2, num_scenes=2,
+              hparams=TINY, seed=s, eval_every=64, eval_episodes=2, progress=False, subprocess=False)
+    summary = aggregate_seeds(tmp_path, [0, 1])
+    assert json.loads((tmp_path / "seeds.json").read_text()) == summary
     assert summary["evaluated"] == [0, 1] and summary["sr"]["n"] == 2
-    finals = [summary["runs"][s]["route_completion"] for s in ("0", "1")]
-    assert summary["route_completion"]["mean"] == pytest.approx(np.mean(finals))
-    assert summary["route_completion"]["std"] == pytest.approx(np.std(finals))
+    finals = [summary["runs"][s]["path_length"] for s in ("0", "1")]
+    assert finals[0] != finals[1]  # two seeds, two policies
+    assert summary["path_length"]["mean"] == pytest.approx(np.mean(finals))
+    assert summary["path_length"]["std"] == pytest.approx(np.std(finals))
 
 
 @pytest.mark.parametrize("args, expected", [
     (["--protocol", "papr"], "unknown protocol 'papr'; valid: curbside, paper"),
     (["--backend", "gpu"], "unknown backend 'gpu'; valid: pybullet, batched"),
     (["--backend", "batched", "--task", "SocialNav"], "the batched backend steps PointNav only"),
+    (["--backend", "batched", "--algo", "gail", "--demos", "."], "the batched backend trains ppo, ppo_lag and ppo_et"),
     (["--split", "test"], "--split test is held out for evaluation"),
     (["--split", "validation"], "unknown split 'validation'"),
     (["--seeds", "0,x"], "--seeds must be comma-separated integers"),
@@ -143,6 +159,8 @@ def test_init_from_another_task_or_observation_space_is_one_line_exit_2(tmp_path
     assert "was trained on PointNav, not SocialNav" in line
     line = one_error_line(*cli([*base, "--config", json.dumps({**CFG, "lidar": {"beams": 48, "low_beams": 8}})], capsys))
     assert "observes (61,), this run (85,)" in line
+    line = one_error_line(*cli([*base, "--config", json.dumps(CFG)], capsys))  # the curbside protocol's 256 x 256
+    assert "has a [32, 32] network, this run [256, 256]" in line
     line = one_error_line(*cli([*base, "--algo", "bc", "--demos", str(src)], capsys))
     assert "no demonstration dataset" in line or "--init-from fine-tunes PPO" in line
     line = one_error_line(*cli(["train", "run", "--out", str(tmp_path / "r2"), "--init-from", str(tmp_path)], capsys))

@@ -36,6 +36,10 @@ def test_the_split_holds_out_a_fifth_of_each_category_deterministically(variant_
     assert all(n == 3 for n in held.categories().values()) and all(n == 9 for n in seen.categories().values())
     again = CatalogReader(variant_catalog.path).asset_split("held_out")
     assert sorted(again.table.asset_id) == sorted(held.table.asset_id)
+    whole = variant_catalog.asset_split("held_out", ("bench",))
+    assert whole.categories()["bench"] == 12 and variant_catalog.asset_split("seen", ("bench",)).categories().get(
+        "bench", 0) == 0  # a held-out category is held out whole
+    assert variant_catalog.asset_split("held_out") is held  # views are kept
     with pytest.raises(ValueError, match="valid: seen, held_out"):
         variant_catalog.asset_split("train")
 
