@@ -19,8 +19,9 @@ from sim.machines import Machine, machine_spec
 from sim.metrics import make_measures
 from sim.route import RoutePlanner
 from sim.scene.scene import Scene
-from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, Termination, check_config, make_reward,
+from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward,
                                 resolve_task_config)
+from sim.tasks.termination import Termination
 from sim.viewer import close_window, render_frame
 from sim.world import World, touching
 
@@ -60,13 +61,12 @@ class PointNavEnv(gym.Env):
     docs/tasks.md for why the default differs.
 
     ## Episode end
-    Terminated on success (route completion >= 0.95), out of route (|lateral offset| > `out_of_route_distance`,
-    or the machine's centre off the walkable area), or stuck (less than `stuck_distance` of new progress in
-    `stuck_steps` steps, or `collision_steps` consecutive steps in contact). Truncated at the episode's horizon:
-    min(`horizon`, route length / `horizon_min_speed` / dt).
-    `info["cost"]` is 1 on a step in contact with a `cost_kinds` body, else 0, on every step. At episode end
-    `info` also holds the metrics (`success`, `spl`, `route_completion`, `episode_cost`, `collisions_<kind>`,
-    `path_length`, `time`, ...) and `info["metrics"]` as a dict (there `cost` is the episode's total).
+    Terminated on success (route completion >= 0.95), out of route (|lateral offset| > `out_of_route_distance`, or
+    the centre off the walkable area), stuck (< `stuck_distance` of new progress in `stuck_steps` steps, or
+    `collision_steps` steps in contact), toppled, or cost past `max_episode_cost`. Truncated at the horizon:
+    min(`horizon`, route length / `horizon_min_speed` / dt). `info["cost"]` is 1 on a step in contact with a
+    `cost_kinds` body, else 0. At episode end `info` also holds the metrics (`success`, `spl`, `route_completion`,
+    `episode_cost`, `collisions_<kind>`, `path_length`, `time`, ...) and `info["metrics"]` (`cost`: the total).
 
     ## Subclass hooks
     `_on_scene(scene)`, `_on_reset(rng)`, `_on_step()`, `_scene_state()`, `_load_scene_state(state)`,
@@ -240,10 +240,9 @@ class PointNavEnv(gym.Env):
         steer, throttle = float(a[0]), float(a[1])
         m, c = self.machine, self.client
         x0, y0 = m.position[0], m.position[1]
-        sub_dt = self.dt / self.substeps
         hits: set[str] = set()
         for _ in range(self.substeps):
-            m.command(steer, throttle, sub_dt)
+            m.command(steer, throttle, self.dt / self.substeps)
             p.stepSimulation(physicsClientId=c)
             m.sync()
             self._contacts(hits)
@@ -256,13 +255,12 @@ class PointNavEnv(gym.Env):
         ep.succeeded, ep.out_of_route, ep.stuck = self.termination(
             ep.steps, ep.max_progress, self.route.length, lat, lambda: self.planner.grid.label_at(x, y) != 0, bool(hits))
         ep.toppled = not ep.succeeded and max(abs(m.roll), abs(m.pitch)) > self.termination.topple
-        ep.cost_exceeded = not (ep.succeeded or ep.out_of_route or ep.stuck or ep.toppled) and \
-            self.termination.cost_exceeded(ep.cost_total)
-        d_steer = steer - ep.last_action[0]
-        reward = self.reward_fn(progress, new_progress, lat, d_steer, m.speed, collided, ep.succeeded, ep.out_of_route,
-                                ep.stuck or ep.toppled or ep.cost_exceeded)
+        ended = ep.succeeded or ep.out_of_route or ep.stuck or ep.toppled
+        ep.cost_exceeded = not ended and ep.cost_total > self.termination.max_cost
+        reward = self.reward_fn(progress, new_progress, lat, steer - ep.last_action[0], m.speed, collided, ep.succeeded,
+                                ep.out_of_route, ep.stuck or ep.toppled or ep.cost_exceeded)
         ep.last_action = a
-        terminated = ep.succeeded or ep.out_of_route or ep.stuck or ep.toppled or ep.cost_exceeded
+        terminated = ended or ep.cost_exceeded
         truncated = (not terminated) and ep.steps >= ep.horizon
         for meas in self.measures:
             meas.update(self)
