@@ -5,7 +5,8 @@ Usage: python benchmarks/ppo_paper_curve.py [--steps 5000000] [--eval-every 5000
        [--final-episodes 200] [--run outputs/train/ppo_paper_batched] [--out benchmarks/results/ppo_paper_curve]
 
 Training is `curbside train run --protocol paper --backend batched --resume`: a stopped run goes on from its last
-checkpoint (every 25,000 env steps), and a finished one is only evaluated. Writes curve.csv (env steps, test SR, SPL,
+checkpoint (every 25,000 env steps), and a finished one is only evaluated. The last checkpoint of a stopped run is
+kept in git under OUT/checkpoint/ (with its curve): a run folder without checkpoints starts from it. Writes curve.csv (env steps, test SR, SPL,
 cost, route completion on `--curve-episodes` PyBullet episodes), transfer.json (the final policy on
 `--final-episodes` test episodes: PyBullet, batched, their SR difference) and curve.png.
 """
@@ -44,6 +45,7 @@ def main() -> None:
     from curbside.train.run import train
 
     proto = protocol("paper")
+    seed_run(args.run, args.out / "checkpoint")
     policy = args.run / "policy.zip"
     done = policy.is_file() and PPO.load(policy, device="cpu").num_timesteps >= args.steps
     t0 = time.perf_counter()
@@ -53,7 +55,7 @@ def main() -> None:
     train_s = time.perf_counter() - t0
     model = PPO.load(policy, device="cpu")
     cfg = read_run(args.run)["env_config"]
-    act = lambda obs: model.predict(obs, deterministic=True)[0]  # noqa: E731
+    act = lambda obs: model.predict(obs, deterministic=True)[0]
     pybullet = evaluate_policy(act, "PointNav", cfg, split="test", episodes=args.final_episodes,
                                num_scenes=proto.eval_scenes)
     batched = evaluate_policy_batched(act, cfg, split="test", episodes=args.final_episodes,
@@ -73,6 +75,20 @@ def main() -> None:
     plot(args.out)
 
 
+def seed_run(run: Path, kept: Path) -> None:
+    """Start a run folder without checkpoints from the checkpoint and curve kept in git (`kept`): a run stopped in
+    one session goes on from there on another machine (the folder's own checkpoints stay out of git)."""
+    if not kept.is_dir() or any((run / "checkpoints").glob("policy_*_steps.zip")):
+        return
+    zips = sorted(kept.glob("policy_*_steps.zip"))
+    if not zips:
+        return
+    (run / "checkpoints").mkdir(parents=True, exist_ok=True)
+    shutil.copy(zips[-1], run / "checkpoints" / zips[-1].name)
+    if (kept / "eval_curve.csv").is_file() and not (run / "eval_curve.csv").is_file():
+        shutil.copy(kept / "eval_curve.csv", run / "eval_curve.csv")
+
+
 def plot(out: Path) -> None:
     """curve.png: test SR and route completion (PyBullet) over env steps, the final transfer points beside."""
     import matplotlib
@@ -80,7 +96,10 @@ def plot(out: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = list(csv.DictReader(open(out / "curve.csv", newline=""))) if (out / "curve.csv").is_file() else []
+    rows: list[dict[str, str]] = []
+    if (out / "curve.csv").is_file():
+        with open(out / "curve.csv", newline="") as f:
+            rows = list(csv.DictReader(f))
     transfer = json.loads((out / "transfer.json").read_text())
     fig, ax = plt.subplots(figsize=(6.5, 3.6))
     steps = [int(r["steps"]) / 1e6 for r in rows]

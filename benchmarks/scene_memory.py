@@ -55,7 +55,7 @@ def main() -> None:
     t0 = time.perf_counter()
     env = BatchedPointNav(args.envs, config=cfg)
     env.reset(seed=0)
-    built: set = set(b.key for b in env.store.built.values())
+    built: set = {b.key for b in env.store.built.values()}
     samples = [(len(built), rss_mb(), time.perf_counter() - t0)]
     rng = np.random.default_rng(0)
     peak = samples[-1][1]

@@ -77,7 +77,7 @@ def measure(task: str, backend: str, protocol: str, iterations: int) -> dict[str
         model.learn(batch)  # warm-up: the first scenes are built here
         warm_s = time.perf_counter() - t0
         timer = UpdateTimer()
-        w0, c0 = time.perf_counter(), time.process_time()
+        w0 = time.perf_counter()
         model.learn(batch * iterations, reset_num_timesteps=False, callback=timer)
         wall = time.perf_counter() - w0
         if timer.mark is not None:

@@ -113,7 +113,7 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
                 policy_dir, steps = init_from, 0
                 log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating the policy of {run.init}")
             train_s = time.time() - t0
-            act, meta = load_policy(policy_dir)
+            act, _ = load_policy(policy_dir)
             evals = {}
             for split in run.evaluate:
                 cfg = deep_merge(deep_merge(read_run(policy_dir).get("env_config", {}), run.env), run.eval_env)
