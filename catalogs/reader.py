@@ -168,6 +168,7 @@ class CatalogReader:
             d["zones"] = list(d["zones"])
             d["synonyms"] = list(d["synonyms"])
             records[d["asset_id"]] = AssetRecord(**d)
+        self._split_views: dict[tuple[str, tuple[str, ...]], CatalogReader] = {}
         self._index(records)
 
     def _index(self, records: dict[str, AssetRecord]) -> None:
@@ -206,9 +207,8 @@ class CatalogReader:
         if side not in ("seen", "held_out"):
             raise ValueError(f"unknown asset split side {side!r}; valid: seen, held_out")
         key = (side, tuple(sorted(held_out_categories)))
-        views = self.__dict__.setdefault("_split_views", {})
-        if key in views:
-            return views[key]
+        if key in self._split_views:
+            return self._split_views[key]
         held: set[str] = set()
         for category, ix in self._by_category.items():
             ids = sorted((str(self.table.asset_id[i]) for i in ix), key=lambda a: (zlib.crc32(a.encode()), a))
@@ -217,9 +217,9 @@ class CatalogReader:
             elif len(ids) >= 2:
                 held.update(ids[: -(-len(ids) // 5)])
         view = copy.copy(self)
-        view.__dict__["_split_views"] = {}
+        view._split_views = {}
         view._index({a: r for a, r in self._records.items() if (a in held) == (side == "held_out")})
-        views[key] = view
+        self._split_views[key] = view
         return view
 
     def categories(self) -> dict[str, int]:
