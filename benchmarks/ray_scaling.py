@@ -64,7 +64,7 @@ def tree_digest(folder: Path) -> str:
 
 def _ray_local(cpus: int) -> float:
     """Start a local Ray cluster of `cpus` CPUs; seconds it took."""
-    from curbside.executors import connect_ray
+    from kernel.executors import connect_ray
 
     t0 = time.perf_counter()
     connect_ray(cpus)  # as `--executor ray --workers N` starts one: workers at this process's priority

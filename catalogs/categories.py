@@ -13,7 +13,7 @@ from functools import cache
 from importlib import resources
 
 from catalogs.schema import OBJECT_CLASSES, ZONES
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 AXES = ("depth", "width", "height")
 COLUMNS = ("category", "object_class", "zones", *AXES, *(f"{a}_{e}" for a in AXES for e in ("min", "max")), "sources")

@@ -55,7 +55,7 @@ def dump_catalog(catalog_path: str | Path, out_dir: str | Path) -> list[str]:
     """
     import shutil
 
-    from curbside.reproducible import write_parquet
+    from kernel.reproducible import write_parquet
 
     out_dir = Path(out_dir)
     if out_dir.exists():

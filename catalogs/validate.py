@@ -68,7 +68,7 @@ def _dims_problem(what: str, recorded: tuple[float, float, float], extents: np.n
 
 def check_asset_files(reader: CatalogReader, rec: AssetRecord, client: int) -> list[Problem]:
     """Problems of one asset's files: existence, trimesh and PyBullet loading, dimensions, placement."""
-    from curbside.quiet import import_pybullet
+    from kernel.quiet import import_pybullet
 
     p = import_pybullet()
     import trimesh
@@ -142,7 +142,7 @@ def check_embeddings(path: str | Path, reader: CatalogReader) -> list[Problem]:
 
 def validate_catalog(path: str | Path, *, progress: bool = True) -> tuple[int, list[Problem]]:
     """Check a catalog end to end; returns (number of assets checked, problems found)."""
-    from curbside.quiet import import_pybullet
+    from kernel.quiet import import_pybullet
 
     p = import_pybullet()
     from rich.console import Console

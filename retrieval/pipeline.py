@@ -24,7 +24,7 @@ import numpy as np
 from catalogs.layout import IMAGE_EMBEDDING_FILE, asset_root, retrieved_asset_dir, stored_path
 from catalogs.records import AssetRecord, DescriptionRecord, MatchRecord, RejectionRecord, ViewRecord
 from catalogs.schema import DESCRIPTION_KIND
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from retrieval.normalize import AssetRejected, CanonicalMesh, QualityLimits
 from retrieval.scoring import AssetScores, DescriptionPool, ScoringConfig
 from retrieval.sources import SourceItem
@@ -76,7 +76,7 @@ def config_hash(config: IngestConfig) -> str:
 
 def config_from_dict(d: dict[str, Any]) -> IngestConfig:
     """Build an IngestConfig from a plain (e.g. params.yaml) dict, strict about keys."""
-    from curbside.config import merge_strict
+    from kernel.config import merge_strict
 
     base = dataclasses.asdict(IngestConfig())
     merged = merge_strict(base, d, name="ingest config")

@@ -48,7 +48,7 @@ def view_specs(n_views: int = 8, elevations: tuple[float, float] = (15.0, 40.0))
 @lru_cache(maxsize=1)
 def _client() -> int:
     """One DIRECT PyBullet client per process: connecting costs more than rendering a view."""
-    from curbside.quiet import import_pybullet
+    from kernel.quiet import import_pybullet
 
     p = import_pybullet()
 
@@ -66,7 +66,7 @@ def render_obj(
     obj_path: str | Path, specs: list[ViewSpec], size: int = 224, fov: float = 40.0, bounds: np.ndarray | None = None,
 ) -> list[np.ndarray]:
     """Render a textured OBJ (z-up) from each view on a white background; returns HxWx3 uint8 images."""
-    from curbside.quiet import import_pybullet
+    from kernel.quiet import import_pybullet
 
     p = import_pybullet()
 

@@ -22,7 +22,7 @@ from functools import lru_cache
 import numpy as np
 
 from catalogs.schema import DEFAULT_TEXT_MODEL
-from curbside.config import check_choice
+from kernel.config import check_choice
 
 IMAGE_ENCODERS = ("aligned", "imagenet", "clip", "blip", "blip2", "none")
 AGGREGATES = ("max", "mean")

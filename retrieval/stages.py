@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from catalogs.layout import asset_root, retrieved_asset_dir
-from curbside.reproducible import quiet_third_party, write_frame
+from kernel.reproducible import quiet_third_party, write_frame
 from retrieval.normalize import CanonicalMesh
 from retrieval.pipeline import (
     IngestConfig,
@@ -269,11 +269,11 @@ def main(argv: list[str] | None = None) -> None:
     import yaml
     from rich.console import Console
 
-    from curbside.executors import die_with_parent
+    from kernel.executors import die_with_parent
 
     die_with_parent(os.getppid())  # dvc killed (even by SIGKILL): the stage ends too
     quiet_third_party()
-    from curbside.quiet import import_pybullet
+    from kernel.quiet import import_pybullet
 
     import_pybullet()  # render and curate use pybullet: import it without its build-time banner
     ap = argparse.ArgumentParser(prog="python -m retrieval.stages", description=__doc__.splitlines()[0])

@@ -4,7 +4,7 @@ Importing `sim` registers the Gymnasium environments `curbside/PointNav-v0` and 
 (entry points are strings, so nothing heavy loads; see sim.envs.ENV_IDS).
 """
 
-from curbside.quiet import import_pybullet
+from kernel.quiet import import_pybullet
 
 import_pybullet()  # first, before any sim module imports pybullet: its build-time banner is noise on every command
 

@@ -15,7 +15,7 @@ import numpy as np
 import pybullet as p
 
 from catalogs.categories import NAMES
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.schema import Choice, Float, Int, Pos, Rule
 
 MODALITIES = ("rgb", "depth", "semantic")

@@ -16,11 +16,11 @@ def evaluate(env_id: str, policy: str, episodes: int, config: Mapping[str, Any] 
              address: str | None = None, nodes: dict[str, int] | None = None) -> dict[str, Any]:
     """Mean metrics over `episodes` episodes with seeds seed..seed+N-1: keys sr, spl, cost, episodes, ...
 
-    `executor` (curbside.executors: local, process or ray at `address`) shards the episodes over workers; each
+    `executor` (kernel.executors: local, process or ray at `address`) shards the episodes over workers; each
     episode depends on its seed alone and the rows are aggregated in seed order, so every executor gives the
     same summary, byte for byte. `nodes`, when given, receives the episodes each (Ray) node ran.
     """
-    from curbside.executors import run_map
+    from kernel.executors import run_map
 
     job = (env_id, policy, dict(config or {}))
     rows: list[dict[str, Any]] = []
@@ -49,7 +49,7 @@ def episode_metrics(seed: int, job: tuple[str, str, dict[str, Any]]) -> dict[str
     process: an episode depends on its seed alone (reset and the action space are seeded with it)."""
     import json
 
-    from curbside.executors import worker_state
+    from kernel.executors import worker_state
 
     env_id, policy, config = job
 

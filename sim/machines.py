@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import pybullet as p
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 G = 9.81
 

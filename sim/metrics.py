@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, TypeVar
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 
 class Measure:

@@ -1,6 +1,6 @@
 """Declarative value checks for strict configs (MetaDrive style): one (key -> type, range) table per config.
 
-`curbside.config.merge_strict` rejects unknown keys; the tables here reject bad values of known keys (wrong
+`kernel.config.merge_strict` rejects unknown keys; the tables here reject bad values of known keys (wrong
 type, NaN/inf, out of range) at construction, with the valid range in the message, so a bad number fails
 where it is given instead of turning into NaN observations or an IndexError many steps later.
 
@@ -17,7 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Union
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 
 def _num(v: Any) -> bool:
@@ -124,7 +124,7 @@ class Rule:
         """Raise ConfigError naming `name`, the valid values and the value given unless `v` is valid."""
         if not self.ok(v):
             hint = f" ({self.hint})" if self.hint else ""
-            if self.kind == "choice":  # the style of curbside.config.check_choice
+            if self.kind == "choice":  # the style of kernel.config.check_choice
                 listing = ", ".join(map(str, self.choices)) + (" (or null)" if self.none else "")
                 raise ConfigError(f"unknown {name} {v!r}; valid: {listing}{hint}")
             raise ConfigError(f"{name} must be {self.describe()}, got {v!r}{hint}")

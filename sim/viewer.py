@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.camera import SEMANTIC_CLASSES
 from sim.palette import SURFACE, category_color, rgb255
 
@@ -133,17 +133,39 @@ def close_window(env: Any) -> None:
         window.close()
 
 
+def human_unavailable() -> str | None:
+    """Why render_mode "human" cannot run here (one line with the fix), or None when it can: it needs pygame and a
+    display (DISPLAY, WAYLAND_DISPLAY, or SDL_VIDEODRIVER such as dummy)."""
+    import importlib.util
+
+    if importlib.util.find_spec("pygame") is None:
+        return "render_mode 'human' needs pygame: pip install 'curbside[viewer]'"
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") or os.environ.get("SDL_VIDEODRIVER")):
+        return ("render_mode 'human' needs a display and DISPLAY is not set; run under a desktop or `xvfb-run`, or "
+                "use render_mode 'rgb_array' (RecordVideo, `curbside sim rollout --video`)")
+    return None
+
+
+def served_render_modes(render_mode: str | None) -> list[str]:
+    """The render modes this machine serves ("human" only with pygame and a display); a ConfigError, with the fix,
+    when `render_mode` is unknown or not served here."""
+    if render_mode not in (None, "rgb_array", "human"):
+        raise ConfigError(f"unknown render_mode {render_mode!r}; valid: rgb_array, human (or None)")
+    human = human_unavailable()
+    if render_mode == "human" and human:
+        raise ConfigError(human)
+    return ["rgb_array"] + ([] if human else ["human"])
+
+
 class HumanWindow:
     """A pygame window showing RGB frames at most `fps` a second (works under Xvfb or SDL_VIDEODRIVER=dummy)."""
 
     def __init__(self, title: str, fps: int) -> None:
-        try:
-            import pygame
-        except ImportError:
-            raise ConfigError("render_mode 'human' needs pygame: pip install 'curbside[viewer]'") from None
-        if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") or os.environ.get("SDL_VIDEODRIVER")):
-            raise ConfigError("render_mode 'human' needs a display and DISPLAY is not set; run under a desktop or "
-                              "`xvfb-run`, or use render_mode 'rgb_array' (RecordVideo, `curbside sim rollout --video`)")
+        reason = human_unavailable()
+        if reason:
+            raise ConfigError(reason)
+        import pygame
+
         self.pygame = pygame
         pygame.display.init()
         pygame.display.set_caption(title)

@@ -11,7 +11,7 @@ import typer
 
 from catalogs import DEFAULT_CATALOG  # light: only the schema constants
 from curbside.cli.errors import RunError, UsageError
-from curbside.cli.executor_options import Executor  # curbside.executors.EXECUTORS, one choice across the CLI
+from curbside.cli.executor_options import Executor  # kernel.executors.EXECUTORS, one choice across the CLI
 
 # Option choices as Enums and ranges, so click refuses a bad value before the catalog is touched: a bad value
 # reaching the per-asset steps would be recorded as every asset's rejection (issue 12).

@@ -61,7 +61,7 @@ def debug_enabled(argv: Sequence[str] | None = None) -> bool:
 
 def classify(exc: BaseException) -> tuple[str, int]:
     """The one line and exit code for an exception raised by a command."""
-    from curbside.config import ConfigError
+    from kernel.config import ConfigError
 
     name = type(exc).__name__
     text = str(exc) or name

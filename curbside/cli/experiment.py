@@ -8,7 +8,7 @@ from typing import Optional
 import typer
 
 from curbside.cli.errors import fail
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 app = typer.Typer(help="Run the MetaUrban paper's experiments (Table 1, 2, 5, ablations, seeds) and report them.",
                   no_args_is_help=True)

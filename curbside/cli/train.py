@@ -18,7 +18,7 @@ from curbside.cli.executor_options import (
     executor_option,
     workers_option,
 )
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 app = typer.Typer(help="Train PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, BC or GAIL and evaluate them on a split.",
                   no_args_is_help=True)

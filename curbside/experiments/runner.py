@@ -64,7 +64,7 @@ def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]
 def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: list[str] | None = None,
                    progress: bool = True, log: Callable[[str], None] = print) -> list[dict[str, Any]]:
     """Train and evaluate every (run, seed) of experiment `name` at `budget` that has no result; return all results."""
-    from curbside.config import ConfigError
+    from kernel.config import ConfigError
     from curbside.train.evaluate import evaluate_policy
     from curbside.train.policies import load_policy, read_run
     from curbside.train.protocols import deep_merge, protocol
@@ -92,11 +92,14 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
             if run.task != "PointNav" or run.method not in ONLINE + ("gail",) or backend != "batched":
                 backend = "pybullet"
             if run.method == "gail":
-                backend = "pybullet"  # imitation's GAIL steps an SB3 VecEnv of its own making
+                backend = "pybullet"  # GAIL's generator steps an SB3 VecEnv of the PyBullet envs
             init_from = run_dir(root, exp, budget, next(r for r in exp.runs if r.id == run.init), seed) \
                 if run.init else None
             demos = _demos(root, exp, budget, run, b) if not online and run.train else None
             steps = _steps(b, run.method)
+            # A budget's hparams are PPO's (the generator's for GAIL); the other learners take its network alone.
+            hparams = b["hparams"] if run.method in ONLINE + ("gail",) else (
+                {"net_arch": b["hparams"]["net_arch"]} if "net_arch" in b["hparams"] else {})
             t0 = time.time()
             out.mkdir(parents=True, exist_ok=True)
             policy_dir = out
@@ -107,7 +110,7 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
                       env_config=run.env, n_envs=b["n_envs"], num_scenes=run.env.get("num_scenes") or b["scenes"],
                       seed=seed, demos=demos,
                       resume=True, init_from=init_from, eval_every=int(b["eval_every"]) if online else 0,
-                      eval_episodes=int(b["curve_episodes"]), hparams=b["hparams"], progress=progress)
+                      eval_episodes=int(b["curve_episodes"]), hparams=hparams, progress=progress)
             else:
                 assert init_from is not None
                 policy_dir, steps = init_from, 0

@@ -9,7 +9,7 @@ from typing import Any
 
 import yaml
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 HERE = Path(__file__).resolve().parent
 BUDGETS = ("smoke", "small", "paper")

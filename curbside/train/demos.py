@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from curbside.train.envs import env_id, split_config
 from curbside.train.progress import progress_bar
 
@@ -54,7 +54,7 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
     under `out` (its datasets root) and return a summary: path, episodes, steps, success rate.
 
     Episode k uses seed + k for the env and its own noise stream (seeded by (seed, k)), so `executor`
-    (curbside.executors: local, process, or ray at `address`) may run episodes anywhere: they are kept in index
+    (kernel.executors: local, process, or ray at `address`) may run episodes anywhere: they are kept in index
     order up to the first that reaches `steps`, and the dataset is the same whichever executor ran them.
     """
     import itertools
@@ -62,7 +62,7 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
     import gymnasium as gym
 
     import sim  # noqa: F401
-    from curbside.executors import run_map
+    from kernel.executors import run_map
 
     if steps < 1 or not 0.0 <= noise < 10 or not 0.0 <= random_prob <= 1.0 or not 0.0 <= policy_fraction <= 1.0:
         raise ConfigError("demos need steps >= 1, 0 <= noise < 10, 0 <= random_prob <= 1 and 0 <= policy_fraction <= 1")
@@ -117,7 +117,7 @@ def demo_episode(k: int, job: tuple[Any, ...]) -> tuple[EpisodeRecorder, bool]:
     import gymnasium as gym
 
     import sim  # noqa: F401
-    from curbside.executors import worker_state
+    from kernel.executors import worker_state
     from sim.expert import PurePursuitExpert
 
     eid, cfg, noise, random_prob, seed, policy_file, policy_fraction = job

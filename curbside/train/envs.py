@@ -8,7 +8,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 TASKS = {"PointNav": "curbside/PointNav-v0", "SocialNav": "curbside/SocialNav-v0"}
 SPLITS = ("train", "test", "unseen", "finetune")

@@ -1,9 +1,8 @@
-"""Imitation learning on the `imitation` library: BC (supervised on expert actions) and GAIL (adversarial
-reward from a discriminator, PPO generator on the train split)."""
+"""Imitation learning in plain torch: BC (supervised on expert actions) and GAIL (an adversarial reward from a
+discriminator, an SB3 PPO generator on the train split)."""
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -13,21 +12,14 @@ import numpy as np
 from curbside.train.demos import Transitions
 from curbside.train.progress import progress_bar
 
-
-def _transitions(tr: Transitions) -> Any:
-    from imitation.data.types import Transitions as ImTransitions
-
-    return ImTransitions(obs=tr.obs, acts=tr.actions, infos=np.array([{}] * len(tr)), next_obs=tr.next_obs,
-                         dones=tr.terminals | tr.timeouts)
+DISC_NET_ARCH = (256, 256)  # the discriminator's MLP (the paper does not give one; the policy's size)
 
 
 def train_bc(demos: Transitions, out: Path, *, steps: int, observation_space: Any, action_space: Any,
              seed: int = 0, hparams: Mapping[str, Any] | None = None, progress: bool = True) -> Path:
     """Behaviour cloning for `steps` minibatches: maximise the log-likelihood of the demonstrated actions under an SB3
-    ActorCriticPolicy (imitation's BC loss: - log p(a|s) - 1e-3 entropy), saved as `policy.zip`; a loss log beside.
-
-    The loop is plain torch on tensors built once (a minibatch is an index draw): imitation's BC rebuilt a data loader
-    of dicts every epoch, ~120 ms a minibatch on this 2-core machine against ~2 ms here.
+    ActorCriticPolicy (loss - log p(a|s) - 1e-3 entropy, as the `imitation` library's BC), saved as `policy.zip`; a
+    loss log beside. The loop runs on tensors built once: a minibatch is an index draw.
     """
     import csv
 
@@ -68,29 +60,113 @@ def train_bc(demos: Transitions, out: Path, *, steps: int, observation_space: An
     return path
 
 
+class Discriminator:
+    """D(s, a): logits that (s, a) comes from the demonstrations; the generator's reward is -log(1 - D) =
+    softplus(logit) (Ho and Ermon's GAIL, as the `imitation` library rewards it)."""
+
+    def __init__(self, obs_dim: int, act_dim: int, net_arch: tuple[int, ...], lr: float, seed: int) -> None:
+        import torch
+
+        from curbside.train.offline import mlp
+
+        torch.manual_seed(seed)
+        self.net = mlp([obs_dim + act_dim, *net_arch, 1])
+        self.opt = torch.optim.Adam(self.net.parameters(), lr=lr)
+
+    def logits(self, obs: Any, act: Any) -> Any:
+        import torch
+
+        return self.net(torch.cat([obs, act], 1)).squeeze(1)
+
+    def reward(self, obs: np.ndarray, act: np.ndarray) -> np.ndarray:
+        """The generator's reward of a batch of (obs, action) pairs."""
+        import torch
+        import torch.nn.functional as F
+
+        with torch.no_grad():
+            return F.softplus(self.logits(torch.as_tensor(obs, dtype=torch.float32),
+                                          torch.as_tensor(act, dtype=torch.float32))).numpy().astype(np.float32)
+
+    def train(self, expert: tuple[Any, Any], generated: tuple[Any, Any], updates: int, batch: int, gen: Any) -> dict[str, float]:
+        """`updates` minibatches of `batch` expert and `batch` generated pairs (binary cross-entropy)."""
+        import torch
+        import torch.nn.functional as F
+
+        for _ in range(max(updates, 1)):
+            i = torch.randint(len(expert[0]), (batch,), generator=gen)
+            j = torch.randint(len(generated[0]), (batch,), generator=gen)
+            le, lg = self.logits(expert[0][i], expert[1][i]), self.logits(generated[0][j], generated[1][j])
+            loss = (F.binary_cross_entropy_with_logits(le, torch.ones_like(le))
+                    + F.binary_cross_entropy_with_logits(lg, torch.zeros_like(lg)))
+            self.opt.zero_grad()
+            loss.backward()
+            self.opt.step()
+        with torch.no_grad():  # the last minibatch's accuracies
+            acc_expert, acc_gen = float((le > 0).float().mean()), float((lg < 0).float().mean())
+        return {"disc_loss": float(loss.detach()), "disc_acc_expert": acc_expert, "disc_acc_generated": acc_gen}
+
+
 def train_gail(demos: Transitions, out: Path, *, steps: int, venv: Any, hparams: Mapping[str, Any], seed: int = 0) -> Path:
-    """GAIL for `steps` env steps with a PPO generator; the generator goes to `policy.zip`, the reward net beside it."""
+    """GAIL for `steps` env steps: an SB3 PPO generator rewarded by the discriminator (the env's reward is kept
+    in the logs only), the discriminator trained `disc_updates_per_round` minibatches after every rollout on
+    `demo_batch_size` demonstrated and as many generated pairs. The generator goes to `policy.zip`, the
+    discriminator's weights to `discriminator.pt`."""
     import torch
-    from imitation.algorithms.adversarial.gail import GAIL
-    from imitation.rewards.reward_nets import BasicRewardNet
-    from imitation.util import logger as imit_logger
-    from imitation.util.networks import RunningNorm
     from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.vec_env import VecEnvWrapper
 
     from curbside.train.online import ppo_kwargs
 
     torch.set_num_threads(1)
-    log = imit_logger.configure(str(out / "logs"), format_strs=["csv"])
-    learner = PPO("MlpPolicy", venv, seed=seed, device="cpu", **ppo_kwargs(hparams))
-    reward_net = BasicRewardNet(venv.observation_space, venv.action_space, normalize_input_layer=RunningNorm)
+    low, high = venv.action_space.low, venv.action_space.high
+    disc = Discriminator(int(np.prod(venv.observation_space.shape)), int(np.prod(venv.action_space.shape)),
+                         DISC_NET_ARCH, float(hparams.get("disc_lr", 1e-3)), seed)
+
+    class DiscriminatorReward(VecEnvWrapper):
+        """The venv with the discriminator's reward of (the observation acted on, the action taken)."""
+
+        def reset(self) -> np.ndarray:
+            self.last_obs = self.venv.reset()
+            return self.last_obs
+
+        def step_async(self, actions: np.ndarray) -> None:
+            self.actions = np.clip(actions, low, high)
+            self.venv.step_async(actions)
+
+        def step_wait(self) -> Any:
+            obs, env_reward, dones, infos = self.venv.step_wait()
+            reward = disc.reward(self.last_obs.reshape(len(obs), -1), self.actions.reshape(len(obs), -1))
+            for info, r in zip(infos, env_reward):
+                info["env_reward"] = float(r)
+            self.last_obs = obs
+            return obs, reward, dones, infos
+
+    expert = (torch.as_tensor(demos.obs, dtype=torch.float32),
+              torch.as_tensor(np.clip(demos.actions, low, high), dtype=torch.float32))
+    updates = int(hparams.get("disc_updates_per_round", 4))
     batch = min(int(hparams.get("demo_batch_size", 512)), len(demos))
-    rollout = int(learner.n_steps) * venv.num_envs
-    gail = GAIL(demonstrations=_transitions(demos), demo_batch_size=batch, gen_replay_buffer_capacity=max(rollout, batch),
-                n_disc_updates_per_round=int(hparams.get("disc_updates_per_round", 4)), venv=venv, gen_algo=learner,
-                reward_net=reward_net, disc_opt_kwargs={"lr": float(hparams.get("disc_lr", 1e-3))},
-                allow_variable_horizon=True, custom_logger=log)
-    gail.train(total_timesteps=steps)
+    gen = torch.Generator().manual_seed(seed)
+
+    class TrainDiscriminator(BaseCallback):
+        """After each rollout: the discriminator learns the new generated pairs against the demonstrations."""
+
+        def _on_rollout_end(self) -> None:
+            buf = self.model.rollout_buffer
+            generated = (torch.as_tensor(buf.observations.reshape(-1, expert[0].shape[1]), dtype=torch.float32),
+                         torch.as_tensor(np.clip(buf.actions.reshape(-1, expert[1].shape[1]), low, high),
+                                         dtype=torch.float32))
+            for key, value in disc.train(expert, generated, updates, batch, gen).items():
+                self.logger.record(f"gail/{key}", value)
+
+        def _on_step(self) -> bool:
+            return True
+
+    learner = PPO("MlpPolicy", DiscriminatorReward(venv), seed=seed, device="cpu", **ppo_kwargs(hparams))
+    learner.set_logger(configure(str(out / "logs"), ["csv"]))
+    learner.learn(total_timesteps=steps, callback=TrainDiscriminator())
     path = out / "policy.zip"
     learner.save(str(path))
-    torch.save(reward_net, out / "reward_net.pt")
+    torch.save(disc.net.state_dict(), out / "discriminator.pt")
     return path

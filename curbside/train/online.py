@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 ONLINE_ALGOS = ("ppo", "ppo_lag", "ppo_et")
 SAFE_KEYS = ("cost_limit", "lag_lr", "lag_init")  # PPO-Lag / PPO-ET settings, not SB3 PPO arguments

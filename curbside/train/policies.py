@@ -9,11 +9,11 @@ from typing import Any
 
 import numpy as np
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 ALGOS = ("ppo", "ppo_lag", "ppo_et", "iql", "td3bc", "bc", "gail")
 POLICY_FILES = {"ppo": "policy.zip", "ppo_lag": "policy.zip", "ppo_et": "policy.zip", "gail": "policy.zip",
-                "bc": "policy.zip", "iql": "policy.d3", "td3bc": "policy.d3"}
+                "bc": "policy.zip", "iql": "policy.pt", "td3bc": "policy.pt"}
 
 
 def check_algo(algo: str) -> str:
@@ -49,10 +49,17 @@ def load_policy(run_dir: Path) -> tuple[Callable[[np.ndarray], np.ndarray], dict
     if not path.is_file():
         raise ConfigError(f"{path} is missing; the run did not finish: resume it with `curbside train run --resume --out {run_dir}`")
     if algo in ("iql", "td3bc"):
-        import d3rlpy
+        import torch
 
-        algo_obj = d3rlpy.load_learnable(str(path), device=False)
-        return (lambda obs: algo_obj.predict(np.asarray(obs, dtype=np.float32)[None])[0]), run
+        from curbside.train.offline import load_actor
+
+        actor = load_actor(path)
+
+        def act(obs: np.ndarray) -> np.ndarray:
+            with torch.no_grad():
+                return actor(torch.as_tensor(np.asarray(obs, dtype=np.float32)[None])).numpy()[0]
+
+        return act, run
     if algo == "bc":
         from stable_baselines3.common.policies import ActorCriticPolicy
 

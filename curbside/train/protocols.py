@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 SPLIT_NAMES = ("train", "test", "unseen", "finetune")
 

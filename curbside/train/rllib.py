@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 RLLIB_ALGOS = ("ppo", "ppo_et")  # PPO-Lag's multiplier update lives in an SB3 callback: --executor local
 CHECKPOINT_EVERY = 100_000  # env steps, as SB3's CheckpointCallback(100_000 // n_envs) in curbside.train.online
@@ -102,7 +102,7 @@ def train_rllib(algo: str, task: str, out: Path, *, steps: int, env_config: Mapp
     import ray
     from stable_baselines3.common.logger import configure
 
-    from curbside.executors import connect_ray
+    from kernel.executors import connect_ray
     from curbside.train.callbacks import append_eval_row
     from curbside.train.evaluate import evaluate_policy
 

@@ -8,7 +8,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from curbside.train.policies import check_algo
 
 BACKENDS = ("pybullet", "batched")  # the PyBullet envs (the reference), or sim.batched (PointNav, flat ground)
@@ -46,7 +46,13 @@ def resolve_run(algo: str, task: str, *, protocol: str = "curbside", env_config:
     cfg.pop("split", None)
     envs = int(n_envs or (proto.n_envs if backend == "batched" else proto.pybullet_envs))
     num_scenes = num_scenes or cfg.pop("num_scenes", None)  # an experiment's scene count (ablation b) is env config
-    h = {**proto.algo_hparams(algo), **(hparams or {})}
+    h = proto.algo_hparams(algo)
+    ppo_family = algo in ("ppo", "ppo_lag", "ppo_et", "gail")
+    valid = {*h, "net_arch", *(("n_steps",) if ppo_family else ())}
+    unknown = sorted(set(hparams or {}) - valid)
+    if unknown:
+        raise ConfigError(f"unknown {algo} hyper-parameter(s) {unknown}; valid: {', '.join(sorted(valid))}")
+    h = {**h, **(hparams or {})}
     if algo in ("ppo", "ppo_lag", "ppo_et", "gail"):
         h = ppo_hparams(h, envs)
     return {"protocol": proto.name, "env_config": cfg, "n_envs": envs, "split": split, "hparams": h,

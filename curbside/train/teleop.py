@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from curbside.config import ConfigError, merge_strict
+from kernel.config import ConfigError, merge_strict
 from curbside.train.demos import EpisodeRecorder, write_dataset
 from curbside.train.envs import env_id
 

@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from curbside.config import ConfigError
-from curbside.reproducible import write_npz
+from kernel.config import ConfigError
+from kernel.reproducible import write_npz
 
 DEFAULT_WEIGHTS = Path(__file__).resolve().parents[1] / "models" / "aligned.npz"
 

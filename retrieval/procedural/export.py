@@ -111,7 +111,7 @@ def export_asset(asset: ProceduralAsset, out_dir: Path) -> ExportedAsset:
 
 def pybullet_extents(obj_path: Path) -> np.ndarray:
     """Extents (x, y, z) of the OBJ as PyBullet loads it (visual + collision shape in a DIRECT client)."""
-    from curbside.quiet import import_pybullet
+    from kernel.quiet import import_pybullet
 
     p = import_pybullet()
 

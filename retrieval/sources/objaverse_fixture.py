@@ -171,7 +171,7 @@ def _sha256(data: bytes) -> str:
 def _write_parquet(rows: list[dict], path: Path) -> None:
     import pandas as pd
 
-    from curbside.reproducible import write_frame
+    from kernel.reproducible import write_frame
 
     write_frame(pd.DataFrame(rows, columns=["fileIdentifier", "source", "license", "fileType", "sha256",
                                               "metadata"]), path)

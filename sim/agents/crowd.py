@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from curbside.config import ConfigError, merge_strict
+from kernel.config import ConfigError, merge_strict
 from sim.agents.behaviours import Crossings, Groups
 from sim.agents.crowd_config import AGENT_DEFAULTS, check_behaviour_config
 from sim.agents.crowd_goals import GoalFollowing

@@ -6,7 +6,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.agents.kinds import DEFAULT_MIX
 
 AGENT_DEFAULTS: dict[str, Any] = {

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.agents.kinds import KIND_NAMES
 from sim.scene.scene import Scene, as_scene
 

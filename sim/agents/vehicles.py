@@ -29,7 +29,7 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
-from curbside.config import merge_strict
+from kernel.config import merge_strict
 from sim.agents.lanes import (
     ConflictZones,
     Lane,

@@ -1,7 +1,7 @@
 """Batched PointNav: many envs stepped in one vectorised numpy pass (docs/batched.md).
 
-`BatchedPointNav(num_envs, config)` is a `gymnasium.vector.VectorEnv`; it is also the vector entry point of
-`curbside/PointNav-v0`: `gymnasium.make_vec("curbside/PointNav-v0", num_envs=64, vectorization_mode="vector_entry_point")`.
+`BatchedPointNav(num_envs, config)` is a `gymnasium.vector.VectorEnv`; it is registered as the vector-only id
+`curbside/BatchedPointNav-v0`: `gymnasium.make_vec("curbside/BatchedPointNav-v0", num_envs=64)`.
 PyBullet (`sim.envs.pointnav.PointNavEnv`) stays the reference and the env for terrain and contact-rich work.
 """
 

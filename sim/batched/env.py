@@ -17,7 +17,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.batched.atlas import Atlas
 from sim.batched.episodes import KIND_BITS, Episodes
 from sim.batched.kinematics import Drive

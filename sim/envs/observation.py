@@ -10,7 +10,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.camera import camera_spaces
 
 GOAL_LOG_SCALE = math.log1p(500.0)  # goal distances up to 500 m span [0, 1] in the observation

@@ -11,7 +11,7 @@ import gymnasium as gym
 import numpy as np
 import pybullet as p
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.envs.episode import Episode
 from sim.envs.observation import EgoObservation
 from sim.envs.scenes import SceneCache, SceneSlot, SceneSource, build_slot, trim_heap
@@ -22,7 +22,7 @@ from sim.scene.scene import Scene
 from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward,
                                 resolve_task_config)
 from sim.tasks.termination import Termination
-from sim.viewer import close_window, render_frame
+from sim.viewer import close_window, render_frame, served_render_modes
 from sim.world import World, touching
 
 STATIC_COLLISION_KINDS = ("object", "building", "curb")  # with "agent" and "vehicle": sim.tasks.pointnav.COLLISION_KINDS
@@ -82,8 +82,8 @@ class PointNavEnv(gym.Env):
     def __init__(self, config: Mapping[str, Any] | None = None, render_mode: str | None = None) -> None:
         self.config = resolve_task_config(self.default_config, config, self.presets)
         cfg = self.config
-        if render_mode not in (None, "rgb_array", "human"):
-            raise ConfigError(f"unknown render_mode {render_mode!r}; valid: rgb_array, human (or None)")
+        # This machine's modes (check_env probes each): "human" only where a window can open.
+        self.metadata = {**self.metadata, "render_modes": served_render_modes(render_mode)}
         self.render_mode = render_mode
         check_config(cfg, self.config_table, self.default_config)  # every value, before anything is built on it
         self.spec_machine = machine_spec(cfg["machine"])

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pybullet as p
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.camera import EgoCamera, forget_egl
 from sim.machines import Machine
 from sim.raycast.grids import build_grids

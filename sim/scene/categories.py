@@ -10,7 +10,7 @@ import numpy as np
 
 from catalogs.categories import of_class
 from catalogs.schema import OBJECT_CLASSES
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 
 def by_class(object_class: str, exclude: list[str] | tuple[str, ...] = ()) -> list[str]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from curbside.config import ConfigError, merge_strict
+from kernel.config import ConfigError, merge_strict
 from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule, check_table
 from sim.terrain.patches import KINDS as TERRAIN_KINDS
 

@@ -30,7 +30,7 @@ import numpy as np
 from shapely.geometry import LineString, Point, Polygon
 
 from catalogs.categories import CATEGORIES, NAMES, category
-from curbside.config import ConfigError, merge_strict
+from kernel.config import ConfigError, merge_strict
 from sim.scene.occupancy import rect
 from sim.scene.spec import round_points, round_value
 

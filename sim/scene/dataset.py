@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from curbside.config import check_choice
+from kernel.config import check_choice
 
 # Categories held out of train/test and seen only in unseen/finetune (with template g); within the other categories a
 # fifth of the catalog's assets is held out the same way (catalogs.reader.CatalogReader.asset_split).
@@ -53,7 +53,7 @@ def _reader(catalog: str | None) -> Any:
     if catalog is None:
         return None
     from catalogs.reader import CatalogReader
-    from curbside.executors import worker_state
+    from kernel.executors import worker_state
 
     return worker_state("catalog", catalog, lambda: CatalogReader(catalog))
 
@@ -113,15 +113,15 @@ def build_dataset(
 ) -> list[dict[str, Any]]:
     """Generate `count` scenes of `split` into `out` (one JSON each) plus index.jsonl and index.parquet.
 
-    `executor` (curbside.executors): local, process (`workers` processes) or ray (a cluster at `address`, or one
+    `executor` (kernel.executors): local, process (`workers` processes) or ray (a cluster at `address`, or one
     started here with `workers` CPUs; None: every core); by default process when workers > 1, else local. Workers
     generate, this
     process writes every file, so the dataset is byte-identical whichever executor ran it. Resumable: scene files
     already in `out` that are complete and match the seed, config and catalog are kept, so a rerun after a kill
     generates only the missing (or corrupt) ones. Index rows follow seed order.
     """
-    from curbside.config import ConfigError
-    from curbside.executors import run_map
+    from kernel.config import ConfigError
+    from kernel.executors import run_map
     from sim.scene.config import resolve_config
     from sim.scene.spec import TMP_SUFFIX, canonical, write_atomic
 

@@ -10,7 +10,7 @@ import numpy as np
 import shapely
 from shapely.geometry import Point, Polygon
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.scene.config import max_sidewalk_width
 from sim.scene.geometry import arc, arc_about, largest, straight, strip, unit
 from sim.scene.polyline import Polyline

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.scene.grid import WalkableGrid, decode_walkable
 
 SPEC_VERSION = "curbside.scene/1"  # the one place the spec version is defined and checked (Scene.parse)

@@ -9,7 +9,7 @@ import numpy as np
 import shapely
 from shapely.geometry import LineString, Polygon
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.scene.config import TEMPLATES
 from sim.scene.geometry import clean, largest, longest_line, strip
 from sim.scene.roads import Block, Roadway

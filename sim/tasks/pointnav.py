@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from curbside.config import ConfigError, merge_strict
+from kernel.config import ConfigError, merge_strict
 from sim.metrics import POINTNAV_MEASURES
 from sim.scene.dataset import SPLITS
 from sim.camera import CAMERA_DEFAULTS, CAMERA_TABLE

@@ -7,7 +7,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.scene.scene import Scene
 
 

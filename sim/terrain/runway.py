@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pybullet as p
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.machines import G, Machine, machine_spec
 from sim.meshes import mesh_shape
 from sim.palette import TERRAIN

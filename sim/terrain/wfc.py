@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 # Surfaces and their friction coefficients (rubber tyre on the surface; dry unless named):
 # asphalt 0.7-0.8, concrete 0.7-0.8, pavers 0.6-0.7, grass 0.35-0.45, gravel 0.5-0.6, wet asphalt 0.4-0.5

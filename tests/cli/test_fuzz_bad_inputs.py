@@ -21,7 +21,7 @@ import typer
 
 from curbside.cli.errors import run
 from curbside.cli.main import app
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 COMMAND = typer.main.get_command(app)
 

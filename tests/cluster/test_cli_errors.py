@@ -21,8 +21,8 @@ def test_a_bad_executor_lists_the_valid_ones(capsys) -> None:
 
 
 def test_run_map_refuses_an_address_without_ray() -> None:
-    from curbside.config import ConfigError
-    from curbside.executors import run_map
+    from kernel.config import ConfigError
+    from kernel.executors import run_map
 
     with pytest.raises(ConfigError, match="executor 'ray'"):
         list(run_map(abs, [1], executor="process", address="auto"))

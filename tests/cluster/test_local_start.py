@@ -14,7 +14,7 @@ def niceness(item: int) -> tuple[int, int]:
 
 def test_run_map_starts_a_local_cluster_and_stops_it() -> None:
     ray = pytest.importorskip("ray")
-    from curbside.executors import run_map
+    from kernel.executors import run_map
 
     assert not ray.is_initialized()
     nodes: dict[str, int] = {}
@@ -26,7 +26,7 @@ def test_run_map_starts_a_local_cluster_and_stops_it() -> None:
 
 
 def test_two_tasks_a_cpu_stay_in_flight_on_a_cluster_sized_by_workers() -> None:
-    from curbside.executors import in_flight
+    from kernel.executors import in_flight
 
     # A lone worker gets its next task queued while the driver collects the last one (the local cluster has
     # exactly `workers` CPUs, so Ray still runs one at a time); on a bigger cluster `workers` caps the tasks.

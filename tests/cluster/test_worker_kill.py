@@ -56,7 +56,7 @@ def test_a_killed_eval_worker_is_retried_and_the_metrics_equal_a_local_run(ray_l
     cfg = {"scene": {"blocks": 1}, "horizon": 200}
     local = evaluate("curbside/PointNav-v0", "expert", 8, cfg, seed=0)
     killed: list[int] = []
-    from curbside.executors import run_map
+    from kernel.executors import run_map
     from sim.eval import episode_metrics, summarize
 
     job = ("curbside/PointNav-v0", "expert", cfg)

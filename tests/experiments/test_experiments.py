@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from curbside.experiments.report import COLUMNS, paper_cell, write_report
 from curbside.experiments.runner import run_experiment
 from curbside.experiments.spec import load_experiment, names

@@ -92,7 +92,7 @@ def test_parquet_writer_is_byte_stable(tmp_path):
     import pandas as pd
     import pyarrow.parquet as pq
 
-    from curbside.reproducible import write_frame
+    from kernel.reproducible import write_frame
 
     df = pd.DataFrame({"text": ["b", "a"], "members": [["x"], ["y", "z"]], "count": [2, 1]})
     a, b = write_frame(df, tmp_path / "a.parquet"), write_frame(df.copy(), tmp_path / "b.parquet")

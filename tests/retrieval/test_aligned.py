@@ -98,7 +98,7 @@ def test_numpy_heads_equal_the_torch_modules(tiny_run):
 
 
 def test_unknown_training_keys_and_categories_are_refused():
-    from curbside.config import ConfigError
+    from kernel.config import ConfigError
     from retrieval.aligned.train import TrainConfig, train, train_config
 
     with pytest.raises(ConfigError, match="valid: train_seeds"):

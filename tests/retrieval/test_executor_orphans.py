@@ -15,7 +15,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 SCRIPT = '''
 import os, sys, time
-from curbside.executors import run_map
+from kernel.executors import run_map
 
 
 def slow(i, folder):

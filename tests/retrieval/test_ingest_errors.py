@@ -14,7 +14,7 @@ import pytest
 
 from catalogs.records import RejectionRecord
 from catalogs.writer import CatalogWriter
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from retrieval.ingest import IngestConfig, config_hash, ingest
 from retrieval.normalize import QualityLimits
 from retrieval.scoring import ScoringConfig

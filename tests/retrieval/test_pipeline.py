@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from retrieval.normalize import AssetRejected
 from retrieval.pipeline import Rejection, guard, prefiltered, rejected
 from retrieval.sources import SourceItem

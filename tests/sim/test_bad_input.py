@@ -22,7 +22,7 @@ import gymnasium as gym
 import pytest
 
 import sim  # noqa: F401  (registers the env ids)
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from tests.helpers import cli, one_error_line
 
 REPO = Path(__file__).resolve().parents[2]

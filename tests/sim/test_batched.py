@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import sim  # noqa: F401  (registers the env ids)
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.batched import BatchedPointNav
 from sim.envs.pointnav import PointNavEnv
 from sim.expert import PurePursuitExpert
@@ -203,10 +203,14 @@ def test_bad_input_fails_clearly():
         BatchedPointNav(0)
 
 
-def test_make_vec_gives_the_batched_env():
-    envs = gym.make_vec("curbside/PointNav-v0", num_envs=3, vectorization_mode="vector_entry_point",
-                        config={"scene_spec": street()})
+def test_make_vec_gives_the_batched_env_by_its_name_and_pybullet_envs_by_default():
+    envs = gym.make_vec("curbside/BatchedPointNav-v0", num_envs=3, config={"scene_spec": street()})
     assert isinstance(envs.unwrapped, BatchedPointNav) and envs.num_envs == 3
+    for task in ("PointNav", "SocialNav"):
+        pybullet = gym.make_vec(f"curbside/{task}-v0", num_envs=2, config={"scene_spec": street()})
+        assert isinstance(pybullet, gym.vector.SyncVectorEnv) and pybullet.num_envs == 2
+        assert pybullet.reset(seed=0)[0].shape[0] == 2
+        pybullet.close()
     obs, _ = envs.reset(seed=0)
     assert obs.shape == (3, 329)
     envs.close()

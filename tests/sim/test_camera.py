@@ -10,7 +10,7 @@ import numpy as np
 import pybullet as p
 import pytest
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.camera import SEMANTIC_CLASSES, SEMANTIC_ID, linear_depth
 from sim.envs import register_envs
 
@@ -140,7 +140,7 @@ def test_egl_without_a_gpu_says_so() -> None:
 
 def test_the_batched_env_refuses_cameras() -> None:
     with pytest.raises(ConfigError, match="nothing to render"):
-        gym.make_vec("curbside/PointNav-v0", num_envs=2, vectorization_mode="vector_entry_point",
+        gym.make_vec("curbside/BatchedPointNav-v0", num_envs=2,
                      config={"camera": {"modalities": ["rgb"]}})
 
 

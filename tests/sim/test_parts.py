@@ -8,7 +8,7 @@ import numpy as np
 import pybullet as p
 import pytest
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.envs.pointnav import PointNavEnv
 from sim.machines import MACHINES, WHEELED, Machine, machine_spec
 from sim.metrics import MEASURES, Measure, make_measures, register_measure

@@ -10,7 +10,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import sim  # noqa: F401  (registers the env ids)
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.envs.pointnav import PointNavEnv
 from sim.expert import PurePursuitExpert
 from sim.machines import MACHINES

@@ -12,7 +12,7 @@ import warnings
 import numpy as np
 import pytest
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.envs.pointnav import PointNavEnv
 from sim.envs.socialnav import SocialNavEnv
 from sim.expert import PurePursuitExpert

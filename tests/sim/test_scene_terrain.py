@@ -12,7 +12,7 @@ import pybullet as p
 import pytest
 from shapely.geometry import LineString, Polygon
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.machines import Machine, machine_spec
 from sim.palette import EDGE, rgb255, terrain_colour
 from sim.raycast.grids import CURB as CURB_KIND

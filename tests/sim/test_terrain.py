@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.envs import register_envs
 from sim.machines import Machine, machine_spec
 from sim.terrain.heights import TileGeometry, tile_surface

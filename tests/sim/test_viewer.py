@@ -7,7 +7,7 @@ import imageio.v2 as imageio
 import numpy as np
 import pytest
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.envs import register_envs
 from sim.expert import PurePursuitExpert
 from tests.helpers import cli, one_error_line
@@ -46,13 +46,18 @@ def test_human_mode_draws_into_a_window_and_closes_it(x_display: str) -> None:
     assert not pygame.display.get_init()
 
 
-def test_human_mode_without_a_display_says_how_to_get_one(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_human_mode_without_a_display_is_refused_at_make_and_check_env_passes(monkeypatch: pytest.MonkeyPatch) -> None:
+    from gymnasium.utils.env_checker import check_env
+
     for var in ("DISPLAY", "WAYLAND_DISPLAY", "SDL_VIDEODRIVER"):
         monkeypatch.delenv(var, raising=False)
-    env = gym.make("curbside/PointNav-v0", config=SHORT, render_mode="human")
     with pytest.raises(ConfigError, match="xvfb-run"):
-        env.reset(seed=0)
-    env.close()
+        gym.make("curbside/PointNav-v0", config=SHORT, render_mode="human")
+    for task in ("PointNav", "SocialNav"):  # no flag: the headless env offers rgb_array only
+        env = gym.make(f"curbside/{task}-v0", config=SHORT)
+        assert env.unwrapped.metadata["render_modes"] == ["rgb_array"]
+        check_env(env.unwrapped)
+        env.close()
 
 
 def test_record_video_writes_the_episode(tmp_path) -> None:

@@ -1,5 +1,5 @@
 """Protocols (curbside, paper), the batched training backend, fine-tuning from a run, the finetune split and seeds:
-real SB3 and d3rlpy, real envs."""
+real SB3 and torch learners, real envs."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from kernel.config import ConfigError
 from curbside.train.protocols import PROTOCOLS, protocol
 from curbside.train.run import resolve_run, train
 from tests.helpers import cli, one_error_line
@@ -53,11 +54,11 @@ def test_paper_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
     finally:
         vec.close()
     assert (model.learning_rate, model.vf_coef, model.n_steps * 2, model.batch_size) == (5e-5, 1.0, 25_600, 256)
-    from curbside.train.offline import offline_config
+    from curbside.train.offline import IQL, OfflineHparams
 
-    cfg = offline_config("iql", iql)
-    assert (cfg.actor_learning_rate, cfg.critic_learning_rate, cfg.weight_temp, cfg.expectile, cfg.tau) == \
-        (1e-4, 1e-4, 3.0, 0.7, 5e-3)
+    learner = IQL(8, 2, OfflineHparams.of(iql))
+    assert (learner.h.beta, learner.h.expectile, learner.h.tau, learner.h.batch_size) == (3.0, 0.7, 5e-3, 256)
+    assert {g["lr"] for opt in (learner.actor_opt, learner.v_opt, learner.q.opt) for g in opt.param_groups} == {1e-4}
 
 
 def test_protocol_envs_follow_the_backend_and_configs_merge_key_by_key() -> None:
@@ -184,3 +185,9 @@ def test_demonstrations_mix_a_trained_policy_with_the_noisy_expert(tmp_path, cap
     line = one_error_line(*cli(["demos", "collect", "--task", "SocialNav", "--policy", str(src), "--out",
                                 str(tmp_path / "x")], capsys))
     assert "was trained on PointNav, not SocialNav" in line
+
+
+def test_unknown_hyper_parameter_of_an_algorithm_names_the_valid_ones() -> None:
+    with pytest.raises(ConfigError, match=r"unknown iql hyper-parameter\(s\) \['n_epochs'\]; valid: .*expectile"):
+        resolve_run("iql", "PointNav", hparams={"n_epochs": 3})
+    assert resolve_run("ppo", "PointNav", hparams={"n_steps": 64})["hparams"]["n_steps"] == 64

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 
 pg = pytest.importorskip("pygame")
 pytest.importorskip("minari")

@@ -1,5 +1,5 @@
 """Training harness: every baseline trains on tiny budgets, its saved policy reloads and evaluates; demos are
-Minari datasets; bad input gets one line and exit code 2 (real SB3, d3rlpy, imitation, Minari, PyBullet)."""
+Minari datasets; bad input gets one line and exit code 2 (real SB3, torch, Minari, PyBullet)."""
 
 from __future__ import annotations
 
@@ -47,8 +47,9 @@ def test_demos_are_a_minari_dataset_with_a_success_rate(demos) -> None:
 def test_each_algorithm_trains_saves_reloads_and_evaluates(algo, demos, tmp_path) -> None:
     steps = 128 if algo in ("ppo", "ppo_lag", "ppo_et", "gail") else 40
     out = tmp_path / algo
+    hparams = TINY_PPO if algo in ("ppo", "ppo_lag", "ppo_et", "gail") else {"net_arch": [32, 32]}
     path = train(algo, "PointNav", out, steps=steps, env_config=CFG, n_envs=2, num_scenes=2, demos=Path(demos["path"]),
-                 hparams=TINY_PPO, progress=False, subprocess=False)
+                 hparams=hparams, progress=False, subprocess=False)
     assert path.is_file() and (out / "run.json").is_file()
     act, run = load_policy(out)
     assert run["algo"] == algo
@@ -57,6 +58,9 @@ def test_each_algorithm_trains_saves_reloads_and_evaluates(algo, demos, tmp_path
     assert a.shape == (2,) and np.isfinite(a).all()
     summary = evaluate_policy(act, "PointNav", CFG, split="test", episodes=1, num_scenes=1, progress=False)
     assert summary["episodes"] == 1 and 0.0 <= summary["sr"] <= 1.0 and "spl" in summary
+    if algo == "gail":  # the discriminator learned after each rollout and logged beside the generator
+        header = (out / "logs" / "progress.csv").read_text().splitlines()[0].split(",")
+        assert {"gail/disc_loss", "gail/disc_acc_expert"} <= set(header) and (out / "discriminator.pt").is_file()
 
 
 def test_ppo_lag_raises_lambda_when_cost_exceeds_the_limit(tmp_path) -> None:

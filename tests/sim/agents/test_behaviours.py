@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.agents import AgentManager
 from sim.agents.crowd import sidewalk_length
 from sim.scene.grid import paint

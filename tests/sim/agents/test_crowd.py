@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.agents import AGENT_DTYPE, AGENT_KINDS, AgentManager, EgoState
 from sim.agents.crowd import sidewalk_length
 from tests.scenes import NARROW, street

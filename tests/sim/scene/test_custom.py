@@ -9,7 +9,7 @@ import pytest
 import yaml
 from shapely.geometry import Point, Polygon
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.envs import register_envs
 from sim.scene.custom import check_custom, generate_custom, load_custom
 from sim.scene.spec import dumps

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.scene import DEFAULT_CONFIG, dumps, generate_scene, load, save
 from sim.scene.spec import canonical
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from curbside.config import ConfigError
+from kernel.config import ConfigError
 from sim.scene import SPEC_VERSION, Scene, SceneError, load
 from sim.scene.scene import as_scene
 from tests.scenes import NARROW, street

@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
-from curbside.config import ConfigError, check_choice
+from kernel.config import ConfigError, check_choice
 
 EXECUTORS = ("local", "process", "ray")
 MAX_RETRIES = 3  # Ray's own default for tasks; kept explicit because the fault tests rely on it
