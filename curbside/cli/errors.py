@@ -69,6 +69,12 @@ def classify(exc: BaseException) -> tuple[str, int]:
         return text, exc.exit_code
     if isinstance(exc, ConfigError):
         return text, 2
+    if isinstance(exc, ModuleNotFoundError) and exc.name:
+        from curbside.cli.extras import extra_of, missing_line
+
+        extra = extra_of(exc.name)
+        if extra is not None:
+            return missing_line(extra, exc.name.split(".")[0]), 2
     if isinstance(exc, json.JSONDecodeError):
         return f"invalid JSON ({exc.msg} at line {exc.lineno} column {exc.colno}); pass a JSON object such as '{{\"key\": 1}}'", 2
     if isinstance(exc, FileNotFoundError):

@@ -8,6 +8,7 @@ from typing import Optional
 import typer
 
 from curbside.cli.errors import fail
+from curbside.cli.extras import require
 from kernel.config import ConfigError
 
 app = typer.Typer(help="Run the MetaUrban paper's experiments (Table 1, 2, 5, ablations, seeds) and report them.",
@@ -33,6 +34,7 @@ def run_cmd(
     only: Optional[str] = typer.Option(None, help="Comma-separated run ids to run (default: all)."),
 ) -> None:
     """Train and evaluate every run of the experiment that has no result yet; a killed run resumes from its checkpoint."""
+    require("train", "experiment run")
     from curbside.experiments.runner import run_experiment
     from curbside.experiments.spec import budget_of, load_experiment
 

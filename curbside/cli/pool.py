@@ -5,6 +5,7 @@ from __future__ import annotations
 import typer
 
 from curbside.cli.errors import UsageError
+from curbside.cli.extras import require
 
 app = typer.Typer(help="Inspect the description pool from the distribution pipeline.", no_args_is_help=True)
 
@@ -20,6 +21,7 @@ def show(
     pool: str = typer.Option(DEFAULT_POOL, "--pool", help="Path of pool.parquet (written by `dvc repro`)."),
 ) -> None:
     """List the largest description-pool clusters (overall or for one country)."""
+    require("pipelines", "pool show", ("pandas",))
     import json
     from pathlib import Path
 

@@ -11,6 +11,7 @@ import typer
 from rich.console import Console
 
 from curbside.cli.errors import fail, parse_config_json
+from curbside.cli.extras import require
 from curbside.cli.executor_options import (
     Executor,
     address_option,
@@ -69,6 +70,7 @@ def run_cmd(
     address: Optional[str] = address_option(),
 ) -> None:
     """Train one algorithm on a split under a protocol; the policy, logs (CSV + TensorBoard) and checkpoints go to --out."""
+    require("train", "train run")
     from curbside.train.online import check_init_from
     from curbside.train.policies import check_algo
     from curbside.train.run import check_backend, resolve_run, train
@@ -159,6 +161,7 @@ def eval_cmd(
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Evaluate a trained policy on a split: SR, SPL, SNS (SocialNav), Cost."""
+    require("train", "train eval")
     from curbside.train.evaluate import evaluate_policy
     from curbside.train.policies import load_policy
 
@@ -188,7 +191,8 @@ def eval_cmd(
 @demos_app.command("collect")
 def collect_cmd(
     task: str = typer.Option("PointNav", help="PointNav or SocialNav."),
-    out: Path = typer.Option(Path("outputs/demos"), help="Minari datasets root; the dataset goes to OUT/curbside/<task>-expert-v0."),
+    out: Optional[Path] = typer.Option(None, help="Minari datasets root (default: Minari's, MINARI_DATASETS_PATH or "
+                                       "~/.minari/datasets); the dataset goes to OUT/curbside/<task>-expert-v0."),
     steps: int = typer.Option(30_000, min=1, max=10_000_000, help="Steps to record (whole episodes)."),
     noise: float = typer.Option(0.7, min=0.0, max=5.0, help="Std of the Gaussian noise added to the expert's actions."),
     random_prob: float = typer.Option(0.0, min=0.0, max=1.0, help="Fraction of fully random episodes."),
@@ -206,7 +210,8 @@ def collect_cmd(
 
     Episodes can run on a process pool or a Ray cluster (--executor): episode k depends on (seed, k) alone and
     the dataset keeps episodes in index order, so every executor writes the same dataset."""
-    from curbside.train.demos import collect_demos
+    require("train", "demos collect")
+    from curbside.train.demos import collect_demos, minari_root
 
     cfg = parse_config_json(config)
     ex = check_executor_args(executor, address)
@@ -220,9 +225,11 @@ def collect_cmd(
             check_init_from(policy, "ppo", task, cfg)
     except (ConfigError, ValueError, FileNotFoundError) as e:
         raise fail(str(e)) from None
-    os.environ.setdefault("MINARI_DATASETS_PATH", str(out))
-    summary = collect_demos(task, out, steps=steps, noise=noise, random_prob=random_prob, env_config=cfg,
+    root = minari_root() if out is None else out
+    summary = collect_demos(task, root, steps=steps, noise=noise, random_prob=random_prob, env_config=cfg,
                             num_scenes=scenes, seed=seed, executor=ex, workers=workers, address=address,
                             policy=policy, policy_fraction=policy_fraction)
     typer.echo(f"{summary['path']}: {summary['episodes']} episodes, {summary['steps']} steps, "
                f"success rate {summary['success_rate']:.2f}")
+    env_prefix = "" if Path(root).resolve() == minari_root().resolve() else f"MINARI_DATASETS_PATH={root} "
+    typer.echo(f"load it with: {env_prefix}python -c \"import minari; minari.load_dataset('{summary['dataset_id']}')\"")

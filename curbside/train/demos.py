@@ -1,5 +1,5 @@
 """Expert demonstrations as Minari datasets (the Farama standard for offline RL), and reading them back as
-arrays for d3rlpy and `imitation`.
+arrays for the offline and imitation learners.
 
 The demonstrator is the pure-pursuit expert (sim.expert) with Gaussian action noise of std `noise`, plus,
 with probability `random_prob` per episode, a fully random episode: noise brings the success rate near the
@@ -38,6 +38,12 @@ class Transitions:
 
     def __len__(self) -> int:
         return len(self.actions)
+
+
+def minari_root() -> Path:
+    """Where `minari.load_dataset` looks: MINARI_DATASETS_PATH, else ~/.minari/datasets (Minari's own rule)."""
+    env = os.environ.get("MINARI_DATASETS_PATH")
+    return Path(env) if env is not None else Path.home() / ".minari" / "datasets"
 
 
 def dataset_id(task: str) -> str:
@@ -99,16 +105,14 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
         algorithm = f"PurePursuitExpert(noise={noise}, random_prob={random_prob})"
         if policy_file is not None:
             algorithm = f"{policy_fraction:.0%} PPO policy {policy}, the rest {algorithm}"
-        summary = write_dataset(buffers, env, out, did, algorithm=algorithm,
-                                description=f"{task} demonstrations on the train split: the pure-pursuit expert with "
-                                "Gaussian action noise (curbside demos collect).")
+        meta = {"steps": total, "success_rate": successes / max(len(buffers), 1), "noise": noise,
+                "random_prob": random_prob, "task": task, "policy": None if policy is None else str(policy),
+                "policy_fraction": policy_fraction, "policy_episodes": by_policy}
+        return write_dataset(buffers, env, out, did, algorithm=algorithm, meta=meta,
+                             description=f"{task} demonstrations on the train split: the pure-pursuit expert with "
+                             "Gaussian action noise (curbside demos collect).")
     finally:
         env.close()
-    summary.update({"steps": total, "success_rate": successes / max(len(buffers), 1), "noise": noise,
-                    "random_prob": random_prob, "task": task, "policy": None if policy is None else str(policy),
-                    "policy_fraction": policy_fraction, "policy_episodes": by_policy})
-    (Path(summary["path"]) / "curbside.json").write_text(json.dumps(summary, indent=2))
-    return summary
 
 
 def demo_episode(k: int, job: tuple[Any, ...]) -> tuple[EpisodeRecorder, bool]:
@@ -181,26 +185,47 @@ class EpisodeRecorder:
                              truncations=self.cols["truncations"])
 
 
-def write_dataset(buffers: list[Any], env: Any, out: Path, did: str, *, algorithm: str, description: str) -> dict[str, Any]:
+def write_dataset(buffers: list[Any], env: Any, out: Path, did: str, *, algorithm: str, description: str,
+                  meta: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Write episode buffers as the Minari dataset `did` under the datasets root `out` (replacing one of the same
-    id); returns its id, path, episode count and Minari's step count."""
+    id once the new one is complete); returns its summary (id, path, episode count, Minari's step count and `meta`),
+    also written to the dataset's curbside.json."""
     import shutil
 
     import minari
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    os.environ["MINARI_DATASETS_PATH"] = str(out.resolve())
+    out = Path(out).resolve()
     target = out / did
+    # Written beside the previous dataset and swapped in: a killed collection leaves the old one whole.
+    staging = out / f".staging-{os.getpid()}"
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir(parents=True)
+    previous = os.environ.get("MINARI_DATASETS_PATH")
+    os.environ["MINARI_DATASETS_PATH"] = str(staging)
+    try:
+        # Built from buffers, not minari.DataCollector: the collector needs jax for nothing more than list appends.
+        with warnings.catch_warnings():
+            # Minari asks for a code permalink, an e-mail and an eval env; the env spec it records is the eval env.
+            warnings.filterwarnings("ignore", category=UserWarning, module="minari")
+            ds = minari.create_dataset_from_buffers(dataset_id=did, buffer=buffers, env=env, algorithm_name=algorithm,
+                                                    author="curbside", description=description, data_format="arrow")
+            summary = {"dataset_id": did, "path": str(target), "episodes": len(buffers),
+                       "total_steps_minari": int(ds.total_steps), **(meta or {})}
+        (staging / did / "curbside.json").write_text(json.dumps(summary, indent=2))
+    finally:
+        if previous is None:
+            os.environ.pop("MINARI_DATASETS_PATH", None)
+        else:
+            os.environ["MINARI_DATASETS_PATH"] = previous
+    target.parent.mkdir(parents=True, exist_ok=True)
+    old = target.with_name(target.name + ".old")
     if target.exists():
-        shutil.rmtree(target)  # a collection replaces the previous one: same id, same path
-    # Built from buffers, not minari.DataCollector: the collector needs jax for nothing more than list appends.
-    with warnings.catch_warnings():
-        # Minari asks for a code permalink, an e-mail and an eval env; the env spec it records is the eval env.
-        warnings.filterwarnings("ignore", category=UserWarning, module="minari")
-        ds = minari.create_dataset_from_buffers(dataset_id=did, buffer=buffers, env=env, algorithm_name=algorithm,
-                                                author="curbside", description=description, data_format="arrow")
-    return {"dataset_id": did, "path": str(target), "episodes": len(buffers), "total_steps_minari": int(ds.total_steps)}
+        shutil.rmtree(old, ignore_errors=True)
+        target.rename(old)
+    (staging / did).rename(target)
+    shutil.rmtree(old, ignore_errors=True)
+    shutil.rmtree(staging, ignore_errors=True)
+    return summary
 
 
 def load_demos(path: Path) -> tuple[Transitions, dict[str, Any]]:

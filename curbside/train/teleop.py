@@ -167,11 +167,9 @@ def teleop(task: str, out: Path, *, device: str = "keyboard", mapping_file: Path
                     break
                 obs, _ = env.reset(seed=seed + len(recorded))
                 episode = EpisodeRecorder(obs, seed + len(recorded))
-        summary = write_dataset(recorded, env, out, f"curbside/{task.lower()}-teleop-v0", algorithm=f"teleop({device})",
-                                description=f"{task} episodes driven by a person with `curbside sim teleop` ({device}).")
+        meta = {"steps": total, "success_rate": successes / max(len(recorded), 1), "task": task, "device": device}
+        return write_dataset(recorded, env, out, f"curbside/{task.lower()}-teleop-v0", algorithm=f"teleop({device})",
+                             meta=meta,
+                             description=f"{task} episodes driven by a person with `curbside sim teleop` ({device}).")
     finally:
         env.close()
-    summary.update({"steps": total, "success_rate": successes / max(len(recorded), 1), "task": task,
-                    "device": device})
-    (Path(summary["path"]) / "curbside.json").write_text(json.dumps(summary, indent=2))
-    return summary

@@ -26,6 +26,23 @@ def demos(tmp_path_factory) -> dict:
                          num_scenes=2, progress=False)
 
 
+def test_demos_collect_writes_where_minari_looks_and_says_how_to_load_it(monkeypatch, tmp_path, capsys) -> None:
+    import minari
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    cfg = json.dumps(CFG)
+    code, out, err = cli(["demos", "collect", "--steps", "50", "--scenes", "1", "--config", cfg], capsys)
+    assert code == 0, err
+    assert "minari.load_dataset('curbside/pointnav-expert-v0')" in out and "MINARI_DATASETS_PATH" not in out
+    first = minari.load_dataset("curbside/pointnav-expert-v0")
+    assert first.total_steps >= 50
+    code, out, err = cli(["demos", "collect", "--steps", "80", "--scenes", "1", "--config", cfg], capsys)
+    assert code == 0, err  # a second collection replaces the first whole, with no staging folder left
+    assert minari.load_dataset("curbside/pointnav-expert-v0").total_steps >= 80
+    assert sorted(p.name for p in (tmp_path / "curbside").iterdir()) == ["pointnav-expert-v0"]
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".staging")]
+
+
 def test_demos_are_a_minari_dataset_with_a_success_rate(demos) -> None:
     import minari
 
