@@ -2,9 +2,9 @@
 
 pybullet's C module init prints that line on every import (to stderr in the wheels we install, to stdout in some
 builds), so every `curbside sim` command began with it: noise above results and before the one error line, and
-a risk to JSON on stdout (the catalog validator and the retrieval renderer use it too). `sim/__init__.py` calls `import_pybullet()` before any
-sim module runs `import pybullet` (a package's __init__ runs before its submodules), so the one real import is
-the quiet one; later imports find it in sys.modules.
+a risk to JSON on stdout (the catalog validator and the retrieval renderer use it too). Sim modules import it as
+`from kernel.quiet import pybullet as p` (this module's `__getattr__`), so the one real import is the quiet one;
+later imports find it in sys.modules.
 """
 
 from __future__ import annotations
@@ -52,3 +52,10 @@ def import_pybullet() -> ModuleType:
             os.dup2(copy, fd)
             os.close(copy)
     return pybullet
+
+
+def __getattr__(name: str) -> ModuleType:
+    """`from kernel.quiet import pybullet as p`: pybullet imported through `import_pybullet` (no banner)."""
+    if name == "pybullet":
+        return import_pybullet()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,14 +1,11 @@
 """The simulator: scene generation (sim.scene), PyBullet world, machines, sensors, agents, tasks, metrics, envs.
 
-Importing `sim` registers the Gymnasium environments `curbside/PointNav-v0` and `curbside/SocialNav-v0`
-(entry points are strings, so nothing heavy loads; see sim.envs.ENV_IDS).
+Importing `sim` registers the Gymnasium environments `curbside/PointNav-v0` and `curbside/SocialNav-v0` (and the
+vector-only `curbside/BatchedPointNav-v0`); entry points are strings, so nothing heavy loads. Modules import
+pybullet as `from kernel.quiet import pybullet as p`, without its build-time banner.
 """
 
-from kernel.quiet import import_pybullet
-
-import_pybullet()  # first, before any sim module imports pybullet: its build-time banner is noise on every command
-
-from sim.envs import ENV_IDS, register_envs  # noqa: E402
+from sim.envs import ENV_IDS, register_envs
 
 register_envs()
 

@@ -14,7 +14,7 @@ import warnings
 from typing import Any
 
 import numpy as np
-import pybullet as p
+from kernel.quiet import pybullet as p
 
 # Terrain off: the bench times the step code on the scene its recorded figures (benchmarks/results/issue14) ran on;
 # terrain patches (docs/terrain.md) add ~20 static meshes and a friction lookup, not step-code work worth timing.

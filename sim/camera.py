@@ -12,7 +12,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-import pybullet as p
+from kernel.quiet import pybullet as p
 
 from catalogs.categories import NAMES
 from kernel.config import ConfigError

@@ -19,7 +19,7 @@ from importlib import resources
 from typing import Any
 
 import numpy as np
-import pybullet as p
+from kernel.quiet import pybullet as p
 
 from kernel.config import ConfigError
 

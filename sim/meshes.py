@@ -9,7 +9,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-import pybullet as p
+from kernel.quiet import pybullet as p
 import shapely
 from shapely.geometry import Polygon
 from shapely.geometry.polygon import orient

@@ -6,7 +6,7 @@ import math
 from typing import Any
 
 import numpy as np
-import pybullet as p
+from kernel.quiet import pybullet as p
 
 
 def camera_image(env: Any, camera: str = "top_down", width: int = 128, height: int = 128,

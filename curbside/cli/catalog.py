@@ -22,7 +22,7 @@ ObjectClass = Enum("ObjectClass", {c: c for c in OBJECT_CLASSES}, type=str)
 Zone = Enum("Zone", {z: z for z in ZONES}, type=str)
 ExportFormat = Enum("ExportFormat", {f: f for f in ("parquet", "csv", "jsonl")}, type=str)
 
-app = typer.Typer(help="Build, search, inspect and validate the DuckDB asset catalog.", no_args_is_help=True)
+app = typer.Typer(rich_markup_mode=None, help="Build, search, inspect and validate the DuckDB asset catalog.", no_args_is_help=True)
 CatalogOpt = typer.Option(DEFAULT_CATALOG, "--catalog", help="Path of the catalog's .duckdb file.")
 JsonOpt = typer.Option(False, "--json", help="Print one JSON document on stdout and nothing else.")
 

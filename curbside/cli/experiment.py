@@ -11,7 +11,7 @@ from curbside.cli.errors import fail
 from curbside.cli.extras import require
 from kernel.config import ConfigError
 
-app = typer.Typer(help="Run the MetaUrban paper's experiments (Table 1, 2, 5, ablations, seeds) and report them.",
+app = typer.Typer(rich_markup_mode=None, help="Run the MetaUrban paper's experiments (Table 1, 2, 5, ablations, seeds) and report them.",
                   no_args_is_help=True)
 
 

@@ -9,6 +9,7 @@ from curbside.cli import catalog, experiment, pool, scenes, sim, train
 from curbside.cli.errors import run
 
 app = typer.Typer(
+    rich_markup_mode=None,  # plain click help: wraps at any width, and [extras] in help stay literal
     name="curbside",
     help="curbside: urban micromobility research platform: data pipelines, asset catalog, scenes, simulator.",
     no_args_is_help=True,

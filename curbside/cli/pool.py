@@ -7,7 +7,7 @@ import typer
 from curbside.cli.errors import UsageError
 from curbside.cli.extras import require
 
-app = typer.Typer(help="Inspect the description pool from the distribution pipeline.", no_args_is_help=True)
+app = typer.Typer(rich_markup_mode=None, help="Inspect the description pool from the distribution pipeline.", no_args_is_help=True)
 
 DEFAULT_POOL = "data/pool/pool.parquet"
 POOL_COLUMNS = ("cluster_id", "text", "category", "count", "n_members", "members", "sources", "country_counts")

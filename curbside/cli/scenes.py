@@ -20,7 +20,7 @@ from curbside.cli.executor_options import (
     workers_option,
 )
 
-app = typer.Typer(help="Generate, render and collect urban scenes (scene specs as JSON).", no_args_is_help=True)
+app = typer.Typer(rich_markup_mode=None, help="Generate, render and collect urban scenes (scene specs as JSON).", no_args_is_help=True)
 
 
 def _terrain_density_option() -> Any:

@@ -18,7 +18,7 @@ from curbside.cli.executor_options import (
     workers_option,
 )
 
-app = typer.Typer(help="Run, evaluate, render and benchmark the PyBullet simulator.", no_args_is_help=True)
+app = typer.Typer(rich_markup_mode=None, help="Run, evaluate, render and benchmark the PyBullet simulator.", no_args_is_help=True)
 
 # Task names on the command line -> Gymnasium env ids (SocialNav is added by sim.envs.socialnav).
 TASKS = {"PointNav": "curbside/PointNav-v0", "SocialNav": "curbside/SocialNav-v0"}

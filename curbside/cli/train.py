@@ -21,9 +21,9 @@ from curbside.cli.executor_options import (
 )
 from kernel.config import ConfigError
 
-app = typer.Typer(help="Train PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, BC or GAIL and evaluate them on a split.",
+app = typer.Typer(rich_markup_mode=None, help="Train PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, BC or GAIL and evaluate them on a split.",
                   no_args_is_help=True)
-demos_app = typer.Typer(help="Expert demonstrations as Minari datasets for offline RL and imitation.", no_args_is_help=True)
+demos_app = typer.Typer(rich_markup_mode=None, help="Expert demonstrations as Minari datasets for offline RL and imitation.", no_args_is_help=True)
 # run/collect defaults (--envs, --scenes, --seed, --eval-every, --steps, --noise, --random-prob) equal those of
 # curbside.train.run.train and curbside.train.demos.collect_demos (literals: they import numpy);
 # tests/cli/test_cli_defaults.py keeps them equal.

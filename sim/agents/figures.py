@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
-import pybullet as p
+from kernel.quiet import pybullet as p
 
 Part = tuple[int, list[float], list[float], list[float]]  # (shape, half extents or [radius], frame position, rgba)
 SKIN = [0.87, 0.72, 0.6, 1.0]

@@ -6,7 +6,7 @@ import math
 from typing import Any
 
 import numpy as np
-import pybullet as p
+from kernel.quiet import pybullet as p
 from numba import njit
 
 from sim.agents.figures import figure_shape

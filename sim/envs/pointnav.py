@@ -9,7 +9,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import pybullet as p
+from kernel.quiet import pybullet as p
 
 from kernel.config import ConfigError
 from sim.envs.episode import Episode

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pybullet as p
+from kernel.quiet import pybullet as p
 
 from kernel.config import ConfigError
 from sim.camera import EgoCamera, forget_egl

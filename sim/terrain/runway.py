@@ -15,7 +15,7 @@ from functools import partial
 from typing import Any
 
 import numpy as np
-import pybullet as p
+from kernel.quiet import pybullet as p
 
 from kernel.config import ConfigError
 from sim.machines import G, Machine, machine_spec

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pybullet as p
+from kernel.quiet import pybullet as p
 
 from sim.machines import MachineSpec
 
