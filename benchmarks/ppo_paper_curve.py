@@ -50,7 +50,8 @@ def main() -> None:
     done = policy.is_file() and PPO.load(policy, device="cpu").num_timesteps >= args.steps
     t0 = time.perf_counter()
     if not done:
-        train("ppo", "PointNav", args.run, steps=args.steps, protocol="paper", backend="batched", resume=True,
+        train("ppo", "PointNav", args.run, steps=args.steps, protocol="paper", backend="batched",
+              resume=(args.run / "run.json").is_file(),
               eval_every=args.eval_every, eval_episodes=args.curve_episodes)
     train_s = time.perf_counter() - t0
     model = PPO.load(policy, device="cpu")
@@ -76,7 +77,7 @@ def main() -> None:
 
 
 def seed_run(run: Path, kept: Path) -> None:
-    """Start a run folder without checkpoints from the checkpoint and curve kept in git (`kept`): a run stopped in
+    """Start a run folder without checkpoints from the checkpoint, curve and run.json kept in git (`kept`): a run stopped in
     one session goes on from there on another machine (the folder's own checkpoints stay out of git)."""
     if not kept.is_dir() or any((run / "checkpoints").glob("policy_*_steps.zip")):
         return
@@ -85,8 +86,9 @@ def seed_run(run: Path, kept: Path) -> None:
         return
     (run / "checkpoints").mkdir(parents=True, exist_ok=True)
     shutil.copy(zips[-1], run / "checkpoints" / zips[-1].name)
-    if (kept / "eval_curve.csv").is_file() and not (run / "eval_curve.csv").is_file():
-        shutil.copy(kept / "eval_curve.csv", run / "eval_curve.csv")
+    for name in ("eval_curve.csv", "run.json"):
+        if (kept / name).is_file() and not (run / name).is_file():
+            shutil.copy(kept / name, run / name)
 
 
 def plot(out: Path) -> None:

@@ -34,3 +34,35 @@ def check_choice(value: Any, valid: list[str] | tuple[str, ...], *, what: str) -
     """Raise ConfigError naming `what` and the valid choices when `value` is not one of them."""
     if value not in valid:
         raise ConfigError(f"unknown {what} {value!r}; valid: {', '.join(map(str, valid))}")
+
+
+def excerpt(value: Any, limit: int = 80) -> str:
+    """`repr(value)` cut to `limit` characters: error lines quote what they refuse, never a whole document."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text) - limit} more characters)"
+
+
+YAML_MAX_BYTES = 10_000_000  # a config or scene file; larger is not one
+
+
+def load_yaml(text: str, what: str) -> Any:
+    """Parse YAML text of a config file (`what` names it in errors) without aliases: `*name` references can expand a
+    few hundred bytes into gigabytes, and no config here needs them. ConfigError for anything unparsable."""
+    import yaml
+
+    class NoAliasLoader(yaml.SafeLoader):
+        def compose_node(self, parent: Any, index: Any) -> Any:
+            if self.check_event(yaml.AliasEvent):
+                event = self.peek_event()
+                raise ConfigError(f"{what}: YAML alias *{event.anchor} at line {event.start_mark.line + 1}; aliases "
+                                  "are not accepted in config files, write the value out")
+            return super().compose_node(parent, index)
+
+    if len(text) > YAML_MAX_BYTES:
+        raise ConfigError(f"{what} holds {len(text):,} characters, more than a config file's {YAML_MAX_BYTES:,}")
+    try:
+        return yaml.load(text, Loader=NoAliasLoader)  # noqa: S506 (a SafeLoader subclass)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise ConfigError(f"{what} is not valid YAML{where}: {getattr(e, 'problem', None) or e}") from None

@@ -8,7 +8,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from kernel.config import ConfigError, merge_strict
+from kernel.config import ConfigError, load_yaml, merge_strict
 from kernel.reproducible import quiet_third_party, write_frame
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -22,13 +22,11 @@ class PipelineError(ValueError):
 
 def load_params(path: str | Path | None, section: str, defaults: Mapping[str, Any]) -> dict[str, Any]:
     """Read `section` of a params.yaml and merge it strictly over the stage's `defaults`."""
-    import yaml
-
     p = Path(path) if path else DEFAULT_PARAMS
     if not p.exists():
         raise PipelineError(f"params file {p} not found; pass --params with the path of params.yaml")
-    data = yaml.safe_load(p.read_text()) or {}
     try:
+        data = load_yaml(p.read_text(), str(p)) or {}
         return merge_strict(defaults, data.get(section) or {}, name=f"{p.name}:{section}")
     except ConfigError as exc:
         raise PipelineError(str(exc)) from None

@@ -17,7 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Union
 
-from kernel.config import ConfigError
+from kernel.config import ConfigError, excerpt
 
 
 def _num(v: Any) -> bool:
@@ -126,8 +126,8 @@ class Rule:
             hint = f" ({self.hint})" if self.hint else ""
             if self.kind == "choice":  # the style of kernel.config.check_choice
                 listing = ", ".join(map(str, self.choices)) + (" (or null)" if self.none else "")
-                raise ConfigError(f"unknown {name} {v!r}; valid: {listing}{hint}")
-            raise ConfigError(f"{name} must be {self.describe()}, got {v!r}{hint}")
+                raise ConfigError(f"unknown {name} {excerpt(v)}; valid: {listing}{hint}")
+            raise ConfigError(f"{name} must be {self.describe()}, got {excerpt(v)}{hint}")
 
 
 def Int(lo: int | None = None, hi: int | None = None, *, none: bool = False, hint: str = "") -> Rule:
@@ -192,7 +192,7 @@ def check_table(cfg: Mapping[str, Any], table: Table, *, name: str = "config",
         full = f"{name}.{key}"
         if isinstance(rule, Mapping):
             if not isinstance(value, Mapping):
-                raise ConfigError(f"{full} must be a JSON object (dict) of {', '.join(sorted(rule))}, got {value!r}")
+                raise ConfigError(f"{full} must be a JSON object (dict) of {', '.join(sorted(rule))}, got {excerpt(value)}")
             check_table(value, rule, name=full, defaults=sub_defaults if isinstance(sub_defaults, Mapping) else None)
             continue
         if rule is None:

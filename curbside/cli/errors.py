@@ -17,6 +17,7 @@ import click
 import typer
 
 DEBUG_ENV = "CURBSIDE_DEBUG"
+MAX_LINE = 600  # characters of an error line
 
 try:  # typer >= 0.20 parses with its own vendored copy of click: its BadParameter is not a click.ClickException
     from typer._click.exceptions import ClickException as _TyperClickException
@@ -50,6 +51,8 @@ def echo_error(message: str) -> None:
     from rich.text import Text
 
     line = " ".join(str(message).split())  # one line, whatever the exception's text held
+    if len(line) > MAX_LINE:  # a message that quotes a whole input: the start says what is wrong
+        line = f"{line[:MAX_LINE]}... ({len(line) - MAX_LINE} more characters)"
     Console(stderr=True, soft_wrap=True).print(Text.assemble(("error: ", "bold red"), line), highlight=False)
 
 

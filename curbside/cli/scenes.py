@@ -126,7 +126,7 @@ def generate(
         typer.secho(f"warning: default-size boxes for {', '.join(st['fallback_categories'])} (not in the catalog)", fg="yellow", err=True)
     typer.echo(f"{out}: blocks {st['blocks']}, {st['sidewalks']} sidewalks, {st['crosswalks']} crosswalks, "
                f"{st['objects']} objects ({st['refused_total']} refused), {len(spec['terrain'])} terrain patches, "
-               f"route {st['route_length_m']:.0f} m")
+               f"street {st['street_length_m']:.0f} m")
 
 
 @app.command()
@@ -216,12 +216,12 @@ def stats(
                                      "default tasks) or metaurban12k (the paper-scale preset)."),
     seed: int = typer.Option(0, min=0, help="Seed of the route draws (--vs-paper)."),
 ) -> None:
-    """Write a dataset's statistics (objects per scene, object area, route length) as PNG and JSON."""
+    """Write a dataset's statistics (objects per scene, object area, street length) as PNG and JSON."""
     from sim.scene.dataset import dataset_stats
 
     st, png, js = dataset_stats(directory)
     typer.echo(f"{st['scenes']} scenes: objects {st['objects']['mean']:.1f}±{st['objects']['std']:.1f}, "
-               f"object area {st['object_area_m2']['mean']:.1f} m², route {st['route_length_m']['mean']:.0f} m")
+               f"object area {st['object_area_m2']['mean']:.1f} m², street {st['street_length_m']['mean']:.0f} m")
     typer.echo(f"{png}\n{js}")
     if not vs_paper:
         return

@@ -109,7 +109,7 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
                 train(run.method, run.task, out, steps=steps, protocol=exp.protocol, backend=backend, split=run.split,
                       env_config=run.env, n_envs=b["n_envs"], num_scenes=run.env.get("num_scenes") or b["scenes"],
                       seed=seed, demos=demos,
-                      resume=True, init_from=init_from, eval_every=int(b["eval_every"]) if online else 0,
+                      resume=(out / "run.json").is_file(), init_from=init_from, eval_every=int(b["eval_every"]) if online else 0,
                       eval_episodes=int(b["curve_episodes"]), hparams=hparams, progress=progress)
             else:
                 assert init_from is not None

@@ -7,9 +7,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
 
-from kernel.config import ConfigError
+from kernel.config import ConfigError, load_yaml
 
 HERE = Path(__file__).resolve().parent
 BUDGETS = ("smoke", "small", "paper")
@@ -75,11 +74,7 @@ def load_experiment(name: str) -> Experiment:
     from curbside.train.envs import SPLITS, TASKS
     from curbside.train.policies import check_algo
 
-    try:
-        text = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as e:
-        first = str(e).splitlines()[0][:120]
-        raise ConfigError(f"experiment {path.name} is not valid YAML ({first}); fix the file") from None
+    text = load_yaml(path.read_text(), f"experiment {path.name}")
     raw = _strict(text, EXPERIMENT_KEYS, f"experiment {path.name}")
     paper = raw.get("paper", "none")
     if paper not in PAPER_KINDS:

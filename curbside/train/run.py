@@ -59,6 +59,25 @@ def resolve_run(algo: str, task: str, *, protocol: str = "curbside", env_config:
             "num_scenes": int(num_scenes or proto.scenes(split))}
 
 
+def check_run_folder(out: Path, algo: str, task: str, resume: bool) -> None:
+    """A new run needs a folder that holds none (a run is never overwritten); `resume` needs the folder of a run of
+    the same algorithm and task. ConfigError with the fix otherwise."""
+    f = Path(out) / "run.json"
+    if not f.is_file():
+        if resume:
+            raise ConfigError(f"--resume: {out} holds no run to continue (no run.json); drop --resume to start one")
+        return
+    try:
+        run = json.loads(f.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise ConfigError(f"{f} is not a run's JSON; move the folder away or train into another --out") from None
+    held = f"a {run.get('algo', '?')} run on {run.get('task', '?')}" if isinstance(run, dict) else "a damaged run.json"
+    if not resume:
+        raise ConfigError(f"{out} already holds {held}; continue it with --resume or train into another --out")
+    if not isinstance(run, dict) or (run.get("algo"), run.get("task")) != (algo, task):
+        raise ConfigError(f"--resume of {out}: it holds {held}, not {algo} on {task}; train into another --out")
+
+
 def train(algo: str, task: str, out: Path, *, steps: int, protocol: str = "curbside", backend: str = "pybullet",
           split: str = "train", env_config: Mapping[str, Any] | None = None, n_envs: int | None = None,
           num_scenes: int | None = None, seed: int = 0, demos: Path | None = None, resume: bool = False,
@@ -78,6 +97,7 @@ def train(algo: str, task: str, out: Path, *, steps: int, protocol: str = "curbs
 
     check_algo(algo)
     check_backend(backend, task, algo)
+    check_run_folder(Path(out), algo, task, resume)
     r = resolve_run(algo, task, protocol=protocol, env_config=env_config, n_envs=n_envs, num_scenes=num_scenes,
                     split=split, hparams=hparams, backend=backend)
     cfg, h, envs, scenes = r["env_config"], r["hparams"], r["n_envs"], r["num_scenes"]

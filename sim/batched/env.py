@@ -25,6 +25,7 @@ from sim.batched.lidar import lidar_pair
 from sim.batched.routes import RouteBatch
 from sim.batched.scenes import BuiltScene, SceneStore
 from sim.envs.observation import GOAL_LOG_SCALE, EgoObservation
+from sim.envs.reset_options import check_reset_options
 from sim.envs.scenes import SceneSource
 from sim.machines import machine_spec
 from sim.raycast.grids import CROSSWALK, KIND_NAMES, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
@@ -113,6 +114,7 @@ class BatchedPointNav(VectorEnv):
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every env: `seed` an int gives env i seed + i (the draws of PointNavEnv.reset(seed=seed + i));
         options {"start": [x, y], "goal": [x, y]} (or one pair per env) plan that route in every env."""
+        points = check_reset_options(options, self.num_envs)
         seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, int) else (
             list(seed) if seed is not None else [None] * self.num_envs)
         if len(seeds) != self.num_envs:
@@ -121,7 +123,7 @@ class BatchedPointNav(VectorEnv):
             if s is not None or not self._started:
                 self.rngs[i] = np.random.default_rng(s)
         self._started = True
-        info = self._reset_envs(np.arange(self.num_envs), options)
+        info = self._reset_envs(np.arange(self.num_envs), None if points is None else dict(zip(("start", "goal"), points)))
         return self._observe(), info
 
     def _reset_envs(self, envs: np.ndarray, options: Mapping[str, Any] | None) -> dict[str, Any]:

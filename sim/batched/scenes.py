@@ -79,10 +79,8 @@ class SceneStore:
 
     def route(self, b: BuiltScene, rng: np.random.Generator, options: Mapping[str, Any] | None, k: int) -> Route:
         """Env k's next route in `b`: between given points, drawn as PointNavEnv draws it, or from the pool."""
-        if options and ("start" in options or "goal" in options):
-            if not ("start" in options and "goal" in options):
-                raise ValueError("reset options need both 'start' and 'goal' ([x, y] each, or one per env), or neither")
-            start, goal = (np.asarray(options[key], dtype=np.float64) for key in ("start", "goal"))
+        if options:  # checked by the env (sim.envs.reset_options): (start, goal) arrays
+            start, goal = options["start"], options["goal"]
             return b.planner.plan(start[k] if start.ndim == 2 else start, goal[k] if goal.ndim == 2 else goal)
         lo, hi = (float(v) for v in self.cfg["route_length"])
         if self.pool_size == 0:

@@ -14,6 +14,7 @@ from kernel.quiet import pybullet as p
 from kernel.config import ConfigError
 from sim.envs.episode import Episode
 from sim.envs.observation import EgoObservation
+from sim.envs.reset_options import check_reset_options
 from sim.envs.scenes import SceneCache, SceneSlot, SceneSource, build_slot, trim_heap
 from sim.machines import Machine, machine_spec
 from sim.metrics import make_measures
@@ -144,7 +145,9 @@ class PointNavEnv(gym.Env):
     @property
     def scene(self) -> Scene:
         """The scene (parsed once, when it was loaded) the current episode runs in."""
-        assert self.slot is not None and self.slot.scene is not None, "call reset() first"
+        self._check_open()
+        if self.slot is None or self.slot.scene is None:
+            raise RuntimeError("the env has no scene yet: call reset() first")
         return self.slot.scene
 
     @property
@@ -194,16 +197,14 @@ class PointNavEnv(gym.Env):
 
         options: {"start": [x, y], "goal": [x, y]} plans the route between given points instead of drawing it.
         """
+        self._check_open()
+        route_points = check_reset_options(options)
+        self.route = None  # a reset that fails leaves no episode to step
         super().reset(seed=seed)
         rng = self.np_random
         self._ensure_scene(rng)
         lo, hi = (float(v) for v in self.config["route_length"])
-        if options and ("start" in options or "goal" in options):
-            if not ("start" in options and "goal" in options):
-                raise ValueError("reset options need both 'start' and 'goal' ([x, y] each), or neither")
-            self.route = self.planner.plan(options["start"], options["goal"])
-        else:
-            self.route = self.planner.sample(rng, lo, hi)
+        self.route = self.planner.plan(*route_points) if route_points else self.planner.sample(rng, lo, hi)
         start = self.route.start
         yaw = self.route.heading_at(0.0)
         m = self.machine
@@ -229,8 +230,9 @@ class PointNavEnv(gym.Env):
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         """Advance 0.1 s (config dt): apply the action, step physics, sense, reward."""
+        self._check_open()
         if self.route is None:
-            raise RuntimeError("call reset() before step()")
+            raise RuntimeError("call reset() before step() (no reset yet, or the last one failed)")
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         if a.shape != (2,):
             raise ValueError(f"action must hold 2 values [steering, throttle_brake], got shape {np.shape(action)}")
@@ -290,7 +292,12 @@ class PointNavEnv(gym.Env):
     def render(self) -> np.ndarray | None:
         """An RGB frame (H, W, 3) of `render.camera` (sim.viewer): "dashboard" (chase view, map, camera panels,
         metrics), "top_down" or "chase"; in "human" mode it goes to a pygame window instead."""
+        self._check_open()
         return render_frame(self)
+
+    def _check_open(self) -> None:
+        if self.cache is None:
+            raise RuntimeError("the env is closed; make a new one (gymnasium.make) to run more episodes")
 
     def close(self) -> None:
         """Close the viewer window and disconnect every Bullet client of the scene cache."""

@@ -142,6 +142,8 @@ class SocialNavEnv(PointNavEnv):
 
     def agent_states(self) -> np.ndarray:
         """Every cohabitant's x, y, vx, vy, radius and kind (structured array; vehicles: vehicle_states())."""
+        if self.route is None:
+            raise RuntimeError("the env has no cohabitants yet: call reset() first")
         return self.crowd.states()
 
     def vehicle_states(self) -> np.ndarray:

@@ -30,7 +30,7 @@ import numpy as np
 from shapely.geometry import LineString, Point, Polygon
 
 from catalogs.categories import CATEGORIES, NAMES, category
-from kernel.config import ConfigError, merge_strict
+from kernel.config import ConfigError, load_yaml, merge_strict
 from sim.scene.occupancy import rect
 from sim.scene.spec import round_points, round_value
 
@@ -42,15 +42,10 @@ AT_KEYS = {"sidewalk": None, "along": 0.5, "zone": "clear"}
 
 def load_custom(path: str | Path) -> dict[str, Any]:
     """Read a custom scene YAML into its checked, complete form (unknown keys are refused listing the valid ones)."""
-    import yaml
-
     p = Path(path)
     if not p.is_file():
         raise ConfigError(f"no custom scene file at {p}; write one as in docs/scenes.md (Custom scenes)")
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8")) or {}
-    except yaml.YAMLError as e:
-        raise ConfigError(f"{p} is not valid YAML: {e}") from None
+    data = load_yaml(p.read_text(encoding="utf-8"), str(p)) or {}
     if not isinstance(data, Mapping):
         raise ConfigError(f"{p} must hold a mapping of {', '.join(KEYS)}; got {type(data).__name__}")
     return check_custom(data, str(p))

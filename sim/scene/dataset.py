@@ -22,7 +22,7 @@ SPLITS: dict[str, dict[str, Any]] = {
     "finetune": {"templates": "g", "exclude_categories": [], "assets": "held_out", "seed_offset": 3_000_000},
 }
 SUMMARY_KEYS = (
-    "objects", "buildings", "refused_total", "route_length_m", "clear_path_length_m",
+    "objects", "buildings", "refused_total", "street_length_m", "clear_path_length_m",
     "walkable_area_m2", "object_area_m2", "object_area_fraction", "sidewalks", "crosswalks", "blocks",
 )
 
@@ -180,7 +180,7 @@ def _describe(x: np.ndarray) -> dict[str, float]:
 
 
 def dataset_stats(directory: str | Path) -> tuple[dict[str, Any], Path, Path]:
-    """Statistics of a dataset (objects per scene, area occupied by objects, route length) as JSON and PNG."""
+    """Statistics of a dataset (objects per scene, area occupied by objects, street length along the blocks) as JSON and PNG."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -191,7 +191,7 @@ def dataset_stats(directory: str | Path) -> tuple[dict[str, Any], Path, Path]:
     if not rows:
         raise ValueError(f"{d}/index.jsonl lists no scenes; regenerate the dataset")
     cols = {k: np.array([r[k] for r in rows], dtype=np.float64) for k in (
-        "objects", "object_area_m2", "object_area_fraction", "route_length_m", "walkable_area_m2", "refused_total")}
+        "objects", "object_area_m2", "object_area_fraction", "street_length_m", "walkable_area_m2", "refused_total")}
     stats: dict[str, Any] = {"scenes": len(rows), "splits": sorted({r["split"] for r in rows})}
     stats.update({k: _describe(v) for k, v in cols.items()})
     blocks: dict[str, int] = {}
@@ -200,8 +200,8 @@ def dataset_stats(directory: str | Path) -> tuple[dict[str, Any], Path, Path]:
             blocks[c] = blocks.get(c, 0) + 1
     stats["block_types"] = dict(sorted(blocks.items()))
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
-    for ax, key, label in zip(axes, ("objects", "object_area_m2", "route_length_m"),
-                              ("objects per scene", "area occupied by objects (m²)", "route length (m)")):
+    for ax, key, label in zip(axes, ("objects", "object_area_m2", "street_length_m"),
+                              ("objects per scene", "area occupied by objects (m²)", "street length along the blocks (m)")):
         ax.hist(cols[key], bins=min(30, max(5, len(rows) // 3)), color="#1565c0", alpha=0.85)
         ax.axvline(cols[key].mean(), color="#e65100", lw=1.2, label=f"mean {cols[key].mean():.1f}")
         ax.set_xlabel(label)

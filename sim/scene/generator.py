@@ -127,7 +127,7 @@ def _generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any) -> d
         "refused_total": int(sum(placer.refused.values())),
         "building_spots_skipped": skipped,
         "fallback_categories": sorted(placer.fallback),
-        "route_length_m": float(sum(b.through_length for b in blocks)),
+        "street_length_m": float(sum(b.through_length for b in blocks)),
         "clear_path_length_m": float(sum(sw.clear_path.length for sw in sidewalks)),
         "walkable_area_m2": walk_area,
         "object_area_m2": obj_area,

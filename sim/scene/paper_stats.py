@@ -38,7 +38,7 @@ LABELS = {
     "objects_per_scene": "objects per scene", "objects_per_m2": "static objects per m²",
     "nearest_object_m": "mean nearest-object distance (m)", "occupied_area_m2": "area occupied by objects (m²)",
     "scene_area_m2": "area per scene (m²)", "agents_per_block": "dynamic agents per block",
-    "route_length_m": "mean route length (m)", "episodes_over_800_steps": "episodes over 800 steps",
+    "route_length_m": "mean PointNav route length (m)", "episodes_over_800_steps": "episodes over 800 steps",
 }
 LOWER_BOUNDS = ("objects_per_scene", "episodes_over_800_steps")  # ">= 300 per scene", "> 20 %"; the rest: within 25 %
 EXPERT_SPEED = 2.5  # m/s: the built-in expert's cruise speed (sim.expert.PurePursuitExpert)

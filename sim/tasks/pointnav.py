@@ -224,16 +224,20 @@ MACHINE_TABLE: dict[str, Rule] = {
 }
 
 
-def check_machine(machine: Any) -> None:
-    """Check a custom machine dict's numbers (finite, in range) before sim.machines builds its spec."""
+def check_machine(machine: Any, name: str = "config.machine") -> None:
+    """Check a custom machine dict's numbers (finite, in range), its `base` dict's too, before sim.machines builds
+    its spec."""
     if not isinstance(machine, Mapping):
         return  # a name (or a wrong type): machine_spec names the valid machines
     for key, value in machine.items():
+        if key == "base" and isinstance(value, Mapping):
+            check_machine(value, f"{name}.base")
+            continue
         rule = MACHINE_TABLE.get(key)
         if rule is not None and rule.kind == "pair" and _number(value):
             value = [value, value]  # a single force means a fixed force (machine_spec accepts it)
         if rule is not None:
-            rule.check(value, f"config.machine.{key}")
+            rule.check(value, f"{name}.{key}")
 
 
 def _number(v: Any) -> bool:

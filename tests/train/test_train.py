@@ -218,3 +218,20 @@ def test_subprocess_workers_build_their_envs() -> None:
         assert obs.shape == (2, 24 + 8 + 6 + 20 + 3) and rewards.shape == (2,)
     finally:
         vec.close()
+
+
+def test_a_run_is_never_overwritten_and_resume_needs_the_same_run(demos, tmp_path, capsys) -> None:
+    out = tmp_path / "bc"
+    train("bc", "PointNav", out, steps=5, env_config=CFG, demos=Path(demos["path"]), progress=False,
+          hparams={"net_arch": [16]})
+    before = (out / "policy.zip").read_bytes()
+    base = ["train", "run", "--steps", "64", "--envs", "2", "--scenes", "2", "--config", json.dumps(CFG)]
+    line = one_error_line(*cli([*base, "--algo", "ppo", "--out", str(out)], capsys))
+    assert "already holds a bc run on PointNav" in line and "--resume" in line
+    line = one_error_line(*cli([*base, "--algo", "ppo", "--resume", "--out", str(out)], capsys))
+    assert "it holds a bc run on PointNav, not ppo on PointNav" in line
+    line = one_error_line(*cli([*base, "--algo", "ppo", "--task", "SocialNav", "--resume", "--out", str(out)], capsys))
+    assert "not ppo on SocialNav" in line
+    line = one_error_line(*cli([*base, "--algo", "ppo", "--resume", "--out", str(tmp_path / "empty")], capsys))
+    assert "holds no run to continue" in line
+    assert (out / "policy.zip").read_bytes() == before

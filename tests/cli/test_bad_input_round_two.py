@@ -1,0 +1,42 @@
+"""Bad input, round two: YAML that expands, values quoted whole in error lines, nested configs on the CLI."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from kernel.config import ConfigError, excerpt, load_yaml
+from tests.helpers import cli, one_error_line
+
+BOMB = 'a: &a ["x","x","x","x","x","x","x","x","x"]\nb: &b [*a,*a,*a,*a,*a,*a,*a,*a,*a]\nc: [*b,*b,*b,*b,*b,*b,*b,*b]\n'
+
+
+def test_yaml_aliases_are_refused_before_they_expand(tmp_path, capsys) -> None:
+    f = tmp_path / "custom.yaml"
+    f.write_text(BOMB)
+    line = one_error_line(*cli(["scenes", "generate", "--from", str(f), "--out", str(tmp_path / "s.json")], capsys))
+    assert "YAML alias *a at line 2" in line and len(line) < 300
+    g = tmp_path / "exp.yaml"
+    g.write_text(BOMB)
+    line = one_error_line(*cli(["experiment", "run", str(g), "--budget", "smoke", "--root", str(tmp_path)], capsys))
+    assert "YAML alias" in line
+    assert not (tmp_path / "s.json").exists()
+
+
+def test_unparsable_yaml_names_the_line() -> None:
+    with pytest.raises(ConfigError, match=r"f.yaml is not valid YAML at line 3, column 2: expected .,. or .]."):
+        load_yaml("a: 1\nb: [1, 2\nc: 3\n", "f.yaml")
+
+
+def test_error_lines_quote_an_excerpt_not_the_whole_value(capsys) -> None:
+    huge = "x" * 100_000
+    assert len(excerpt(huge)) < 130 and excerpt("ok") == "'ok'"
+    line = one_error_line(*cli(["sim", "eval", "--episodes", "1", "--config", json.dumps({"machine": huge})], capsys))
+    assert len(line) <= 700 and "unknown machine" in line
+
+
+def test_nested_machine_nan_is_one_line_not_a_crash(capsys) -> None:
+    cfg = '{"scene": {"blocks": 1}, "machine": {"base": {"wheel_radius": NaN}}}'
+    line = one_error_line(*cli(["sim", "eval", "--episodes", "1", "--config", cfg], capsys))
+    assert "config.machine.base.wheel_radius must be a finite number" in line
