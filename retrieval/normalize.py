@@ -1,14 +1,16 @@
 """Mesh normalisation: load any trimesh format, quality filters, merge, upright, centre, front, units, PyBullet export.
 
 Every refusal raises `AssetRejected(reason, detail)`; the ingest stage records it in the `rejections` table.
-Reasons: corrupt_file, file_too_large, empty_mesh, nan_vertices, too_many_faces, missing_texture, degenerate.
+Reasons: corrupt_file, file_too_large, empty_mesh, nan_vertices, too_many_faces, missing_texture, bad_reference, degenerate.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
 import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -66,28 +68,59 @@ class CanonicalMesh:
         return self.mesh.extents
 
 
+REFERENCE_MAX_BYTES = 64 * 2**20  # an MTL or glTF JSON an asset references; larger is not one
+
+
+def read_reference(path: Path, max_bytes: int = REFERENCE_MAX_BYTES) -> str:
+    """The text of a file an asset references (its MTL, its glTF JSON): a regular file of at most `max_bytes`, else
+    AssetRejected("bad_reference"): a FIFO would block the reader, a device never end, a directory not read."""
+    try:
+        st = os.stat(path)
+    except OSError as e:
+        raise AssetRejected("bad_reference", f"{path.name}: {e.strerror}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise AssetRejected("bad_reference", f"{path.name} is not a regular file")
+    if st.st_size > max_bytes:
+        raise AssetRejected("bad_reference", f"{path.name} holds {st.st_size} bytes, more than {max_bytes}")
+    try:
+        return path.read_text(errors="replace")
+    except OSError as e:
+        raise AssetRejected("bad_reference", f"{path.name}: {e.strerror}") from None
+
+
+def referenced_file(path: Path, name: str) -> Path | None:
+    """The file `name` that `path` references, None when absent; AssetRejected when it exists but is no regular file."""
+    ref = path.parent / name
+    if not os.path.lexists(ref):
+        return None
+    if not ref.is_file():  # a FIFO, a device or a folder: the mesh loader would block on it or fail
+        raise AssetRejected("bad_reference", f"{name} is not a regular file")
+    return ref
+
+
 def missing_textures(path: Path) -> list[str]:
-    """Texture files that an OBJ's MTL or a glTF's JSON references but that do not exist next to it."""
+    """Texture files that an OBJ's MTL or a glTF's JSON references but that do not exist next to it (AssetRejected
+    "bad_reference" when one exists but is not a regular file, or is too large to be one)."""
     missing: list[str] = []
     suffix = path.suffix.lower()
     if suffix == ".obj":
-        text = path.read_text(errors="replace")
+        text = read_reference(path, max(REFERENCE_MAX_BYTES, path.stat().st_size))
         for mtl in re.findall(r"^\s*mtllib\s+(.+?)\s*$", text, flags=re.M):
-            mtl_path = path.parent / mtl
-            if not mtl_path.exists():
+            mtl_path = referenced_file(path, mtl)
+            if mtl_path is None:
                 missing.append(mtl)
                 continue
-            for tex in re.findall(r"^\s*map_Kd\s+(?:-\S+\s+\S+\s+)*(.+?)\s*$", mtl_path.read_text(errors="replace"), flags=re.M):
-                if not (mtl_path.parent / tex).exists():
+            for tex in re.findall(r"^\s*map_Kd\s+(?:-\S+\s+\S+\s+)*(.+?)\s*$", read_reference(mtl_path), flags=re.M):
+                if referenced_file(mtl_path, tex) is None:
                     missing.append(tex)
     elif suffix == ".gltf":
         try:
-            doc = json.loads(path.read_text())
+            doc = json.loads(read_reference(path))
         except (json.JSONDecodeError, UnicodeDecodeError):
             return []  # the loader reports it as corrupt
         for entry in doc.get("images", []) + doc.get("buffers", []):
             uri = entry.get("uri")
-            if uri and not uri.startswith("data:") and not (path.parent / uri).exists():
+            if uri and not uri.startswith("data:") and referenced_file(path, uri) is None:
                 missing.append(uri)
     return missing
 

@@ -11,29 +11,34 @@ import re
 from collections.abc import Iterator
 from pathlib import Path
 
-from retrieval.normalize import MESH_SUFFIXES
+from retrieval.normalize import MESH_SUFFIXES, REFERENCE_MAX_BYTES, AssetRejected, referenced_file, read_reference
 from retrieval.sources import SourceItem
 
 SIDECAR_KEYS = ("name", "description", "tags", "category", "license", "attribution", "up_axis")
 
 
-def _companions(path: Path) -> list[str]:
-    """Files an OBJ or glTF pulls in, so their content takes part in the content hash."""
+def _companions(path: Path) -> tuple[list[str], str | None]:
+    """Files an OBJ or glTF pulls in, so their content takes part in the content hash; and why the asset cannot be
+    used (a reference that is no regular file, or too large), or None."""
     out: list[str] = []
-    if path.suffix.lower() == ".obj":
-        for mtl in re.findall(r"^\s*mtllib\s+(.+?)\s*$", path.read_text(errors="replace"), flags=re.M):
-            m = path.parent / mtl
-            out.append(str(m))
-            if m.exists():
-                out += [str(m.parent / t) for t in re.findall(r"^\s*map_Kd\s+(.+?)\s*$", m.read_text(errors="replace"), flags=re.M)]
-    elif path.suffix.lower() == ".gltf":
-        try:
-            doc = json.loads(path.read_text())
-            out += [str(path.parent / e["uri"]) for e in doc.get("images", []) + doc.get("buffers", [])
-                    if e.get("uri") and not e["uri"].startswith("data:")]
-        except (json.JSONDecodeError, UnicodeDecodeError, KeyError):
-            pass
-    return out
+    try:
+        if path.suffix.lower() == ".obj":
+            text = read_reference(path, max(REFERENCE_MAX_BYTES, path.stat().st_size))
+            for mtl in re.findall(r"^\s*mtllib\s+(.+?)\s*$", text, flags=re.M):
+                out.append(str(path.parent / mtl))
+                m = referenced_file(path, mtl)
+                if m is not None:
+                    out += [str(m.parent / t) for t in re.findall(r"^\s*map_Kd\s+(.+?)\s*$", read_reference(m), flags=re.M)]
+        elif path.suffix.lower() == ".gltf":
+            try:
+                doc = json.loads(read_reference(path))
+                out += [str(path.parent / e["uri"]) for e in doc.get("images", []) + doc.get("buffers", [])
+                        if e.get("uri") and not e["uri"].startswith("data:")]
+            except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, AttributeError):
+                pass
+    except AssetRejected as e:
+        return out, e.detail
+    return out, None
 
 
 class LocalSource:
@@ -60,9 +65,12 @@ class LocalSource:
             if sidecar is not None:
                 meta, problem = read_sidecar(sidecar)
             rel = path.relative_to(self.root).as_posix()
-            companions = _companions(path) + ([str(sidecar)] if sidecar else [])
+            companions, bad_reference = _companions(path)
+            companions += [str(sidecar)] if sidecar else []
             metadata = {"companion_files": companions, "format": path.suffix.lower()[1:]}
-            if problem:
+            if bad_reference:
+                metadata["rejected"] = ["bad_reference", bad_reference]
+            elif problem:
                 # The sidecar is part of the content hash: fixing it changes the hash, so a re-run retries the asset.
                 metadata["rejected"] = ["bad_metadata", problem]
             yield SourceItem(

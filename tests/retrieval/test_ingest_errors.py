@@ -199,3 +199,28 @@ def test_truncated_annotation_file_names_the_file(tmp_path: Path) -> None:
     with pytest.raises(SourceCacheCorrupt) as err:
         list(ObjaverseSource(cache_dir=tmp_path / "cache", base_url="http://127.0.0.1:9").items())
     assert str(base / "lvis-annotations.json.gz") in str(err.value) and "delete it" in str(err.value)
+
+
+@pytest.mark.parametrize("target", ["fifo", "/dev/zero", ".", "huge"])
+def test_a_bad_material_reference_rejects_that_asset_only(target: str, two_meshes: Path, tmp_path: Path) -> None:
+    import os
+
+    root = two_meshes
+    (root / "trash_bin.json").unlink()
+    if target == "fifo":
+        os.mkfifo(root / "lamp.mtl")  # a reader of it would block forever
+        ref = "lamp.mtl"
+    elif target == "huge":
+        with open(root / "lamp.mtl", "wb") as f:
+            f.truncate(65 * 2**20)  # sparse: past the 64 MB a material file may hold
+        ref = "lamp.mtl"
+    else:
+        ref = target
+    bench_mesh().export(root / "lamp.obj")
+    text = (root / "lamp.obj").read_text()
+    (root / "lamp.obj").write_text(f"mtllib {ref}\n" + "\n".join(ln for ln in text.splitlines() if not ln.startswith("mtllib")))
+    cat = tmp_path / "c.duckdb"
+    report = ingest(LocalSource(root), cat, IngestConfig(**FAST), progress=False)
+    assert report.written == 2 and report.rejected == 1  # the bench and the trash bin (no sidecar now) go in
+    reasons = _rows(cat, "SELECT reason FROM rejections")
+    assert reasons == [("bad_reference",)]
