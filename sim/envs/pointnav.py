@@ -293,6 +293,8 @@ class PointNavEnv(gym.Env):
         """An RGB frame (H, W, 3) of `render.camera` (sim.viewer): "dashboard" (chase view, map, camera panels,
         metrics), "top_down" or "chase"; in "human" mode it goes to a pygame window instead."""
         self._check_open()
+        if self.machine is None:
+            raise RuntimeError("call reset() before render(): there is no scene to draw yet")
         return render_frame(self)
 
     def _check_open(self) -> None:
