@@ -51,6 +51,8 @@ def echo_error(message: str) -> None:
     from rich.text import Text
 
     line = " ".join(str(message).split())  # one line, whatever the exception's text held
+    while line.startswith("error: "):  # a message that already carries the prefix
+        line = line[len("error: "):]
     if len(line) > MAX_LINE:  # a message that quotes a whole input: the start says what is wrong
         line = f"{line[:MAX_LINE]}... ({len(line) - MAX_LINE} more characters)"
     Console(stderr=True, soft_wrap=True).print(Text.assemble(("error: ", "bold red"), line), highlight=False)
@@ -82,11 +84,18 @@ def classify(exc: BaseException) -> tuple[str, int]:
         return f"invalid JSON ({exc.msg} at line {exc.lineno} column {exc.colno}); pass a JSON object such as '{{\"key\": 1}}'", 2
     if isinstance(exc, FileNotFoundError):
         return f"{exc.filename or text}: no such file or directory; check the path", 2
+    if isinstance(exc, NotADirectoryError):
+        return f"{exc.filename or text}: a part of this path is a file, not a folder; choose another path", 2
+    if isinstance(exc, FileExistsError):
+        return f"{exc.filename or text} already exists and is not a folder; choose another path", 2
+    if isinstance(exc, KeyError):
+        return (f"missing key {exc.args[0]!r} in the input (a file or config lacks it; compare it with the format "
+                "the docs give)"), 2
     if isinstance(exc, IsADirectoryError):
         return f"{exc.filename or text} is a directory; give a file path", 2
     if isinstance(exc, PermissionError):
         return f"{exc.filename or text}: permission denied; choose a writable path", 2
-    if isinstance(exc, (ValueError, TypeError, KeyError)):
+    if isinstance(exc, (ValueError, TypeError)):
         return f"{text}", 2
     if isinstance(exc, MemoryError):
         return "out of memory; use a smaller input (fewer blocks, scenes or assets)", 1

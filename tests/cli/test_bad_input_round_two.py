@@ -40,3 +40,21 @@ def test_nested_machine_nan_is_one_line_not_a_crash(capsys) -> None:
     cfg = '{"scene": {"blocks": 1}, "machine": {"base": {"wheel_radius": NaN}}}'
     line = one_error_line(*cli(["sim", "eval", "--episodes", "1", "--config", cfg], capsys))
     assert "config.machine.base.wheel_radius must be a finite number" in line
+
+
+def test_paths_through_files_and_bare_keys_are_bad_input_with_a_fix() -> None:
+    from curbside.cli.errors import classify
+
+    line, code = classify(NotADirectoryError(20, "Not a directory", "/tmp/file/sub"))
+    assert code == 2 and "is a file, not a folder" in line
+    line, code = classify(FileExistsError(17, "File exists", "/tmp/x"))
+    assert code == 2 and "already exists" in line
+    line, code = classify(KeyError("task"))
+    assert code == 2 and line.startswith("missing key 'task'")
+
+
+def test_an_error_line_never_repeats_its_prefix(capsys) -> None:
+    from curbside.cli.errors import echo_error
+
+    echo_error("error: no such thing")
+    assert capsys.readouterr().err.strip() == "error: no such thing"
