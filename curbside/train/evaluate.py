@@ -48,7 +48,7 @@ def evaluate_policy_batched(act_batch: Callable[[np.ndarray], np.ndarray], env_c
     episode the ones `evaluate_policy` runs on the PyBullet env: episode k uses seed `seed + k` (batched sub-env i
     reset with seed s draws PointNavEnv.reset(seed=s)'s scene and route), in waves of `n_envs` episodes.
 
-    Returns sr, route_completion, cost (episode cost) and episodes: the transfer gap is the PyBullet figure minus this.
+    Returns sr, spl, route_completion, cost (episode cost) and episodes: the transfer gap is the PyBullet figure minus this.
     """
     from sim.batched import BatchedPointNav
 
@@ -66,11 +66,13 @@ def evaluate_policy_batched(act_batch: Callable[[np.ndarray], np.ndarray], env_c
                 for i in np.nonzero(term | trunc)[0].tolist():
                     if i < n and i not in finished:
                         fi = info["final_info"]
-                        finished[i] = {"success": float(fi["is_success"][i]), "cost": float(fi["episode_cost"][i]),
+                        finished[i] = {"success": float(fi["is_success"][i]), "spl": float(fi["spl"][i]),
+                                       "cost": float(fi["episode_cost"][i]),
                                        "route_completion": float(fi["route_completion"][i])}
             rows.extend(finished[i] for i in range(n))
     finally:
         env.close()
-    return {"sr": float(np.mean([r["success"] for r in rows])), "cost": float(np.mean([r["cost"] for r in rows])),
+    return {"sr": float(np.mean([r["success"] for r in rows])), "spl": float(np.mean([r["spl"] for r in rows])),
+            "cost": float(np.mean([r["cost"] for r in rows])),
             "route_completion": float(np.mean([r["route_completion"] for r in rows])), "episodes": len(rows),
             "split": split, "env": "batched"}

@@ -101,6 +101,7 @@ class BatchedPointNav(VectorEnv):
         self.slots = np.zeros(n, dtype=np.int64)
         self.scene_steps_left = np.zeros(n, dtype=np.int64)
         self.level = np.zeros(n, dtype=np.int64)
+        self.reference = np.zeros(n)  # SPL's reference length of each env's route
         self.labels = np.zeros(n, dtype=np.int64)
         self._started = False
         hl, hw = 0.5 * self.spec_machine.length, 0.5 * self.spec_machine.width
@@ -147,6 +148,7 @@ class BatchedPointNav(VectorEnv):
                 horizon = min(horizon, max(int(math.ceil(route.length / cfg["horizon_min_speed"] / self.dt)), 1))
             self.episodes.reset(k, horizon)
             self.routes.set(k, route)
+            self.reference[k] = self.store.reference_length(b, route)
             lengths[k], horizons[k] = route.length, horizon
         self._locate_level(envs)
         mask = np.zeros(self.num_envs, dtype=bool)
@@ -222,7 +224,8 @@ class BatchedPointNav(VectorEnv):
         """The last step's info of the finished envs plus their episode's metrics (masks: `done`)."""
         ep = self.episodes
         out = {k: v.copy() for k, v in info.items() if not k.startswith("_")}
-        out.update({"is_success": succeeded.copy(), "success": succeeded.astype(np.float64),
+        spl = np.where(succeeded, self.reference / np.maximum(np.maximum(ep.path_length, self.reference), 1e-9), 0.0)
+        out.update({"is_success": succeeded.copy(), "success": succeeded.astype(np.float64), "spl": spl,
                     "episode_cost": ep.cost_total.astype(np.float64), "path_length": ep.path_length.copy(),
                     "time": ep.steps * self.dt, "steps": ep.steps.copy()})
         out.update({f"collisions_{k}": c.copy() for k, c in ep.collision_counts.items()})

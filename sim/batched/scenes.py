@@ -31,6 +31,7 @@ class BuiltScene:
     slot: int
     planner: RoutePlanner
     pool: list[Route] = field(default_factory=list)
+    references: dict[int, float] = field(default_factory=dict)  # SPL's reference length of each pool route, by id
     users: int = 0  # envs whose episode runs in it now
 
 
@@ -76,6 +77,17 @@ class SceneStore:
             b = self.built.pop(idle)
             del self.by_slot[b.slot]
             self.atlas.remove(b.slot)
+
+    def reference_length(self, b: BuiltScene, route: Route) -> float:
+        """l of SPL, as PointNavEnv.reference_length: the geodesic to the route point where success is reached
+        (computed once for a pool route)."""
+        cached = b.references.get(id(route))
+        if cached is not None:
+            return cached
+        length = b.planner.geodesic_length(route, float(self.cfg["success_completion"]) * route.length)
+        if any(r is route for r in b.pool):
+            b.references[id(route)] = length
+        return length
 
     def route(self, b: BuiltScene, rng: np.random.Generator, options: Mapping[str, Any] | None, k: int) -> Route:
         """Env k's next route in `b`: between given points, drawn as PointNavEnv draws it, or from the pool."""

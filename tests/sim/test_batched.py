@@ -214,3 +214,28 @@ def test_make_vec_gives_the_batched_env_by_its_name_and_pybullet_envs_by_default
     obs, _ = envs.reset(seed=0)
     assert obs.shape == (3, 329)
     envs.close()
+
+
+def test_final_info_has_the_spl_of_the_pybullet_env():
+    cfg = {"scene_spec": street()}
+    route = {"start": [8.0, 5.6], "goal": [22.0, 5.6]}  # along the sidewalk, clear of the bin
+    ref, env = PointNavEnv(cfg), BatchedPointNav(1, cfg)
+    ref.reset(seed=0, options=route)
+    env.reset(seed=0, options=route)
+    reference = env.reference[0]  # (the autoreset at the episode's end draws a new route)
+    expert, actions = PurePursuitExpert(), []
+    for _ in range(400):  # the expert on the PyBullet env, its actions replayed on the batched env
+        actions.append(expert.act(ref))
+        _, _, term, trunc, info_ref = ref.step(actions[-1])
+        if term or trunc:
+            break
+    for a in actions:
+        _, _, term_b, trunc_b, info = env.step(np.asarray(a, dtype=np.float64)[None])
+        if term_b[0] or trunc_b[0]:
+            break
+    assert info_ref["is_success"] and info["final_info"]["is_success"][0]
+    spl, spl_ref = info["final_info"]["spl"][0], info_ref["spl"]
+    assert 0.8 < spl <= 1.0 and 0.8 < spl_ref <= 1.0
+    assert spl == pytest.approx(reference / max(info["final_info"]["path_length"][0], reference))
+    assert reference == pytest.approx(ref.reference_length())  # the same geodesic as the PyBullet env's
+    ref.close()
