@@ -68,7 +68,7 @@ def main() -> None:
         "command": "python benchmarks/" + " ".join(shlex.quote(a) for a in [Path(__file__).name, *sys.argv[1:]]),
         "steps": int(model.num_timesteps), "episodes": args.final_episodes, "split": "test",
         "pybullet": {k: pybullet[k] for k in ("sr", "spl", "cost", "route_completion")},
-        "batched": {k: batched[k] for k in ("sr", "cost", "route_completion")},
+        "batched": {k: batched[k] for k in ("sr", "spl", "cost", "route_completion")},
         "transfer_gap_sr": pybullet["sr"] - batched["sr"], "target_gap": 0.05,
         "train_seconds_this_call": round(train_s)}
     (args.out / "transfer.json").write_text(json.dumps(transfer, indent=2) + "\n")

@@ -170,6 +170,8 @@ class BatchedPointNav(VectorEnv):
         """Advance every env by dt (config, 0.1 s): drive, collide, sense, reward; finished envs reset in place."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
+        if np.iscomplexobj(actions):
+            raise ValueError("actions hold complex numbers; pass [steering, throttle_brake] per env as real numbers")
         a = np.asarray(actions, dtype=np.float64)
         if a.shape != (self.num_envs, 2):
             raise ValueError(f"actions must have shape ({self.num_envs}, 2) [steering, throttle_brake], got {a.shape}")

@@ -233,6 +233,8 @@ class PointNavEnv(gym.Env):
         self._check_open()
         if self.route is None:
             raise RuntimeError("call reset() before step() (no reset yet, or the last one failed)")
+        if np.iscomplexobj(action):
+            raise ValueError("the action holds complex numbers; pass [steering, throttle_brake] as real numbers")
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         if a.shape != (2,):
             raise ValueError(f"action must hold 2 values [steering, throttle_brake], got shape {np.shape(action)}")

@@ -62,6 +62,8 @@ class SceneSource:
         self.files: list[Path] = []
         self.fixed: Scene | None = None
         # Scene problems fail here, at construction, not at the first reset; a fixed scene is parsed only here.
+        # The `scene` dict as given is checked too (a split overrides some of its keys; a fixed scene ignores it).
+        resolve_config(config["scene"])
         if config["scene_spec"] is not None or config["scene_path"] is not None:
             self.kind = "fixed"
             self.fixed = load_scene(config, 0)
@@ -198,7 +200,7 @@ def trim_heap() -> None:
 
     A scene's arrays (LiDAR grids, planner graphs) are several MB each. Past its first frees glibc serves such
     arrays from the heap and keeps the freed ones, so without this RSS wanders by up to +-120 MB with the scenes
-    held before (benchmarks/results/issue14/bench_2026-11-25.txt); called after a new scene is built.
+    held before (benchmarks/results/sim_speed/bench_2026-11-25.txt); called after a new scene is built.
     """
     trim = _malloc_trim()
     if trim is not None:

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from kernel.config import ConfigError, merge_strict
+from kernel.config import ConfigError, excerpt, merge_strict
 from sim.metrics import POINTNAV_MEASURES
 from sim.scene.dataset import SPLITS
 from sim.camera import CAMERA_DEFAULTS, CAMERA_TABLE
@@ -233,6 +233,9 @@ def check_machine(machine: Any, name: str = "config.machine") -> None:
         if key == "base" and isinstance(value, Mapping):
             check_machine(value, f"{name}.base")
             continue
+        if key == "color" and not (isinstance(value, (list, tuple)) and len(value) == 4
+                                   and all(_number(c) and 0.0 <= c <= 1.0 for c in value)):
+            raise ConfigError(f"{name}.color must be [r, g, b, a], each in [0, 1], got {excerpt(value)}")
         rule = MACHINE_TABLE.get(key)
         if rule is not None and rule.kind == "pair" and _number(value):
             value = [value, value]  # a single force means a fixed force (machine_spec accepts it)
@@ -250,6 +253,9 @@ def check_config(cfg: Mapping[str, Any], table: Mapping[str, Any] | None = None,
     check_table(cfg, CONFIG_TABLE if table is None else table, name="config",
                 defaults=DEFAULT_CONFIG if defaults is None else defaults)
     check_machine(cfg["machine"])
+    if cfg["camera"]["near"] >= cfg["camera"]["far"]:
+        raise ConfigError(f"config.camera.near ({cfg['camera']['near']}) must be below config.camera.far "
+                          f"({cfg['camera']['far']})")
     if cfg["lidar"]["static"] == "grid" and cfg["collision"] != "box":
         raise ConfigError("config.lidar.static 'grid' traces the objects' boxes, but config.collision is "
                           f"{cfg['collision']!r}; use lidar.static 'bullet' (or 'auto') to ray-test the mesh hulls")
