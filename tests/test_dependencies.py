@@ -1,0 +1,63 @@
+"""Dependencies are declared, not inherited: every third-party module the packages import comes from a
+distribution pyproject.toml names (core or an extra), and the Makefile installs nothing behind pip's back."""
+
+from __future__ import annotations
+
+import ast
+import re
+import sys
+import tomllib
+from importlib.metadata import packages_distributions
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("kernel", "curbside", "sim", "catalogs", "pipelines", "retrieval")
+# Imported only where another declared package has already loaded it (kernel.reproducible quiets its progress bars).
+ALLOWED = {"huggingface_hub"}
+
+
+def _normal(name: str) -> str:
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
+def third_party_imports() -> dict[str, set[str]]:
+    """Top-level module -> the files importing it, over the project's packages (stdlib and own packages left out)."""
+    found: dict[str, set[str]] = {}
+    for top in PACKAGES:
+        for f in (ROOT / top).rglob("*.py"):
+            for node in ast.walk(ast.parse(f.read_text(encoding="utf-8"))):
+                if isinstance(node, ast.Import):
+                    mods = [a.name for a in node.names]
+                elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                    mods = [node.module]
+                else:
+                    continue
+                for m in mods:
+                    t = m.split(".")[0]
+                    if t not in PACKAGES and t not in sys.stdlib_module_names:
+                        found.setdefault(t, set()).add(str(f.relative_to(ROOT)))
+    return found
+
+
+def declared() -> set[str]:
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    reqs = project["dependencies"] + [r for extra in project["optional-dependencies"].values() for r in extra]
+    return {_normal(re.split(r"[<>=!~\[; ]", r)[0]) for r in reqs}
+
+
+def test_every_third_party_import_is_declared() -> None:
+    dists = packages_distributions()
+    names = declared()
+    missing = {m: sorted(files)[:3] for m, files in third_party_imports().items()
+               if m not in ALLOWED and not {_normal(d) for d in dists.get(m, [])} & names}
+    assert missing == {}
+
+
+def test_the_check_sees_an_undeclared_import() -> None:
+    dists = packages_distributions()
+    assert not {_normal(d) for d in dists.get("yaml", [])} <= {"numpy"}  # pyyaml is declared; the map resolves it
+    assert "pyyaml" in declared() and "d3rlpy" not in declared()
+
+
+def test_the_makefile_installs_nothing_without_its_dependencies() -> None:
+    assert "--no-deps" not in (ROOT / "Makefile").read_text()
