@@ -13,7 +13,7 @@ import numpy as np
 from pipelines.common import PipelineError, load_params, stage_cli, write_metrics, write_table
 
 DEFAULTS: dict[str, Any] = {
-    "eps": 0.12,
+    "eps": 0.15,
     "min_samples": 2,
     "descriptions": "data/describe/descriptions.parquet",
     "embeddings": "data/embed/embeddings.parquet",

@@ -113,7 +113,7 @@ class SuccessWeightedTimeLength(Measure):
     def value(self, env: Any, metrics: dict[str, float]) -> dict[str, float]:
         if not env.episode.succeeded:
             return {"stl": 0.0}
-        v = min(float(env.config.get("stl_cruise_speed", 2.5)), env.machine.spec.v_max)
+        v = min(float(env.config["stl_cruise_speed"]), env.machine.spec.v_max)
         t_ref = env.reference_length() / v
         t = max(env.episode.steps * env.dt, 1e-9)
         return {"stl": min(1.0, t_ref / t)}

@@ -30,7 +30,7 @@ class SocialNavEnv(PointNavEnv):
     | metrics | `psc`, `stl`, `sns` (docs/metrics.md) beside PointNav's |
     | `agent_states()` | structured array x, y, vx, vy, radius, kind (sim.agents.AGENT_DTYPE) |
     | `vehicle_states()` | structured array x, y, vx, vy, yaw, length, width |
-    | config | `agents` (sim.agents.AGENT_DEFAULTS), `vehicles`, `traffic`, `personal_space`, `stl_cruise_speed` |
+    | config | `agents` (sim.agents.AGENT_DEFAULTS), `vehicles`, `traffic`, `personal_space` |
 
     `render()` draws PointNav's dashboard (default; its map shows agents by kind with short trails), or camera
     "map" (the map alone), "top_down" or "chase" (sim/viewer.py).

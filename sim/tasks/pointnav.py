@@ -44,6 +44,7 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "physics_substeps": 5,            # Bullet substeps per env step (0.02 s each by default)
     "horizon": 1000,                  # truncation after at most this many steps
     "horizon_min_speed": 0.5,         # m/s: the horizon is also cut to route_length / this (None: fixed horizon)
+    "stl_cruise_speed": 2.5,          # m/s: STL's t_ref = geodesic / min(this, v_max); the expert's cruise speed
     "route_length": [10.0, 60.0],     # reference route length range in metres (>= 5 m)
     "route_margin": 0.25,             # extra clearance beyond the machine's half-width when planning
     "success_completion": 0.95,       # route fraction that counts as success
@@ -192,6 +193,7 @@ CONFIG_TABLE: dict[str, Any] = {
     "physics_substeps": Int(1, 100),
     "horizon": Int(1, 10_000_000),
     "horizon_min_speed": Pos(100.0, none=True),
+    "stl_cruise_speed": Pos(50.0, hint="m/s"),
     "route_length": Pair(Float(5.0, 100_000.0), hint="metres"),
     "route_margin": Float(0.0, 5.0),
     "success_completion": Float(0.0, 1.0, lo_open=True),

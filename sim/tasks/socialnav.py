@@ -73,7 +73,6 @@ CONFIG_TABLE: dict[str, Any] = {
     "vehicles": VEHICLES_TABLE,
     "traffic": Bool(),
     "personal_space": Float(0.0, 10.0, hint="metres between body surfaces"),
-    "stl_cruise_speed": Pos(50.0, hint="m/s"),
     "render": {**RENDER_TABLE, "camera": Choice("dashboard", "map", "top_down", "chase")},
 }
 
@@ -83,7 +82,6 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "vehicles": dict(VEHICLE_DEFAULTS),
     "traffic": True,  # vehicles on the roads
     "personal_space": 0.45,  # m between body surfaces (ego footprint to agent body): Hall's intimate distance
-    "stl_cruise_speed": 2.5,  # m/s; t_ref = geodesic / min(this, v_max); the expert's cruise speed
     "cost_kinds": ["object", "building", "agent", "vehicle"],
     "measures": list(SOCIALNAV_MEASURES),
 }
