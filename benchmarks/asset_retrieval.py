@@ -45,7 +45,7 @@ def main(n: int = 12, scorer: str = "aligned") -> None:
     for name, count in (("Objaverse", 800_000), ("Objaverse-XL", 10_000_000)):
         for workers in (16, 64, 256):
             print(f"| {name} | {count:,} | {workers} | {count / (per_core * workers) / 3600:.1f} |")
-    out = Path(__file__).parent / "results" / "issue17"
+    out = Path(__file__).parent / "results" / "retrieval"
     out.mkdir(parents=True, exist_ok=True)
     (out / f"asset_retrieval_{scorer}.json").write_text(json.dumps({
         "command": f"HF_HUB_OFFLINE=1 python benchmarks/asset_retrieval.py {n} --scorer {scorer}", "assets": done,

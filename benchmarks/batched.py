@@ -4,7 +4,7 @@ Usage: python benchmarks/batched.py [--envs 1 8 64 256] [--seconds S] [--route-p
 Every run drives the bench scene (sim.bench.bench_scene, ~150-200 objects, 240 + 60 LiDAR beams) under the fixed
 action cycle of benchmarks/vector_envs.py, resets included (SAME_STEP autoreset; with route_pool 0 every reset
 plans a new route, as the PyBullet env does). Steps are counted over all envs per wall-clock second and per CPU
-second of this process; the scene's one-off build (distance grids, route planner) is not timed. Target (issue 14):
+second of this process; the scene's one-off build (distance grids, route planner) is not timed. Target:
 >= 5,000 env steps/s with 64 envs on the 2-core dev machine. Other processes share the CPU: the 1-minute load
 average is printed beside each figure, and the figures are lower bounds when it is above 0.
 """
@@ -70,7 +70,7 @@ if __name__ == "__main__":
     ap.add_argument("--seconds", type=float, default=10.0, help="timed seconds per configuration")
     ap.add_argument("--route-pool", type=int, nargs="+", default=[0, 64], help="route_pool values to run")
     ap.add_argument("--out", type=Path, default=None, help="append the command and results to this file "
-                    f"(e.g. benchmarks/results/issue14/batched_{date.today()}.txt)")
+                    f"(e.g. benchmarks/results/sim_speed/batched_{date.today()}.txt)")
     args = ap.parse_args()
     spec = bench_scene()
     lines = [json.dumps(pybullet_rate(spec, args.seconds), sort_keys=True)]

@@ -4,9 +4,9 @@ Run: `python benchmarks/catalog_query.py [--sizes 10000 100000] [--repeats 50] [
 Rows are synthetic but realistic (categories, classes, zones, sizes, sources, licences) with random unit
 vectors as text embeddings; the end-to-end figure adds embedding the query text with all-MiniLM-L6-v2
 (in numpy, as `curbside catalog query` does, or with `--encoder torch` through sentence-transformers).
-Target (issue 2): p95 <= 100 ms at 100,000 assets on a 2-core machine. Figures are printed, never asserted.
+Target: p95 <= 100 ms at 100,000 assets on a 2-core machine. Figures are printed, never asserted.
 
-Cold mode (issue 12): `python benchmarks/catalog_query.py --cold 5 [--catalog PATH]` runs the CLI
+Cold mode: `python benchmarks/catalog_query.py --cold 5 [--catalog PATH]` runs the CLI
 `curbside catalog query "fire hydrant" --json --limit 5` in a fresh process N times on the procedural catalog
 (built into a temporary folder unless --catalog names one) and prints each run's wall and CPU time,
 then the warm figure: the same query in one process (encoder loaded, connection open), p50/p95.

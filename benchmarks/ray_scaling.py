@@ -1,8 +1,8 @@
-"""Beyond one machine (issue 18): throughput with 1 vs 2 Ray workers, RLlib vs SB3, and a simulated 8-node run.
+"""Beyond one machine: throughput with 1 vs 2 Ray workers, RLlib vs SB3, and a simulated 8-node run.
 
 Usage: python benchmarks/ray_scaling.py --budget {smoke,full} [--out DIR] [--parts scenes,eval,ppo,nodes]
 
-Prints and writes (ray_scaling.json, ray_scaling.csv under --out, default benchmarks/results/issue18):
+Prints and writes (ray_scaling.json, ray_scaling.csv under --out, default benchmarks/results/ray_scaling):
 - scenes/s of `curbside scenes dataset` (the metaurban12k preset, 3 blocks) on a local Ray cluster of 1 and of 2
   CPUs, timed after the workers have started and imported the simulator (the cluster start is reported apart), in
   `rounds` back-to-back pairs (1 worker, then 2; 3 pairs with the full budget), the figure the median pair's ratio;
@@ -275,7 +275,7 @@ def main(budget: str, out: Path, parts: tuple[str, ...] = PARTS) -> dict[str, An
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--budget", choices=sorted(BUDGETS), default="smoke")
-    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "issue18")
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "ray_scaling")
     parser.add_argument("--parts", default=",".join(PARTS), help="comma-separated subset of " + ", ".join(PARTS))
     args = parser.parse_args()
     chosen = tuple(p for p in PARTS if p in args.parts.split(","))

@@ -2,7 +2,7 @@
 trained on) and on the primitive mesh set (hand-built, not procedural), 33 category prompts as the pool.
 
 Run: HF_HUB_OFFLINE=1 python benchmarks/retrieval_eval.py   (about 6 minutes on 2 cores)
-Writes benchmarks/results/issue17/retrieval_eval.{json,md}.
+Writes benchmarks/results/retrieval/retrieval_eval.{json,md}.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import json
 import tempfile
 from pathlib import Path
 
-OUT = Path(__file__).parent / "results" / "issue17"
+OUT = Path(__file__).parent / "results" / "retrieval"
 SCORERS = {  # name -> ScoringConfig fields
     "aligned (one global threshold, default)": {"image_encoder": "aligned"},
     "aligned (calibrated thresholds)": {"image_encoder": "aligned", "thresholds": "calibrated"},

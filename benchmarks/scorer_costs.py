@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-OUT = Path(__file__).parent / "results" / "issue17"
+OUT = Path(__file__).parent / "results" / "retrieval"
 
 
 def _views(n: int = 3, size: int = 160) -> list[np.ndarray]:

@@ -1,7 +1,7 @@
 """Simulator benchmark: env steps/s vs the raw PyBullet floor, reset time, RSS growth over resets and new scenes.
 
 Usage: python benchmarks/sim_steps.py [--quick] [--task PointNav|SocialNav]   (same as `curbside sim bench`)
-Targets on the 2-core dev machine (issue 14): PointNav >= 1,000 steps per CPU-second and >= 0.8 of the floor;
+Targets on the 2-core dev machine: PointNav >= 1,000 steps per CPU-second and >= 0.8 of the floor;
 SocialNav (20 agents + traffic) >= 800; RSS growth < 20 MB over 1,000 resets and over 1,000 new scenes.
 """
 

@@ -5,7 +5,7 @@ the same speed, PAPER_SPEED (5 m/s: the paper's x-displacement over time to fall
 machines), with an ideal traction-limited drive, so the trial compares bodies and wheels on the terrain;
 `--speed 0` drives each machine at full throttle with its own engine and top speed instead.
 
-    python benchmarks/table4.py --seeds 10 --out benchmarks/results/issue16
+    python benchmarks/table4.py --seeds 10 --out benchmarks/results/terrain
 
 Prints a table (mean over seeds, each seed a different runway), whether each runway ranks the machines as the paper
 does, and writes table4.csv, table4.json and table4.png to --out.

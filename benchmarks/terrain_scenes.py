@@ -1,9 +1,9 @@
-"""Terrain in generated scenes (issue 16, docs/terrain.md): patches per scene by kind at the default density, and
+"""Terrain in generated scenes (docs/terrain.md): patches per scene by kind at the default density, and
 what terrain costs scene generation, the PyBullet world build and the grid LiDAR's grids at the PointNav defaults
 (terrain density 0 against the default, the two interleaved per seed so that load from other processes falls on
 both alike).
 
-Usage: python benchmarks/terrain_scenes.py [--count 30] [--blocks 3] [--out benchmarks/results/issue16/terrain_scenes]
+Usage: python benchmarks/terrain_scenes.py [--count 30] [--blocks 3] [--out benchmarks/results/terrain/terrain_scenes]
 Writes terrain_scenes.json (per-seed rows and the summary) and terrain_scene.png (the first seed's scene plot).
 """
 
@@ -22,7 +22,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--count", type=int, default=30)
     ap.add_argument("--blocks", type=int, default=3)
-    ap.add_argument("--out", default="benchmarks/results/issue16/terrain_scenes")
+    ap.add_argument("--out", default="benchmarks/results/terrain/terrain_scenes")
     args = ap.parse_args()
     from rich.progress import track
 

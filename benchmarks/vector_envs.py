@@ -3,7 +3,7 @@
 Usage: python benchmarks/vector_envs.py [--task PointNav|SocialNav] [--workers N] [--per-worker K] [--steps S]
                                         [--rounds R] [--out results.json]
 Every side runs the bench scene (sim.bench.bench_scene) under the same fixed action cycle and counts env steps per
-wall-clock second. Target (issue 14): with N = cores workers the vector env reaches >= 1.8x one process on the
+wall-clock second. Target: with N = cores workers the vector env reaches >= 1.8x one process on the
 2-core dev machine. Measured, one after another in each of R rounds (this VM's speed drifts by 20 % over minutes,
 so each ratio divides two rates taken seconds apart, and the summary is the median round):
   one       one env stepped in a process of its own (resets included, as a vector env has them);

@@ -4,10 +4,10 @@ Run: `python benchmarks/world_memory.py [--builds 1000] [--envs 200] [--specs 50
 - builds: `sim.world.World` built N times in one Bullet client (what an env's scene cache does when it moves to
   another scene), cycling over `--specs` generated scene specs (default generator config, seeds 0..specs-1);
 - envs: `gym.make("curbside/PointNav-v0")`, one reset, close, N times (each env its own Bullet client).
-`--pybullet-leak` builds with the plain pybullet calls instead of `sim.world.mesh_shape` (the behaviour before
-issue 12) for comparison. RSS is read after gc.collect(); "trimmed" is after glibc's malloc_trim(0), which
+`--pybullet-leak` builds with the plain pybullet calls instead of `sim.world.mesh_shape` (pybullet's leak of
+mesh vertex lists) for comparison. RSS is read after gc.collect(); "trimmed" is after glibc's malloc_trim(0), which
 returns freed heap pages, so growth that disappears there is allocator high-water, not a leak.
-Target (issue 12): 1,000 scene builds grow RSS < 20 MB. Figures are printed, never asserted.
+Target: 1,000 scene builds grow RSS < 20 MB. Figures are printed, never asserted.
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ def trimmed_rss_mb() -> float:
 
 def plain_mesh_shape(create: Callable[..., int], vertices: Sequence, indices: Sequence | None = None,
                      **kwargs: Any) -> int:
-    """The pybullet call without giving back its references (the pre-issue-12 behaviour)."""
+    """The pybullet call without giving back its references (pybullet's own leak)."""
     if indices is None:
         return create(p.GEOM_MESH, vertices=vertices, **kwargs)
     return create(p.GEOM_MESH, vertices=vertices, indices=indices, **kwargs)
@@ -113,7 +113,7 @@ def main() -> None:
     args = ap.parse_args()
     if args.pybullet_leak:
         sim.world.mesh_shape = plain_mesh_shape
-    mode = "plain pybullet calls (before issue 12)" if args.pybullet_leak else "sim.world.mesh_shape"
+    mode = "plain pybullet calls (leaking)" if args.pybullet_leak else "sim.world.mesh_shape"
     print(f"mesh shapes via {mode}; pybullet {p.getAPIVersion()}")
     results = []
     if args.builds:

@@ -18,7 +18,7 @@ from catalogs.reader import CatalogReader
 from catalogs.records import AssetRecord
 from catalogs.schema import CatalogError, CatalogLocked
 
-DIM_TOLERANCE = 0.02  # recorded extents must match the mesh bounding box within 2 % (issue 2)
+DIM_TOLERANCE = 0.02  # recorded extents must match the mesh bounding box within 2 %
 ABS_TOLERANCE = 1e-3  # metres; keeps millimetre-thin parts (sign plates) from failing on rounding alone
 
 

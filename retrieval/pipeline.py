@@ -52,7 +52,7 @@ class IngestConfig:
 
     def __post_init__(self) -> None:
         # Checked here, once, so a bad value stops the run before any asset: inside a step it would become a
-        # per-asset rejection of every asset, remembered by content hash (issue 12: --views 0).
+        # per-asset rejection of every asset, remembered by content hash (e.g. --views 0).
         from retrieval.render import MAX_VIEWS
 
         if not (isinstance(self.n_views, int) and 1 <= self.n_views <= MAX_VIEWS):

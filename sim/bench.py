@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from kernel.quiet import pybullet as p
 
-# Terrain off: the bench times the step code on the scene its recorded figures (benchmarks/results/issue14) ran on;
+# Terrain off: the bench times the step code on the scene its recorded figures (benchmarks/results/sim_speed) ran on;
 # terrain patches (docs/terrain.md) add ~20 static meshes and a friction lookup, not step-code work worth timing.
 BENCH_SCENE = {"blocks": 3, "object_density": 2.5, "terrain": {"density": 0.0}}
 TASKS = ("PointNav", "SocialNav")
@@ -85,7 +85,7 @@ def _env_steps(env: Any, steps: int) -> tuple[int, float, float]:
 
 def _floor(env: Any, steps: int) -> tuple[float, float]:
     """(CPU, wall) steps/s of the raw floor: the same world's Bullet substeps and one 240-ray Bullet batch a step
-    (the issue's definition, whichever backend the env's LiDAR uses: with `lidar.static` grid the env can beat it)."""
+    (the target's definition, whichever backend the env's LiDAR uses: with `lidar.static` grid the env can beat it)."""
     from sim.sensors import Lidar
 
     c, m, lid = env.client, env.machine, env.lidar

@@ -14,7 +14,7 @@ from curbside.cli.errors import RunError, UsageError
 from curbside.cli.executor_options import Executor  # kernel.executors.EXECUTORS, one choice across the CLI
 
 # Option choices as Enums and ranges, so click refuses a bad value before the catalog is touched: a bad value
-# reaching the per-asset steps would be recorded as every asset's rejection (issue 12).
+# reaching the per-asset steps would be recorded as every asset's rejection.
 Scorer = Enum("Scorer", {e: e for e in ("aligned", "imagenet", "clip", "blip", "blip2", "none")},
               type=str)  # retrieval.scoring.IMAGE_ENCODERS
 MeshSet = Enum("MeshSet", {e: e for e in ("procedural", "primitives")}, type=str)

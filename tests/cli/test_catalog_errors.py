@@ -1,4 +1,4 @@
-"""Issue 12 on the catalog side: a corrupt, locked or misplaced catalog gives one accurate error line, no traceback.
+"""Bad input on the catalog side: a corrupt, locked or misplaced catalog gives one accurate error line, no traceback.
 
 Every command runs through `curbside.cli.errors.run` (what the console script does), on real DuckDB files.
 """

@@ -1,6 +1,6 @@
-"""Every CLI option whose default mirrors a config default agrees with it (issue 13: the CLI reads defaults from
-the configs). The CLI keeps literals where the config module is heavy (pybullet, torch, duckdb), so `--help` stays
-light; this test is what keeps the two equal."""
+"""Every CLI option whose default mirrors a config default agrees with it. The CLI reads its defaults from the
+configs, except where the config module is heavy (pybullet, torch, duckdb): there it keeps literals, so `--help`
+stays light, and this test is what keeps the two equal."""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
 """The experiment runner and report: every shipped file loads, a killed experiment resumes without redoing finished
-runs, the report writes the issue's columns beside the paper's numbers; bad input is one line, exit 2."""
+runs, the report writes its columns (`report.COLUMNS`) beside the paper's numbers; bad input is one line,
+exit 2."""
 
 from __future__ import annotations
 

@@ -85,7 +85,7 @@ def test_pool_show_cli(descriptions, embedded, tmp_path):
 
 
 def test_pool_show_country_absent_from_the_pool(descriptions, embedded, tmp_path, capsys):
-    """A valid country the pool lacks is an error naming the countries present, not an empty table (issue 12)."""
+    """A valid country the pool lacks is an error naming the countries present, not an empty table."""
     texts, vecs, _ = embedded
     build_pool(descriptions, texts, vecs, eps=0.3, min_samples=2).to_parquet(tmp_path / "p.parquet")
     argv = ["pool", "show", "--pool", str(tmp_path / "p.parquet")]

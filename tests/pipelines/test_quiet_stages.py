@@ -1,4 +1,4 @@
-"""DVC stage processes print one summary line each: no third-party progress bars or banners (issue 12).
+"""DVC stage processes print one summary line each: no third-party progress bars or banners.
 
 The stages run as dvc runs them, in a subprocess with the suite's environment minus the variables conftest sets
 to quiet Hugging Face, so the stage code itself must do it.

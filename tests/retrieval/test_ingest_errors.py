@@ -1,4 +1,4 @@
-"""Issue 12 on the ingest side: configuration errors are never per-asset rejections, rejections remember the
+"""Bad input on the ingest side: configuration errors are never per-asset rejections, rejections remember the
 configuration that produced them, a bad sidecar rejects only its asset, and objaverse downloads are atomic."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Bad input on the simulator and scene side fails at once, as one line naming the problem and the fix (issue 12).
+"""Bad input on the simulator and scene side fails at once, as one line naming the problem and the fix.
 
 CLI paths go through `curbside.cli.errors.run` (what the console script runs) or a real `curbside` process where
 the process matters (pybullet's banner, stdout kept clean); env and scene configs fail at construction with the

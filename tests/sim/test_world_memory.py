@@ -1,4 +1,4 @@
-"""World builds keep no memory: pybullet's leaked references to mesh vertex lists are given back (issue 12)."""
+"""World builds keep no memory: pybullet's leaked references to mesh vertex lists are given back."""
 
 from __future__ import annotations
 

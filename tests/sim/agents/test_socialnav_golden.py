@@ -1,20 +1,14 @@
 """SocialNav's golden episodes: the hash of observations, rewards, infos and cohabitant states of fixed episodes.
 
-Speed-ups of the crowd, traffic, bodies and LiDAR (issue 14) claim to preserve behaviour bit for bit; this test
+Speed-ups of the crowd, traffic, bodies and LiDAR claim to preserve behaviour bit for bit; this test
 holds them to it. The episodes cover agents of six kinds spawned along the route (the ego meets them) and on the
 sidewalks (the bench crowd), standing groups that disperse or walk on, road crossings, pushes, idling, running,
 and dense traffic that turns at junctions, respawns and yields at crosswalks; the expert drives two episodes,
 seeded random actions (collisions) the others.
 
-GOLDEN was computed on the code before the speed-ups (a219157) and re-recorded once, when the world's static bodies
-became maximal-coordinate rigid bodies (issue 14: half of Bullet's substep time): that changes the contact solver's
-rounding, and over 24 SocialNav and PointNav episodes (12 seeds each, expert and random actions, 200 steps) every
-episode kept its length and outcome, 23 kept their trajectories bit for bit and one moved by at most 5e-15 m; and
-re-recorded again when `RoutePlanner.sample` moved from Dijkstra to A* (sim/astar.py): the routes themselves changed
-(a goal is now drawn within the maximum length in a straight line, and A* breaks ties between equal-cost paths
-differently), so the episodes did; the step code did not; and re-recorded when the per-step info gained
-`cost_exceeded` (the episode end of `max_episode_cost`): with that key left out of the hash, the episodes hash as on
-the commit before (checked on AVX2), so only the info changed. numpy's float results differ between CPU kinds
+GOLDEN is re-recorded only for a change that alters the episodes on purpose (the contact solver's rounding, how
+routes are sampled, a key added to the per-step info), after checking that the episodes keep their lengths and
+outcomes; the commit that re-records it says why. numpy's float results differ between CPU kinds
 (its AVX-512 build uses SVML for power, arctan2, hypot), so the hash is kept per CPU kind and the test skips on a
 kind without one: compute it there on a behaviour-preserving commit (`python tests/sim/agents/test_socialnav_golden.py`
 prints it and the CPU kind) and add it.
@@ -29,7 +23,7 @@ from typing import Any
 import numpy as np
 
 # Per CPU kind: numpy's transcendental kernels (SVML on AVX-512) and hence the doubles depend on it.
-# The AVX-512 hash awaits a machine of that kind (the last one recorded predates `cost_exceeded`).
+# No AVX-512 hash is recorded: it awaits a machine of that kind.
 GOLDEN = {("x86_64", "AVX2"): "5bccd2f8fca043d9cdb534d5e451c0d3c7bab7e571df1f437d1117d659a22011"}
 
 ROUTE_CROWD = {"counts": {"pedestrian": 16, "cyclist": 3, "wheelchair_user": 3, "scooter_rider": 2, "robot_dog": 1,
