@@ -182,3 +182,36 @@ def test_a_killed_demos_collect_leaves_the_previous_dataset_whole(tmp_path: Path
         proc.wait(timeout=60)
         ds = minari.MinariDataset(tmp_path / "curbside" / "pointnav-expert-v0" / "data")
         assert ds.total_steps in (first, 400) or ds.total_steps >= 400, delay  # old whole, or the new one whole
+
+
+def test_the_same_generators_through_the_cli_end_in_one_error_line(tmp_path: Path, capfd) -> None:
+    """Nested machine configs (`sim eval --config`) and YAML documents (`scenes generate --from`) as a user types them:
+    exit 2, one `error:` line, no traceback, nothing written."""
+    import json
+
+    import typer
+
+    from curbside.cli.errors import run
+    from curbside.cli.main import app
+
+    command = typer.main.get_command(app)
+    rng = np.random.default_rng(2)
+    machines = machine_cases()
+    argvs = []
+    for k in rng.choice(len(machines), size=80, replace=False):
+        cfg = json.dumps({"scene": {"blocks": 1}, "machine": machines[int(k)]})  # NaN / Infinity as JSON allows
+        argvs.append(["sim", "eval", "--episodes", "1", "--config", cfg])
+    for n, doc in enumerate(yaml_cases(np.random.default_rng(1))):
+        f = tmp_path / f"custom_{n}.yaml"
+        f.write_text(doc)
+        argvs.append(["scenes", "generate", "--from", str(f), "--out", str(tmp_path / f"scene_{n}.json")])
+    capfd.readouterr()
+    bad = []
+    for argv in argvs:
+        code = run(command, argv)
+        out, err = capfd.readouterr()
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        if not (code == 2 and len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in out + err):
+            bad.append(f"{argv[-3:]}: exit {code}, {lines[:2]}")
+    assert len(argvs) >= 120 and not bad, f"{len(bad)} of {len(argvs)}:\n" + "\n".join(bad[:15])
+    assert not list(tmp_path.glob("scene_*.json"))
