@@ -101,6 +101,13 @@ def generate(
 
     _file_out(out, "scene.json")
     if from_file is not None:
+        given = [name for name, value, default in (("--blocks", blocks, "3"), ("--seed", seed, 0),
+                                                   ("--templates", templates, "abcdef"),
+                                                   ("--object-density", object_density, 1.0), ("--country", country, None))
+                 if value != default]
+        if given:
+            raise UsageError(f"--from takes the scene's settings from its file; drop {', '.join(given)} (or set them "
+                             "in the file: blocks, templates, seed, objects.density, objects.country)")
         from sim.scene.custom import generate_custom, generator_config, load_custom
 
         custom = load_custom(from_file)

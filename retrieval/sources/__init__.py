@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+from kernel.config import ConfigError
+
 
 @dataclass
 class SourceItem:
@@ -88,6 +90,8 @@ def open_source(spec: str, **options: Any) -> Source:
         chosen = tuple(s.strip() for s in spec.split(":", 1)[1].split(",")) if ":" in spec else XL_SOURCES
         return ObjaverseXLSource(sources=chosen, **options)
     if spec.startswith("local:"):
+        if not spec[len("local:"):].strip():
+            raise ConfigError("--source local: needs a folder, as in local:path/to/meshes")
         from retrieval.sources.local import LocalSource
 
         return LocalSource(spec[len("local:"):], **options)

@@ -30,7 +30,7 @@ import numpy as np
 from shapely.geometry import LineString, Point, Polygon
 
 from catalogs.categories import CATEGORIES, NAMES, category
-from kernel.config import ConfigError, load_yaml, merge_strict
+from kernel.config import ConfigError, excerpt, load_yaml, merge_strict
 from sim.scene.occupancy import rect
 from sim.scene.spec import round_points, round_value
 
@@ -56,6 +56,9 @@ def check_custom(data: Mapping[str, Any], where: str = "custom scene") -> dict[s
     from sim.agents.kinds import agent_kind
 
     c = merge_strict(KEYS, data, name=where)
+    seed = c["seed"]
+    if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2**32:
+        raise ConfigError(f"{where}: seed must be an integer in [0, 2**32), got {excerpt(seed)}")
     if not isinstance(c["generator"], Mapping):
         raise ConfigError(f"{where}: generator must be a mapping of scene generator keys, got {c['generator']!r}")
     taken = sorted(set(c["generator"]) & {"blocks", "templates", "object_density", "country"})

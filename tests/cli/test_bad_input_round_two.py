@@ -58,3 +58,26 @@ def test_an_error_line_never_repeats_its_prefix(capsys) -> None:
 
     echo_error("error: no such thing")
     assert capsys.readouterr().err.strip() == "error: no such thing"
+
+
+@pytest.mark.parametrize("seed", ["true", "100000000000000000000000", "-1", "'7'"])
+def test_a_custom_scene_seed_must_be_an_integer_in_range(seed, tmp_path, capsys) -> None:
+    f = tmp_path / "custom.yaml"
+    f.write_text(f"seed: {seed}\nblocks: 1\n")
+    line = one_error_line(*cli(["scenes", "generate", "--from", str(f), "--out", str(tmp_path / "s.json")], capsys))
+    assert "seed must be an integer in [0, 2**32)" in line
+
+
+def test_from_with_generator_options_is_refused(tmp_path, capsys) -> None:
+    f = tmp_path / "custom.yaml"
+    f.write_text("seed: 1\nblocks: 1\n")
+    line = one_error_line(*cli(["scenes", "generate", "--from", str(f), "--blocks", "5", "--out",
+                                str(tmp_path / "s.json")], capsys))
+    assert "drop --blocks" in line
+
+
+def test_an_empty_local_source_is_refused(tmp_path, capsys, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    line = one_error_line(*cli(["catalog", "ingest", "--source", "local:", "--catalog", str(tmp_path / "c.duckdb")],
+                               capsys))
+    assert "local: needs a folder" in line and not (tmp_path / "c.duckdb").exists()
