@@ -14,7 +14,8 @@ import typer
 
 from catalogs import DEFAULT_CATALOG  # light: only the schema constants
 from catalogs.schema import DEFAULT_TEXT_MODEL_NAMES, OBJECT_CLASSES, ZONES
-from curbside.cli.errors import RunError, UsageError
+from curbside.cli import catalog_ingest
+from curbside.cli.errors import UsageError, catalog_cli_errors
 from curbside.cli.extras import require
 
 # Option choices as Enums, so click refuses a bad value before any catalog is opened, listing the valid ones.
@@ -33,26 +34,11 @@ def _emit_json(doc: object) -> None:
     sys.stdout.flush()
 
 
-@contextlib.contextmanager
-def _catalog_errors(catalog: Path) -> Iterator[None]:
-    """Map catalog failures to the CLI's error style: locked -> exit 1 (wait, retry), missing/corrupt/other -> 2."""
-    from catalogs.reader import catalog_errors
-    from catalogs.schema import CatalogError, CatalogLocked
-
-    try:
-        with catalog_errors(catalog):  # DuckDB errors raised while reading (a damaged block) get the same words
-            yield
-    except CatalogLocked as e:
-        raise RunError(str(e)) from e
-    except CatalogError as e:
-        raise UsageError(str(e)) from e
-
-
 def _open(catalog: Path):
     """Open the catalog read-only, turning a missing, locked, corrupt or incompatible catalog into one error line."""
     from catalogs.reader import open_catalog
 
-    with _catalog_errors(catalog):
+    with catalog_cli_errors(catalog):
         return open_catalog(catalog)
 
 
@@ -111,7 +97,7 @@ def build(
     with _quiet_ml():
         from retrieval.build import build_procedural_catalog
 
-        with _catalog_errors(catalog):
+        with catalog_cli_errors(catalog):
             report = build_procedural_catalog(catalog, variants=variants, seed=seed, categories=category or None)
     Console().print(
         f"[green]built[/] {catalog}: {report.n_assets} assets in {len(report.per_category)} categories "
@@ -144,7 +130,7 @@ def query(
                            zone=zone.value if zone else None, max_height=max_height, source=source, license=license)
     con = _open(catalog)
     # Checksum errors surface while blocks are read, not on open: the whole read maps to one error line.
-    with _catalog_errors(catalog), contextlib.closing(con):
+    with catalog_cli_errors(catalog), contextlib.closing(con):
         text_model = read_meta(con).get("embedding_model")
         vec = _embed_query(text_model, text)
         view_vec = None
@@ -196,7 +182,7 @@ def show(
     """Show every recorded field of one asset, with its files resolved to absolute paths."""
     from catalogs.reader import CatalogReader
 
-    with _catalog_errors(catalog):
+    with catalog_cli_errors(catalog):
         reader = CatalogReader(catalog)
     try:
         rec = reader.get(asset_id)
@@ -226,7 +212,7 @@ def stats(catalog: Path = CatalogOpt, as_json: bool = JsonOpt) -> None:
     from catalogs.inspect import catalog_stats
 
     con = _open(catalog)
-    with _catalog_errors(catalog), contextlib.closing(con):  # a damaged block shows while counting
+    with catalog_cli_errors(catalog), contextlib.closing(con):  # a damaged block shows while counting
         doc = catalog_stats(con)
     doc["catalog"] = str(catalog)
     if as_json:
@@ -267,7 +253,7 @@ def export(
         # DuckDB's COPY would fail deep inside with an IO error; say what to pass instead.
         raise UsageError(f"--out {out} is a directory; give a file path such as {out / ('assets.' + fmt)}")
     con = _open(catalog)
-    with _catalog_errors(catalog), contextlib.closing(con):
+    with catalog_cli_errors(catalog), contextlib.closing(con):
         n = export_assets(con, fmt, out)
     from rich.console import Console
 
@@ -284,7 +270,7 @@ def validate(
 
     if not catalog.exists() or catalog.is_dir():
         _open(catalog)  # raises the standard "build it with ..." error
-    with _catalog_errors(catalog):  # only a locked catalog gets here: corruption is reported as a problem below
+    with catalog_cli_errors(catalog):  # only a locked catalog gets here: corruption is reported as a problem below
         n, problems = validate_catalog(catalog, progress=not as_json)
     if as_json:
         _emit_json({"catalog": str(catalog), "assets_checked": n, "ok": not problems,
@@ -325,7 +311,4 @@ def contact_sheet_cmd(
     Console(stderr=True).print(f"[green]wrote[/] {out} ({len(assets)} categories)", highlight=False)
 
 
-# The retrieval pipeline's commands live in their own module; registered last so they list after the core ones.
-from curbside.cli import catalog_ingest
-
-catalog_ingest.register(app)
+catalog_ingest.register(app)  # the retrieval pipeline's commands, listed after the core ones

@@ -10,7 +10,7 @@ from pathlib import Path
 import typer
 
 from catalogs import DEFAULT_CATALOG  # light: only the schema constants
-from curbside.cli.errors import RunError, UsageError
+from curbside.cli.errors import RunError, UsageError, catalog_cli_errors
 from curbside.cli.executor_options import Executor  # kernel.executors.EXECUTORS, one choice across the CLI
 
 # Option choices as Enums and ranges, so click refuses a bad value before the catalog is touched: a bad value
@@ -60,7 +60,6 @@ def register(app: typer.Typer) -> None:
         """Retrieve assets from a source, render, score and curate them into the catalog (resumable)."""
         from rich import print as rprint
 
-        from curbside.cli.catalog import _catalog_errors
         from retrieval.ingest import IngestConfig, ingest
         from retrieval.scoring import ScoringConfig
         from retrieval.sources import open_source
@@ -77,7 +76,7 @@ def register(app: typer.Typer) -> None:
                 thresholds=Thresholds(thresholds).value))
         except (ValueError, FileNotFoundError) as exc:
             raise UsageError(str(exc)) from None
-        with _catalog_errors(catalog), _source_errors():
+        with catalog_cli_errors(catalog), _source_errors():
             report = ingest(src, catalog, config, executor=Executor(executor).value, workers=workers, address=address,
                             limit=limit)
         rprint(f"[bold]ingest[/bold] {source} -> {catalog}: written {report.written}, rejected {report.rejected} "

@@ -8,10 +8,12 @@ values); `run` maps every exception to its line and code, so no command needs it
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from pathlib import Path
 
 import click
 import typer
@@ -152,3 +154,18 @@ def parse_config_json(config_json: str | None, option: str = "--config") -> dict
     if not isinstance(cfg, dict):
         raise UsageError(f"{option} must be a JSON object, got a JSON {type(cfg).__name__}; pass e.g. {CONFIG_EXAMPLE}")
     return cfg
+
+
+@contextlib.contextmanager
+def catalog_cli_errors(catalog: Path) -> Iterator[None]:
+    """Map catalog failures to the CLI's error style: locked -> exit 1 (wait, retry), missing/corrupt/other -> 2."""
+    from catalogs.reader import catalog_errors
+    from catalogs.schema import CatalogError, CatalogLocked
+
+    try:
+        with catalog_errors(catalog):  # DuckDB errors raised while reading (a damaged block) get the same words
+            yield
+    except CatalogLocked as e:
+        raise RunError(str(e)) from e
+    except CatalogError as e:
+        raise UsageError(str(e)) from e
