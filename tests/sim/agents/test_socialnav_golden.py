@@ -106,7 +106,7 @@ if __name__ == "__main__":
 
 
 def test_scalar_reward_matches_batch() -> None:
-    """Reward.__call__ (sim.tasks.step_reward: Python floats, every env step) gives batch()'s double (numpy, the batched env) bit for bit."""
+    """Reward.__call__ (Python floats, every env step) gives batch()'s double (numpy, the batched env) bit for bit."""
     from sim.tasks.pointnav import REWARD_PRESETS, Reward
 
     rng = np.random.default_rng(0)
