@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import shapely
 from shapely.geometry import Polygon
@@ -9,7 +11,9 @@ from shapely.strtree import STRtree
 
 from sim.scene.geometry import clean
 from sim.scene.roads import Block, Roadway
-from sim.scene.sidewalks import Sidewalk
+
+if TYPE_CHECKING:  # sidewalks imports this module's helpers; the type is all this module needs of it
+    from sim.scene.sidewalks import Sidewalk
 
 SEAM_HALF = 3.0  # m each side of a seam that a patch may cover: the width of the joint a walker gets
 MIN_SHARED = 0.5  # m of common boundary for two sidewalks to count as joined (a wheelchair needs more; corners give it)

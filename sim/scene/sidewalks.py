@@ -12,6 +12,7 @@ from shapely.geometry import LineString, Polygon
 from kernel.config import ConfigError
 from sim.scene.config import TEMPLATES
 from sim.scene.geometry import clean, largest, longest_line, strip
+from sim.scene.network import connecting_picks, join_seams, sidewalk_groups
 from sim.scene.roads import Block, Roadway
 
 
@@ -109,8 +110,6 @@ class _Taken:
 
 def build_sidewalks(blocks: list[Block], cfg: dict[str, Any], rng: np.random.Generator) -> list[Sidewalk]:
     """Sidewalks on every roadway side; earlier sidewalks claim shared corners, so no two overlap."""
-    from sim.scene.network import join_seams
-
     roads = [b.polygon for b in blocks] + [b.island for b in blocks if b.island is not None]
     taken = _Taken(roads)
     out: list[Sidewalk] = []
@@ -200,8 +199,6 @@ def build_crosswalks(blocks: list[Block], sidewalks: list[Sidewalk], cfg: dict[s
         draws = rng.random(len(candidates))
         chosen = list(draws < float(cfg["crosswalk_density"]))
         if cfg["connect_crosswalks"] and candidates:
-            from sim.scene.network import connecting_picks, sidewalk_groups
-
             # Without these extra crossings, streets whose draws all failed would split the network in two.
             index = {id(sw): i for i, sw in enumerate(sidewalks)}
             pairs = [(index[id(c[4])], index[id(c[5])]) for c in candidates]
