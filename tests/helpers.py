@@ -1,7 +1,9 @@
-"""Helpers the test modules share: run the `curbside` command as its console script does, read its one error line."""
+"""Helpers the test modules share: run the `curbside` command as its console script does, read its one error line,
+list the modules a source file imports."""
 
 from __future__ import annotations
 
+import ast
 from collections.abc import Sequence
 
 import pytest
@@ -30,3 +32,14 @@ def one_error_line(code: int, out: str, err: str, exit_code: int = 2) -> str:
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("error: "), err
     return lines[0]
+
+
+def absolute_imports(source: str) -> list[str]:
+    """Every module `source` imports by absolute name (`import a.b`, `from a.b import c`), in order."""
+    mods: list[str] = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            mods += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            mods.append(node.module)
+    return mods

@@ -7,6 +7,8 @@ import re
 import subprocess
 from pathlib import Path
 
+from tests.helpers import absolute_imports
+
 ROOT = Path(__file__).resolve().parents[1]
 KERNEL = {"kernel"}
 # What each room may import from the other rooms (the kernel is shared by all; the CLI and training sit on top).
@@ -35,18 +37,11 @@ def _target(module: str) -> str | None:
 def bad_imports(room: str, source: str) -> list[str]:
     """The modules `source` (a file of `room`) imports against the data flow."""
     bad = []
-    for node in ast.walk(ast.parse(source)):
-        if isinstance(node, ast.Import):
-            mods = [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            mods = [node.module]
-        else:
-            continue
-        for m in mods:
-            t = _target(m)
-            own = "kernel" if t in KERNEL else t
-            if t is not None and own != room and t not in ALLOWED[room]:
-                bad.append(m)
+    for m in absolute_imports(source):
+        t = _target(m)
+        own = "kernel" if t in KERNEL else t
+        if t is not None and own != room and t not in ALLOWED[room]:
+            bad.append(m)
     return bad
 
 

@@ -3,12 +3,13 @@ distribution pyproject.toml names (core or an extra), and the Makefile installs 
 
 from __future__ import annotations
 
-import ast
 import re
 import sys
 import tomllib
 from importlib.metadata import packages_distributions
 from pathlib import Path
+
+from tests.helpers import absolute_imports
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("kernel", "curbside", "sim", "catalogs", "pipelines", "retrieval")
@@ -25,17 +26,10 @@ def third_party_imports() -> dict[str, set[str]]:
     found: dict[str, set[str]] = {}
     for top in PACKAGES:
         for f in (ROOT / top).rglob("*.py"):
-            for node in ast.walk(ast.parse(f.read_text(encoding="utf-8"))):
-                if isinstance(node, ast.Import):
-                    mods = [a.name for a in node.names]
-                elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-                    mods = [node.module]
-                else:
-                    continue
-                for m in mods:
-                    t = m.split(".")[0]
-                    if t not in PACKAGES and t not in sys.stdlib_module_names:
-                        found.setdefault(t, set()).add(str(f.relative_to(ROOT)))
+            for m in absolute_imports(f.read_text(encoding="utf-8")):
+                t = m.split(".")[0]
+                if t not in PACKAGES and t not in sys.stdlib_module_names:
+                    found.setdefault(t, set()).add(str(f.relative_to(ROOT)))
     return found
 
 
