@@ -14,8 +14,12 @@ mkdir "$WORK/src"
 python3 -m venv "$WORK/venv"
 PY="$WORK/venv/bin/python"
 echo "plain pip: installing torch (CPU) and .[train] into a fresh venv"
-"$PY" -m pip install -q torch==2.13.0 2>&1 | grep -v "is ignored" || true
-"$PY" -m pip install -q "$WORK/src[train]" 2>&1 | grep -v "is ignored" || true
+quiet_pip() {  # pip's notes about the machine's unreachable local indexes are noise; its exit status is kept
+    "$PY" -m pip install -q "$@" 2>&1 | { grep -v "is ignored" || true; }
+    return "${PIPESTATUS[0]}"
+}
+quiet_pip torch==2.13.0
+quiet_pip "$WORK/src[train]"
 "$PY" -m pip check
 cd "$WORK"
 export MINARI_DATASETS_PATH="$WORK/minari" MPLBACKEND=Agg
