@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -71,9 +72,12 @@ def run(budget_name: str, tasks: list[str], algos: list[str], out: Path, fresh: 
             done = (run_dir / POLICY_FILES[algo]).is_file() and (run_dir / "timing.json").is_file()
             if fresh or not done:
                 t0 = time.time()
+                if fresh and run_dir.exists():
+                    shutil.rmtree(run_dir)  # --fresh: this run starts over
+                online = algo in ("ppo", "ppo_lag", "ppo_et", "gail")  # the budget's hparams are PPO's
                 train(algo, task, run_dir, steps=steps, n_envs=budget["envs"], num_scenes=budget["scenes"],
                       demos=demos, eval_every=budget["eval_every"] if algo in ("ppo", "ppo_lag", "ppo_et") else 0,
-                      hparams=budget["hparams"], resume=not fresh)
+                      hparams=budget["hparams"] if online else {}, resume=(run_dir / "run.json").is_file())
                 (run_dir / "timing.json").write_text(json.dumps({"train_seconds": time.time() - t0, "steps": steps}))
             timing = json.loads((run_dir / "timing.json").read_text())
             act, _ = load_policy(run_dir)

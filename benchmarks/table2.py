@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -53,8 +54,10 @@ def run(budget_name: str, machines: list[str], out: Path, fresh: bool) -> list[d
         cfg = {"machine": machine}
         if fresh or not (run_dir / POLICY_FILES["ppo"]).is_file():
             t0 = time.time()
+            if fresh and run_dir.exists():
+                shutil.rmtree(run_dir)  # --fresh: this run starts over
             train("ppo", "PointNav", run_dir, steps=b["steps"], env_config=cfg, n_envs=b["envs"],
-                  num_scenes=b["scenes"], hparams=b["hparams"], resume=not fresh)
+                  num_scenes=b["scenes"], hparams=b["hparams"], resume=(run_dir / "run.json").is_file())
             print(f"[{machine}] trained {b['steps']} steps in {time.time() - t0:.0f} s", flush=True)
         act, _ = load_policy(run_dir)
         for k, block in enumerate(BLOCKS):
