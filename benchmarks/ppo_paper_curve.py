@@ -132,15 +132,16 @@ def plot(out: Path) -> None:
     if (out / "curve.csv").is_file():
         with open(out / "curve.csv", newline="") as f:
             rows = list(csv.DictReader(f))
-    transfer = json.loads((out / "transfer.json").read_text())
+    transfer = json.loads((out / "transfer.json").read_text()) if (out / "transfer.json").is_file() else None
     fig, ax = plt.subplots(figsize=(6.5, 3.6))
     steps = [int(r["steps"]) / 1e6 for r in rows]
     ax.plot(steps, [float(r["sr"]) for r in rows], marker="o", label="test SR (PyBullet)")
     ax.plot(steps, [float(r["route_completion"]) for r in rows], marker=".", ls="--", label="test route completion")
-    end = transfer["steps"] / 1e6
-    ax.scatter([end], [transfer["pybullet"]["sr"]], marker="*", s=120, color="C0",
-               label=f"final SR, PyBullet ({transfer['episodes']} ep.)")
-    ax.scatter([end], [transfer["batched"]["sr"]], marker="x", s=80, color="C3", label="final SR, batched env")
+    if transfer is not None:  # the final policy on the same episodes on both envs
+        end = transfer["steps"] / 1e6
+        ax.scatter([end], [transfer["pybullet"]["sr"]], marker="*", s=120, color="C0",
+                   label=f"final SR, PyBullet ({transfer['episodes']} ep.)")
+        ax.scatter([end], [transfer["batched"]["sr"]], marker="x", s=80, color="C3", label="final SR, batched env")
     ax.axhline(0.66, color="gray", ls=":", lw=1, label="paper PPO test SR 0.66")
     ax.set_xlabel("env steps (millions), paper protocol, batched backend")
     ax.set_ylim(0, 1)
