@@ -19,6 +19,9 @@ from sim.scene.polyline import Polyline
 from sim.scene.scene import Scene, as_scene
 
 LONG_ROUTE = 120.0  # metres: longer routes are drawn as chained legs
+# Scenes an env draws before a reset gives up: a scene of a large pool may hold no route of the asked length (a
+# fragmented sidewalk network), and one such scene must not end a training run or an evaluation.
+ROUTE_REDRAWS = 8
 
 
 class RouteError(RuntimeError):

@@ -29,6 +29,7 @@ from sim.envs.reset_options import check_reset_options
 from sim.envs.scenes import SceneSource
 from sim.machines import machine_spec
 from sim.raycast.grids import CROSSWALK, KIND_NAMES, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
+from sim.route import ROUTE_REDRAWS, Route, RouteError
 from sim.schema import Int
 from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward,
                                 resolve_task_config)
@@ -131,18 +132,9 @@ class BatchedPointNav(VectorEnv):
         cfg = self.config
         lengths, horizons = np.zeros(self.num_envs), np.zeros(self.num_envs, dtype=np.int64)
         for k in envs.tolist():
-            rng = self.rngs[k]
-            b = self.built[k]
-            if b is None or self.scene_steps_left[k] <= 0:
-                key, load = self.sources.draw(rng)
-                if b is not None:
-                    self.store.release(b)
-                b = self.built[k] = self.store.acquire(key, load)
-                self.scene_steps_left[k] = int(cfg["scene_steps"])
-            self.slots[k] = b.slot
-            route = self.store.route(b, rng, options, k)
+            b, route = self._draw_route(k, options)
             yaw = route.heading_at(0.0)
-            self.drive.reset(k, float(route.start[0]), float(route.start[1]), yaw, rng)
+            self.drive.reset(k, float(route.start[0]), float(route.start[1]), yaw, self.rngs[k])
             horizon = int(cfg["horizon"])
             if cfg["horizon_min_speed"] is not None:
                 horizon = min(horizon, max(int(math.ceil(route.length / cfg["horizon_min_speed"] / self.dt)), 1))
@@ -154,6 +146,26 @@ class BatchedPointNav(VectorEnv):
         mask = np.zeros(self.num_envs, dtype=bool)
         mask[envs] = True
         return {"route_length": lengths, "_route_length": mask, "horizon": horizons, "_horizon": mask.copy()}
+
+    def _draw_route(self, k: int, options: Mapping[str, Any] | None) -> tuple[BuiltScene, Route]:
+        """Env k's scene (a new one when its `scene_steps` are spent) and next route; a scene with no route of
+        the asked length is swapped for another draw, up to ROUTE_REDRAWS scenes."""
+        rng = self.rngs[k]
+        for attempt in range(ROUTE_REDRAWS):
+            b = self.built[k]
+            if b is None or self.scene_steps_left[k] <= 0 or attempt > 0:
+                key, load = self.sources.draw(rng)
+                if b is not None:
+                    self.store.release(b)
+                b = self.built[k] = self.store.acquire(key, load)
+                self.scene_steps_left[k] = int(self.config["scene_steps"])
+            self.slots[k] = b.slot
+            try:
+                return b, self.store.route(b, rng, options, k)
+            except RouteError:
+                if options or attempt == ROUTE_REDRAWS - 1:
+                    raise
+        raise AssertionError("unreachable")
 
     def _locate_level(self, envs: np.ndarray | None = None) -> None:
         """Walkable labels under the machines (off-walkable ends, which level the machine is on)."""

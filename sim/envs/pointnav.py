@@ -18,7 +18,7 @@ from sim.envs.reset_options import check_reset_options
 from sim.envs.scenes import SceneCache, SceneSlot, SceneSource, build_slot, trim_heap
 from sim.machines import Machine, machine_spec
 from sim.metrics import make_measures
-from sim.route import RoutePlanner
+from sim.route import ROUTE_REDRAWS, RouteError, RoutePlanner
 from sim.scene.scene import Scene
 from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward,
                                 resolve_task_config)
@@ -202,9 +202,15 @@ class PointNavEnv(gym.Env):
         self.route = None  # a reset that fails leaves no episode to step
         super().reset(seed=seed)
         rng = self.np_random
-        self._ensure_scene(rng)
         lo, hi = (float(v) for v in self.config["route_length"])
-        self.route = self.planner.plan(*route_points) if route_points else self.planner.sample(rng, lo, hi)
+        for attempt in range(ROUTE_REDRAWS):
+            self._ensure_scene(rng)
+            try:
+                self.route = self.planner.plan(*route_points) if route_points else self.planner.sample(rng, lo, hi)
+                break
+            except RouteError:
+                if route_points or attempt == ROUTE_REDRAWS - 1:
+                    raise
         start = self.route.start
         yaw = self.route.heading_at(0.0)
         m = self.machine

@@ -203,3 +203,35 @@ def test_socialnav_start_height_ignores_the_last_episodes_agents(spec):
     assert fresh.machine.position[2] < 0.5  # on the sidewalk, not on a pedestrian's head
     used.close()
     fresh.close()
+
+
+def test_a_scene_without_a_route_of_the_asked_length_is_swapped_for_another(tmp_path):
+    """A 1-block scene holds no 150-200 m route; in a folder beside a 4-block scene, every reset of the PyBullet
+    and the batched env lands in the large scene instead of failing. Alone, the small scene still fails clearly."""
+    import shutil
+
+    from sim.batched import BatchedPointNav
+    from sim.route import RouteError
+    from sim.scene.dataset import build_dataset
+
+    build_dataset("test", 2, tmp_path / "mixed", base={"blocks": 1})
+    build_dataset("test", 1, tmp_path / "large", base={"blocks": 4})
+    small, second = sorted((tmp_path / "mixed" / "scenes").glob("*.json"))
+    shutil.copy(tmp_path / "large" / "scenes" / "test_01000000.json", second)
+    cfg = {"scene_dir": str(tmp_path / "mixed"), "split": "test", "num_scenes": None, "route_length": [150.0, 200.0]}
+    env = PointNavEnv(cfg)
+    for seed in range(4):
+        _, info = env.reset(seed=seed)
+        assert env.slot.key[1].endswith(second.name) and 150.0 <= info["route_length"] <= 200.0
+    env.close()
+    batched = BatchedPointNav(3, {**cfg, "scene_steps": 1})
+    _, info = batched.reset(seed=0)
+    for _ in range(3):
+        assert all(150.0 <= length <= 200.0 for length in info["route_length"])
+        assert all(b.key[1].endswith(second.name) for b in batched.built)
+        _, info = batched.reset()
+    batched.close()
+    alone = PointNavEnv({"scene_path": str(small), "route_length": [150.0, 200.0]})
+    with pytest.raises(RouteError, match="no route between 150.0 and 200.0 m"):
+        alone.reset(seed=0)
+    alone.close()
