@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from curbside.train.demos import Transitions
+from curbside.train.policies import save_policy
 from curbside.train.progress import progress_bar
 
 DISC_NET_ARCH = (256, 256)  # the discriminator's MLP (the paper does not give one; the policy's size)
@@ -55,9 +56,7 @@ def train_bc(demos: Transitions, out: Path, *, steps: int, observation_space: An
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    path = out / "policy.zip"
-    policy.save(str(path))
-    return path
+    return save_policy(policy, out / "policy.zip")
 
 
 class Discriminator:
@@ -166,7 +165,6 @@ def train_gail(demos: Transitions, out: Path, *, steps: int, venv: Any, hparams:
     learner = PPO("MlpPolicy", DiscriminatorReward(venv), seed=seed, device="cpu", **ppo_kwargs(hparams))
     learner.set_logger(configure(str(out / "logs"), ["csv"]))
     learner.learn(total_timesteps=steps, callback=TrainDiscriminator())
-    path = out / "policy.zip"
-    learner.save(str(path))
-    torch.save(disc.net.state_dict(), out / "discriminator.pt")
-    return path
+    torch.save(disc.net.state_dict(), out / "discriminator.tmp.pt")
+    (out / "discriminator.tmp.pt").replace(out / "discriminator.pt")
+    return save_policy(learner, out / "policy.zip")

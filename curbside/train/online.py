@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from curbside.train.policies import save_policy
 from kernel.config import ConfigError
 
 ONLINE_ALGOS = ("ppo", "ppo_lag", "ppo_et")
@@ -136,9 +137,7 @@ def train_online(algo: str, task: str, out: Path, *, steps: int, env_config: Map
                     reset_num_timesteps=latest is None)
     finally:
         vec.close()
-    path = out / "policy.zip"
-    model.save(path)
-    return path
+    return save_policy(model, out / "policy.zip")
 
 
 def check_init_from(run_dir: Path, algo: str, task: str, env_config: Mapping[str, Any],

@@ -16,6 +16,16 @@ POLICY_FILES = {"ppo": "policy.zip", "ppo_lag": "policy.zip", "ppo_et": "policy.
                 "bc": "policy.zip", "iql": "policy.pt", "td3bc": "policy.pt"}
 
 
+def save_policy(model: Any, path: Path) -> Path:
+    """`model.save` (an SB3 algorithm or policy) to `path` through a file beside it, swapped in whole: a kill while
+    saving leaves the previous policy, never half a zip."""
+    path = Path(path)
+    tmp = path.with_name(f"{path.stem}.tmp{path.suffix}")
+    model.save(str(tmp))
+    tmp.replace(path)
+    return path
+
+
 def check_algo(algo: str) -> str:
     """`algo` if it is a known algorithm; otherwise a ConfigError naming the valid ones."""
     if algo not in ALGOS:

@@ -235,3 +235,20 @@ def test_a_run_is_never_overwritten_and_resume_needs_the_same_run(demos, tmp_pat
     line = one_error_line(*cli([*base, "--algo", "ppo", "--resume", "--out", str(tmp_path / "empty")], capsys))
     assert "holds no run to continue" in line
     assert (out / "policy.zip").read_bytes() == before
+
+
+def test_a_policy_save_that_fails_leaves_the_previous_policy(tmp_path) -> None:
+    """save_policy writes beside the old file and swaps: a save that fails (here its temporary path is a folder, so
+    SB3 writes elsewhere and the swap fails) raises and leaves the previous policy as it was."""
+    from stable_baselines3 import PPO
+
+    from curbside.train.policies import save_policy
+
+    model = PPO("MlpPolicy", "Pendulum-v1", n_steps=64, batch_size=64, device="cpu", seed=0)
+    path = save_policy(model, tmp_path / "policy.zip")
+    before = path.read_bytes()
+    (tmp_path / "policy.tmp.zip").mkdir()
+    with pytest.warns(UserWarning, match="is a folder"), pytest.raises(NotADirectoryError):
+        save_policy(model, path)
+    assert path.read_bytes() == before
+    assert PPO.load(path, device="cpu").n_steps == 64
