@@ -104,6 +104,18 @@ def classify(exc: BaseException) -> tuple[str, int]:
     return f"{name}: {text} (rerun with --debug for the traceback)", 1
 
 
+def empty_option(args: Sequence[str]) -> str | None:
+    """The first option given an empty value (`--out ''` or `--out=`), if any: no option of curbside takes one."""
+    for k, a in enumerate(args):
+        if a == "--":
+            return None
+        if a.startswith("--") and a.endswith("=") and len(a) > 3:
+            return a[:-1]
+        if a.startswith("-") and len(a) > 1 and k + 1 < len(args) and args[k + 1] == "":
+            return a
+    return None
+
+
 def run(command: click.Command, argv: Sequence[str] | None = None, prog_name: str = "curbside") -> int:
     """Run a click/typer command with the project's error style and return its exit code."""
     args = list(sys.argv[1:] if argv is None else argv)
@@ -111,6 +123,11 @@ def run(command: click.Command, argv: Sequence[str] | None = None, prog_name: st
     args = [a for a in args if a != "--debug"]
     if debug:
         os.environ[DEBUG_ENV] = "1"
+    empty = empty_option(args)
+    if empty is not None:
+        # An empty path would mean the working directory (Path("") is "."): files would land where no one looks.
+        echo_error(f"{empty} is empty; give it a value (see the command's --help)")
+        return 2
     try:
         rv = command.main(args=args, prog_name=prog_name, standalone_mode=False)
     except click.exceptions.Exit as e:  # typer.Exit raised outside click's own handling

@@ -57,6 +57,15 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
             agent_kind(kind)
         if any(v < 0 for v in self.config["mix"].values()) or sum(self.config["mix"].values()) <= 0:
             raise ConfigError("agents config mix needs non-negative shares with a positive sum")
+        # The counts are known now; a density's agent count depends on the scene, but none fits in max_agents 0.
+        c = self.config
+        asked = sum(int(v) for v in c["counts"].values()) if c["counts"] else None
+        if asked is not None and asked > c["max_agents"]:
+            raise ConfigError(f"agents config counts ask for {asked} agents but max_agents is {c['max_agents']}; "
+                              "lower the counts or raise max_agents")
+        if asked is None and c["dynamic_density"] > 0 and c["max_agents"] < 1:
+            raise ConfigError(f"agents config max_agents is 0 with dynamic_density {c['dynamic_density']:g}; set "
+                              "dynamic_density 0 for no agents, or raise max_agents")
         if self.config["lookahead_cells"] not in (1, 2, 4, 8):
             raise ConfigError(f"agents config lookahead_cells must be 1, 2, 4 or 8, got {self.config['lookahead_cells']}")
         self.grid: NavGrid | None = None

@@ -33,6 +33,7 @@ from sim.route import ROUTE_REDRAWS, Route, RouteError
 from sim.schema import Int
 from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward,
                                 resolve_task_config)
+from sim.tasks.sensors import check_lidar_reach
 
 BATCHED_DEFAULTS: dict[str, Any] = {
     **DEFAULT_CONFIG,
@@ -78,6 +79,7 @@ class BatchedPointNav(VectorEnv):
         self.num_envs = n = num_envs
         self.render_mode = None
         self.spec_machine = machine_spec(cfg["machine"])
+        check_lidar_reach(cfg["lidar"], self.spec_machine.length, self.spec_machine.width)
         self.reward_fn = make_reward(cfg["reward_preset"], cfg["reward"])
         self.dt = float(cfg["dt"])
         self.substeps = int(cfg["physics_substeps"])

@@ -22,6 +22,7 @@ from sim.route import ROUTE_REDRAWS, RouteError, RoutePlanner
 from sim.scene.scene import Scene
 from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward,
                                 resolve_task_config)
+from sim.tasks.sensors import check_lidar_reach
 from sim.tasks.termination import Termination
 from sim.viewer import close_window, render_frame, served_render_modes
 from sim.world import World, touching
@@ -88,6 +89,7 @@ class PointNavEnv(gym.Env):
         self.render_mode = render_mode
         check_config(cfg, self.config_table, self.default_config)  # every value, before anything is built on it
         self.spec_machine = machine_spec(cfg["machine"])
+        check_lidar_reach(cfg["lidar"], self.spec_machine.length, self.spec_machine.width)
         self.reward_fn = make_reward(cfg["reward_preset"], cfg["reward"])
         self.dt = float(cfg["dt"])
         self.substeps = int(cfg["physics_substeps"])

@@ -25,6 +25,7 @@ from sim.machines import Machine
 from sim.raycast.grids import build_grids
 from sim.route import RoutePlanner
 from sim.scene.config import resolve_config
+from sim.scene.grid import SIDEWALK
 from sim.scene.scene import Scene
 from sim.sensors import GridLidar, Lidar
 from sim.tasks.pointnav import MAX_SEED, static_lidar
@@ -48,6 +49,14 @@ class SceneSlot:
     state: dict[str, Any] = field(default_factory=dict)
 
 
+def check_has_sidewalks(scene: Scene, source: str) -> None:
+    """A ConfigError unless `scene` lists a sidewalk and its walkable raster holds sidewalk cells: routes start and
+    end on sidewalks, so a scene without them fails every reset."""
+    if not scene.sidewalks or not (scene.walkable.mask == SIDEWALK).any():
+        raise ConfigError(f"{source} has no sidewalk (its `sidewalks` list or its walkable raster is empty of them); "
+                          "routes run on sidewalks: generate a scene with `curbside scenes generate` or add them")
+
+
 class SceneSource:
     """Which scene an episode runs in: a fixed spec or file, a dataset folder's split, or generated seeds."""
 
@@ -67,6 +76,8 @@ class SceneSource:
         if config["scene_spec"] is not None or config["scene_path"] is not None:
             self.kind = "fixed"
             self.fixed = load_scene(config, 0)
+            check_has_sidewalks(self.fixed, "config.scene_spec" if config["scene_spec"] is not None
+                                else f"config.scene_path {config['scene_path']}")
         elif config["scene_dir"] is not None:
             self.kind = "dir"
             self.files = dataset_scenes(config["scene_dir"], config["split"])

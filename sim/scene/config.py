@@ -89,7 +89,7 @@ CONFIG_TABLE: dict[str, Rule] = {
     "blocks": Rule("any"),  # a count or codes: checked in resolve_config (1 to MAX_BLOCKS)
     "block_types": Rule("str"),  # letters checked by check_codes (its message lists them)
     "templates": Rule("str"),
-    "lanes": Pair(Float(1, 4), hint="lanes per direction"),
+    "lanes": Pair(Int(1, 4), hint="lanes per direction, whole numbers"),
     "lane_width": Pair(Float(1.0, 10.0), hint=_M),
     "straight_length": Pair(Float(5.0, 500.0), hint=_M),
     "curve_radius": Pair(Float(5.0, 1000.0), hint=_M),
@@ -165,7 +165,6 @@ def resolve_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
     check_codes(cfg["block_types"], BLOCK_CODES, what="block code(s) in block_types")
     cfg["templates"] = "".join(sorted(set(str(cfg["templates"]).lower())))
     check_codes(cfg["templates"], TEMPLATE_NAMES, what="sidewalk template(s)")
-    cfg["lanes"] = [int(cfg["lanes"][0]), int(cfg["lanes"][1])]
     if cfg["density_model"] == "paper" and cfg["fill_gap"] < MIN_FILL_GAP:
         raise ConfigError(f"scene config.fill_gap must be >= {MIN_FILL_GAP} m with density_model 'paper', got {cfg['fill_gap']!r}")
     bad = [c for c in cfg["exclude_categories"] if c not in NAMES]

@@ -215,3 +215,25 @@ def test_the_same_generators_through_the_cli_end_in_one_error_line(tmp_path: Pat
             bad.append(f"{argv[-3:]}: exit {code}, {lines[:2]}")
     assert len(argvs) >= 120 and not bad, f"{len(bad)} of {len(argvs)}:\n" + "\n".join(bad[:15])
     assert not list(tmp_path.glob("scene_*.json"))
+
+
+@pytest.mark.parametrize("argv", [
+    ["scenes", "dataset", "--split", "test", "--count", "1", "--out", ""],
+    ["scenes", "generate", "--out="],
+    ["sim", "eval", "--episodes", "1", "--out", ""],
+    ["demos", "collect", "--task", "PointNav", "--steps", "50", "--out", ""],
+    ["train", "run", "--algo", "ppo", "--task", "PointNav", "--steps", "64", "--out", ""],
+])
+def test_an_empty_option_value_is_refused_before_anything_is_written(argv, tmp_path, monkeypatch, capfd) -> None:
+    """`--out ''` would mean the working directory: refused in one line, exit 2, and the folder stays empty."""
+    import typer
+
+    from curbside.cli.errors import run
+    from curbside.cli.main import app
+
+    monkeypatch.chdir(tmp_path)
+    code = run(typer.main.get_command(app), argv)
+    err = capfd.readouterr().err.strip().splitlines()
+    assert code == 2 and err == [f"error: {argv[-1].rstrip('=') if argv[-1] else argv[-2]} is empty; give it a value "
+                                 "(see the command's --help)"]
+    assert not list(tmp_path.iterdir())
