@@ -60,12 +60,14 @@ def evaluate_policy_batched(act_batch: Callable[[np.ndarray], np.ndarray], env_c
         for first in range(seed, seed + episodes, n_envs):
             n = min(n_envs, seed + episodes - first)
             obs, _ = env.reset(seed=[first + i for i in range(n_envs)])
+            env.autoreset[n:] = False  # the last wave's spare envs, and each env once its episode is in
             finished: dict[int, dict[str, float]] = {}
             while len(finished) < n:
                 obs, _, term, trunc, info = env.step(np.asarray(act_batch(obs), dtype=np.float32).reshape(n_envs, 2))
                 for i in np.nonzero(term | trunc)[0].tolist():
                     if i < n and i not in finished:
                         fi = info["final_info"]
+                        env.autoreset[i] = False
                         finished[i] = {"success": float(fi["is_success"][i]), "spl": float(fi["spl"][i]),
                                        "cost": float(fi["episode_cost"][i]),
                                        "route_completion": float(fi["route_completion"][i])}

@@ -54,7 +54,9 @@ class BatchedPointNav(VectorEnv):
 
     Autoreset is SAME_STEP (as curbside.train.sharded): a finished env is reset within `step`; its last observation is
     `info["final_obs"][i]` and its last info (with the episode's metrics) is `info["final_info"]` under mask
-    `info["_final_info"]`. Per-step info: `cost`, `route_completion`, `out_of_route`, `stuck`, `cost_exceeded`, and `collisions`
+    `info["_final_info"]`. Envs whose `autoreset[i]` is False are not reset when they finish (an evaluation that has
+all its episodes of env i sets it: a reset there would build a scene no one uses); they keep stepping their finished
+episode until the next `reset()`, which sets every flag back. Per-step info: `cost`, `route_completion`, `out_of_route`, `stuck`, `cost_exceeded`, and `collisions`
     (bit mask of the kinds touched: `sim.batched.episodes.KIND_BITS`).
     """
 
@@ -107,6 +109,7 @@ class BatchedPointNav(VectorEnv):
         self.reference = np.zeros(n)  # SPL's reference length of each env's route
         self.labels = np.zeros(n, dtype=np.int64)
         self._started = False
+        self.autoreset = np.ones(n, dtype=bool)
         hl, hw = 0.5 * self.spec_machine.length, 0.5 * self.spec_machine.width
         res = self.atlas.resolution
         u, w = np.meshgrid(np.linspace(-hl, hl, int(math.ceil(2 * hl / res)) + 1),
@@ -127,6 +130,7 @@ class BatchedPointNav(VectorEnv):
             if s is not None or not self._started:
                 self.rngs[i] = np.random.default_rng(s)
         self._started = True
+        self.autoreset[:] = True
         info = self._reset_envs(np.arange(self.num_envs), None if points is None else dict(zip(("start", "goal"), points)))
         return self._observe(), info
 
@@ -226,13 +230,14 @@ class BatchedPointNav(VectorEnv):
         info.update({f"_{k}": on for k in list(info)})
         done = terminated | truncated
         if done.any():
-            envs = np.nonzero(done)[0]
             final_obs = np.full(self.num_envs, None, dtype=object)
-            for k in envs.tolist():
+            for k in np.nonzero(done)[0].tolist():
                 final_obs[k] = obs[k].copy()
             final_info = self._final_info(info, done, succeeded)
-            info.update(self._reset_envs(envs, None))
-            obs[envs] = self._observe()[envs]
+            envs = np.nonzero(done & self.autoreset)[0]
+            if len(envs):
+                info.update(self._reset_envs(envs, None))
+                obs[envs] = self._observe()[envs]
             info.update({"final_obs": final_obs, "_final_obs": done, "final_info": final_info, "_final_info": done})
         return obs, reward, terminated, truncated, info
 

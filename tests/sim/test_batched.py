@@ -158,6 +158,20 @@ def test_vector_env_api_and_same_step_autoreset():
     assert obs in env.observation_space
 
 
+def test_an_env_with_autoreset_off_is_not_reset_until_the_next_reset_call():
+    env = BatchedPointNav(3, {"scene_spec": street(), "horizon": 6, "horizon_min_speed": None})
+    env.reset(seed=1)
+    env.autoreset[1] = False
+    for _ in range(6):
+        obs, _, term, trunc, info = env.step(np.zeros((3, 2)))
+    assert (term | trunc).all() and info["_final_info"].all()  # every episode's end is reported
+    assert info["_route_length"].tolist() == [True, False, True]  # env 1 was not reset
+    assert np.array_equal(obs[1], info["final_obs"][1]) and not np.array_equal(obs[0], info["final_obs"][0])
+    env.reset(seed=1)
+    assert env.autoreset.all()
+    env.close()
+
+
 def test_same_seed_same_arrays_and_pointnav_draws():
     def run(seed: int) -> list[np.ndarray]:
         env = BatchedPointNav(2, {"scene_spec": street(), "num_waypoints": 4})
