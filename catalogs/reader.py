@@ -33,6 +33,10 @@ from catalogs.schema import (
 )
 
 
+class CatalogWriteFailed(CatalogError):
+    """The catalog could not be written (a full disk, a size limit): the input is fine, the machine is not; exit 1."""
+
+
 def catalog_error(exc: BaseException, path: str | Path) -> CatalogError:
     """The accurate CatalogError for a DuckDB failure on the catalog at `path`: locked, corrupt or not a catalog."""
     p = Path(path)
@@ -44,6 +48,11 @@ def catalog_error(exc: BaseException, path: str | Path) -> CatalogError:
         return CatalogLocked(
             f"catalog {p} is locked: {who} has it open for writing (an ingest or build still running?); the file is "
             f"not damaged; wait for that process to finish (or stop it), then retry"
+        )
+    if any(words in msg for words in ("No space left", "File too large", "Disk quota", "Could not write")):
+        return CatalogWriteFailed(
+            f"cannot write catalog {p}: the disk is full or the file passes a size limit ({msg}); free space or pass "
+            f"a --catalog on another disk, then rerun (a catalog already at {p} is unchanged)"
         )
     if "Corrupt database file" in msg or "checksum" in msg:
         detail = re.search(r"in block at location \d+", msg)

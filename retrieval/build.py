@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -70,39 +71,50 @@ def build_procedural_catalog(
         names = list(categories)
     seeds = variant_seeds(seed, variants)
     root = asset_root(path)
+    # Folders this build adds: a failed build (a full disk, an interrupt) removes them, so no asset file is left
+    # that no catalog lists. Folders of the previous build stay: its catalog still lists them.
+    created = [d for d in (root, *(root / c for c in names)) if not d.exists()]
     root.mkdir(parents=True, exist_ok=True)
     console = Console(stderr=True)
     jobs = [(c, s) for c in names for s in seeds]
     records = []
-    with Progress(
-        TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-        console=console, disable=not progress, transient=False,
-    ) as bar:
-        task = bar.add_task("generating assets", total=len(jobs))
-        for category, s in jobs:
-            bar.update(task, description=f"generating {category}")
-            asset = generate(category, s)
-            # One folder per asset, named like its id (procedural/<category>/<seed>).
-            exported = export_asset(asset, procedural_asset_dir(root, category, s))
-            records.append(to_record(asset, exported, path.parent))
-            bar.advance(task)
-        bar.update(task, description="embedding asset texts")
-        encoder = TextEncoder(text_model)
-        vectors = encoder.encode([asset_text(r.category, r.description, r.synonyms) for r in records])
-        bar.update(task, description="writing catalog")
-        with (
-            build_catalog(path, embedding_dim=encoder.dim, embedding_model=encoder.name) as writer,
-            writer.transaction(),
-        ):
-            writer.upsert_assets(records)
-            writer.upsert_embeddings(ASSET_TEXT_KIND, [r.asset_id for r in records], vectors)
-            writer.set_meta({
-                "built_by": "retrieval.build.build_procedural_catalog",
-                "build_variants": str(variants),
-                "build_seed": str(seed),
-                "build_categories": ",".join(names),
-            })
-        bar.update(task, description="catalog written")
+    try:
+        with Progress(
+            TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+            console=console, disable=not progress, transient=False,
+        ) as bar:
+            task = bar.add_task("generating assets", total=len(jobs))
+            for category, s in jobs:
+                bar.update(task, description=f"generating {category}")
+                asset = generate(category, s)
+                # One folder per asset, named like its id (procedural/<category>/<seed>).
+                folder = procedural_asset_dir(root, category, s)
+                if not folder.exists():
+                    created.append(folder)
+                exported = export_asset(asset, folder)
+                records.append(to_record(asset, exported, path.parent))
+                bar.advance(task)
+            bar.update(task, description="embedding asset texts")
+            encoder = TextEncoder(text_model)
+            vectors = encoder.encode([asset_text(r.category, r.description, r.synonyms) for r in records])
+            bar.update(task, description="writing catalog")
+            with (
+                build_catalog(path, embedding_dim=encoder.dim, embedding_model=encoder.name) as writer,
+                writer.transaction(),
+            ):
+                writer.upsert_assets(records)
+                writer.upsert_embeddings(ASSET_TEXT_KIND, [r.asset_id for r in records], vectors)
+                writer.set_meta({
+                    "built_by": "retrieval.build.build_procedural_catalog",
+                    "build_variants": str(variants),
+                    "build_seed": str(seed),
+                    "build_categories": ",".join(names),
+                })
+            bar.update(task, description="catalog written")
+    except BaseException:
+        for d in reversed(created):
+            shutil.rmtree(d, ignore_errors=True)
+        raise
     per_category: dict[str, int] = {}
     for r in records:
         per_category[r.category] = per_category.get(r.category, 0) + 1

@@ -9,6 +9,7 @@ values); `run` maps every exception to its line and code, so no command needs it
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import sys
@@ -97,6 +98,10 @@ def classify(exc: BaseException) -> tuple[str, int]:
         return f"{exc.filename or text} is a directory; give a file path", 2
     if isinstance(exc, PermissionError):
         return f"{exc.filename or text}: permission denied; choose a writable path", 2
+    if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EFBIG, errno.EDQUOT):
+        where = f"{exc.filename}: " if exc.filename else ""
+        return (f"{where}could not write: the disk is full or a file passes a size limit; free space or write "
+                "elsewhere, then rerun"), 1
     if isinstance(exc, (ValueError, TypeError)):
         return f"{text}", 2
     if isinstance(exc, MemoryError):
@@ -175,14 +180,15 @@ def parse_config_json(config_json: str | None, option: str = "--config") -> dict
 
 @contextlib.contextmanager
 def catalog_cli_errors(catalog: Path) -> Iterator[None]:
-    """Map catalog failures to the CLI's error style: locked -> exit 1 (wait, retry), missing/corrupt/other -> 2."""
-    from catalogs.reader import catalog_errors
+    """Map catalog failures to the CLI's error style: locked or unwritable -> exit 1 (wait or free space, retry),
+    missing/corrupt/other -> 2."""
+    from catalogs.reader import CatalogWriteFailed, catalog_errors
     from catalogs.schema import CatalogError, CatalogLocked
 
     try:
         with catalog_errors(catalog):  # DuckDB errors raised while reading (a damaged block) get the same words
             yield
-    except CatalogLocked as e:
+    except (CatalogLocked, CatalogWriteFailed) as e:
         raise RunError(str(e)) from e
     except CatalogError as e:
         raise UsageError(str(e)) from e
