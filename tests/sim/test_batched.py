@@ -252,4 +252,7 @@ def test_final_info_has_the_spl_of_the_pybullet_env():
     assert 0.8 < spl <= 1.0 and 0.8 < spl_ref <= 1.0
     assert spl == pytest.approx(reference / max(info["final_info"]["path_length"][0], reference))
     assert reference == pytest.approx(ref.reference_length())  # the same geodesic as the PyBullet env's
+    assert set(info_ref["metrics"]) <= set(info["final_info"])  # every measure of the PyBullet env
+    for key in ("success", "steps", "route_completion"):
+        assert info["final_info"][key][0] == pytest.approx(info_ref["metrics"][key], abs=0.05), key
     ref.close()
