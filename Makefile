@@ -27,6 +27,7 @@ $(STAMP): pyproject.toml constraints.txt
 install: $(STAMP)
 
 test: install
+	$(BIN)/ruff check .
 	$(PY) -m pytest -n 2 -q
 
 demo: install

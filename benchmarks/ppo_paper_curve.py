@@ -59,7 +59,10 @@ def main() -> None:
     train_s = time.perf_counter() - t0
     model = PPO.load(policy, device="cpu")
     cfg = read_run(args.run)["env_config"]
-    act = lambda obs: model.predict(obs, deterministic=True)[0]
+
+    def act(obs: np.ndarray) -> np.ndarray:
+        return model.predict(obs, deterministic=True)[0]
+
     pybullet = evaluate_sharded(policy, cfg, args.final_episodes, proto.eval_scenes, max(args.workers, 1))
     batched = evaluate_policy_batched(act, cfg, split="test", episodes=args.final_episodes,
                                       num_scenes=proto.eval_scenes)

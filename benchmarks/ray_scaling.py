@@ -128,7 +128,7 @@ def eval_part(n: int, rounds: int = 1) -> dict[str, Any]:
     local = json.dumps(evaluate(EVAL_ENV, "expert", n, {}, seed=0), sort_keys=True)
     out["local"] = {"seconds": time.perf_counter() - t0, "episodes_per_s": n / (time.perf_counter() - t0),
                     "load1": load}
-    for r in range(rounds):  # 1 then 2 workers, back to back, `rounds` times (see _pair_up)
+    for _ in range(rounds):  # 1 then 2 workers, back to back, `rounds` times (see _pair_up)
         for w in (1, 2):
             start = _ray_local(w)
             try:

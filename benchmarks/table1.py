@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from curbside.train.paper import PAPER_TABLE1
+from curbside.train.paper import PAPER_TABLE1  # noqa: E402  (after the sys.path line above)
 
 BUDGETS: dict[str, dict[str, Any]] = {
     "smoke": {"online": {"PointNav": 2_048, "SocialNav": 2_048}, "gail": 2_048, "offline": 200, "bc": 200,
@@ -90,7 +90,7 @@ def run(budget_name: str, tasks: list[str], algos: list[str], out: Path, fresh: 
                        "episodes": budget["episodes"], **{f"paper_{k}": v for k, v in paper.items()}}
                 rows.append(row)
                 print(f"[{task} {split}] {NAMES[algo]:8s} SR {r['sr']:.2f} SPL {r['spl']:.2f} "
-                      f"{'SNS %.2f ' % r['sns'] if 'sns' in r else ''}Cost {r['cost']:.2f}   (paper: "
+                      f"{'SNS {:.2f} '.format(r['sns']) if 'sns' in r else ''}Cost {r['cost']:.2f}   (paper: "
                       f"{', '.join(f'{k} {v}' for k, v in paper.items()) or 'n/a'})", flush=True)
             _write(rows, out)
     return rows

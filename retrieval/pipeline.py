@@ -244,7 +244,10 @@ def curate_step(item: SourceItem, content_hash: str, canon: CanonicalMesh, score
     glb = export_glb(final, out) if config.write_glb else None
     depth, width, height = (float(x) for x in final.extents)
     aid = asset_id(item.source, item.source_id)
-    rel = lambda p: stored_path(p, catalog_dir) if p else None
+
+    def rel(p: Path | None) -> str | None:
+        return stored_path(p, catalog_dir) if p else None
+
     asset = AssetRecord(
         asset_id=aid, source=item.source, source_id=item.source_id, category=category,
         object_class=prior.object_class if prior else OPEN_OBJECT_CLASS,
@@ -279,7 +282,10 @@ def process_item(item: SourceItem, config: IngestConfig, pool: DescriptionPool, 
                  catalog_dir: str) -> ItemResult:
     """Run the four steps on one item, its files under the asset root `root`; never raises for a bad asset."""
     h = item.content_hash()
-    refuse = lambda rej: rejected(item, h, rej, config_hash(config))
+
+    def refuse(rej: Rejection) -> ItemResult:
+        return rejected(item, h, rej, config_hash(config))
+
     rej = prefiltered(item)
     if rej is not None:
         return refuse(rej)

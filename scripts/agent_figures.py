@@ -1,11 +1,15 @@
 """Draw docs/images/agent_figures.png: every cohabitant kind's low-poly figure (sim/agents/figures.py) on a grey ground."""
 
-import numpy as np, pybullet as p
+import numpy as np
+import pybullet as p
 from PIL import Image
-from sim.agents.kinds import AGENT_KINDS
+
 from sim.agents.figures import figure_shape
+from sim.agents.kinds import AGENT_KINDS
+
 c = p.connect(p.DIRECT)
-col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[20,20,0.5]); vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[20,20,0.5], rgbaColor=[0.7,0.7,0.7,1])
+col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[20,20,0.5])
+vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[20,20,0.5], rgbaColor=[0.7,0.7,0.7,1])
 p.createMultiBody(0, col, vis, [0,0,-0.5])
 for i, (k, kind) in enumerate(AGENT_KINDS.items()):
     h = max(kind.height, 2*kind.radius)

@@ -14,6 +14,7 @@ import warnings
 from typing import Any
 
 import numpy as np
+
 from kernel.quiet import pybullet as p
 
 # Terrain off: the bench times the step code on the scene its recorded figures (benchmarks/results/sim_speed) ran on;

@@ -12,10 +12,10 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from kernel.quiet import pybullet as p
 
 from catalogs.categories import NAMES
 from kernel.config import ConfigError
+from kernel.quiet import pybullet as p
 from sim.schema import Choice, Float, Int, Pos, Rule
 
 MODALITIES = ("rgb", "depth", "semantic")

@@ -19,9 +19,9 @@ from importlib import resources
 from typing import Any
 
 import numpy as np
-from kernel.quiet import pybullet as p
 
 from kernel.config import ConfigError
+from kernel.quiet import pybullet as p
 
 G = 9.81
 

@@ -9,10 +9,11 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from kernel.quiet import pybullet as p
 import shapely
 from shapely.geometry import Polygon
 from shapely.geometry.polygon import orient
+
+from kernel.quiet import pybullet as p
 
 _py_decref = ctypes.pythonapi.Py_DecRef
 _py_decref.argtypes = [ctypes.py_object]

@@ -10,7 +10,8 @@ config (`measures`). Measures read the running episode as `env.episode` (`sim.en
 
 from __future__ import annotations
 
-from typing import Any, Callable, TypeVar
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 from kernel.config import ConfigError
 

@@ -39,7 +39,7 @@ class Rule:
     hi_open: bool = False
     choices: tuple[Any, ...] = ()  # choice: the valid values; codes: the valid letters; list: valid items
     none: bool = False             # None is valid too
-    item: "Rule | None" = None     # pair: the rule of both elements; list: the rule of every item
+    item: Rule | None = None     # pair: the rule of both elements; list: the rule of every item
     max_len: int | None = None     # codes / list: longest allowed
     hint: str = ""                 # appended to the message (what the value means, how to fix it)
 

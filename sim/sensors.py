@@ -7,8 +7,8 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from kernel.quiet import pybullet as p
 
+from kernel.quiet import pybullet as p
 from sim.raycast.grids import ROAD_LEVEL, SIDEWALK_LEVEL, WHAT, SceneGrids
 from sim.raycast.march import trace_fan
 

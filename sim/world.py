@@ -15,11 +15,11 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from kernel.quiet import pybullet as p
 import shapely
 from shapely.geometry import LineString, Point, Polygon
 from shapely.geometry.polygon import orient
 
+from kernel.quiet import pybullet as p
 from sim.meshes import extrusion_mesh, mesh_shape, polygons
 from sim.palette import SURFACE, category_color, terrain_colour
 from sim.scene.scene import Scene, SceneError, as_scene

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -31,7 +30,7 @@ def run_cmd(
     name: str = typer.Argument(..., help="An experiment name (`curbside experiment list`) or a path to a .yaml file."),
     budget: str = typer.Option("small", help="smoke (minutes: the plumbing), small (one working session), paper."),
     root: Path = typer.Option(Path("outputs/experiments"), help="Where runs train and keep their results."),
-    only: Optional[str] = typer.Option(None, help="Comma-separated run ids to run (default: all)."),
+    only: str | None = typer.Option(None, help="Comma-separated run ids to run (default: all)."),
 ) -> None:
     """Train and evaluate every run of the experiment that has no result yet; a killed run resumes from its checkpoint."""
     require("train", "experiment run")

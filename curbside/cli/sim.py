@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 from enum import Enum
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -38,7 +37,7 @@ Renderer = Enum("Renderer", {"tiny": "tiny", "egl": "egl"}, type=str)  # type: i
 SCENE_PATH = dict(exists=True, dir_okay=False, readable=True)
 
 
-def _env_config(machine: Optional[MachineName], scene_path: Optional[Path], config_json: Optional[str]) -> dict:
+def _env_config(machine: MachineName | None, scene_path: Path | None, config_json: str | None) -> dict:
     cfg = parse_config_json(config_json)
     if machine:
         cfg["machine"] = machine.value
@@ -61,16 +60,16 @@ def eval_cmd(
     task: Task = typer.Option("PointNav", help="Task to run."),
     policy: Policy = typer.Option("expert", help="expert (pure pursuit) or random."),
     episodes: int = typer.Option(10, min=1, max=100_000, help="Number of episodes."),
-    machine: Optional[MachineName] = typer.Option(None, help="Machine (default: the task's; a custom one via --config)."),
+    machine: MachineName | None = typer.Option(None, help="Machine (default: the task's; a custom one via --config)."),
     seed: int = typer.Option(0, min=0, max=MAX_SEED, help="Seed of the first episode; episode k uses seed + k."),
-    scene_path: Optional[Path] = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of generated scenes."),
-    config: Optional[str] = typer.Option(None, help="Extra env config as a JSON object."),
+    scene_path: Path | None = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of generated scenes."),
+    config: str | None = typer.Option(None, help="Extra env config as a JSON object."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Also write the summary (metrics.json) and one row per "
+    out: Path | None = typer.Option(None, "--out", help="Also write the summary (metrics.json) and one row per "
                                        "episode (episodes.csv) into this folder."),
     executor: Executor = executor_option(),
-    workers: Optional[int] = workers_option(),
-    address: Optional[str] = address_option(),
+    workers: int | None = workers_option(),
+    address: str | None = address_option(),
 ) -> None:
     """Run a policy for N episodes and print SR, SPL, Cost (plus every other metric the env reports).
 
@@ -105,14 +104,14 @@ def rollout_cmd(
     out: Path = typer.Option(Path("outputs/rollout.gif"), help="GIF to write (a .png next to it holds the last frame)."),
     task: Task = typer.Option("PointNav", help="Task to run."),
     policy: Policy = typer.Option("expert", help="expert or random."),
-    machine: Optional[MachineName] = typer.Option(None, help="Machine (default: the task's)."),
+    machine: MachineName | None = typer.Option(None, help="Machine (default: the task's)."),
     seed: int = typer.Option(0, min=0, max=MAX_SEED, help="Episode seed."),
-    scene_path: Optional[Path] = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of a generated scene."),
-    config: Optional[str] = typer.Option(None, help="Extra env config as a JSON object."),
+    scene_path: Path | None = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of a generated scene."),
+    config: str | None = typer.Option(None, help="Extra env config as a JSON object."),
     chase: bool = typer.Option(True, help="Add the chase-camera view next to the map."),
-    video: Optional[Path] = typer.Option(None, "--video", help="Write an MP4 of the env's dashboard (chase view, map, "
+    video: Path | None = typer.Option(None, "--video", help="Write an MP4 of the env's dashboard (chase view, map, "
                                          "camera panels, metrics) through Gymnasium's RecordVideo instead of the GIF."),
-    metrics_out: Optional[Path] = typer.Option(None, help="Also write the episode's metrics as JSON here."),
+    metrics_out: Path | None = typer.Option(None, help="Also write the episode's metrics as JSON here."),
 ) -> None:
     """Run one episode and write an animated GIF: top-down map with route and trajectory (+ chase camera), or with
     --video an MP4 of the dashboard."""
@@ -178,15 +177,15 @@ def teleop_cmd(
     task: Task = typer.Option("PointNav", help="Task to drive."),
     device: Device = typer.Option("keyboard", help="keyboard (arrows/WASD, R ends the episode, Esc stops), gamepad "
                                   "or wheel (the first pygame joystick)."),
-    mapping: Optional[Path] = typer.Option(None, exists=True, dir_okay=False, help="JSON axis map over the device's "
+    mapping: Path | None = typer.Option(None, exists=True, dir_okay=False, help="JSON axis map over the device's "
                                            "preset (steer_axis, throttle_axis, brake_axis, invert_*, pedals, deadzone)."),
     out: Path = typer.Option(Path("outputs/demos"), help="Minari datasets root; episodes go to "
                              "OUT/curbside/<task>-teleop-v0."),
-    episodes: Optional[int] = typer.Option(None, min=1, help="Stop after this many episodes (default: until Esc)."),
-    machine: Optional[MachineName] = typer.Option(None, help="Machine (default: the task's)."),
+    episodes: int | None = typer.Option(None, min=1, help="Stop after this many episodes (default: until Esc)."),
+    machine: MachineName | None = typer.Option(None, help="Machine (default: the task's)."),
     seed: int = typer.Option(0, min=0, max=MAX_SEED, help="First episode's seed."),
-    scene_path: Optional[Path] = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of a generated scene."),
-    config: Optional[str] = typer.Option(None, help="Extra env config as a JSON object."),
+    scene_path: Path | None = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of a generated scene."),
+    config: str | None = typer.Option(None, help="Extra env config as a JSON object."),
 ) -> None:
     """Drive a task by hand in a window (dashboard with live metrics) and record the episodes as a Minari dataset,
     the format of `curbside demos collect`. Needs a display (or xvfb-run) and `pip install 'curbside[viewer]'`."""

@@ -4,13 +4,11 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Optional
 
 import typer
 from rich.console import Console
 
 from curbside.cli.errors import fail, parse_config_json
-from curbside.cli.extras import require
 from curbside.cli.executor_options import (
     Executor,
     address_option,
@@ -18,6 +16,7 @@ from curbside.cli.executor_options import (
     executor_option,
     workers_option,
 )
+from curbside.cli.extras import require
 from kernel.config import ConfigError
 
 app = typer.Typer(rich_markup_mode=None, help="Train PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, BC or GAIL and evaluate them on a split.",
@@ -50,23 +49,23 @@ def run_cmd(
     backend: str = typer.Option("pybullet", help="Envs of online training: pybullet (the reference) or batched "
                                 "(sim.batched, PointNav on flat ground, many envs in one numpy pass)."),
     split: str = typer.Option("train", help="Split to train on: train or finetune (test and unseen are for evaluation)."),
-    init_from: Optional[Path] = typer.Option(None, "--init-from", help="Start from this run's policy (a PPO-family "
+    init_from: Path | None = typer.Option(None, "--init-from", help="Start from this run's policy (a PPO-family "
                                              "run of the same task and observations): fine-tuning."),
-    demos: Optional[Path] = typer.Option(None, help="Demonstration dataset folder from `curbside demos collect`."),
-    envs: Optional[int] = typer.Option(None, min=1, max=256, help="Parallel envs (online algorithms and GAIL); default: the protocol's."),
-    scenes: Optional[int] = typer.Option(None, min=1, help="Scenes of the split episodes draw from; default: the protocol's."),
+    demos: Path | None = typer.Option(None, help="Demonstration dataset folder from `curbside demos collect`."),
+    envs: int | None = typer.Option(None, min=1, max=256, help="Parallel envs (online algorithms and GAIL); default: the protocol's."),
+    scenes: int | None = typer.Option(None, min=1, help="Scenes of the split episodes draw from; default: the protocol's."),
     seed: int = typer.Option(0, min=0, help="Seed of the run."),
-    seeds: Optional[str] = typer.Option(None, help="Comma-separated seeds (e.g. 0,1,2): one run each in OUT/seed_<s>, "
+    seeds: str | None = typer.Option(None, help="Comma-separated seeds (e.g. 0,1,2): one run each in OUT/seed_<s>, "
                                         "their final evaluations aggregated as mean +/- std in OUT/seeds.json."),
     resume: bool = typer.Option(False, help="Continue from the latest checkpoint in --out."),
     eval_every: int = typer.Option(0, min=0, help="Evaluate on the test split every N env steps (0: never)."),
-    eval_episodes: Optional[int] = typer.Option(None, min=1, help="Episodes per learning-curve evaluation; default: the protocol's."),
-    config: Optional[str] = typer.Option(None, help="Env config overrides as a JSON object."),
+    eval_episodes: int | None = typer.Option(None, min=1, help="Episodes per learning-curve evaluation; default: the protocol's."),
+    config: str | None = typer.Option(None, help="Env config overrides as a JSON object."),
     executor: Executor = typer.Option("local", help="local: SB3 with --envs envs in local processes; ray: RLlib PPO "
                                       "(ppo, ppo_et) with --num-env-runners env runners on a Ray cluster (--address)."),
     num_env_runners: int = typer.Option(2, "--num-env-runners", min=1, max=1024, help="RLlib env runners "
                                         "(--executor ray), each stepping --envs / runners envs."),
-    address: Optional[str] = address_option(),
+    address: str | None = address_option(),
 ) -> None:
     """Train one algorithm on a split under a protocol; the policy, logs (CSV + TensorBoard) and checkpoints go to --out."""
     require("train", "train run")
@@ -132,15 +131,15 @@ def ppo_cmd(
     task: str = typer.Option("PointNav", help="PointNav or SocialNav."),
     out: Path = typer.Option(Path("outputs/train/ppo"), help="Output folder: run.json, policy, checkpoints, logs."),
     steps: int = typer.Option(200_000, min=1, help="Env steps."),
-    envs: Optional[int] = typer.Option(None, min=1, max=256, help="Parallel envs (in all); default: the protocol's (8)."),
-    scenes: Optional[int] = typer.Option(None, min=1, help="Train-split scenes, sharded across the workers or env runners; default: 64."),
+    envs: int | None = typer.Option(None, min=1, max=256, help="Parallel envs (in all); default: the protocol's (8)."),
+    scenes: int | None = typer.Option(None, min=1, help="Train-split scenes, sharded across the workers or env runners; default: 64."),
     seed: int = typer.Option(0, min=0, help="Seed of the run."),
     resume: bool = typer.Option(False, help="Continue from the latest checkpoint in --out."),
     eval_every: int = typer.Option(0, min=0, help="Evaluate on the test split every N env steps (0: never)."),
-    config: Optional[str] = typer.Option(None, help="Env config overrides as a JSON object."),
+    config: str | None = typer.Option(None, help="Env config overrides as a JSON object."),
     executor: Executor = typer.Option("local", help="local (SB3) or ray (RLlib PPO on a Ray cluster)."),
     num_env_runners: int = typer.Option(2, "--num-env-runners", min=1, max=1024, help="RLlib env runners (ray)."),
-    address: Optional[str] = address_option(),
+    address: str | None = address_option(),
 ) -> None:
     """Train PPO (`train run --algo ppo`); with --executor ray on RLlib, env runners spread over the cluster."""
     run_cmd(algo="ppo", task=task, out=out, steps=steps, demos=None, envs=envs, scenes=scenes, seed=seed,
@@ -153,17 +152,16 @@ def ppo_cmd(
 def eval_cmd(
     run_dir: Path = typer.Argument(..., help="A folder written by `curbside train run`."),
     split: str = typer.Option("test", help="train, test, unseen or finetune."),
-    episodes: Optional[int] = typer.Option(None, min=1, help="Episodes (seeds seed..seed+N-1); default: the run's "
+    episodes: int | None = typer.Option(None, min=1, help="Episodes (seeds seed..seed+N-1); default: the run's "
                                            "protocol's (curbside 50, paper 200)."),
     seed: int = typer.Option(0, min=0, help="Seed of the first episode."),
-    config: Optional[str] = typer.Option(None, help="Env config overrides as a JSON object (default: the run's)."),
+    config: str | None = typer.Option(None, help="Env config overrides as a JSON object (default: the run's)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Evaluate a trained policy on a split: SR, SPL, SNS (SocialNav), Cost."""
     require("train", "train eval")
     from curbside.train.evaluate import evaluate_policy
     from curbside.train.policies import load_policy
-
     from curbside.train.protocols import protocol as get_protocol
 
     try:
@@ -190,20 +188,20 @@ def eval_cmd(
 @demos_app.command("collect")
 def collect_cmd(
     task: str = typer.Option("PointNav", help="PointNav or SocialNav."),
-    out: Optional[Path] = typer.Option(None, help="Minari datasets root (default: Minari's, MINARI_DATASETS_PATH or "
+    out: Path | None = typer.Option(None, help="Minari datasets root (default: Minari's, MINARI_DATASETS_PATH or "
                                        "~/.minari/datasets); the dataset goes to OUT/curbside/<task>-expert-v0."),
     steps: int = typer.Option(30_000, min=1, max=10_000_000, help="Steps to record (whole episodes)."),
     noise: float = typer.Option(0.7, min=0.0, max=5.0, help="Std of the Gaussian noise added to the expert's actions."),
     random_prob: float = typer.Option(0.0, min=0.0, max=1.0, help="Fraction of fully random episodes."),
-    policy: Optional[Path] = typer.Option(None, help="A trained PPO-family run of the task: drives --policy-fraction "
+    policy: Path | None = typer.Option(None, help="A trained PPO-family run of the task: drives --policy-fraction "
                                           "of the episodes (the paper: 80 % from a trained PPO policy)."),
     policy_fraction: float = typer.Option(0.0, min=0.0, max=1.0, help="Fraction of episodes driven by --policy."),
     scenes: int = typer.Option(64, min=1, help="Train-split scenes to draw episodes from."),
     seed: int = typer.Option(0, min=0, help="Seed of the first episode."),
-    config: Optional[str] = typer.Option(None, help="Env config overrides as a JSON object."),
+    config: str | None = typer.Option(None, help="Env config overrides as a JSON object."),
     executor: Executor = executor_option(),
-    workers: Optional[int] = workers_option(),
-    address: Optional[str] = address_option(),
+    workers: int | None = workers_option(),
+    address: str | None = address_option(),
 ) -> None:
     """Record the noisy expert on the train split as a Minari dataset; print its path and success rate.
 

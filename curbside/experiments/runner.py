@@ -64,11 +64,11 @@ def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]
 def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: list[str] | None = None,
                    progress: bool = True, log: Callable[[str], None] = print) -> list[dict[str, Any]]:
     """Train and evaluate every (run, seed) of experiment `name` at `budget` that has no result; return all results."""
-    from kernel.config import ConfigError
     from curbside.train.evaluate import evaluate_policy
     from curbside.train.policies import load_policy, read_run
     from curbside.train.protocols import deep_merge, protocol
     from curbside.train.run import train
+    from kernel.config import ConfigError
 
     exp = load_experiment(name)
     b = budget_of(exp, budget)

@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-
 from kernel.config import ConfigError, load_yaml
 
 HERE = Path(__file__).resolve().parent

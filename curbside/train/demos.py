@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from kernel.config import ConfigError
 from curbside.train.envs import env_id, split_config
 from curbside.train.progress import progress_bar
+from kernel.config import ConfigError
 
 
 @dataclass(frozen=True)

@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from kernel.config import ConfigError
 from curbside.train.demos import Transitions
 from curbside.train.progress import progress_bar
+from kernel.config import ConfigError
 
 ALGOS = ("iql", "td3bc")
 MAX_WEIGHT = 100.0  # IQL's cap on exp(beta A)

@@ -102,9 +102,9 @@ def train_rllib(algo: str, task: str, out: Path, *, steps: int, env_config: Mapp
     import ray
     from stable_baselines3.common.logger import configure
 
-    from kernel.executors import connect_ray
     from curbside.train.callbacks import append_eval_row
     from curbside.train.evaluate import evaluate_policy
+    from kernel.executors import connect_ray
 
     if not 1 <= num_env_runners <= 1024:
         raise ConfigError(f"num_env_runners must be in [1, 1024], got {num_env_runners}")

@@ -8,8 +8,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from kernel.config import ConfigError
 from curbside.train.policies import check_algo
+from kernel.config import ConfigError
 
 BACKENDS = ("pybullet", "batched")  # the PyBullet envs (the reference), or sim.batched (PointNav, flat ground)
 

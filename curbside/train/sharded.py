@@ -301,7 +301,7 @@ class ShardedVectorEnv(VectorEnv):
         self.closed = True
         self._pending = None
         try:
-            for w, (pipe, proc, (go, _)) in enumerate(zip(self._pipes, self._procs, self._sems)):
+            for w, proc in enumerate(self._procs):
                 if not terminate and proc.is_alive():
                     if self._owed[w]:
                         self._discard(w, 10.0)  # a worker blocked sending a pending step's reply never reads "close"

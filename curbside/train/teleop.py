@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from kernel.config import ConfigError, merge_strict
 from curbside.train.demos import EpisodeRecorder, write_dataset
 from curbside.train.envs import env_id
+from kernel.config import ConfigError, merge_strict
 
 # Axis maps. Pedals rest at +1 and read -1 pressed on most wheels (`pedals`); stick y is -1 pushed forward.
 DEVICE_PRESETS: dict[str, dict[str, Any]] = {

@@ -11,7 +11,7 @@ import re
 from collections.abc import Iterator
 from pathlib import Path
 
-from retrieval.normalize import MESH_SUFFIXES, REFERENCE_MAX_BYTES, AssetRejected, referenced_file, read_reference
+from retrieval.normalize import MESH_SUFFIXES, REFERENCE_MAX_BYTES, AssetRejected, read_reference, referenced_file
 from retrieval.sources import SourceItem
 
 SIDECAR_KEYS = ("name", "description", "tags", "category", "license", "attribution", "up_axis")

@@ -31,8 +31,14 @@ from sim.machines import machine_spec
 from sim.raycast.grids import CROSSWALK, KIND_NAMES, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
 from sim.route import ROUTE_REDRAWS, Route, RouteError
 from sim.schema import Int
-from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward,
-                                resolve_task_config)
+from sim.tasks.pointnav import (
+    CONFIG_TABLE,
+    DEFAULT_CONFIG,
+    TASK_PRESETS,
+    check_config,
+    make_reward,
+    resolve_task_config,
+)
 from sim.tasks.sensors import check_lidar_reach
 
 BATCHED_DEFAULTS: dict[str, Any] = {

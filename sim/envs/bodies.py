@@ -6,9 +6,9 @@ import math
 from typing import Any
 
 import numpy as np
-from kernel.quiet import pybullet as p
 from numba import njit
 
+from kernel.quiet import pybullet as p
 from sim.agents.figures import figure_shape
 from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
 from sim.raycast.shapes import capsule_box_hits

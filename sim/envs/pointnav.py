@@ -9,9 +9,9 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from kernel.quiet import pybullet as p
 
 from kernel.config import ConfigError
+from kernel.quiet import pybullet as p
 from sim.envs.episode import Episode
 from sim.envs.observation import EgoObservation
 from sim.envs.reset_options import check_reset_options
@@ -20,8 +20,14 @@ from sim.machines import Machine, machine_spec
 from sim.metrics import make_measures
 from sim.route import ROUTE_REDRAWS, RouteError, RoutePlanner
 from sim.scene.scene import Scene
-from sim.tasks.pointnav import (CONFIG_TABLE, DEFAULT_CONFIG, TASK_PRESETS, check_config, make_reward,
-                                resolve_task_config)
+from sim.tasks.pointnav import (
+    CONFIG_TABLE,
+    DEFAULT_CONFIG,
+    TASK_PRESETS,
+    check_config,
+    make_reward,
+    resolve_task_config,
+)
 from sim.tasks.sensors import check_lidar_reach
 from sim.tasks.termination import Termination
 from sim.viewer import close_window, render_frame, served_render_modes

@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from kernel.quiet import pybullet as p
 
 from kernel.config import ConfigError
+from kernel.quiet import pybullet as p
 from sim.camera import EgoCamera, forget_egl
 from sim.machines import Machine
 from sim.raycast.grids import build_grids

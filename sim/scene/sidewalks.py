@@ -205,7 +205,7 @@ def build_crosswalks(blocks: list[Block], sidewalks: list[Sidewalk], cfg: dict[s
             chosen = connecting_picks(pairs, chosen, sidewalk_groups(sidewalks), rng.permutation(len(candidates)))
     out: list[Crosswalk] = []
     ramp_depth = float(cfg["ramp_depth"])
-    for (name, b, w, s, left, right), pick in zip(candidates, chosen):
+    for (_name, b, w, s, left, right), pick in zip(candidates, chosen):
         if not pick:
             continue
         cl, hw = w.centerline, w.half_width

@@ -18,9 +18,9 @@ from typing import Any
 import numpy as np
 
 from kernel.config import ConfigError, excerpt, merge_strict
+from sim.camera import CAMERA_DEFAULTS, CAMERA_TABLE
 from sim.metrics import POINTNAV_MEASURES
 from sim.scene.dataset import SPLITS
-from sim.camera import CAMERA_DEFAULTS, CAMERA_TABLE
 from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule, check_table
 from sim.tasks.sensors import LIDAR_TABLE, RENDER_TABLE
 

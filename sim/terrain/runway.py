@@ -15,9 +15,9 @@ from functools import partial
 from typing import Any
 
 import numpy as np
-from kernel.quiet import pybullet as p
 
 from kernel.config import ConfigError
+from kernel.quiet import pybullet as p
 from sim.machines import G, Machine, machine_spec
 from sim.meshes import mesh_shape
 from sim.palette import TERRAIN

@@ -18,8 +18,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from kernel.quiet import pybullet as p
 
+from kernel.quiet import pybullet as p
 from sim.machines import MachineSpec
 
 WHEEL_FRICTION = 1.0  # Bullet multiplies the two bodies' coefficients: the surface's then decides

@@ -11,10 +11,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from kernel.config import ConfigError
 from curbside.experiments.report import COLUMNS, paper_cell, write_report
 from curbside.experiments.runner import run_experiment
 from curbside.experiments.spec import load_experiment, names
+from kernel.config import ConfigError
 from tests.helpers import cli, one_error_line
 
 CFG = {"lidar": {"beams": 24, "low_beams": 8}, "route_length": [5.0, 25.0], "scene": {"blocks": 1}}

@@ -33,10 +33,10 @@ def _reference_informativeness(image: np.ndarray) -> float:
 
 
 def test_informativeness_is_the_documented_formula():
-    from retrieval.aligned.dataset import render_asset
-
     import tempfile
     from pathlib import Path
+
+    from retrieval.aligned.dataset import render_asset
 
     with tempfile.TemporaryDirectory() as tmp:
         views, _ = render_asset("bench", 3, 4, 96, (15.0, 40.0), Path(tmp))

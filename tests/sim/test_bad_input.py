@@ -219,11 +219,11 @@ def _nested(path: tuple, value: object) -> dict:
 
 
 def test_every_config_key_has_a_rule() -> None:
-    from sim.tasks.socialnav import DEFAULT_CONFIG as SOCIAL_DEFAULTS
     from sim.scene.config import CONFIG_TABLE as SCENE_TABLE
     from sim.scene.config import DEFAULT_CONFIG as SCENE_DEFAULTS
     from sim.tasks.pointnav import CONFIG_TABLE, DEFAULT_CONFIG
     from sim.tasks.socialnav import CONFIG_TABLE as SOCIAL_TABLE
+    from sim.tasks.socialnav import DEFAULT_CONFIG as SOCIAL_DEFAULTS
 
     assert set(CONFIG_TABLE) == set(DEFAULT_CONFIG)
     assert set(SOCIAL_TABLE) == set(SOCIAL_DEFAULTS)

@@ -145,7 +145,7 @@ def test_vector_env_api_and_same_step_autoreset():
     assert obs.dtype == np.float32 and obs in env.observation_space
     assert info["_route_length"].all() and (info["route_length"] > 0).all()
     rng = np.random.default_rng(0)
-    for k in range(6):
+    for _ in range(6):
         obs, reward, term, trunc, info = env.step(rng.uniform(-1, 1, (3, 2)))
         assert obs.shape == (3, 329) and obs.dtype == np.float32 and obs in env.observation_space
         assert reward.shape == (3,) and reward.dtype == np.float64 and term.dtype == trunc.dtype == bool

@@ -54,7 +54,7 @@ def test_a_closed_env_refuses_every_call() -> None:
 def test_an_env_before_reset_or_after_a_failed_reset_says_reset_first() -> None:
     env = gym.make("curbside/SocialNav-v0", config=CFG)
     with pytest.raises(RuntimeError, match="call reset"):
-        env.unwrapped.scene
+        _ = env.unwrapped.scene
     with pytest.raises(RuntimeError, match="call reset"):
         env.unwrapped.agent_states()
     env.reset(seed=0)

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kernel.config import ConfigError
 from curbside.train.demos import Transitions
 from curbside.train.offline import OfflineHparams, load_actor, train_offline
+from kernel.config import ConfigError
 
 
 def linear_demos(n: int = 2_000, obs_dim: int = 6, seed: int = 0) -> tuple[Transitions, np.ndarray]:

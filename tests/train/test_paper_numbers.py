@@ -6,8 +6,14 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from curbside.train.paper import (METHOD_NAMES, PAPER_SEED_ROBUSTNESS, PAPER_TABLE1, PAPER_TABLE2,
-                                  PAPER_TABLE5_HORIZON, PAPER_TABLE5_PEDESTRIANS)
+from curbside.train.paper import (
+    METHOD_NAMES,
+    PAPER_SEED_ROBUSTNESS,
+    PAPER_TABLE1,
+    PAPER_TABLE2,
+    PAPER_TABLE5_HORIZON,
+    PAPER_TABLE5_PEDESTRIANS,
+)
 
 DOC = (Path(__file__).resolve().parents[2] / "docs" / "paper_numbers.md").read_text()
 MACHINE_ROWS = {"COCO base": "delivery_bot", "COCO mod-1": "delivery_bot_mod1", "COCO mod-2": "delivery_bot_mod2",

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kernel.config import ConfigError
 from curbside.train.protocols import PROTOCOLS, protocol
 from curbside.train.run import resolve_run, train
+from kernel.config import ConfigError
 from tests.helpers import cli, one_error_line
 
 CFG = {"lidar": {"beams": 24, "low_beams": 8}, "route_length": [5.0, 25.0], "scene": {"blocks": 1}}

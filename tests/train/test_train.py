@@ -102,7 +102,7 @@ def test_ppo_et_ends_the_episode_once_its_cost_exceeds_the_limit(spec, limit) ->
     env = gym.make("curbside/PointNav-v0", config=early_termination_config(base, limit))
     env.reset(seed=0, options={"start": [10.0, 7.0], "goal": [25.0, 7.0]})
     costs = []
-    for k in range(300):
+    for _ in range(300):
         _, r, term, trunc, info = env.step([0.0, 1.0])  # straight into the trash bin on the sidewalk
         costs.append(info["cost"])
         if term or trunc:
@@ -120,7 +120,7 @@ def test_batched_env_ends_episodes_at_the_same_cost_as_the_pybullet_env(spec) ->
     env = BatchedPointNav(1, config=early_termination_config(base, 2.0))
     env.reset(seed=0, options={"start": [10.0, 7.0], "goal": [25.0, 7.0]})
     total = 0.0
-    for k in range(300):
+    for _ in range(300):
         _, _, term, trunc, info = env.step(np.array([[0.0, 1.0]]))
         total += info["cost"][0]
         if term[0] or trunc[0]:

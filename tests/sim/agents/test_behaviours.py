@@ -155,7 +155,7 @@ def test_crossing_agents_cross_on_crosswalks(toy: dict) -> None:
     for _ in range(700):
         m.step(0.1)
         on_road = np.abs(m.pos[:, 1]) < 3.5
-        for x, y in m.pos[on_road]:
+        for x, _y in m.pos[on_road]:
             off_crosswalk += not any(p[:, 0].min() <= x <= p[:, 0].max() for p in crosswalks)
         changed = np.any(m.goal != goal, axis=1)
         for i in np.flatnonzero(was & (changed | ~m.crossing)):  # a crossing ends in a new goal or in idling

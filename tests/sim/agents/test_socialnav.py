@@ -84,7 +84,7 @@ def test_expert_episode_metrics(env) -> None:
 
 
 def test_deterministic_and_renders(env) -> None:
-    a = env.reset(seed=5)[0], env.unwrapped.agent_states()
+    env.reset(seed=5)
     for _ in range(10):
         env.step(np.array([0.0, 0.5], dtype=np.float32))
     s1 = env.unwrapped.agent_states()
