@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import typer
@@ -63,3 +64,46 @@ def report_cmd(
     except (ConfigError, FileNotFoundError) as e:
         raise fail(str(e)) from None
     typer.echo(f"wrote {path} and {path.with_suffix('.png')}")
+
+
+@app.command("release")
+def release_cmd(
+    name: str = typer.Argument(..., help="An experiment name or a path to a .yaml file."),
+    budget: str = typer.Option("small", help="The budget whose runs to release."),
+    root: Path = typer.Option(Path("outputs/experiments"), help="Where the runs are."),
+    zoo: Path = typer.Option(Path("policies"), help="Policies go to ZOO/<task>/<method>[-<setting>]/."),
+    seed: int = typer.Option(0, min=0, help="The seed whose policy to release."),
+) -> None:
+    """Copy the experiment's finished policies into the policy zoo, each with a card.json; `curbside train eval
+    ZOO/<task>/<method>` evaluates one."""
+    require("train", "experiment release")
+    from curbside.experiments.release import release
+    from curbside.experiments.spec import budget_of, load_experiment
+
+    try:
+        budget_of(load_experiment(name), budget)
+        written = release(name, budget, root=root, zoo=zoo, seed=seed)
+    except (ConfigError, FileNotFoundError) as e:
+        raise fail(str(e)) from None
+    for path in written:
+        typer.echo(f"released {path}")
+    if not written:
+        typer.echo(f"no finished run of {name} at budget {budget} yet: run `curbside experiment run {name} --budget "
+                   f"{budget}` first")
+
+
+@app.command("findings")
+def findings_cmd(
+    results: Path = typer.Option(Path("benchmarks/results"), help="Folder of the experiments' reports."),
+) -> None:
+    """Check the paper's ten findings on the reports under RESULTS and write RESULTS/findings.json."""
+    from curbside.experiments.findings import write_findings
+
+    if not results.is_dir():
+        raise fail(f"{results} is not a folder; pass the folder that `curbside experiment report` writes to")
+    path = write_findings(results)
+    data = json.loads(path.read_text())
+    for f in data["findings"]:
+        state = {True: "reproduced", False: "not reproduced", None: "not run"}[f["reproduced"]]
+        typer.echo(f"{f['finding']:2d}. {state:15} {f['claim']}")
+    typer.echo(f"{data['reproduced']} of 10 reproduced, {data['not_run']} not run yet; wrote {path}")

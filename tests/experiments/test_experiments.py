@@ -82,6 +82,26 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     assert (out.parent / "results.png").stat().st_size > 0
     assert json.loads((out.parent / "report.json").read_text())["runs_finished"] == 4
 
+    # The zoo: run a's seed-0 policy (b only evaluates it), loadable as it is, with a card and no Adam moments.
+    import numpy as np
+
+    from curbside.experiments.release import release
+    from curbside.train.policies import load_policy
+
+    zoo = tmp_path / "zoo"
+    assert release(str(exp), "smoke", root=root, zoo=zoo) == [zoo / "PointNav" / "ppo"]
+    released, source = zoo / "PointNav" / "ppo", root / "tiny" / "smoke" / "a" / "seed_0"
+    card = json.loads((released / "card.json").read_text())
+    assert card["steps"] == 128 and card["seed"] == 0 and card["protocol"] == "curbside"
+    assert set(card["metrics"]) == {"test"} and 0.0 <= card["metrics"]["test"]["sr"] <= 1.0
+    assert (released / "policy.zip").stat().st_size < (source / "policy.zip").stat().st_size
+    from stable_baselines3 import PPO
+
+    dim = PPO.load(source / "policy.zip", device="cpu").observation_space.shape[0]
+    obs = np.random.default_rng(0).uniform(-1, 1, (5, dim)).astype(np.float32)
+    ours, theirs = load_policy(released)[0], load_policy(source)[0]
+    assert all(np.array_equal(ours(o), theirs(o)) for o in obs)
+
 
 def test_bad_experiment_input_is_one_line_exit_2(tmp_path, capsys) -> None:
     line = one_error_line(*cli(["experiment", "run", "table9"], capsys))
@@ -100,3 +120,35 @@ def test_bad_experiment_input_is_one_line_exit_2(tmp_path, capsys) -> None:
     bad.write_text(yaml.safe_dump({"name": "bad", "runs": [{"task": "PointNav", "method": "ppo", "init": "later"}]}))
     with pytest.raises(ConfigError, match="must name an earlier run"):
         load_experiment(str(bad))
+
+
+def _results(root: Path, name: str, rows: list[tuple[str, str, str, str, float, float]]) -> None:
+    (root / name).mkdir(parents=True, exist_ok=True)
+    with open(root / name / "results.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(COLUMNS))
+        writer.writeheader()
+        for task, method, split, setting, sr, cost in rows:
+            writer.writerow({"experiment": name, "task": task, "method": method, "split": split, "setting": setting,
+                             "seed": 0, "steps": 1, "sr": sr, "spl": sr, "sns": "", "cost": cost})
+
+
+def test_findings_follow_the_results_and_say_what_has_not_run(tmp_path) -> None:
+    from curbside.experiments.findings import write_findings
+
+    methods = ("ppo", "ppo_lag", "ppo_et", "iql", "td3bc", "bc", "gail")
+    rows = []
+    for k, m in enumerate(methods):
+        for task, scale in (("PointNav", 1.0), ("SocialNav", 0.5)):
+            rows += [(task, m, "test", "", scale * (0.6 - 0.05 * k), 1.0 - 0.1 * k),
+                     (task, m, "unseen", "", scale * (0.5 - 0.05 * k), 1.0)]
+    _results(tmp_path, "table1_paper", rows)
+    _results(tmp_path, "ablation_scaling", [("PointNav", "ppo", "test", n, sr, 1.0)
+                                            for n, sr in (("5", 0.3), ("50", 0.2), ("1000", 0.1))])
+    data = json.loads(write_findings(tmp_path).read_text())
+    state = {f["finding"]: f["reproduced"] for f in data["findings"]}
+    assert state[1] and state[2] and state[3] and state[4]  # below 0.8; unseen lower; SocialNav half; safe RL
+    assert state[5] is False  # test SR falls with more scenes here
+    assert [n for n, v in state.items() if v is None] == [6, 7, 8, 9, 10]
+    assert data["reproduced"] == 4 and data["not_reproduced"] == 1 and data["not_run"] == 5
+    missing = next(f for f in data["findings"] if f["finding"] == 9)
+    assert "curbside experiment run table5_horizon --budget small" in missing["why"]

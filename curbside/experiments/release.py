@@ -1,0 +1,87 @@
+"""The policy zoo: an experiment's finished policies copied to policies/<task>/<name>/ with a card.json, each a
+run folder `curbside train eval` loads as it is.
+
+A released policy holds what evaluation needs: run.json, the policy file, and for PPO-family policies the weights
+without the optimizer's moments (a third of the checkpoint), so the zoo stays small enough for git.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+from curbside.experiments.runner import DEFAULT_ROOT, ONLINE, run_dir
+from curbside.experiments.spec import Run, load_experiment
+from curbside.train.policies import POLICY_FILES, save_policy
+
+ZOO = Path("policies")
+
+
+def release_name(run: Run, paper_kind: str) -> str:
+    """The zoo folder name of a run: the method for Table 1, the method and setting otherwise."""
+    if paper_kind == "table1" or not run.setting:
+        return run.method
+    setting = "".join(c if c.isalnum() or c in "-_" else "_" for c in run.setting).strip("_")
+    return f"{run.method}-{setting}"
+
+
+def _compact_copy(src: Path, dst: Path, algo: str) -> None:
+    """Copy the policy file; a PPO-family zip is written again with a fresh optimizer (no Adam moments)."""
+    if algo in ONLINE + ("gail",):
+        from stable_baselines3 import PPO
+
+        model = PPO.load(str(src), device="cpu")
+        policy = model.policy
+        policy.optimizer = policy.optimizer_class(policy.parameters(), lr=model.learning_rate
+                                                  if isinstance(model.learning_rate, float) else 1e-4)
+        save_policy(model, dst)
+    else:
+        shutil.copyfile(src, dst)
+
+
+def release(name: str, budget: str, *, root: Path = DEFAULT_ROOT, zoo: Path = ZOO, seed: int = 0) -> list[Path]:
+    """Copy the seed-`seed` policy of every finished training run of experiment `name` at `budget` into the zoo;
+    return the folders written. A run without a result yet is skipped."""
+    exp = load_experiment(name)
+    written = []
+    for run in exp.runs:
+        if not run.train or seed not in run.seeds:
+            continue
+        src = run_dir(root, exp, budget, run, seed)
+        result_file = src / "result.json"
+        if not result_file.is_file():
+            continue
+        result = json.loads(result_file.read_text())
+        meta = json.loads((src / "run.json").read_text())
+        dst = Path(zoo) / run.task / release_name(run, exp.paper)
+        tmp = dst.with_name(dst.name + ".tmp")
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        policy_file = POLICY_FILES[run.method]
+        _compact_copy(src / policy_file, tmp / policy_file, run.method)
+        (tmp / "run.json").write_text(json.dumps(meta, indent=2) + "\n")
+        (tmp / "card.json").write_text(json.dumps(card(exp.name, budget, run, seed, meta, result, dst), indent=2)
+                                       + "\n")
+        if dst.exists():
+            shutil.rmtree(dst)
+        tmp.replace(dst)
+        written.append(dst)
+    return written
+
+
+def card(experiment: str, budget: str, run: Run, seed: int, meta: dict[str, Any], result: dict[str, Any],
+         folder: Path) -> dict[str, Any]:
+    """What a released policy is: protocol, task, method, setting, steps, seed, training time, metrics, command."""
+    return {
+        "task": run.task, "method": run.method, "setting": run.setting, "protocol": meta.get("protocol"),
+        "experiment": experiment, "budget": budget, "run": run.id, "seed": seed, "steps": result["steps"],
+        "backend": result.get("backend"), "train_seconds": result.get("train_s"),
+        "env_config": meta.get("env_config", {}),
+        "metrics": {split: {k: ev.get(k) for k in ("sr", "spl", "sns", "cost", "route_completion", "episodes")
+                            if k in ev} for split, ev in result["evals"].items()},
+        "command": f"curbside experiment run {experiment} --budget {budget} --only {run.id} && curbside experiment "
+                   f"release {experiment} --budget {budget}",
+        "evaluate": f"curbside train eval {folder.as_posix()}",
+    }
