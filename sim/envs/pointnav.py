@@ -29,7 +29,7 @@ from sim.tasks.pointnav import (
     resolve_task_config,
 )
 from sim.tasks.sensors import check_lidar_reach
-from sim.tasks.termination import Termination
+from sim.tasks.termination import StepContext, Termination
 from sim.viewer import close_window, render_frame, served_render_modes
 from sim.world import World, touching
 
@@ -270,15 +270,15 @@ class PointNavEnv(gym.Env):
         s, lat = self.route.locate(x, y, ep.progress)
         collided = bool(hits & self.cost_kinds)
         progress, new_progress = ep.advance((x0, y0), (x, y), s, lat, hits, collided)
-        ep.succeeded, ep.out_of_route, ep.stuck = self.termination(
-            ep.steps, ep.max_progress, self.route.length, lat, lambda: self.planner.grid.label_at(x, y) != 0, bool(hits))
-        ep.toppled = not ep.succeeded and max(abs(m.roll), abs(m.pitch)) > self.termination.topple
-        ended = ep.succeeded or ep.out_of_route or ep.stuck or ep.toppled
-        ep.cost_exceeded = not ended and ep.cost_total > self.termination.max_cost
-        reward = self.reward_fn(progress, new_progress, lat, steer - ep.last_action[0], m.speed, collided, ep.succeeded,
-                                ep.out_of_route, ep.stuck or ep.toppled or ep.cost_exceeded)
+        step = StepContext(ep.steps, progress, new_progress, ep.max_progress, self.route.length, lat,
+                           steer - ep.last_action[0], m.speed, max(abs(m.roll), abs(m.pitch)), collided, bool(hits),
+                           ep.cost_total, lambda: self.planner.grid.label_at(x, y) != 0)
+        end = self.termination(step)
+        ep.succeeded, ep.out_of_route, ep.stuck = end.succeeded, end.out_of_route, end.stuck
+        ep.toppled, ep.cost_exceeded = end.toppled, end.cost_exceeded
+        reward = self.reward_fn(step, end)
         ep.last_action = a
-        terminated = ended or ep.cost_exceeded
+        terminated = end.terminated
         truncated = (not terminated) and ep.steps >= ep.horizon
         for meas in self.measures:
             meas.update(self)

@@ -23,6 +23,7 @@ from sim.metrics import POINTNAV_MEASURES
 from sim.scene.dataset import SPLITS
 from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule, check_table
 from sim.tasks.sensors import LIDAR_TABLE, RENDER_TABLE
+from sim.tasks.termination import StepContext, StepEnd
 
 DEFAULT_CONFIG: dict[str, Any] = {
     "preset": None,                   # a TASK_PRESETS name (e.g. "metaurban12k"): its values replace these defaults
@@ -133,20 +134,20 @@ class Reward:
             if k not in ("progress", "floor") and not (isinstance(v, (int, float)) and abs(v) < float("inf")):
                 raise ConfigError(f"config.reward.{k} must be a finite number, got {v!r}")
 
-    def __call__(self, progress: float, new_progress: float, lateral: float, d_steer: float, speed: float,
-                 collided: bool, succeeded: bool, out_of_route: bool, stuck: bool) -> float:
+    def __call__(self, step: StepContext, end: StepEnd) -> float:
         """One step's reward from progress along the route, the offset, steering change and events: `batch`'s
         arithmetic in Python floats (the same IEEE doubles, in the same order) without a dozen numpy calls on
         scalars, for the env's every step (tests/sim/agents/test_socialnav_golden.py checks the two bit for bit)."""
-        disp = new_progress if self.progress == "max" else progress
-        over = abs(lateral) - self.lateral_free
-        r = self.disp * disp - self.lateral * max(0.0, over) - self.steering * abs(d_steer) * abs(speed)
-        if collided:
+        disp = step.new_progress if self.progress == "max" else step.progress
+        over = abs(step.lateral) - self.lateral_free
+        r = self.disp * disp - self.lateral * max(0.0, over) - self.steering * abs(step.d_steer) * abs(step.speed)
+        if step.collided:
             r = r - self.crash
         if self.floor and 0.0 > r:
             r = 0.0
-        if succeeded or out_of_route or stuck:
-            r = r + (self.success if succeeded else self.out_of_route if out_of_route else self.stuck)
+        stuck = end.failed_in_place
+        if end.succeeded or end.out_of_route or stuck:
+            r = r + (self.success if end.succeeded else self.out_of_route if end.out_of_route else self.stuck)
         return float(r)
 
     def batch(self, progress: Any, new_progress: Any, lateral: Any, d_steer: Any, speed: Any, collided: Any,

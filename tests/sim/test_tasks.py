@@ -72,8 +72,12 @@ def test_going_back_and_forth_earns_nothing_with_the_learnable_reward(spec):
     env = PointNavEnv({"scene_spec": spec})
     env.reset(seed=0)
     s0 = env.episode.max_progress
-    gain = env.reward_fn(progress=1.0, new_progress=0.0, lateral=0.0, d_steer=0.0, speed=1.0, collided=False,
-                         succeeded=False, out_of_route=False, stuck=False)
+    from sim.tasks.termination import StepContext, StepEnd
+
+    back_again = StepContext(steps=2, progress=1.0, new_progress=0.0, max_progress=1.0, route_length=20.0, lateral=0.0,
+                             d_steer=0.0, speed=1.0, tilt=0.0, collided=False, in_contact=False, cost_total=0.0,
+                             on_walkable=lambda: True)
+    gain = env.reward_fn(back_again, StepEnd())
     assert gain == 0.0 and s0 == 0.0
     paper = PointNavEnv({"scene_spec": spec, "reward_preset": "paper"})
     assert paper.reward_fn.progress == "route" and paper.reward_fn.lateral == 1.0 and paper.reward_fn.disp == 0.5

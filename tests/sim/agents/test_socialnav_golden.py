@@ -108,6 +108,7 @@ if __name__ == "__main__":
 def test_scalar_reward_matches_batch() -> None:
     """Reward.__call__ (Python floats, every env step) gives batch()'s double (numpy, the batched env) bit for bit."""
     from sim.tasks.pointnav import REWARD_PRESETS, Reward
+    from sim.tasks.termination import StepContext, StepEnd
 
     rng = np.random.default_rng(0)
     for preset in ({}, REWARD_PRESETS["paper"], {"floor": True}):
@@ -117,7 +118,12 @@ def test_scalar_reward_matches_batch() -> None:
             if rng.random() < 0.1:
                 args[2] = float("nan")  # a NaN offset: neither the scalar nor the batch path penalises it
             flags = [bool(v) for v in rng.random(4) < 0.2]
-            a, b = reward(*args, *flags), float(reward.batch(*args, *flags))
+            progress, new_progress, lateral, d_steer, speed = args
+            step = StepContext(steps=1, progress=progress, new_progress=new_progress, max_progress=0.0,
+                               route_length=1.0, lateral=lateral, d_steer=d_steer, speed=speed, tilt=0.0,
+                               collided=flags[0], in_contact=flags[0], cost_total=0.0, on_walkable=lambda: True)
+            end = StepEnd(succeeded=flags[1], out_of_route=flags[2], stuck=flags[3])
+            a, b = reward(step, end), float(reward.batch(*args, *flags))
             assert np.float64(a).tobytes() == np.float64(b).tobytes(), (preset, args, flags, a, b)
 
 
