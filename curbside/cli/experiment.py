@@ -32,6 +32,7 @@ def run_cmd(
     budget: str = typer.Option("small", help="smoke (minutes: the plumbing), small (one working session), paper."),
     root: Path = typer.Option(Path("outputs/experiments"), help="Where runs train and keep their results."),
     only: str | None = typer.Option(None, help="Comma-separated run ids to run (default: all)."),
+    seeds: str | None = typer.Option(None, help="Comma-separated seeds to run (default: each run's)."),
 ) -> None:
     """Train and evaluate every run of the experiment that has no result yet; a killed run resumes from its checkpoint."""
     require("train", "experiment run")
@@ -41,7 +42,11 @@ def run_cmd(
     try:
         budget_of(load_experiment(name), budget)
         ids = [s for s in only.split(",") if s] if only else None
-        results = run_experiment(name, budget, root=root, only=ids, log=typer.echo)
+        try:
+            seed_list = [int(s) for s in seeds.split(",") if s.strip()] if seeds else None
+        except ValueError:
+            raise ConfigError(f"--seeds must be comma-separated integers such as 0,1,2, got {seeds!r}") from None
+        results = run_experiment(name, budget, root=root, only=ids, seeds=seed_list, log=typer.echo)
     except (ConfigError, FileNotFoundError) as e:
         raise fail(str(e)) from None
     typer.echo(f"{len(results)} runs finished; report them with `curbside experiment report {name} --budget {budget}`")

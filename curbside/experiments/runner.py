@@ -62,8 +62,10 @@ def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]
 
 
 def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: list[str] | None = None,
-                   progress: bool = True, log: Callable[[str], None] = print) -> list[dict[str, Any]]:
-    """Train and evaluate every (run, seed) of experiment `name` at `budget` that has no result; return all results."""
+                   seeds: list[int] | None = None, progress: bool = True,
+                   log: Callable[[str], None] = print) -> list[dict[str, Any]]:
+    """Train and evaluate every (run, seed) of experiment `name` at `budget` that has no result (of the runs in
+    `only` and the seeds in `seeds`, when given); return all results."""
     from curbside.train.evaluate import evaluate_policy
     from curbside.train.policies import load_policy, read_run
     from curbside.train.protocols import deep_merge, protocol
@@ -82,6 +84,8 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
         if only and run.id not in only:
             continue
         for seed in run.seeds:
+            if seeds is not None and seed not in seeds:
+                continue
             out = run_dir(root, exp, budget, run, seed)
             done = out / "result.json"
             if done.is_file():

@@ -152,3 +152,12 @@ def test_findings_follow_the_results_and_say_what_has_not_run(tmp_path) -> None:
     assert data["reproduced"] == 4 and data["not_reproduced"] == 1 and data["not_run"] == 5
     missing = next(f for f in data["findings"] if f["finding"] == 9)
     assert "curbside experiment run table5_horizon --budget small" in missing["why"]
+
+
+def test_seeds_and_only_pick_the_runs_to_train(tmp_path, capsys) -> None:
+    exp, root = _experiment(tmp_path), tmp_path / "runs"
+    results = run_experiment(str(exp), "smoke", root=root, only=["a"], seeds=[1], progress=False, log=lambda s: None)
+    assert [(r["run"], r["seed"]) for r in results] == [("a", 1)]
+    assert not (root / "tiny" / "smoke" / "a" / "seed_0").exists()
+    line = one_error_line(*cli(["experiment", "run", str(exp), "--budget", "smoke", "--seeds", "one"], capsys))
+    assert "--seeds must be comma-separated integers" in line
