@@ -44,7 +44,8 @@ def train_bc(demos: Transitions, out: Path, *, steps: int, observation_space: An
     with progress_bar("bc minibatches", steps, progress) as update:
         for k in range(1, steps + 1):
             idx = torch.randint(len(obs), (min(batch, len(obs)),), generator=gen)
-            _, log_prob, entropy = policy.evaluate_actions(obs[idx], acts[idx])
+            dist = policy.get_distribution(obs[idx])  # the actor alone: BC never reads the value head
+            log_prob, entropy = dist.log_prob(acts[idx]), dist.entropy()
             loss = -log_prob.mean() - 1e-3 * (entropy.mean() if entropy is not None else 0.0)
             policy.optimizer.zero_grad()
             loss.backward()
