@@ -17,7 +17,7 @@ from sim.envs.observation import EgoObservation
 from sim.envs.reset_options import check_reset_options
 from sim.envs.scenes import SceneCache, SceneSlot, SceneSource, build_slot, trim_heap
 from sim.machines import Machine, machine_spec
-from sim.metrics import make_measures
+from sim.metrics import EpisodeView, make_measures
 from sim.route import ROUTE_REDRAWS, RouteError, RoutePlanner
 from sim.scene.scene import Scene
 from sim.tasks.pointnav import (
@@ -189,8 +189,14 @@ class PointNavEnv(gym.Env):
         """The metrics of the finished episode, from the configured measures in order."""
         metrics: dict[str, float] = {}
         for m in self.measures:
-            metrics.update(m.value(self, metrics))
+            metrics.update(m.value(self.measure_view, metrics))
         return metrics
+
+    def _measure_view(self) -> EpisodeView:
+        """What the measures read of the episode just reset (SocialNav adds the agents' distance)."""
+        return EpisodeView(episode=self.episode, route_length=float(self.route.length), dt=self.dt,
+                           cruise_speed=min(float(self.config["stl_cruise_speed"]), self.machine.spec.v_max),
+                           collision_kinds=tuple(self.collision_kinds_all), reference_length=self.reference_length)
 
     def reference_length(self) -> float:
         """l of SPL and STL: the geodesic from the start to the route point where success is reached (cached)."""
@@ -238,8 +244,9 @@ class PointNavEnv(gym.Env):
         self.termination = Termination.from_config(cfg)
         self._reference_length: float | None = None
         self._on_reset(rng)
+        self.measure_view = self._measure_view()
         for meas in self.measures:
-            meas.reset(self)
+            meas.reset(self.measure_view)
         return self._observe(), {"route_length": self.route.length, "horizon": horizon}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
@@ -281,7 +288,7 @@ class PointNavEnv(gym.Env):
         terminated = end.terminated
         truncated = (not terminated) and ep.steps >= ep.horizon
         for meas in self.measures:
-            meas.update(self)
+            meas.update(self.measure_view)
         obs = self._observe()
         info: dict[str, Any] = ep.step_info(collided, hits, self.route.length)
         if terminated or truncated:

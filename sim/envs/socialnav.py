@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -13,6 +14,7 @@ from sim.agents.crowd_kernels import box_gaps, cell_values
 from sim.agents.vehicles import VehicleManager
 from sim.envs.bodies import CohabitantBodies
 from sim.envs.pointnav import PointNavEnv
+from sim.metrics import EpisodeView
 from sim.scene.scene import Scene
 from sim.sensors import GridLidar
 from sim.tasks.socialnav import CONFIG_TABLE, DEFAULT_CONFIG, PRESETS, SPLIT_AGENT_BEHAVIOUR
@@ -95,6 +97,10 @@ class SocialNavEnv(PointNavEnv):
             self.traffic.n = 0
         self._sync_bodies()
         self._min_agent_distance = self._nearest_agent()
+
+    def _measure_view(self) -> EpisodeView:
+        return replace(super()._measure_view(), min_agent_distance=lambda: self._min_agent_distance,
+                       personal_space=float(self.config["personal_space"]))
 
     def _on_step(self) -> None:
         ego = self._ego_state()

@@ -89,7 +89,7 @@ def test_measure_registry():
 
     @register_measure("test_constant")
     class Constant(Measure):
-        def value(self, env, metrics):
+        def value(self, view, metrics):
             return {"k": 2.0 * metrics.get("x", 1.0)}
 
     ms = make_measures(["test_constant"])
