@@ -42,7 +42,7 @@ def main() -> None:
 
     from stable_baselines3 import PPO
 
-    from curbside.train.evaluate import evaluate_policy_batched
+    from curbside.train.evaluate import evaluate_policy_batched, evaluate_run
     from curbside.train.policies import read_run
     from curbside.train.protocols import protocol
     from curbside.train.run import train
@@ -63,7 +63,8 @@ def main() -> None:
     def act(obs: np.ndarray) -> np.ndarray:
         return model.predict(obs, deterministic=True)[0]
 
-    pybullet = evaluate_sharded(policy, cfg, args.final_episodes, proto.eval_scenes, max(args.workers, 1))
+    pybullet = evaluate_run(policy.parent, "PointNav", cfg, split="test", episodes=args.final_episodes,
+                            num_scenes=proto.eval_scenes, workers=max(args.workers, 1), progress=False)
     batched = evaluate_policy_batched(act, cfg, split="test", episodes=args.final_episodes,
                                       num_scenes=proto.eval_scenes)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -79,34 +80,6 @@ def main() -> None:
     (args.out / "transfer.json").write_text(json.dumps(transfer, indent=2) + "\n")
     print(json.dumps(transfer, indent=2))
     plot(args.out)
-
-
-def evaluate_shard(job: tuple[Path, dict, int, int, int]) -> dict:
-    """evaluate_policy of the policy at `path` on test episodes seed..seed+episodes-1 (one worker process)."""
-    import torch
-    from stable_baselines3 import PPO
-
-    from curbside.train.evaluate import evaluate_policy
-
-    path, cfg, seed, episodes, num_scenes = job
-    torch.set_num_threads(1)
-    model = PPO.load(path, device="cpu")
-    return evaluate_policy(lambda obs: model.predict(obs, deterministic=True)[0], "PointNav", cfg, split="test",
-                           episodes=episodes, seed=seed, num_scenes=num_scenes, progress=False)
-
-
-def evaluate_sharded(path: Path, cfg: dict, episodes: int, num_scenes: int, workers: int) -> dict:
-    """The test episodes 0..episodes-1 shared among `workers` processes; means weighted by each share's episodes
-    (the same episodes, so the same figures, as one evaluate_policy call)."""
-    from concurrent.futures import ProcessPoolExecutor
-
-    bounds = np.linspace(0, episodes, workers + 1).astype(int)
-    jobs = [(path, cfg, int(a), int(b - a), num_scenes) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
-    with ProcessPoolExecutor(len(jobs)) as pool:
-        parts = list(pool.map(evaluate_shard, jobs))
-    n = sum(p["episodes"] for p in parts)
-    return {k: sum(p[k] * p["episodes"] for p in parts) / n for k in ("sr", "spl", "cost", "route_completion")} | {
-        "episodes": n}
 
 
 def seed_run(run: Path, kept: Path) -> None:

@@ -156,16 +156,18 @@ def eval_cmd(
                                            "protocol's (curbside 50, paper 200)."),
     seed: int = typer.Option(0, min=0, help="Seed of the first episode."),
     config: str | None = typer.Option(None, help="Env config overrides as a JSON object (default: the run's)."),
+    workers: int = typer.Option(1, min=1, max=64, help="Processes sharing the episodes (the same figures for any "
+                                "count)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Evaluate a trained policy on a split: SR, SPL, SNS (SocialNav), Cost."""
     require("train", "train eval")
-    from curbside.train.evaluate import evaluate_policy
+    from curbside.train.evaluate import evaluate_run
     from curbside.train.policies import load_policy
     from curbside.train.protocols import protocol as get_protocol
 
     try:
-        act, run = load_policy(run_dir)
+        _, run = load_policy(run_dir)  # a run that cannot be loaded fails here, before any worker starts
         from curbside.train.protocols import deep_merge
 
         cfg = deep_merge(run.get("env_config", {}), parse_config_json(config))
@@ -174,8 +176,8 @@ def eval_cmd(
     except (ConfigError, ValueError, FileNotFoundError) as e:
         raise fail(str(e)) from None
     episodes = episodes or proto.eval_episodes
-    summary = evaluate_policy(act, run["task"], cfg, split=split, episodes=episodes, seed=seed, progress=not as_json,
-                              num_scenes=proto.eval_scenes)
+    summary = evaluate_run(run_dir, run["task"], cfg, split=split, episodes=episodes, seed=seed, progress=not as_json,
+                           num_scenes=proto.eval_scenes, workers=workers)
     summary["algo"] = run["algo"]
     if as_json:
         typer.echo(json.dumps(summary, sort_keys=True))

@@ -66,8 +66,8 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
                    log: Callable[[str], None] = print) -> list[dict[str, Any]]:
     """Train and evaluate every (run, seed) of experiment `name` at `budget` that has no result (of the runs in
     `only` and the seeds in `seeds`, when given); return all results."""
-    from curbside.train.evaluate import evaluate_policy
-    from curbside.train.policies import load_policy, read_run
+    from curbside.train.evaluate import evaluate_run
+    from curbside.train.policies import read_run
     from curbside.train.protocols import deep_merge, protocol
     from curbside.train.run import train
     from kernel.config import ConfigError
@@ -120,12 +120,12 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
                 policy_dir, steps = init_from, 0
                 log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating the policy of {run.init}")
             train_s = time.time() - t0
-            act, _ = load_policy(policy_dir)
             evals = {}
             for split in run.evaluate:
                 cfg = deep_merge(deep_merge(read_run(policy_dir).get("env_config", {}), run.env), run.eval_env)
-                evals[split] = evaluate_policy(act, run.task, cfg, split=split, episodes=int(b["episodes"]),
-                                               num_scenes=proto.eval_scenes, progress=progress)
+                evals[split] = evaluate_run(policy_dir, run.task, cfg, split=split, episodes=int(b["episodes"]),
+                                            num_scenes=proto.eval_scenes, workers=int(b["eval_workers"]),
+                                            progress=progress)
                 log(f"    {split}: SR {evals[split]['sr']:.2f}  SPL {evals[split]['spl']:.2f}  "
                     f"Cost {evals[split]['cost']:.2f}")
             result = {"experiment": exp.name, "budget": budget, "run": run.id, "task": run.task,

@@ -12,7 +12,7 @@ from kernel.config import ConfigError, load_yaml
 HERE = Path(__file__).resolve().parent
 BUDGETS = ("smoke", "small", "paper")
 BUDGET_KEYS = {"online_steps", "offline_steps", "bc_steps", "demos_steps", "episodes", "eval_every", "curve_episodes",
-               "n_envs", "scenes", "hparams", "backend"}
+               "n_envs", "scenes", "hparams", "backend", "eval_workers"}
 RUN_KEYS = {"id", "task", "method", "split", "setting", "env", "eval_env", "seeds", "init", "evaluate", "backend",
             "train"}
 EXPERIMENT_KEYS = {"name", "title", "paper", "protocol", "evaluate", "runs", "budgets", "description"}
@@ -116,13 +116,13 @@ def budget_of(exp: Experiment, budget: str) -> dict[str, Any]:
     defaults: dict[str, dict[str, Any]] = {
         # smoke checks the plumbing in minutes: tiny networks and rollouts, a few scenes and episodes.
         "smoke": {"online_steps": 2_048, "offline_steps": 200, "bc_steps": 200, "demos_steps": 1_000, "episodes": 3,
-                  "eval_every": 0, "curve_episodes": 2, "n_envs": 2, "scenes": 4, "backend": "pybullet",
+                  "eval_every": 0, "curve_episodes": 2, "n_envs": 2, "scenes": 4, "backend": "pybullet", "eval_workers": 1,
                   "hparams": {"n_steps": 128, "batch_size": 128, "n_epochs": 2, "net_arch": [64, 64]}},
         "small": {"online_steps": 500_000, "offline_steps": 20_000, "bc_steps": 20_000, "demos_steps": 30_000,
                   "episodes": 50, "eval_every": 250_000, "curve_episodes": 10, "n_envs": None, "scenes": None,
-                  "backend": "batched", "hparams": {}},
+                  "backend": "batched", "hparams": {}, "eval_workers": 2},
         "paper": {"online_steps": 5_000_000, "offline_steps": 1_000_000, "bc_steps": 18_750, "demos_steps": 30_000,
                   "episodes": 200, "eval_every": 250_000, "curve_episodes": 20, "n_envs": None, "scenes": None,
-                  "backend": "batched", "hparams": {}},
+                  "backend": "batched", "hparams": {}, "eval_workers": 2},
     }
     return {**defaults[budget], **exp.budgets.get(budget, {})}

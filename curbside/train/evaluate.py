@@ -16,10 +16,20 @@ def evaluate_policy(act: Callable[[np.ndarray], np.ndarray], task: str, env_conf
                     split: str = "test", episodes: int = 50, seed: int = 0, num_scenes: int = EVAL_SCENES,
                     progress: bool = True) -> dict[str, Any]:
     """Mean metrics of `act(obs) -> action` over `episodes` episodes (seeds seed..seed+N-1) on `split`."""
+    from sim.eval import summarize
+
+    summary = summarize(episode_rows(act, task, env_config, split=split, episodes=episodes, seed=seed,
+                                     num_scenes=num_scenes, progress=progress))
+    summary["split"] = split
+    return summary
+
+
+def episode_rows(act: Callable[[np.ndarray], np.ndarray], task: str, env_config: Mapping[str, Any], *,
+                 split: str, episodes: int, seed: int, num_scenes: int, progress: bool) -> list[dict[str, float]]:
+    """The metrics of each episode of `evaluate_policy`, in seed order."""
     import gymnasium as gym
 
     import sim  # noqa: F401
-    from sim.eval import summarize
     from sim.rollout import rollout
 
     cfg = split_config(env_config, split, num_scenes)
@@ -36,6 +46,43 @@ def evaluate_policy(act: Callable[[np.ndarray], np.ndarray], task: str, env_conf
             rows.append(rollout(env, policy, s))
     finally:
         env.close()
+    return rows
+
+
+def _evaluate_shard(job: tuple[str, str, dict[str, Any], str, int, int, int]) -> list[dict[str, Any]]:
+    """The episode rows of one worker's seeds (a process of `evaluate_run`: it loads the policy itself)."""
+    import torch
+
+    from curbside.train.policies import load_policy
+
+    run_dir, task, cfg, split, seed, episodes, num_scenes = job
+    torch.set_num_threads(1)
+    act, _ = load_policy(run_dir)
+    return episode_rows(act, task, cfg, split=split, episodes=episodes, seed=seed, num_scenes=num_scenes,
+                        progress=False)
+
+
+def evaluate_run(run_dir: Any, task: str, env_config: Mapping[str, Any], *, split: str = "test", episodes: int = 50,
+                 seed: int = 0, num_scenes: int = EVAL_SCENES, workers: int = 1,
+                 progress: bool = True) -> dict[str, Any]:
+    """`evaluate_policy` of the policy saved in `run_dir`, its episodes shared among `workers` processes: the same
+    episodes in the same seed order, so the same figures whatever `workers` is."""
+    workers = max(1, min(int(workers), episodes))
+    if workers == 1:
+        from curbside.train.policies import load_policy
+
+        act, _ = load_policy(run_dir)
+        return evaluate_policy(act, task, env_config, split=split, episodes=episodes, seed=seed,
+                               num_scenes=num_scenes, progress=progress)
+    from concurrent.futures import ProcessPoolExecutor
+
+    from sim.eval import summarize
+
+    bounds = np.linspace(seed, seed + episodes, workers + 1).astype(int)
+    jobs = [(str(run_dir), task, dict(env_config), split, int(a), int(b - a), num_scenes)
+            for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+    with ProcessPoolExecutor(len(jobs)) as pool:
+        rows = [row for part in pool.map(_evaluate_shard, jobs) for row in part]
     summary = summarize(rows)
     summary["split"] = split
     return summary

@@ -82,6 +82,14 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     assert (out.parent / "results.png").stat().st_size > 0
     assert json.loads((out.parent / "report.json").read_text())["runs_finished"] == 4
 
+    # Evaluation shared among processes: the same episodes, so the same figures.
+    from curbside.train.evaluate import evaluate_run
+
+    source = root / "tiny" / "smoke" / "a" / "seed_0"
+    one, two = (evaluate_run(source, "PointNav", CFG, split="test", episodes=3, num_scenes=2, workers=w,
+                             progress=False) for w in (1, 2))
+    assert one == two and one["episodes"] == 3
+
     # The zoo: run a's seed-0 policy (b only evaluates it), loadable as it is, with a card and no Adam moments.
     import numpy as np
 
