@@ -57,7 +57,8 @@ def report_cmd(
     name: str = typer.Argument(..., help="An experiment name or a path to a .yaml file."),
     budget: str = typer.Option("small", help="The budget whose runs to report."),
     root: Path = typer.Option(Path("outputs/experiments"), help="Where the runs are."),
-    out: Path = typer.Option(Path("benchmarks/results"), help="Reports go to OUT/<experiment>/."),
+    out: Path = typer.Option(Path("benchmarks/results"), help="Reports go to OUT/<experiment>/ (budget small) or "
+                             "OUT/<experiment>/<budget>/."),
 ) -> None:
     """Write results.csv (ours beside the paper's numbers) and results.png for the experiment's finished runs."""
     from curbside.experiments.report import write_report

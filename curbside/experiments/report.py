@@ -63,10 +63,11 @@ def rows_of(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> list[dic
 
 def write_report(name: str, budget: str, *, root: Path = DEFAULT_ROOT,
                  out_root: Path = Path("benchmarks/results")) -> Path:
-    """Write out_root/<experiment>/results.csv, results.png and report.json; return the CSV path."""
+    """Write results.csv, results.png and report.json into out_root/<experiment>/ (the `small` budget, the one every
+    experiment runs) or out_root/<experiment>/<budget>/ (another budget); return the CSV path."""
     exp = load_experiment(name)
     rows = rows_of(exp, budget, root)
-    out = Path(out_root) / exp.name
+    out = Path(out_root) / exp.name if budget == "small" else Path(out_root) / exp.name / budget
     out.mkdir(parents=True, exist_ok=True)
     path = out / "results.csv"
     with open(path, "w", newline="") as f:
