@@ -1,10 +1,5 @@
-"""Episode counters and PointNav's episode end for many envs at once (`sim.envs.episode.Episode.advance` and
-`sim.tasks.pointnav.Termination` over arrays; the reward is `Reward.batch`, the PyBullet env's own code).
-
-The scalar classes stay the PyBullet env's (they keep its episodes byte-identical); these arrays restate their
-rules once for `n` envs: progress is paid for new ground, success at `success_completion` of the route, out of
-route beyond `out_of_route_distance` or off the walkable area, stuck after `stuck_steps` without `stuck_distance`
-of new progress or `collision_steps` steps in contact.
+"""Episode counters for many envs at once (`sim.envs.episode.Episode.advance` over arrays). The episode end is the
+PyBullet env's own rules (`sim.tasks.termination.end_of_step`), the reward its `Reward.batch`.
 """
 
 from __future__ import annotations
@@ -15,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from sim.raycast.grids import KIND_NAMES
+from sim.tasks.termination import EndMarks, EndRules, end_of_step
 
 KIND_BITS = {name: 1 << k for k, name in KIND_NAMES.items()}  # object 2, building 4, curb 8
 
@@ -24,28 +20,23 @@ class Episodes:
 
     def __init__(self, n: int, cfg: Mapping[str, Any]) -> None:
         self.n = n
-        self.success_completion = float(cfg["success_completion"])
-        self.out_of_route_distance = float(cfg["out_of_route_distance"])
-        self.stuck_distance = float(cfg["stuck_distance"])
-        self.stuck_steps = int(cfg["stuck_steps"])
-        self.collision_steps = int(cfg["collision_steps"])
-        self.off_walkable_ends = bool(cfg["terminate_off_walkable"])
-        self.max_cost = None if cfg["max_episode_cost"] is None else float(cfg["max_episode_cost"])
+        self.rules = EndRules.from_config(cfg)
+        self.marks = EndMarks.zeros(n)
         self.cost_bits = sum(KIND_BITS[k] for k in cfg["cost_kinds"] if k in KIND_BITS)
         f = lambda: np.zeros(n)  # noqa: E731
         i = lambda: np.zeros(n, dtype=np.int64)  # noqa: E731
         self.progress, self.max_progress, self.lateral, self.path_length = f(), f(), f(), f()
-        self.steps, self.horizon, self.cost_total, self.mark_step, self.contact_run = i(), i(), i(), i(), i()
-        self.mark_progress = f()
+        self.steps, self.horizon, self.cost_total = i(), i(), i()
         self.collision_counts = {k: i() for k in KIND_BITS}
         self.last_action = np.zeros((n, 2))
 
     def reset(self, k: int, horizon: int) -> None:
         """Env k starts an episode of `horizon` steps."""
-        for a in (self.progress, self.max_progress, self.lateral, self.path_length, self.mark_progress):
+        for a in (self.progress, self.max_progress, self.lateral, self.path_length):
             a[k] = 0.0
-        for a in (self.steps, self.cost_total, self.mark_step, self.contact_run, *self.collision_counts.values()):
+        for a in (self.steps, self.cost_total, *self.collision_counts.values()):
             a[k] = 0
+        self.marks.reset(k)
         self.horizon[k] = horizon
         self.last_action[k] = 0.0
 
@@ -66,22 +57,9 @@ class Episodes:
 
     def end(self, length: np.ndarray, on_walkable: np.ndarray, in_contact: np.ndarray
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(succeeded, out of route, stuck, cost exceeded) of every env after its step (`Termination.__call__` and
-        `Termination.cost_exceeded`)."""
-        succeeded = self.max_progress >= self.success_completion * length
-        off = np.abs(self.lateral) > self.out_of_route_distance
-        if self.off_walkable_ends:
-            off |= ~on_walkable
-        out = ~succeeded & off
-        self.contact_run = np.where(in_contact, self.contact_run + 1, 0)
-        moved_on = self.max_progress >= self.mark_progress + self.stuck_distance
-        self.mark_step = np.where(moved_on, self.steps, self.mark_step)
-        self.mark_progress = np.where(moved_on, self.max_progress, self.mark_progress)
-        pinned = np.zeros(self.n, dtype=bool)
-        if self.stuck_steps > 0:
-            pinned |= self.steps - self.mark_step >= self.stuck_steps
-        if self.collision_steps > 0:
-            pinned |= self.contact_run >= self.collision_steps
-        stuck = ~(succeeded | out) & pinned
-        over = np.zeros(self.n, dtype=bool) if self.max_cost is None else self.cost_total > self.max_cost
-        return succeeded, out, stuck, ~(succeeded | out | stuck) & over
+        """(succeeded, out of route, stuck, cost exceeded) of every env after its step (`end_of_step`; a wheeled
+        machine on the distance grids never topples)."""
+        succeeded, out, stuck, _, over = end_of_step(self.rules, self.marks, self.steps, self.max_progress, length,
+                                                     self.lateral, on_walkable, in_contact, np.zeros(self.n),
+                                                     self.cost_total)
+        return succeeded, out, stuck, over

@@ -1,4 +1,5 @@
-"""PointNav's episode end (sim.envs.pointnav steps it once a step; sim.batched.episodes restates it for arrays)."""
+"""PointNav's episode end, written once over arrays: `end_of_step` decides it for any number of envs (the batched env
+passes its n envs, `Termination` the PyBullet env's one)."""
 
 from __future__ import annotations
 
@@ -32,8 +33,7 @@ class StepContext:
 
 @dataclass(frozen=True)
 class StepEnd:
-    """How a step ends its episode, if it does: at most one of succeeded, out_of_route, stuck, toppled and
-    cost_exceeded holds (in that order of precedence, cost_exceeded only when nothing else ended it)."""
+    """How a step ends its episode, if it does (`end_of_step`'s flags for one env)."""
 
     succeeded: bool = False
     out_of_route: bool = False
@@ -52,9 +52,9 @@ class StepEnd:
         return self.stuck or self.toppled or self.cost_exceeded
 
 
-@dataclass
-class Termination:
-    """PointNav's episode end: success, out of route, or stuck (no new progress, or pinned in contact)."""
+@dataclass(frozen=True)
+class EndRules:
+    """PointNav's episode-end rules, from a task config."""
 
     success_completion: float
     out_of_route_distance: float
@@ -62,30 +62,82 @@ class Termination:
     stuck_steps: int
     collision_steps: int
     off_walkable_ends: bool  # leaving the walkable area ends the episode as out of route
-    topple: float = float(np.radians(60.0))  # roll or pitch (rad) past which the machine has toppled
-    max_cost: float = math.inf  # episode cost past which the episode ends (PPO-ET's rule; config None: never)
-    mark: tuple[int, float] = (0, 0.0)  # (step, max progress) when progress last grew by stuck_distance
-    contact_run: int = 0  # consecutive steps in contact
+    topple: float  # roll or pitch (rad) past which the machine has toppled
+    max_cost: float  # episode cost past which the episode ends (PPO-ET's rule; config None: never)
 
     @classmethod
-    def from_config(cls, cfg: Mapping[str, Any]) -> Termination:
-        """A fresh detector for one episode of a task config."""
+    def from_config(cls, cfg: Mapping[str, Any]) -> EndRules:
+        """The rules of a task config."""
         return cls(float(cfg["success_completion"]), float(cfg["out_of_route_distance"]), float(cfg["stuck_distance"]),
                    int(cfg["stuck_steps"]), int(cfg["collision_steps"]), bool(cfg["terminate_off_walkable"]),
                    float(np.radians(cfg["topple_angle"])),
                    math.inf if cfg["max_episode_cost"] is None else float(cfg["max_episode_cost"]))
 
+
+@dataclass
+class EndMarks:
+    """What the stuck rule remembers of an episode (numbers) or of n episodes (arrays of n): the step and largest arc
+    length when progress last grew by `stuck_distance`, and the run of consecutive steps in contact."""
+
+    step: Any = 0
+    progress: Any = 0.0
+    contact_run: Any = 0
+
+    @classmethod
+    def zeros(cls, n: int) -> EndMarks:
+        """Marks of n episodes."""
+        return cls(np.zeros(n, dtype=np.int64), np.zeros(n), np.zeros(n, dtype=np.int64))
+
+    def reset(self, k: Any) -> None:
+        """Episode(s) `k` of arrays start afresh."""
+        self.step[k], self.progress[k], self.contact_run[k] = 0, 0.0, 0
+
+
+def end_of_step(rules: EndRules, marks: EndMarks, steps: Any, max_progress: Any, route_length: Any, lateral: Any,
+                on_walkable: Any, in_contact: Any, tilt: Any, cost_total: Any) -> tuple[Any, ...]:
+    """(succeeded, out_of_route, stuck, toppled, cost_exceeded) after a step, `marks` advanced: for one episode
+    (numbers, bools) or n (arrays of n). Success excludes the rest; toppled may hold beside out of route or stuck;
+    cost_exceeded only when nothing else ended the episode.
+
+    Written with operators that mean the same on numbers and on arrays (`x ^ True` for not; a choice between two
+    values is a sum of products, exact since one factor is 0): the PyBullet env's step pays no numpy call per rule.
+    """
+    succeeded = max_progress >= rules.success_completion * route_length
+    off = abs(lateral) > rules.out_of_route_distance
+    if rules.off_walkable_ends:
+        off = off | (on_walkable ^ True)
+    out = (succeeded ^ True) & off
+    marks.contact_run = (marks.contact_run + 1) * in_contact
+    moved_on = max_progress >= marks.progress + rules.stuck_distance
+    stay = moved_on ^ True
+    marks.step = steps * moved_on + marks.step * stay
+    marks.progress = max_progress * moved_on + marks.progress * stay
+    pinned = False
+    if rules.stuck_steps > 0:
+        pinned = pinned | (steps - marks.step >= rules.stuck_steps)
+    if rules.collision_steps > 0:
+        pinned = pinned | (marks.contact_run >= rules.collision_steps)
+    stuck = ((succeeded | out) ^ True) & pinned
+    toppled = (succeeded ^ True) & (tilt > rules.topple)  # beside out of route or stuck, it names the end (step_info)
+    over = ((succeeded | out | stuck | toppled) ^ True) & (cost_total > rules.max_cost)
+    return succeeded, out, stuck, toppled, over
+
+
+class Termination:
+    """The PyBullet env's episode end: `end_of_step` for one env, fed one `StepContext` a step."""
+
+    def __init__(self, rules: EndRules) -> None:
+        self.rules = rules
+        self.marks = EndMarks()
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any]) -> Termination:
+        """A fresh detector for one episode of a task config."""
+        return cls(EndRules.from_config(cfg))
+
     def __call__(self, step: StepContext) -> StepEnd:
-        """How `step` ends the episode; `step.on_walkable()` is asked only when it decides."""
-        succeeded = step.max_progress >= self.success_completion * step.route_length
-        out_of_route = (not succeeded) and (abs(step.lateral) > self.out_of_route_distance
-                                            or (self.off_walkable_ends and not step.on_walkable()))
-        self.contact_run = self.contact_run + 1 if step.in_contact else 0
-        if step.max_progress >= self.mark[1] + self.stuck_distance:
-            self.mark = (step.steps, step.max_progress)
-        stuck = not (succeeded or out_of_route) and (
-            (self.stuck_steps > 0 and step.steps - self.mark[0] >= self.stuck_steps)
-            or (self.collision_steps > 0 and self.contact_run >= self.collision_steps))
-        toppled = not succeeded and step.tilt > self.topple
-        ended = succeeded or out_of_route or stuck or toppled
-        return StepEnd(succeeded, out_of_route, stuck, toppled, not ended and step.cost_total > self.max_cost)
+        """How `step` ends the episode; `step.on_walkable()` is asked only when the rules read it."""
+        on_walkable = bool(step.on_walkable()) if self.rules.off_walkable_ends else True
+        ends = end_of_step(self.rules, self.marks, step.steps, step.max_progress, step.route_length, step.lateral,
+                           on_walkable, bool(step.in_contact), step.tilt, step.cost_total)
+        return StepEnd(*(bool(e) for e in ends))

@@ -239,3 +239,30 @@ def test_a_scene_without_a_route_of_the_asked_length_is_swapped_for_another(tmp_
     with pytest.raises(RouteError, match="no route between 150.0 and 200.0 m"):
         alone.reset(seed=0)
     alone.close()
+
+
+def test_episode_end_rules_give_the_same_flags_for_one_env_and_for_many():
+    """end_of_step on arrays of n (the batched env) and on numbers (the PyBullet env's Termination), over random
+    steps that hit every rule, agree flag for flag and mark for mark."""
+    from sim.tasks.termination import EndMarks, EndRules, end_of_step
+
+    rules = EndRules(0.95, 2.0, 0.5, 6, 4, True, 1.0, 3.0)
+    rng = np.random.default_rng(0)
+    n, many, ones = 64, EndMarks.zeros(64), [EndMarks() for _ in range(64)]
+    steps, progress, cost = np.zeros(n, dtype=np.int64), np.zeros(n), np.zeros(n, dtype=np.int64)
+    seen = np.zeros(5, dtype=int)
+    for _ in range(40):
+        steps += 1
+        progress = np.maximum(progress, progress + rng.choice([0.0, 0.2, 1.5], n))
+        lateral, tilt = rng.normal(0, 1.2, n), rng.uniform(0, 1.2, n)
+        walkable, contact = rng.random(n) > 0.05, rng.random(n) > 0.6
+        cost += contact
+        arrays = end_of_step(rules, many, steps, progress, np.full(n, 30.0), lateral, walkable, contact, tilt, cost)
+        for k in range(n):
+            one = end_of_step(rules, ones[k], int(steps[k]), float(progress[k]), 30.0, float(lateral[k]),
+                              bool(walkable[k]), bool(contact[k]), float(tilt[k]), int(cost[k]))
+            assert tuple(bool(a[k]) for a in arrays) == tuple(bool(o) for o in one)
+            assert (ones[k].step, ones[k].progress, ones[k].contact_run) == (
+                many.step[k], many.progress[k], many.contact_run[k])
+        seen += np.array([a.sum() for a in arrays])
+    assert (seen > 0).all()  # every rule fired somewhere
