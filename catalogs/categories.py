@@ -69,7 +69,8 @@ def parse_table(text: str, where: str = "catalogs/categories.csv") -> dict[str, 
         if not row["sources"].strip():
             raise ValueError(f"{at}: the sources column is empty; name where the sizes come from")
         table[row["category"]] = Category(row["category"], row["object_class"], zones,
-                                          tuple(float(row[a]) for a in AXES), sources=row["sources"], **ranges)
+                                          (float(row[AXES[0]]), float(row[AXES[1]]), float(row[AXES[2]])),
+                                          sources=row["sources"], **ranges)
     return table
 
 

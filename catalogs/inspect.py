@@ -6,7 +6,7 @@ from pathlib import Path
 
 import duckdb
 
-from catalogs.reader import read_meta
+from catalogs.reader import first_value, read_meta
 
 EXPORT_FORMATS = {"parquet": "(FORMAT parquet)", "csv": "(FORMAT csv, HEADER true)", "jsonl": "(FORMAT json)"}
 
@@ -20,7 +20,7 @@ def catalog_stats(con: duckdb.DuckDBPyConnection) -> dict:
         return {str(k): int(v) for k, v in rows}
 
     tables = {
-        t: int(con.execute(f"SELECT count(*) FROM {t}").fetchone()[0])
+        t: int(first_value(con.execute(f"SELECT count(*) FROM {t}").fetchone()))
         for t in ("assets", "views", "descriptions", "matches", "embeddings", "rejections")
     }
     return {
@@ -44,7 +44,7 @@ def export_assets(con: duckdb.DuckDBPyConnection, fmt: str, out: str | Path) -> 
     # COPY takes no bound parameter for its target, so the path is quoted as a SQL string literal.
     target = "'" + str(out).replace("'", "''") + "'"
     con.execute(f"COPY (SELECT * FROM assets ORDER BY asset_id) TO {target} {EXPORT_FORMATS[fmt]}")
-    return int(con.execute("SELECT count(*) FROM assets").fetchone()[0])
+    return int(first_value(con.execute("SELECT count(*) FROM assets").fetchone()))
 
 
 def dump_catalog(catalog_path: str | Path, out_dir: str | Path) -> list[str]:

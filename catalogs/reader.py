@@ -83,6 +83,13 @@ def catalog_errors(path: str | Path) -> Iterator[None]:
         raise catalog_error(e, path) from e
 
 
+def first_value(row: tuple[Any, ...] | None) -> Any:
+    """The first column of a `fetchone()` row (an aggregate such as count(*) always returns one)."""
+    if row is None:
+        raise CatalogError("a catalog query returned no row where one was expected")
+    return row[0]
+
+
 def read_meta(con: duckdb.DuckDBPyConnection) -> dict[str, str]:
     """The catalog's meta table as a dict (schema version, embedding model and width, build parameters)."""
     return dict(con.execute("SELECT key, value FROM meta").fetchall())

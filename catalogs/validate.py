@@ -85,7 +85,7 @@ def check_asset_files(reader: CatalogReader, rec: AssetRecord, client: int) -> l
         return out
     try:
         mesh = trimesh.load(str(mesh_file), force="mesh")
-        if mesh.is_empty or len(mesh.faces) == 0:
+        if mesh.is_empty or len(getattr(mesh, "faces", ())) == 0:
             raise ValueError("the file holds no faces")
     except Exception as e:  # noqa: BLE001 - any parser failure means the same thing: the mesh is corrupt
         out.append(Problem(rec.asset_id, f"mesh does not load in trimesh ({type(e).__name__}: {e}): {mesh_file}"))

@@ -13,7 +13,7 @@ import duckdb
 import numpy as np
 import pyarrow as pa
 
-from catalogs.reader import catalog_error, catalog_errors, descriptions, read_meta
+from catalogs.reader import catalog_error, catalog_errors, descriptions, first_value, read_meta
 from catalogs.records import AssetRecord, DescriptionRecord, MatchRecord, RejectionRecord, ViewRecord
 from catalogs.schema import (
     ASSET_COLUMNS,
@@ -339,7 +339,7 @@ class CatalogWriter:
                            ROW_NUMBER() OVER (PARTITION BY description_id ORDER BY score DESC, asset_id) AS rk
                     FROM matches) r
                 WHERE matches.asset_id = r.asset_id AND matches.description_id = r.description_id""")
-            n = self.con.execute("SELECT count(*) FROM matches WHERE rank > ?", [int(top_k)]).fetchone()[0]
+            n = first_value(self.con.execute("SELECT count(*) FROM matches WHERE rank > ?", [int(top_k)]).fetchone())
             self.con.execute("DELETE FROM matches WHERE rank > ?", [int(top_k)])
         return int(n)
 

@@ -190,7 +190,7 @@ def connect_ray(workers: int | None = None, address: str | None = None) -> bool:
         return False
     address = address or os.environ.get("RAY_ADDRESS") or None  # Ray's own convention for "the cluster to use"
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")  # a local cluster for one run: no token to hand out
-    quiet = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.WARNING,
+    quiet: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.WARNING,
              "configure_logging": True}
     if address:
         _check_reachable(address)

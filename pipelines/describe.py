@@ -96,12 +96,14 @@ def osm_description(row: Any, signs: SignTable | None = None) -> str:
         raise PipelineError(f"OSM object {row.get('osm_id')} ({tag}) has neither a category nor a label; "
                             f"re-run the osm stage with catalogs/closed_set/osm_tags.csv")
     adj = []
-    if _tag(row, "colour"):
-        adj.append(_tag(row, "colour").replace("_", " "))
-    if _tag(row, "material"):
-        adj.append(_MATERIAL_ADJ.get(_tag(row, "material"), _tag(row, "material")))
-    if _tag(row, "leaf_type") in ("broadleaved", "needleleaved"):
-        adj.append(_tag(row, "leaf_type"))
+    colour, material = _tag(row, "colour"), _tag(row, "material")
+    if colour:
+        adj.append(colour.replace("_", " "))
+    if material:
+        adj.append(_MATERIAL_ADJ.get(material, material))
+    leaf_type = _tag(row, "leaf_type")
+    if leaf_type in ("broadleaved", "needleleaved"):
+        adj.append(leaf_type)
     support = _tag(row, "support") or ""
     if support in ("wall_mounted", "wall", "ceiling", "suspended"):
         adj.append("wall-mounted" if "wall" in support else "suspended")

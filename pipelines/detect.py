@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -71,7 +72,7 @@ def load_prompts(closed_set_path: str | Path, sources: list[str]) -> tuple[list[
 
 
 def detect_images(manifest: Any, prompts: list[str], categories: list[str], detector: Any, *, score_threshold: float,
-                  nms_iou: float, sidewalk_filter: str, segmenter: Any = None, sidewalk_labels: list[str] = (),
+                  nms_iou: float, sidewalk_filter: str, segmenter: Any = None, sidewalk_labels: Sequence[str] = (),
                   min_overlap: float = 0.3, bottom_fraction: float = 0.25) -> tuple[Any, Any, dict[str, int]]:
     """Pure function of the stage: (detections kept, images skipped with the reason, counts)."""
     import pandas as pd

@@ -108,7 +108,7 @@ def read_extract(path: str | Path, rules: list[TagRule], street_highways: list[s
     streets_set = set(street_highways)
     data = ExtractData()
     try:
-        fp = osmium.FileProcessor(str(p)).with_locations()
+        fp: Any = osmium.FileProcessor(str(p)).with_locations()  # yields nodes, ways and relations alike
         for obj in fp:
             if obj.is_node():
                 if not any(k in obj.tags for k in keys):
