@@ -77,7 +77,9 @@ def card(experiment: str, budget: str, run: Run, seed: int, meta: dict[str, Any]
     return {
         "task": run.task, "method": run.method, "setting": run.setting, "protocol": meta.get("protocol"),
         "experiment": experiment, "budget": budget, "run": run.id, "seed": seed, "steps": result["steps"],
-        "backend": result.get("backend"), "train_seconds": result.get("train_s"),
+        "backend": result.get("backend"),
+        # A run resumed from a checkpoint records only its last part: its training time is unknown, not that part.
+        "train_seconds": None if result.get("resumed", False) else result.get("train_s"),
         "env_config": meta.get("env_config", {}),
         "metrics": {split: {k: ev.get(k) for k in ("sr", "spl", "sns", "cost", "route_completion", "episodes")
                             if k in ev} for split, ev in result["evals"].items()},

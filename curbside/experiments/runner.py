@@ -105,6 +105,7 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
             hparams = b["hparams"] if run.method in ONLINE + ("gail",) else (
                 {"net_arch": b["hparams"]["net_arch"]} if "net_arch" in b["hparams"] else {})
             t0 = time.time()
+            resumed = (out / "run.json").is_file()  # then train_s holds this call's part of the training alone
             out.mkdir(parents=True, exist_ok=True)
             policy_dir = out
             if run.train:
@@ -113,7 +114,7 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
                 train(run.method, run.task, out, steps=steps, protocol=exp.protocol, backend=backend, split=run.split,
                       env_config=run.env, n_envs=b["n_envs"], num_scenes=run.env.get("num_scenes") or b["scenes"],
                       seed=seed, demos=demos,
-                      resume=(out / "run.json").is_file(), init_from=init_from, eval_every=int(b["eval_every"]) if online else 0,
+                      resume=resumed, init_from=init_from, eval_every=int(b["eval_every"]) if online else 0,
                       eval_episodes=int(b["curve_episodes"]), hparams=hparams, progress=progress)
             else:
                 assert init_from is not None
@@ -130,7 +131,7 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
                     f"Cost {evals[split]['cost']:.2f}")
             result = {"experiment": exp.name, "budget": budget, "run": run.id, "task": run.task,
                       "method": run.method, "split": run.split, "setting": run.setting, "seed": seed, "steps": steps,
-                      "backend": backend, "train_s": round(train_s, 1), "protocol": exp.protocol, "evals": evals}
+                      "backend": backend, "train_s": round(train_s, 1), "resumed": resumed, "protocol": exp.protocol, "evals": evals}
             _write_json(done, result)
             results.append(result)
     return results
