@@ -66,34 +66,33 @@ def _cost(t: Table, task: str, method: str, split: str) -> float | None:
     return None if cell is None or "cost" not in cell else cell["cost"]
 
 
-def _missing(*values: Any) -> bool:
-    return any(v is None for v in values)
-
-
 def _far_from_solved(t: Table) -> dict[str, Any]:
     best = {task: max((v for m in METHODS if (v := _sr(t, task, m, "test")) is not None), default=None)
             for task in ("PointNav", "SocialNav")}
-    if _missing(*best.values()):
+    found = [v for v in best.values() if v is not None]
+    if len(found) < len(best):
         return {"reproduced": None, "ours": best}
-    return {"reproduced": all(v < FAR_FROM_SOLVED for v in best.values()), "ours": {f"best_test_sr_{k}": v
-                                                                                  for k, v in best.items()},
+    return {"reproduced": all(v < FAR_FROM_SOLVED for v in found), "ours": {f"best_test_sr_{k}": v
+                                                                           for k, v in best.items()},
             "paper": {"best_test_sr_PointNav": 0.66, "best_test_sr_SocialNav": 0.36}}
 
 
 def _unseen_below_test(t: Table) -> dict[str, Any]:
     test, unseen = _sr(t, "PointNav", "ppo", "test"), _sr(t, "PointNav", "ppo", "unseen")
     ours = {"ppo_pointnav_test_sr": test, "ppo_pointnav_unseen_sr": unseen}
-    if _missing(test, unseen):
+    if test is None or unseen is None:
         return {"reproduced": None, "ours": ours}
-    assert test is not None and unseen is not None
     return {"reproduced": unseen < test and unseen >= 0.5 * test, "ours": ours,
             "paper": {"ppo_pointnav_test_sr": 0.66, "ppo_pointnav_unseen_sr": 0.49}}
 
 
 def _socialnav_harder(t: Table) -> dict[str, Any]:
-    pairs = {m: (_sr(t, "PointNav", m, "test"), _sr(t, "SocialNav", m, "test")) for m in METHODS}
-    have = {m: p for m, p in pairs.items() if not _missing(*p)}
-    ours = {m: {"PointNav": p[0], "SocialNav": p[1]} for m, p in have.items()}
+    have: dict[str, tuple[float, float]] = {}
+    for m in METHODS:
+        p, s = _sr(t, "PointNav", m, "test"), _sr(t, "SocialNav", m, "test")
+        if p is not None and s is not None:
+            have[m] = (p, s)
+    ours = {m: {"PointNav": p, "SocialNav": s} for m, (p, s) in have.items()}
     if len(have) < len(METHODS):
         return {"reproduced": None, "ours": ours}
     harder = sum(s < p for p, s in have.values())
@@ -112,7 +111,7 @@ def _safe_rl(t: Table) -> dict[str, Any]:
         for m in ("ppo_lag", "ppo_et"):
             sr, cost = _sr(t, task, m, "test"), _cost(t, task, m, "test")
             ours[f"{task}_{m}"] = {"sr": sr, "cost": cost, "ppo_sr": base_sr, "ppo_cost": base_cost}
-            if _missing(sr, cost, base_sr, base_cost):
+            if sr is None or cost is None or base_sr is None or base_cost is None:
                 return {"reproduced": None, "ours": ours}
             ok &= cost < base_cost and sr <= base_sr
     return {"reproduced": ok, "ours": ours,
@@ -141,7 +140,7 @@ def _density(static: Table, dynamic: Table) -> dict[str, Any]:
             low, high = (next((c["sr"] for (_, _, sp, st), c in t.items() if sp == split and st == s and "sr" in c),
                               None) for s in ("0.01", "1.0"))
             ours[f"{name}_{split}"] = {"density_1pc": low, "density_100pc": high}
-            if _missing(low, high):
+            if low is None or high is None:
                 return {"reproduced": None, "ours": ours}
             ok &= high < low
     return {"reproduced": ok, "ours": ours, "paper": "train and test SR both fall sharply from 1 % to 100 % (figure)"}
@@ -151,7 +150,7 @@ def _finetune(t: Table) -> dict[str, Any]:
     scratch = next((c["sr"] for (_, _, _, s), c in t.items() if s == "3" and "sr" in c), None)
     pretrained = next((c["sr"] for (_, _, _, s), c in t.items() if s == "4" and "sr" in c), None)
     ours = {"setting3_scratch_sr": scratch, "setting4_pretrained_sr": pretrained}
-    if _missing(scratch, pretrained):
+    if scratch is None or pretrained is None:
         return {"reproduced": None, "ours": ours}
     return {"reproduced": pretrained > scratch, "ours": ours,
             "paper": {k: v.get("sr") for k, v in paper.PAPER_ABLATION_GENERALISATION.items()}}
@@ -166,7 +165,7 @@ def _machines(t: Table) -> dict[str, Any]:
     need = ("delivery_bot", "delivery_bot_mod1", "delivery_bot_mod2", "wheelchair", "mobility_scooter")
     if any(m not in ours for m in need):
         return {"reproduced": None, "ours": ours}
-    ranked = sorted(ours, key=ours.get, reverse=True)
+    ranked = sorted(ours, key=lambda m: ours[m], reverse=True)
     ok = ranked[0] == "delivery_bot_mod1" and set(ranked[-2:]) == {"delivery_bot_mod2", "wheelchair"}
     return {"reproduced": ok, "ours": {**ours, "ranking": ranked},
             "paper": {m: sum(c["sr"] for c in paper.PAPER_TABLE2[m].values()) / 2 for m in need}}
@@ -176,7 +175,7 @@ def _long_routes(t: Table) -> dict[str, Any]:
     short = next((c["sr"] for (_, _, _, s), c in t.items() if s == "10 m" and "sr" in c), None)
     long = next((c["sr"] for (_, _, _, s), c in t.items() if s == "410 m" and "sr" in c), None)
     ours = {"trained_10m_sr": short, "trained_410m_sr": long}
-    if _missing(short, long):
+    if short is None or long is None:
         return {"reproduced": None, "ours": ours}
     return {"reproduced": long > short, "ours": ours,
             "paper": {k: v["sr"] for k, v in paper.PAPER_TABLE5_HORIZON.items()}}
@@ -184,9 +183,10 @@ def _long_routes(t: Table) -> dict[str, Any]:
 
 def _pedestrians(t: Table) -> dict[str, Any]:
     sr = {s: next((c["sr"] for (_, _, _, st), c in t.items() if st == s and "sr" in c), None) for s in "1234"}
-    if _missing(sr["1"], sr["2"], sr["3"]):
+    one, two, three = sr["1"], sr["2"], sr["3"]
+    if one is None or two is None or three is None:
         return {"reproduced": None, "ours": sr}
-    return {"reproduced": sr["2"] < sr["1"] and sr["3"] < sr["1"], "ours": sr,
+    return {"reproduced": two < one and three < one, "ours": sr,
             "paper": {k: v["sr"] for k, v in paper.PAPER_TABLE5_PEDESTRIANS.items()}}
 
 
