@@ -79,6 +79,7 @@ def release_cmd(
     root: Path = typer.Option(Path("outputs/experiments"), help="Where the runs are."),
     zoo: Path = typer.Option(Path("policies"), help="Policies go to ZOO/<task>/<method>[-<setting>]/."),
     seed: int = typer.Option(0, min=0, help="The seed whose policy to release."),
+    only: str | None = typer.Option(None, help="Comma-separated run ids to release (default: every finished one)."),
 ) -> None:
     """Copy the experiment's finished policies into the policy zoo, each with a card.json; `curbside train eval
     ZOO/<task>/<method>` evaluates one."""
@@ -88,7 +89,8 @@ def release_cmd(
 
     try:
         budget_of(load_experiment(name), budget)
-        written = release(name, budget, root=root, zoo=zoo, seed=seed)
+        ids = [s for s in only.split(",") if s] if only else None
+        written = release(name, budget, root=root, zoo=zoo, seed=seed, only=ids)
     except (ConfigError, FileNotFoundError) as e:
         raise fail(str(e)) from None
     for path in written:

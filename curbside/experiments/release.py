@@ -15,6 +15,7 @@ from typing import Any
 from curbside.experiments.runner import DEFAULT_ROOT, ONLINE, run_dir
 from curbside.experiments.spec import Run, load_experiment
 from curbside.train.policies import POLICY_FILES, save_policy
+from kernel.config import ConfigError
 
 ZOO = Path("policies")
 
@@ -41,13 +42,18 @@ def _compact_copy(src: Path, dst: Path, algo: str) -> None:
         shutil.copyfile(src, dst)
 
 
-def release(name: str, budget: str, *, root: Path = DEFAULT_ROOT, zoo: Path = ZOO, seed: int = 0) -> list[Path]:
-    """Copy the seed-`seed` policy of every finished training run of experiment `name` at `budget` into the zoo;
-    return the folders written. A run without a result yet is skipped."""
+def release(name: str, budget: str, *, root: Path = DEFAULT_ROOT, zoo: Path = ZOO, seed: int = 0,
+            only: list[str] | None = None) -> list[Path]:
+    """Copy the seed-`seed` policy of every finished training run of experiment `name` at `budget` (of the run ids in
+    `only`, when given) into the zoo; return the folders written. A run without a result yet is skipped."""
     exp = load_experiment(name)
+    if only:
+        unknown = sorted(set(only) - {r.id for r in exp.runs})
+        if unknown:
+            raise ConfigError(f"unknown run id(s) {unknown} in {exp.name}; valid: {', '.join(r.id for r in exp.runs)}")
     written = []
     for run in exp.runs:
-        if not run.train or seed not in run.seeds:
+        if not run.train or seed not in run.seeds or (only and run.id not in only):
             continue
         src = run_dir(root, exp, budget, run, seed)
         result_file = src / "result.json"

@@ -97,6 +97,9 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     from curbside.train.policies import load_policy
 
     zoo = tmp_path / "zoo"
+    assert release(str(exp), "smoke", root=root, zoo=zoo, only=["b"]) == []  # b trains nothing: no policy of its own
+    with pytest.raises(ConfigError, match="unknown run id"):
+        release(str(exp), "smoke", root=root, zoo=zoo, only=["c"])
     assert release(str(exp), "smoke", root=root, zoo=zoo) == [zoo / "PointNav" / "ppo"]
     released, source = zoo / "PointNav" / "ppo", root / "tiny" / "smoke" / "a" / "seed_0"
     card = json.loads((released / "card.json").read_text())
