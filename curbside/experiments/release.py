@@ -13,9 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from curbside.experiments.runner import DEFAULT_ROOT, ONLINE, run_dir
-from curbside.experiments.spec import Run, load_experiment
+from curbside.experiments.spec import Run, check_run_ids, load_experiment
 from curbside.train.policies import POLICY_FILES, save_policy
-from kernel.config import ConfigError
 
 ZOO = Path("policies")
 
@@ -47,10 +46,7 @@ def release(name: str, budget: str, *, root: Path = DEFAULT_ROOT, zoo: Path = ZO
     """Copy the seed-`seed` policy of every finished training run of experiment `name` at `budget` (of the run ids in
     `only`, when given) into the zoo; return the folders written. A run without a result yet is skipped."""
     exp = load_experiment(name)
-    if only:
-        unknown = sorted(set(only) - {r.id for r in exp.runs})
-        if unknown:
-            raise ConfigError(f"unknown run id(s) {unknown} in {exp.name}; valid: {', '.join(r.id for r in exp.runs)}")
+    check_run_ids(exp, only)
     written = []
     for run in exp.runs:
         if not run.train or seed not in run.seeds or (only and run.id not in only):

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from curbside.experiments.spec import Experiment, Run, budget_of, load_experiment
+from curbside.experiments.spec import Experiment, Run, budget_of, check_run_ids, load_experiment
 
 ONLINE = ("ppo", "ppo_lag", "ppo_et")
 DEFAULT_ROOT = Path("outputs/experiments")
@@ -70,15 +70,11 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
     from curbside.train.policies import read_run
     from curbside.train.protocols import deep_merge, protocol
     from curbside.train.run import train
-    from kernel.config import ConfigError
 
     exp = load_experiment(name)
     b = budget_of(exp, budget)
     proto = protocol(exp.protocol)
-    if only:
-        unknown = sorted(set(only) - {r.id for r in exp.runs})
-        if unknown:
-            raise ConfigError(f"unknown run id(s) {unknown} in {exp.name}; valid: {', '.join(r.id for r in exp.runs)}")
+    check_run_ids(exp, only)
     results = []
     for run in exp.runs:
         if only and run.id not in only:

@@ -109,6 +109,13 @@ def load_experiment(name: str) -> Experiment:
                       description=str(raw.get("description", "")))
 
 
+def check_run_ids(exp: Experiment, ids: list[str] | None) -> None:
+    """A ConfigError naming the valid run ids when `ids` (a selection such as --only) holds one `exp` lacks."""
+    unknown = sorted(set(ids or ()) - {r.id for r in exp.runs})
+    if unknown:
+        raise ConfigError(f"unknown run id(s) {unknown} in {exp.name}; valid: {', '.join(r.id for r in exp.runs)}")
+
+
 def budget_of(exp: Experiment, budget: str) -> dict[str, Any]:
     """The values of `budget` for `exp`: the runner's defaults under the file's own."""
     if budget not in BUDGETS:
