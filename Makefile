@@ -28,6 +28,7 @@ install: $(STAMP)
 
 test: install
 	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 	$(BIN)/mypy
 	$(PY) -m pytest -n 2 -q
 

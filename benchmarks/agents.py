@@ -53,8 +53,13 @@ def planning_100(scene_seed: int) -> dict[str, float]:
     grid.plan_all(sites)  # every distinct goal's distance field: each agent's full path is now known
     lengths = grid.distance(starts, sites)
     t_plan = time.perf_counter() - t
-    return {"grid_s": t_grid, "plan_100_s": t_plan, "total_s": t_grid + t_plan, "nodes": grid.n_nodes,
-            "mean_path_m": float(np.mean(lengths[np.isfinite(lengths)]))}
+    return {
+        "grid_s": t_grid,
+        "plan_100_s": t_plan,
+        "total_s": t_grid + t_plan,
+        "nodes": grid.n_nodes,
+        "mean_path_m": float(np.mean(lengths[np.isfinite(lengths)])),
+    }
 
 
 def socialnav_steps(n_agents: int, steps: int, env_id: str = "curbside/SocialNav-v0") -> tuple[float, float]:
@@ -93,8 +98,10 @@ def main() -> None:
     for n in (10, 100, 1000):
         print(f"agent step, {n:>5} agents: {orca_step(n, reps if n < 1000 else max(reps // 5, 5)):8.3f} ms")
     r = planning_100(0)
-    print(f"global planning, 100 agents: {r['total_s']:.3f} s (grid {r['grid_s']:.3f} s + fields {r['plan_100_s']:.3f} s; "
-          f"{r['nodes']} cells, mean path {r['mean_path_m']:.1f} m; MetaUrban: 5 s on a Core i9)")
+    print(
+        f"global planning, 100 agents: {r['total_s']:.3f} s (grid {r['grid_s']:.3f} s + fields {r['plan_100_s']:.3f} s; "
+        f"{r['nodes']} cells, mean path {r['mean_path_m']:.1f} m; MetaUrban: 5 s on a Core i9)"
+    )
     steps = 300 if args.quick else 1000
     wall, cpu = socialnav_steps(0, steps, "curbside/PointNav-v0")
     print(f"PointNav env (same scene, no agents): {wall:.0f} steps/s ({cpu:.0f} per CPU second)")

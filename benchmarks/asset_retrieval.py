@@ -35,9 +35,11 @@ def main(n: int = 12, scorer: str = "aligned") -> None:
         rep = ingest(ready, f"{tmp}/c.duckdb", config, limit=n, progress=False)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     done = rep.written + rep.rejected
-    print(f"{done} assets ({config.n_views} views at {config.image_size} px, {config.n_informative} scored, scorer "
-          f"{scorer}): {cpu:.1f} CPU-s = {done / cpu:.2f} assets per CPU-second; wall {wall:.1f} s = "
-          f"{done / wall:.2f} assets/s (incl. catalog writes)")
+    print(
+        f"{done} assets ({config.n_views} views at {config.image_size} px, {config.n_informative} scored, scorer "
+        f"{scorer}): {cpu:.1f} CPU-s = {done / cpu:.2f} assets per CPU-second; wall {wall:.1f} s = "
+        f"{done / wall:.2f} assets/s (incl. catalog writes)"
+    )
     for stage, sec in rep.seconds.items():
         print(f"  {stage:10s} {done / sec:8.2f} assets/s  ({1000 * sec / done:.0f} ms/asset, wall)")
     per_core = done / cpu
@@ -47,11 +49,22 @@ def main(n: int = 12, scorer: str = "aligned") -> None:
             print(f"| {name} | {count:,} | {workers} | {count / (per_core * workers) / 3600:.1f} |")
     out = Path(__file__).parent / "results" / "retrieval"
     out.mkdir(parents=True, exist_ok=True)
-    (out / f"asset_retrieval_{scorer}.json").write_text(json.dumps({
-        "command": f"HF_HUB_OFFLINE=1 python benchmarks/asset_retrieval.py {n} --scorer {scorer}", "assets": done,
-        "views": config.n_views, "image_size": config.image_size, "scored_views": config.n_informative,
-        "assets_per_cpu_s": round(per_core, 3), "wall_assets_per_s": round(done / wall, 3),
-        "stage_ms_wall": {k: round(1000 * v / done, 1) for k, v in rep.seconds.items()}}, indent=2) + "\n")
+    (out / f"asset_retrieval_{scorer}.json").write_text(
+        json.dumps(
+            {
+                "command": f"HF_HUB_OFFLINE=1 python benchmarks/asset_retrieval.py {n} --scorer {scorer}",
+                "assets": done,
+                "views": config.n_views,
+                "image_size": config.image_size,
+                "scored_views": config.n_informative,
+                "assets_per_cpu_s": round(per_core, 3),
+                "wall_assets_per_s": round(done / wall, 3),
+                "stage_ms_wall": {k: round(1000 * v / done, 1) for k, v in rep.seconds.items()},
+            },
+            indent=2,
+        )
+        + "\n"
+    )
 
 
 if __name__ == "__main__":

@@ -42,9 +42,16 @@ def batched_rate(spec: dict, n: int, seconds: float, route_pool: int) -> dict:
         rounds += 1
     wall, cpu = time.perf_counter() - w0, time.process_time() - c0
     env.close()
-    return {"envs": n, "route_pool": route_pool, "steps": rounds * n, "episodes": episodes,
-            "steps_per_s": round(rounds * n / wall, 1), "steps_per_cpu_s": round(rounds * n / cpu, 1),
-            "ms_per_batch_step": round(1000 * wall / rounds, 2), "loadavg_1min": round(os.getloadavg()[0], 2)}
+    return {
+        "envs": n,
+        "route_pool": route_pool,
+        "steps": rounds * n,
+        "episodes": episodes,
+        "steps_per_s": round(rounds * n / wall, 1),
+        "steps_per_cpu_s": round(rounds * n / cpu, 1),
+        "ms_per_batch_step": round(1000 * wall / rounds, 2),
+        "loadavg_1min": round(os.getloadavg()[0], 2),
+    }
 
 
 def pybullet_rate(spec: dict, seconds: float) -> dict:
@@ -60,8 +67,14 @@ def pybullet_rate(spec: dict, seconds: float) -> dict:
         steps += 1
     wall, cpu = time.perf_counter() - w0, time.process_time() - c0
     env.close()
-    return {"env": "PyBullet PointNavEnv", "envs": 1, "steps": steps, "steps_per_s": round(steps / wall, 1),
-            "steps_per_cpu_s": round(steps / cpu, 1), "loadavg_1min": round(os.getloadavg()[0], 2)}
+    return {
+        "env": "PyBullet PointNavEnv",
+        "envs": 1,
+        "steps": steps,
+        "steps_per_s": round(steps / wall, 1),
+        "steps_per_cpu_s": round(steps / cpu, 1),
+        "loadavg_1min": round(os.getloadavg()[0], 2),
+    }
 
 
 if __name__ == "__main__":
@@ -69,15 +82,22 @@ if __name__ == "__main__":
     ap.add_argument("--envs", type=int, nargs="+", default=[1, 8, 64, 256])
     ap.add_argument("--seconds", type=float, default=10.0, help="timed seconds per configuration")
     ap.add_argument("--route-pool", type=int, nargs="+", default=[0, 64], help="route_pool values to run")
-    ap.add_argument("--out", type=Path, default=None, help="append the command and results to this file "
-                    f"(e.g. benchmarks/results/sim_speed/batched_{date.today()}.txt)")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="append the command and results to this file "
+        f"(e.g. benchmarks/results/sim_speed/batched_{date.today()}.txt)",
+    )
     args = ap.parse_args()
     spec = bench_scene()
     lines = [json.dumps(pybullet_rate(spec, args.seconds), sort_keys=True)]
     print(lines[-1], flush=True)
     for pool in args.route_pool:
         for n in args.envs:
-            lines.append(json.dumps({"env": "BatchedPointNav", **batched_rate(spec, n, args.seconds, pool)}, sort_keys=True))
+            lines.append(
+                json.dumps({"env": "BatchedPointNav", **batched_rate(spec, n, args.seconds, pool)}, sort_keys=True)
+            )
             print(lines[-1], flush=True)
     if args.out is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)

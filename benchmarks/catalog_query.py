@@ -50,13 +50,25 @@ def synthetic_records(n: int, rng: np.random.Generator) -> list[AssetRecord]:
     for i in range(n):
         c = names[cats[i]]
         zones = [str(z) for z in rng.choice(ZONES, size=int(rng.integers(1, 3)), replace=False)]
-        out.append(AssetRecord(
-            asset_id=f"syn-{i:07d}", source=SOURCES[i % 3], source_id=str(i), category=c,
-            object_class=CATEGORIES[c].object_class, zones=zones, depth=float(sizes[i, 0]), width=float(sizes[i, 1]),
-            height=float(sizes[i, 2]), description=f"a {c.replace('_', ' ')} variant {i}", synonyms=[c],
-            license=LICENSES[i % 3], mass=float(sizes[i].prod() * 100), mesh_path=f"syn_assets/{i}/mesh.obj",
-            params={"seed": i},
-        ))
+        out.append(
+            AssetRecord(
+                asset_id=f"syn-{i:07d}",
+                source=SOURCES[i % 3],
+                source_id=str(i),
+                category=c,
+                object_class=CATEGORIES[c].object_class,
+                zones=zones,
+                depth=float(sizes[i, 0]),
+                width=float(sizes[i, 1]),
+                height=float(sizes[i, 2]),
+                description=f"a {c.replace('_', ' ')} variant {i}",
+                synonyms=[c],
+                license=LICENSES[i % 3],
+                mass=float(sizes[i].prod() * 100),
+                mesh_path=f"syn_assets/{i}/mesh.obj",
+                params={"seed": i},
+            )
+        )
     return out
 
 
@@ -136,8 +148,10 @@ def cold_main(args: argparse.Namespace) -> None:
     table.add_row("median", f"{np.median(walls):.2f}", f"{np.median([r['cpu_s'] for r in runs]):.2f}", "", "")
     Console().print(table)
     p50, p95 = percentiles(warm)
-    Console().print(f"warm (one process, numpy encoder loaded): embed + SQL p50 {p50:.1f} ms, p95 {p95:.1f} ms "
-                    f"over {len(warm)} queries")
+    Console().print(
+        f"warm (one process, numpy encoder loaded): embed + SQL p50 {p50:.1f} ms, p95 {p95:.1f} ms "
+        f"over {len(warm)} queries"
+    )
     console.print(f"machine: {os.cpu_count()} CPU cores visible")
 
 
@@ -150,10 +164,19 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000])
     ap.add_argument("--repeats", type=int, default=50)
     ap.add_argument("--no-text", action="store_true", help="skip the end-to-end runs that embed the query text")
-    ap.add_argument("--encoder", choices=("numpy", "torch"), default="numpy",
-                    help="query-text encoder of the end-to-end runs (the CLI uses numpy)")
-    ap.add_argument("--cold", type=int, default=0, metavar="N",
-                    help="instead: N cold CLI queries in fresh processes, then the warm in-process figure")
+    ap.add_argument(
+        "--encoder",
+        choices=("numpy", "torch"),
+        default="numpy",
+        help="query-text encoder of the end-to-end runs (the CLI uses numpy)",
+    )
+    ap.add_argument(
+        "--cold",
+        type=int,
+        default=0,
+        metavar="N",
+        help="instead: N cold CLI queries in fresh processes, then the warm in-process figure",
+    )
     ap.add_argument("--catalog", type=Path, default=None, help="catalog for --cold (default: build one)")
     args = ap.parse_args()
     if args.cold:

@@ -95,20 +95,22 @@ def main() -> None:
     wr0, wr1, wrep = w["w_run0"], w["w_run1"], w["w_replied"]
     # The parent's own env's infos are batched between its step's end and its wait; the wait ends at `pwoke`.
     phases = {
-        "round": loop[1:n + 1] - loop[:n],
+        "round": loop[1 : n + 1] - loop[:n],
         "parent: step_async, its env starts": pr0[:n] - loop[:n],
         "worker: woken, its env starts": wr0[:n] - loop[:n],
         "parent env step": pr1[:n] - pr0[:n],
         "worker env step": wr1[:n] - wr0[:n],
         "worker: reply": wrep[:n] - wr1[:n],
-        "parent: after both, to its next step": loop[1:n + 1] - np.maximum(pr1[:n], wrep[:n]),
+        "parent: after both, to its next step": loop[1 : n + 1] - np.maximum(pr1[:n], wrep[:n]),
         "parent: waiting": pwoke[:n] - pr1[:n],
         "imbalance |parent env done - worker replied|": np.abs(pr1[:n] - wrep[:n]),
     }
     for name, x in phases.items():
         x = x[1000:] * 1e6
-        print(f"{name:48s} mean {x.mean():7.1f}  p10 {np.percentile(x, 10):7.1f}  p50 {np.percentile(x, 50):7.1f}  "
-              f"p90 {np.percentile(x, 90):7.1f}")
+        print(
+            f"{name:48s} mean {x.mean():7.1f}  p10 {np.percentile(x, 10):7.1f}  p50 {np.percentile(x, 50):7.1f}  "
+            f"p90 {np.percentile(x, 90):7.1f}"
+        )
 
 
 if __name__ == "__main__":

@@ -8,8 +8,17 @@ from typing import Any
 import numpy as np
 
 
-def beside_paper(ax: Any, labels: list[str], ours: list[float], paper: list[float] | tuple[float, ...], *,
-                 ours_label: str, paper_label: str, title: str, err: list[float] | None = None) -> None:
+def beside_paper(
+    ax: Any,
+    labels: list[str],
+    ours: list[float],
+    paper: list[float] | tuple[float, ...],
+    *,
+    ours_label: str,
+    paper_label: str,
+    title: str,
+    err: list[float] | None = None,
+) -> None:
     """Grouped bars on `ax`: ours (blue, with error bars when given) beside the paper's (grey), per label."""
     pos = np.arange(len(labels))
     ax.bar(pos - 0.2, ours, 0.4, yerr=err, label=ours_label, color="#3b7dd8")

@@ -11,11 +11,34 @@ from catalogs.categories import CATEGORIES
 from pipelines.cluster import dbscan_labels
 from pipelines.embed import embed_texts
 
-COLOURS = ["red", "green", "blue", "gray", "black", "white", "yellow", "orange", "brown", "silver", "dark green", "teal"]
+COLOURS = [
+    "red",
+    "green",
+    "blue",
+    "gray",
+    "black",
+    "white",
+    "yellow",
+    "orange",
+    "brown",
+    "silver",
+    "dark green",
+    "teal",
+]
 MATERIALS = ["metal", "wooden", "plastic", "concrete", "steel", "stone", "aluminium", "cast iron"]
 SIZES = ["small", "medium", "large", "tall", "short", "wide", "narrow"]
-EXTRAS = ["", " with a backrest", " on a pole", " next to the curb", " with a sticker", " covered in graffiti",
-          " with a logo", " near a crosswalk", " in front of a shop", " with a rounded top"]
+EXTRAS = [
+    "",
+    " with a backrest",
+    " on a pole",
+    " next to the curb",
+    " with a sticker",
+    " covered in graffiti",
+    " with a logo",
+    " near a crosswalk",
+    " in front of a shop",
+    " with a rounded top",
+]
 
 
 def synthetic_descriptions(n: int, seed: int = 0) -> list[str]:

@@ -53,9 +53,17 @@ def main() -> None:
     done = policy.is_file() and PPO.load(policy, device="cpu").num_timesteps >= args.steps
     t0 = time.perf_counter()
     if not done:
-        train("ppo", "PointNav", args.run, steps=args.steps, protocol="paper", backend="batched",
-              resume=(args.run / "run.json").is_file(),
-              eval_every=args.eval_every, eval_episodes=args.curve_episodes)
+        train(
+            "ppo",
+            "PointNav",
+            args.run,
+            steps=args.steps,
+            protocol="paper",
+            backend="batched",
+            resume=(args.run / "run.json").is_file(),
+            eval_every=args.eval_every,
+            eval_episodes=args.curve_episodes,
+        )
     train_s = time.perf_counter() - t0
     model = PPO.load(policy, device="cpu")
     cfg = read_run(args.run)["env_config"]
@@ -63,20 +71,33 @@ def main() -> None:
     def act(obs: np.ndarray) -> np.ndarray:
         return model.predict(obs, deterministic=True)[0]
 
-    pybullet = evaluate_run(policy.parent, "PointNav", cfg, split="test", episodes=args.final_episodes,
-                            num_scenes=proto.eval_scenes, workers=max(args.workers, 1), progress=False)
-    batched = evaluate_policy_batched(act, cfg, split="test", episodes=args.final_episodes,
-                                      num_scenes=proto.eval_scenes)
+    pybullet = evaluate_run(
+        policy.parent,
+        "PointNav",
+        cfg,
+        split="test",
+        episodes=args.final_episodes,
+        num_scenes=proto.eval_scenes,
+        workers=max(args.workers, 1),
+        progress=False,
+    )
+    batched = evaluate_policy_batched(
+        act, cfg, split="test", episodes=args.final_episodes, num_scenes=proto.eval_scenes
+    )
     args.out.mkdir(parents=True, exist_ok=True)
     if (args.run / "eval_curve.csv").is_file():
         shutil.copy(args.run / "eval_curve.csv", args.out / "curve.csv")
     transfer = {
         "command": "python benchmarks/" + " ".join(shlex.quote(a) for a in [Path(__file__).name, *sys.argv[1:]]),
-        "steps": int(model.num_timesteps), "episodes": args.final_episodes, "split": "test",
+        "steps": int(model.num_timesteps),
+        "episodes": args.final_episodes,
+        "split": "test",
         "pybullet": {k: pybullet[k] for k in ("sr", "spl", "cost", "route_completion")},
         "batched": {k: batched[k] for k in ("sr", "spl", "cost", "route_completion")},
-        "transfer_gap_sr": pybullet["sr"] - batched["sr"], "target_gap": 0.05,
-        "train_seconds_this_call": round(train_s)}
+        "transfer_gap_sr": pybullet["sr"] - batched["sr"],
+        "target_gap": 0.05,
+        "train_seconds_this_call": round(train_s),
+    }
     (args.out / "transfer.json").write_text(json.dumps(transfer, indent=2) + "\n")
     print(json.dumps(transfer, indent=2))
     plot(args.out)
@@ -115,8 +136,14 @@ def plot(out: Path) -> None:
     ax.plot(steps, [float(r["route_completion"]) for r in rows], marker=".", ls="--", label="test route completion")
     if transfer is not None:  # the final policy on the same episodes on both envs
         end = transfer["steps"] / 1e6
-        ax.scatter([end], [transfer["pybullet"]["sr"]], marker="*", s=120, color="C0",
-                   label=f"final SR, PyBullet ({transfer['episodes']} ep.)")
+        ax.scatter(
+            [end],
+            [transfer["pybullet"]["sr"]],
+            marker="*",
+            s=120,
+            color="C0",
+            label=f"final SR, PyBullet ({transfer['episodes']} ep.)",
+        )
         ax.scatter([end], [transfer["batched"]["sr"]], marker="x", s=80, color="C3", label="final SR, batched env")
     ax.axhline(0.66, color="gray", ls=":", lw=1, label="paper PPO test SR 0.66")
     ax.set_xlabel("env steps (millions), paper protocol, batched backend")

@@ -36,10 +36,24 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 BUDGETS = {
-    "smoke": {"scenes": 6, "episodes": 6, "ppo_steps": 2048, "ppo_envs": (2,), "node_scenes": 8, "node_episodes": 8,
-              "rounds": 1},
-    "full": {"scenes": 300, "episodes": 80, "ppo_steps": 16384, "ppo_envs": (2, 8), "node_scenes": 24,
-             "node_episodes": 24, "rounds": 3},
+    "smoke": {
+        "scenes": 6,
+        "episodes": 6,
+        "ppo_steps": 2048,
+        "ppo_envs": (2,),
+        "node_scenes": 8,
+        "node_episodes": 8,
+        "rounds": 1,
+    },
+    "full": {
+        "scenes": 300,
+        "episodes": 80,
+        "ppo_steps": 16384,
+        "ppo_envs": (2, 8),
+        "node_scenes": 24,
+        "node_episodes": 24,
+        "rounds": 3,
+    },
 }
 SCENE_BASE = {"blocks": 3, "preset": "metaurban12k"}  # `curbside scenes dataset`'s defaults
 EVAL_ENV = "curbside/PointNav-v0"
@@ -109,8 +123,14 @@ def scenes_part(n: int, work: Path, rounds: int = 1) -> dict[str, Any]:
             finally:
                 ray.shutdown()
             out.setdefault(f"rounds_ray_{w}", []).append(
-                {"seconds": dt, "scenes_per_s": n / dt, "cluster_start_s": start, "load1": load,
-                 "same_bytes_as_local": tree_digest(work / f"scenes_ray{w}_{r}") == digest})
+                {
+                    "seconds": dt,
+                    "scenes_per_s": n / dt,
+                    "cluster_start_s": start,
+                    "load1": load,
+                    "same_bytes_as_local": tree_digest(work / f"scenes_ray{w}_{r}") == digest,
+                }
+            )
     _pair_up(out, "scenes_per_s")
     return out
 
@@ -126,8 +146,11 @@ def eval_part(n: int, rounds: int = 1) -> dict[str, Any]:
     evaluate(EVAL_ENV, "expert", 2, {}, seed=10_000)  # imports, as the workers' warm-up (the env is built in both)
     load, t0 = load1(), time.perf_counter()
     local = json.dumps(evaluate(EVAL_ENV, "expert", n, {}, seed=0), sort_keys=True)
-    out["local"] = {"seconds": time.perf_counter() - t0, "episodes_per_s": n / (time.perf_counter() - t0),
-                    "load1": load}
+    out["local"] = {
+        "seconds": time.perf_counter() - t0,
+        "episodes_per_s": n / (time.perf_counter() - t0),
+        "load1": load,
+    }
     for _ in range(rounds):  # 1 then 2 workers, back to back, `rounds` times (see _pair_up)
         for w in (1, 2):
             start = _ray_local(w)
@@ -139,8 +162,14 @@ def eval_part(n: int, rounds: int = 1) -> dict[str, Any]:
             finally:
                 ray.shutdown()
             out.setdefault(f"rounds_ray_{w}", []).append(
-                {"seconds": dt, "episodes_per_s": n / dt, "cluster_start_s": start, "load1": load,
-                 "same_bytes_as_local": json.dumps(summary, sort_keys=True) == local})
+                {
+                    "seconds": dt,
+                    "episodes_per_s": n / dt,
+                    "cluster_start_s": start,
+                    "load1": load,
+                    "same_bytes_as_local": json.dumps(summary, sort_keys=True) == local,
+                }
+            )
     _pair_up(out, "episodes_per_s")
     return out
 
@@ -160,13 +189,32 @@ def ppo_part(steps: int, envs: tuple[int, ...], work: Path) -> dict[str, Any]:
     out: dict[str, Any] = {"task": "PointNav", "steps": steps, "hparams": "curbside.train.protocols (curbside)"}
     for n in envs:
         load = load1()
-        train("ppo", "PointNav", work / f"sb3_{n}", steps=steps, env_config=PPO_TASK_CONFIG, n_envs=n, num_scenes=8,
-              progress=False, subprocess=False)
+        train(
+            "ppo",
+            "PointNav",
+            work / f"sb3_{n}",
+            steps=steps,
+            env_config=PPO_TASK_CONFIG,
+            n_envs=n,
+            num_scenes=8,
+            progress=False,
+            subprocess=False,
+        )
         fps, total = _fps(work / f"sb3_{n}")
         out[f"sb3_one_process_{n}_envs"] = {"envs": n, "env_steps_per_s": fps, "env_steps": total, "load1": load}
         load = load1()
-        train("ppo", "PointNav", work / f"rllib_{n}", steps=steps, env_config=PPO_TASK_CONFIG, n_envs=n,
-              num_scenes=8, progress=False, executor="ray", num_env_runners=2)
+        train(
+            "ppo",
+            "PointNav",
+            work / f"rllib_{n}",
+            steps=steps,
+            env_config=PPO_TASK_CONFIG,
+            n_envs=n,
+            num_scenes=8,
+            progress=False,
+            executor="ray",
+            num_env_runners=2,
+        )
         fps, total = _fps(work / f"rllib_{n}")
         out[f"rllib_2_env_runners_{n}_envs"] = {"envs": n, "env_steps_per_s": fps, "env_steps": total, "load1": load}
         out[f"ratio_rllib_vs_sb3_{n}_envs"] = fps / out[f"sb3_one_process_{n}_envs"]["env_steps_per_s"]
@@ -196,18 +244,27 @@ def nodes_part(n_scenes: int, n_episodes: int, work: Path) -> dict[str, Any]:
         scene_nodes: dict[str, int] = {}
         build_dataset("test", n_scenes, work / "nodes_ray", base=base, executor="ray", nodes=scene_nodes)
         eval_nodes: dict[str, int] = {}
-        sharded = json.dumps(evaluate("curbside/SocialNav-v0", "expert", n_episodes, {}, seed=0, executor="ray",
-                                      nodes=eval_nodes), sort_keys=True)
+        sharded = json.dumps(
+            evaluate("curbside/SocialNav-v0", "expert", n_episodes, {}, seed=0, executor="ray", nodes=eval_nodes),
+            sort_keys=True,
+        )
         alive = sum(1 for n in ray.nodes() if n["Alive"])
     finally:
         ray.shutdown()
         cluster.shutdown()
-    return {"nodes": NODES, "alive_nodes": alive, "cluster_start_s": start, "scenes": n_scenes,
-            "episodes": n_episodes, "scene_nodes_used": len(scene_nodes), "eval_nodes_used": len(eval_nodes),
-            "scenes_per_node": sorted(scene_nodes.values(), reverse=True),
-            "episodes_per_node": sorted(eval_nodes.values(), reverse=True),
-            "scenes_same_bytes": tree_digest(work / "nodes_ray") == tree_digest(work / "nodes_local"),
-            "eval_same_bytes": sharded == local_eval}
+    return {
+        "nodes": NODES,
+        "alive_nodes": alive,
+        "cluster_start_s": start,
+        "scenes": n_scenes,
+        "episodes": n_episodes,
+        "scene_nodes_used": len(scene_nodes),
+        "eval_nodes_used": len(eval_nodes),
+        "scenes_per_node": sorted(scene_nodes.values(), reverse=True),
+        "episodes_per_node": sorted(eval_nodes.values(), reverse=True),
+        "scenes_same_bytes": tree_digest(work / "nodes_ray") == tree_digest(work / "nodes_local"),
+        "eval_same_bytes": sharded == local_eval,
+    }
 
 
 PARTS = ("scenes", "eval", "ppo", "nodes")
@@ -221,33 +278,49 @@ def _ratios(part: dict[str, Any]) -> str:
 def main(budget: str, out: Path, parts: tuple[str, ...] = PARTS) -> dict[str, Any]:
     """Run the chosen parts; print and write the figures (ray_scaling.json/.csv, or ray_scaling_<parts>.* for some)."""
     b = BUDGETS[budget]
-    result: dict[str, Any] = {"budget": budget, "cpus": os.cpu_count(), "load1_start": load1(),
-                              "date": time.strftime("%Y-%m-%d %H:%M")}
+    result: dict[str, Any] = {
+        "budget": budget,
+        "cpus": os.cpu_count(),
+        "load1_start": load1(),
+        "date": time.strftime("%Y-%m-%d %H:%M"),
+    }
     work = Path(tempfile.mkdtemp(prefix="ray_scaling_"))
     try:
         if "scenes" in parts:
             result["scenes"] = scenes_part(b["scenes"], work, b["rounds"])
-            print(f"scenes/s: local {result['scenes']['local']['scenes_per_s']:.2f}, Ray 1 worker "
-                  f"{result['scenes']['ray_1']['scenes_per_s']:.2f}, 2 workers "
-                  f"{result['scenes']['ray_2']['scenes_per_s']:.2f} ({result['scenes']['speedup_2_vs_1']:.2f}x, the median of "
-                  f"{_ratios(result['scenes'])})", flush=True)
+            print(
+                f"scenes/s: local {result['scenes']['local']['scenes_per_s']:.2f}, Ray 1 worker "
+                f"{result['scenes']['ray_1']['scenes_per_s']:.2f}, 2 workers "
+                f"{result['scenes']['ray_2']['scenes_per_s']:.2f} ({result['scenes']['speedup_2_vs_1']:.2f}x, the median of "
+                f"{_ratios(result['scenes'])})",
+                flush=True,
+            )
         if "eval" in parts:
             result["eval"] = eval_part(b["episodes"], b["rounds"])
-            print(f"eval episodes/s: local {result['eval']['local']['episodes_per_s']:.2f}, Ray 1 worker "
-                  f"{result['eval']['ray_1']['episodes_per_s']:.2f}, 2 workers "
-                  f"{result['eval']['ray_2']['episodes_per_s']:.2f} ({result['eval']['speedup_2_vs_1']:.2f}x, the median of "
-                  f"{_ratios(result['eval'])})", flush=True)
+            print(
+                f"eval episodes/s: local {result['eval']['local']['episodes_per_s']:.2f}, Ray 1 worker "
+                f"{result['eval']['ray_1']['episodes_per_s']:.2f}, 2 workers "
+                f"{result['eval']['ray_2']['episodes_per_s']:.2f} ({result['eval']['speedup_2_vs_1']:.2f}x, the median of "
+                f"{_ratios(result['eval'])})",
+                flush=True,
+            )
         if "ppo" in parts:
             result["ppo"] = ppo_part(b["ppo_steps"], b["ppo_envs"], work)
             for n in b["ppo_envs"]:
-                print(f"PPO env steps/s, {n} envs: RLlib 2 env runners "
-                      f"{result['ppo'][f'rllib_2_env_runners_{n}_envs']['env_steps_per_s']:.0f}, SB3 one process "
-                      f"{result['ppo'][f'sb3_one_process_{n}_envs']['env_steps_per_s']:.0f} "
-                      f"({result['ppo'][f'ratio_rllib_vs_sb3_{n}_envs']:.2f}x)", flush=True)
+                print(
+                    f"PPO env steps/s, {n} envs: RLlib 2 env runners "
+                    f"{result['ppo'][f'rllib_2_env_runners_{n}_envs']['env_steps_per_s']:.0f}, SB3 one process "
+                    f"{result['ppo'][f'sb3_one_process_{n}_envs']['env_steps_per_s']:.0f} "
+                    f"({result['ppo'][f'ratio_rllib_vs_sb3_{n}_envs']:.2f}x)",
+                    flush=True,
+                )
         if "nodes" in parts:
             result["nodes8"] = n8 = nodes_part(b["node_scenes"], b["node_episodes"], work)
-            print(f"8-node cluster: scenes on {n8['scene_nodes_used']} nodes, episodes on {n8['eval_nodes_used']}; "
-                  f"scenes same bytes {n8['scenes_same_bytes']}, eval same bytes {n8['eval_same_bytes']}", flush=True)
+            print(
+                f"8-node cluster: scenes on {n8['scene_nodes_used']} nodes, episodes on {n8['eval_nodes_used']}; "
+                f"scenes same bytes {n8['scenes_same_bytes']}, eval same bytes {n8['eval_same_bytes']}",
+                flush=True,
+            )
     finally:
         shutil.rmtree(work, ignore_errors=True)
     result["load1_end"] = load1()
@@ -256,14 +329,21 @@ def main(budget: str, out: Path, parts: tuple[str, ...] = PARTS) -> dict[str, An
     (out / f"{stem}.json").write_text(json.dumps(result, indent=2, sort_keys=True) + "\n")
     rows = []
     if "scenes" in result:
-        rows += [("scenes/s", k, result["scenes"][k]["scenes_per_s"], result["scenes"][k]["load1"])
-                 for k in ("local", "ray_1", "ray_2")]
+        rows += [
+            ("scenes/s", k, result["scenes"][k]["scenes_per_s"], result["scenes"][k]["load1"])
+            for k in ("local", "ray_1", "ray_2")
+        ]
     if "eval" in result:
-        rows += [("eval episodes/s", k, result["eval"][k]["episodes_per_s"], result["eval"][k]["load1"])
-                 for k in ("local", "ray_1", "ray_2")]
+        rows += [
+            ("eval episodes/s", k, result["eval"][k]["episodes_per_s"], result["eval"][k]["load1"])
+            for k in ("local", "ray_1", "ray_2")
+        ]
     if "ppo" in result:
-        rows += [("PPO env steps/s", k, v["env_steps_per_s"], v["load1"]) for k, v in result["ppo"].items()
-                 if isinstance(v, dict)]
+        rows += [
+            ("PPO env steps/s", k, v["env_steps_per_s"], v["load1"])
+            for k, v in result["ppo"].items()
+            if isinstance(v, dict)
+        ]
     with open(out / f"{stem}.csv", "w", newline="") as f:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(["figure", "run", "value", "load1"])

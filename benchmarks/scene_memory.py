@@ -65,11 +65,17 @@ def main() -> None:
         """summary.json after every sample: a stopped run leaves what it measured."""
         summary = {
             "command": "python benchmarks/" + " ".join(shlex.quote(a) for a in [Path(__file__).name, *sys.argv[1:]]),
-            "scenes_target": args.scenes, "envs": args.envs, "scene_cache": cfg["scene_cache"], "finished": done,
-            "scenes_built": len(built), "peak_rss_mb": round(peak), "target_mb": 8192,
-            "seconds": round(time.perf_counter() - t0), "build_s_per_scene":
-            round((time.perf_counter() - t0) / max(len(built), 1), 2),
-            "samples": [{"scenes_built": n, "rss_mb": round(r), "seconds": round(s)} for n, r, s in samples]}
+            "scenes_target": args.scenes,
+            "envs": args.envs,
+            "scene_cache": cfg["scene_cache"],
+            "finished": done,
+            "scenes_built": len(built),
+            "peak_rss_mb": round(peak),
+            "target_mb": 8192,
+            "seconds": round(time.perf_counter() - t0),
+            "build_s_per_scene": round((time.perf_counter() - t0) / max(len(built), 1), 2),
+            "samples": [{"scenes_built": n, "rss_mb": round(r), "seconds": round(s)} for n, r, s in samples],
+        }
         (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
         return summary
 
@@ -83,7 +89,9 @@ def main() -> None:
         if len(built) % 25 == 0 and samples[-1][0] != len(built):
             samples.append((len(built), rss, time.perf_counter() - t0))
             write(False)
-            print(f"{len(built)} scenes built, RSS {rss:,.0f} MB (peak {peak:,.0f}), {samples[-1][2]:.0f} s", flush=True)
+            print(
+                f"{len(built)} scenes built, RSS {rss:,.0f} MB (peak {peak:,.0f}), {samples[-1][2]:.0f} s", flush=True
+            )
     env.close()
     summary = write(True)
     import matplotlib

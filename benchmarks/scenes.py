@@ -54,11 +54,15 @@ def main() -> None:
     ms = [1000 * t for t in times]
     per = total / args.count
     print(f"blocks={args.blocks} scenes={args.count} objects/scene={objects / args.count:.0f}")
-    print(f"generate: mean {statistics.mean(ms):.1f} ms, median {statistics.median(ms):.1f} ms, "
-          f"p95 {sorted(ms)[int(0.95 * (len(ms) - 1))]:.1f} ms per scene")
+    print(
+        f"generate: mean {statistics.mean(ms):.1f} ms, median {statistics.median(ms):.1f} ms, "
+        f"p95 {sorted(ms)[int(0.95 * (len(ms) - 1))]:.1f} ms per scene"
+    )
     print(f"serialise (dumps): mean {1000 * statistics.mean(ser):.1f} ms per scene")
     print(f"throughput: {1 / per:.1f} scenes/s on one core")
-    print(f"projected 12,800 scenes: {12800 * per / 60:.1f} min on one core, {12800 * per / 120:.1f} min on two workers")
+    print(
+        f"projected 12,800 scenes: {12800 * per / 60:.1f} min on one core, {12800 * per / 120:.1f} min on two workers"
+    )
 
 
 if __name__ == "__main__":

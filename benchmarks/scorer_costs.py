@@ -58,8 +58,9 @@ def _hf_encoder(kind: str):  # noqa: ANN202 - an encoder object around a randoml
         enc.model = transformers.Blip2ForImageTextRetrieval(cfg).eval()
         size = 224
     proc = transformers.BlipImageProcessor(size={"height": size, "width": size})
-    enc.processor = transformers.BlipProcessor(image_processor=proc, tokenizer=transformers.BertTokenizer(
-        _byte_vocab("bert")))
+    enc.processor = transformers.BlipProcessor(
+        image_processor=proc, tokenizer=transformers.BertTokenizer(_byte_vocab("bert"))
+    )
     enc.kind = enc.name = kind
     enc.dim, enc.batch_size, enc.device = enc.model.config.image_text_hidden_size, 16, "cpu"
     return enc
@@ -96,24 +97,41 @@ def main() -> None:
     from retrieval.encoders.aligned import AlignedEncoder
     from retrieval.encoders.imagenet import ImageNetEncoder
 
-    encoders = {"aligned": lambda: AlignedEncoder(te, threads=1), "imagenet": lambda: ImageNetEncoder(te, threads=1),
-                "clip": lambda: _hf_encoder("clip"), "blip": lambda: _hf_encoder("blip")}
+    encoders = {
+        "aligned": lambda: AlignedEncoder(te, threads=1),
+        "imagenet": lambda: ImageNetEncoder(te, threads=1),
+        "clip": lambda: _hf_encoder("clip"),
+        "blip": lambda: _hf_encoder("blip"),
+    }
     if not a.skip_blip2:
         encoders["blip2"] = lambda: _hf_encoder("blip2")
     for name, make in encoders.items():
         enc = make()
         img = _time(lambda e=enc: e.encode_images(views))
         txt = _time(lambda e=enc: e.encode_texts(text))
-        params = sum(p.numel() for p in enc.model.parameters()) if hasattr(enc, "model") and hasattr(
-            enc.model, "parameters") else None
-        rows.append({"scorer": name, "ms_3_views": round(1000 * img, 1), "ms_text": round(1000 * txt, 1),
-                     "assets_per_s_core_scoring_only": round(1 / (img + txt), 2),
-                     "params_M": None if params is None else round(params / 1e6, 1)})
+        params = (
+            sum(p.numel() for p in enc.model.parameters())
+            if hasattr(enc, "model") and hasattr(enc.model, "parameters")
+            else None
+        )
+        rows.append(
+            {
+                "scorer": name,
+                "ms_3_views": round(1000 * img, 1),
+                "ms_text": round(1000 * txt, 1),
+                "assets_per_s_core_scoring_only": round(1 / (img + txt), 2),
+                "params_M": None if params is None else round(params / 1e6, 1),
+            }
+        )
         print(rows[-1], flush=True)
         del enc
     OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "scorer_costs.json").write_text(json.dumps({"command": "HF_HUB_OFFLINE=1 python benchmarks/scorer_costs.py",
-                                                       "threads": 1, "rows": rows}, indent=2) + "\n")
+    (OUT / "scorer_costs.json").write_text(
+        json.dumps(
+            {"command": "HF_HUB_OFFLINE=1 python benchmarks/scorer_costs.py", "threads": 1, "rows": rows}, indent=2
+        )
+        + "\n"
+    )
 
 
 if __name__ == "__main__":

@@ -29,18 +29,53 @@ if str(ROOT) not in sys.path:
 from curbside.train.paper import PAPER_TABLE1  # noqa: E402  (after the sys.path line above)
 
 BUDGETS: dict[str, dict[str, Any]] = {
-    "smoke": {"online": {"PointNav": 2_048, "SocialNav": 2_048}, "gail": 2_048, "offline": 200, "bc": 200,
-              "demos": 1_000, "envs": 2, "scenes": 4, "episodes": 3, "eval_every": 0,
-              "hparams": {"n_steps": 128, "batch_size": 128, "n_epochs": 2}},
-    "small": {"online": {"PointNav": 200_000, "SocialNav": 100_000}, "gail": 100_000, "offline": 10_000,
-              "bc": 10_000, "demos": 30_000, "envs": 8, "scenes": 64, "episodes": 50, "eval_every": 50_000,
-              "hparams": {}},
-    "paper": {"online": {"PointNav": 5_000_000, "SocialNav": 5_000_000}, "gail": 2_000_000, "offline": 1_000_000,
-              "bc": 200_000, "demos": 30_000, "envs": 8, "scenes": 1_000, "episodes": 200, "eval_every": 250_000,
-              "hparams": {}},
+    "smoke": {
+        "online": {"PointNav": 2_048, "SocialNav": 2_048},
+        "gail": 2_048,
+        "offline": 200,
+        "bc": 200,
+        "demos": 1_000,
+        "envs": 2,
+        "scenes": 4,
+        "episodes": 3,
+        "eval_every": 0,
+        "hparams": {"n_steps": 128, "batch_size": 128, "n_epochs": 2},
+    },
+    "small": {
+        "online": {"PointNav": 200_000, "SocialNav": 100_000},
+        "gail": 100_000,
+        "offline": 10_000,
+        "bc": 10_000,
+        "demos": 30_000,
+        "envs": 8,
+        "scenes": 64,
+        "episodes": 50,
+        "eval_every": 50_000,
+        "hparams": {},
+    },
+    "paper": {
+        "online": {"PointNav": 5_000_000, "SocialNav": 5_000_000},
+        "gail": 2_000_000,
+        "offline": 1_000_000,
+        "bc": 200_000,
+        "demos": 30_000,
+        "envs": 8,
+        "scenes": 1_000,
+        "episodes": 200,
+        "eval_every": 250_000,
+        "hparams": {},
+    },
 }
 ALGOS = ["ppo", "ppo_lag", "ppo_et", "iql", "td3bc", "bc", "gail"]
-NAMES = {"ppo": "PPO", "ppo_lag": "PPO-Lag", "ppo_et": "PPO-ET", "iql": "IQL", "td3bc": "TD3+BC", "bc": "BC", "gail": "GAIL"}
+NAMES = {
+    "ppo": "PPO",
+    "ppo_lag": "PPO-Lag",
+    "ppo_et": "PPO-ET",
+    "iql": "IQL",
+    "td3bc": "TD3+BC",
+    "bc": "BC",
+    "gail": "GAIL",
+}
 
 
 def _steps(budget: dict[str, Any], algo: str, task: str) -> int:
@@ -64,8 +99,11 @@ def run(budget_name: str, tasks: list[str], algos: list[str], out: Path, fresh: 
         if fresh or not (demos / "curbside.json").is_file():
             t0 = time.time()
             summary = collect_demos(task, out / "demos", steps=budget["demos"], num_scenes=budget["scenes"])
-            print(f"[{task}] demos: {summary['steps']} steps, {summary['episodes']} episodes, success rate "
-                  f"{summary['success_rate']:.2f} ({time.time() - t0:.0f} s)", flush=True)
+            print(
+                f"[{task}] demos: {summary['steps']} steps, {summary['episodes']} episodes, success rate "
+                f"{summary['success_rate']:.2f} ({time.time() - t0:.0f} s)",
+                flush=True,
+            )
         for algo in algos:
             run_dir = out / task / algo
             steps = _steps(budget, algo, task)
@@ -75,29 +113,54 @@ def run(budget_name: str, tasks: list[str], algos: list[str], out: Path, fresh: 
                 if fresh and run_dir.exists():
                     shutil.rmtree(run_dir)  # --fresh: this run starts over
                 online = algo in ("ppo", "ppo_lag", "ppo_et", "gail")  # the budget's hparams are PPO's
-                train(algo, task, run_dir, steps=steps, n_envs=budget["envs"], num_scenes=budget["scenes"],
-                      demos=demos, eval_every=budget["eval_every"] if algo in ("ppo", "ppo_lag", "ppo_et") else 0,
-                      hparams=budget["hparams"] if online else {}, resume=(run_dir / "run.json").is_file())
+                train(
+                    algo,
+                    task,
+                    run_dir,
+                    steps=steps,
+                    n_envs=budget["envs"],
+                    num_scenes=budget["scenes"],
+                    demos=demos,
+                    eval_every=budget["eval_every"] if algo in ("ppo", "ppo_lag", "ppo_et") else 0,
+                    hparams=budget["hparams"] if online else {},
+                    resume=(run_dir / "run.json").is_file(),
+                )
                 (run_dir / "timing.json").write_text(json.dumps({"train_seconds": time.time() - t0, "steps": steps}))
             timing = json.loads((run_dir / "timing.json").read_text())
             act, _ = load_policy(run_dir)
             for split in ("test", "unseen"):
                 r = evaluate_policy(act, task, {}, split=split, episodes=budget["episodes"], progress=True)
                 paper = PAPER_TABLE1.get((task, split, algo), {})
-                row = {"task": task, "split": split, "algo": NAMES[algo], "steps": steps,
-                       "train_s": round(timing["train_seconds"]), "sr": r["sr"], "spl": r["spl"],
-                       "sns": r.get("sns", float("nan")), "cost": r["cost"], "route_completion": r["route_completion"],
-                       "episodes": budget["episodes"], **{f"paper_{k}": v for k, v in paper.items()}}
+                row = {
+                    "task": task,
+                    "split": split,
+                    "algo": NAMES[algo],
+                    "steps": steps,
+                    "train_s": round(timing["train_seconds"]),
+                    "sr": r["sr"],
+                    "spl": r["spl"],
+                    "sns": r.get("sns", float("nan")),
+                    "cost": r["cost"],
+                    "route_completion": r["route_completion"],
+                    "episodes": budget["episodes"],
+                    **{f"paper_{k}": v for k, v in paper.items()},
+                }
                 rows.append(row)
-                print(f"[{task} {split}] {NAMES[algo]:8s} SR {r['sr']:.2f} SPL {r['spl']:.2f} "
-                      f"{'SNS {:.2f} '.format(r['sns']) if 'sns' in r else ''}Cost {r['cost']:.2f}   (paper: "
-                      f"{', '.join(f'{k} {v}' for k, v in paper.items()) or 'n/a'})", flush=True)
+                print(
+                    f"[{task} {split}] {NAMES[algo]:8s} SR {r['sr']:.2f} SPL {r['spl']:.2f} "
+                    f"{'SNS {:.2f} '.format(r['sns']) if 'sns' in r else ''}Cost {r['cost']:.2f}   (paper: "
+                    f"{', '.join(f'{k} {v}' for k, v in paper.items()) or 'n/a'})",
+                    flush=True,
+                )
             _write(rows, out)
     return rows
 
 
 def _write(rows: list[dict[str, Any]], out: Path) -> None:
-    keys = sorted({k for r in rows for k in r}, key=lambda k: (k.startswith("paper_"), list(rows[0]).index(k) if k in rows[0] else 99))
+    keys = sorted(
+        {k for r in rows for k in r},
+        key=lambda k: (k.startswith("paper_"), list(rows[0]).index(k) if k in rows[0] else 99),
+    )
     with open(out / "table1.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=keys)
         w.writeheader()

@@ -29,16 +29,26 @@ from benchmarks.table1 import BUDGETS as TABLE1_BUDGETS  # noqa: E402
 
 MACHINES = ("delivery_bot", "delivery_bot_mod1", "delivery_bot_mod2", "wheelchair", "mobility_scooter")
 # MetaUrban (ICLR 2025) Table 2, PPO success rate (%) on S / X blocks: COCO base, mod-1, mod-2, wheelchair, scooter.
-PAPER_SR = {"delivery_bot": (47, 41), "delivery_bot_mod1": (62, 56), "delivery_bot_mod2": (17, 22),
-            "wheelchair": (13, 16), "mobility_scooter": (36, 31)}
+PAPER_SR = {
+    "delivery_bot": (47, 41),
+    "delivery_bot_mod1": (62, 56),
+    "delivery_bot_mod2": (17, 22),
+    "wheelchair": (13, 16),
+    "mobility_scooter": (36, 31),
+}
 BLOCKS = ("S", "X")
 
 
 def budget(name: str) -> dict[str, Any]:
     """Table 1's budget of that name, PointNav's online steps per machine."""
     b = TABLE1_BUDGETS[name]
-    return {"steps": b["online"]["PointNav"], "envs": b["envs"], "scenes": b["scenes"], "episodes": b["episodes"],
-            "hparams": b["hparams"]}
+    return {
+        "steps": b["online"]["PointNav"],
+        "envs": b["envs"],
+        "scenes": b["scenes"],
+        "episodes": b["episodes"],
+        "hparams": b["hparams"],
+    }
 
 
 def run(budget_name: str, machines: list[str], out: Path, fresh: bool) -> list[dict[str, Any]]:
@@ -56,24 +66,52 @@ def run(budget_name: str, machines: list[str], out: Path, fresh: bool) -> list[d
             t0 = time.time()
             if fresh and run_dir.exists():
                 shutil.rmtree(run_dir)  # --fresh: this run starts over
-            train("ppo", "PointNav", run_dir, steps=b["steps"], env_config=cfg, n_envs=b["envs"],
-                  num_scenes=b["scenes"], hparams=b["hparams"], resume=(run_dir / "run.json").is_file())
+            train(
+                "ppo",
+                "PointNav",
+                run_dir,
+                steps=b["steps"],
+                env_config=cfg,
+                n_envs=b["envs"],
+                num_scenes=b["scenes"],
+                hparams=b["hparams"],
+                resume=(run_dir / "run.json").is_file(),
+            )
             print(f"[{machine}] trained {b['steps']} steps in {time.time() - t0:.0f} s", flush=True)
         act, _ = load_policy(run_dir)
         for k, block in enumerate(BLOCKS):
-            summary = evaluate_policy(act, "PointNav", {**cfg, "scene": {"blocks": block}}, split="test",
-                                      episodes=b["episodes"], num_scenes=b["episodes"])
-            rows.append({"machine": machine, "block": block, "sr": summary["sr"], "spl": summary["spl"],
-                         "cost": summary.get("cost", float("nan")), "episodes": summary["episodes"],
-                         "paper_sr": PAPER_SR[machine][k] / 100.0, "steps": b["steps"]})
-            print(f"{machine:18} {block}  SR {summary['sr']:.2f} (paper {PAPER_SR[machine][k] / 100:.2f})  "
-                  f"SPL {summary['spl']:.2f}  Cost {rows[-1]['cost']:.2f}", flush=True)
+            summary = evaluate_policy(
+                act,
+                "PointNav",
+                {**cfg, "scene": {"blocks": block}},
+                split="test",
+                episodes=b["episodes"],
+                num_scenes=b["episodes"],
+            )
+            rows.append(
+                {
+                    "machine": machine,
+                    "block": block,
+                    "sr": summary["sr"],
+                    "spl": summary["spl"],
+                    "cost": summary.get("cost", float("nan")),
+                    "episodes": summary["episodes"],
+                    "paper_sr": PAPER_SR[machine][k] / 100.0,
+                    "steps": b["steps"],
+                }
+            )
+            print(
+                f"{machine:18} {block}  SR {summary['sr']:.2f} (paper {PAPER_SR[machine][k] / 100:.2f})  "
+                f"SPL {summary['spl']:.2f}  Cost {rows[-1]['cost']:.2f}",
+                flush=True,
+            )
     return rows
 
 
 def write(rows: list[dict[str, Any]], out: Path) -> None:
     """table2.csv and table2.png (SR beside the paper's, per machine and block)."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -86,9 +124,17 @@ def write(rows: list[dict[str, Any]], out: Path) -> None:
     for ax, block in zip(axes, BLOCKS):
         ours = [next(r["sr"] for r in rows if r["machine"] == m and r["block"] == block) for m in machines]
         paper = [PAPER_SR[m][BLOCKS.index(block)] / 100 for m in machines]
-        beside_paper(ax, [m.replace("delivery_bot", "bot").replace("mobility_", "") for m in machines], ours, paper,
-                     ours_label="curbside PPO", paper_label="MetaUrban Table 2", title=f"{block} block")
+        beside_paper(
+            ax,
+            [m.replace("delivery_bot", "bot").replace("mobility_", "") for m in machines],
+            ours,
+            paper,
+            ours_label="curbside PPO",
+            paper_label="MetaUrban Table 2",
+            title=f"{block} block",
+        )
     save_panels(fig, axes, "success rate", out / "table2.png")
+
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

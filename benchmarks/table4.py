@@ -56,16 +56,26 @@ def main(seeds: int = 10, out: Path | None = None, model: str = "force", speed: 
             t = np.array([r["time"] for r in rs])
             ends = {reason: sum(r["reason"] == reason for r in rs) for reason in sorted({r["reason"] for r in rs})}
             means.append(float(x.mean()))
-            table[f"{runway}/{machine}"] = {"x_mean": float(x.mean()), "x_std": float(x.std()), "time_mean": float(t.mean()),
-                                            "time_std": float(t.std()), "ends": ends, "paper_x": PAPER_X[runway][k],
-                                            "paper_time": PAPER_TIME.get(runway, (None,) * 3)[k]}
+            table[f"{runway}/{machine}"] = {
+                "x_mean": float(x.mean()),
+                "x_std": float(x.std()),
+                "time_mean": float(t.mean()),
+                "time_std": float(t.std()),
+                "ends": ends,
+                "paper_x": PAPER_X[runway][k],
+                "paper_time": PAPER_TIME.get(runway, (None,) * 3)[k],
+            }
             pt = PAPER_TIME.get(runway, (None,) * 3)[k]
-            print(f"{runway:8} {machine:18} {x.mean():7.2f} ±{x.std():5.2f} {PAPER_X[runway][k]:8.2f} "
-                  f"{t.mean():7.2f} ±{t.std():5.2f} {'' if pt is None else f'{pt:8.1f}':>8}  {ends}")
+            print(
+                f"{runway:8} {machine:18} {x.mean():7.2f} ±{x.std():5.2f} {PAPER_X[runway][k]:8.2f} "
+                f"{t.mean():7.2f} ±{t.std():5.2f} {'' if pt is None else f'{pt:8.1f}':>8}  {ends}"
+            )
         same = ranking(tuple(means)) == ranking(PAPER_X[runway])
         table[f"{runway}/same_order_as_paper"] = same
-        print(f"{runway:8} order {' < '.join(MACHINES[i] for i in ranking(tuple(means)))}; paper "
-              f"{' < '.join(MACHINES[i] for i in ranking(PAPER_X[runway]))}: {'same' if same else 'different'}")
+        print(
+            f"{runway:8} order {' < '.join(MACHINES[i] for i in ranking(tuple(means)))}; paper "
+            f"{' < '.join(MACHINES[i] for i in ranking(PAPER_X[runway]))}: {'same' if same else 'different'}"
+        )
     matched = sum(table[f"{r}/same_order_as_paper"] for r in RUNWAYS)
     print(f"runways ranked as in the paper: {matched} of {len(RUNWAYS)}")
     table["runways_ranked_as_paper"] = matched
@@ -77,6 +87,7 @@ def main(seeds: int = 10, out: Path | None = None, model: str = "force", speed: 
 def _write(out: Path, rows: list[dict], table: dict) -> None:
     """table4.csv (every trial), table4.json (the summary) and table4.png (bars beside the paper's)."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -91,18 +102,35 @@ def _write(out: Path, rows: list[dict], table: dict) -> None:
         ours = [table[f"{runway}/{m}"]["x_mean"] for m in MACHINES]
         err = [table[f"{runway}/{m}"]["x_std"] for m in MACHINES]
         same = "same" if table[f"{runway}/same_order_as_paper"] else "different"
-        beside_paper(ax, ["bot", "wheelchair", "scooter"], ours, PAPER_X[runway], ours_label="curbside",
-                     paper_label="MetaUrban Table 4", title=f"{runway} ({same} order)", err=err)
+        beside_paper(
+            ax,
+            ["bot", "wheelchair", "scooter"],
+            ours,
+            PAPER_X[runway],
+            ours_label="curbside",
+            paper_label="MetaUrban Table 4",
+            title=f"{runway} ({same} order)",
+            err=err,
+        )
     save_panels(fig, axes, "x-displacement (m)", out / "table4.png")
+
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=10, help="runways per runway kind (each seed a different terrain)")
     ap.add_argument("--out", type=Path, default=None, help="folder for table4.csv, .json and .png")
-    ap.add_argument("--model", choices=("force", "wheels"), default="force",
-                    help="machine model: the envs' force model, or driven wheel links (sim.terrain.wheels, experimental)")
-    ap.add_argument("--speed", type=float, default=PAPER_SPEED,
-                    help=f"one speed (m/s) every machine holds (default {PAPER_SPEED}, the paper's); 0: full throttle")
+    ap.add_argument(
+        "--model",
+        choices=("force", "wheels"),
+        default="force",
+        help="machine model: the envs' force model, or driven wheel links (sim.terrain.wheels, experimental)",
+    )
+    ap.add_argument(
+        "--speed",
+        type=float,
+        default=PAPER_SPEED,
+        help=f"one speed (m/s) every machine holds (default {PAPER_SPEED}, the paper's); 0: full throttle",
+    )
     a = ap.parse_args()
     if not 0.0 <= a.speed < 100.0:  # NaN fails too
         ap.error(f"--speed must be 0 (full throttle) or a speed in m/s below 100, got {a.speed}")

@@ -64,18 +64,25 @@ def main() -> None:
                     render_scene(spec, Path(args.out) / "terrain_scene.png", title="seed 0 with terrain (default)")
         rows.append(row)
     mean = {k: statistics.mean(r[k] for r in rows) for k in rows[0] if k != "seed"}
-    summary = {"count": args.count, "blocks": args.blocks, "density": density,
-               "patches_per_scene": {k: round(mean[k], 2) for k in KINDS},
-               "patches_per_scene_total": round(sum(mean[k] for k in KINDS), 2),
-               "patches_per_100m_clear_path": round(100 * sum(mean[k] for k in KINDS) / mean["sidewalk_m"], 2),
-               **{f"{k}_ms_{x}": round(mean[f"{k}_ms_{x}"], 1) for k in ("generate", "world", "grids") for x in ("off", "on")}}
+    summary = {
+        "count": args.count,
+        "blocks": args.blocks,
+        "density": density,
+        "patches_per_scene": {k: round(mean[k], 2) for k in KINDS},
+        "patches_per_scene_total": round(sum(mean[k] for k in KINDS), 2),
+        "patches_per_100m_clear_path": round(100 * sum(mean[k] for k in KINDS) / mean["sidewalk_m"], 2),
+        **{f"{k}_ms_{x}": round(mean[f"{k}_ms_{x}"], 1) for k in ("generate", "world", "grids") for x in ("off", "on")},
+    }
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "terrain_scenes.json").write_text(json.dumps({"summary": summary, "rows": rows}, indent=1) + "\n")
     print(f"{args.count} scenes of {args.blocks} blocks, terrain density {density}:")
-    print("patches per scene: " + ", ".join(f"{k} {v}" for k, v in summary["patches_per_scene"].items())
-          + f" (total {summary['patches_per_scene_total']}, {summary['patches_per_100m_clear_path']} per 100 m of "
-          "clear path)")
+    print(
+        "patches per scene: "
+        + ", ".join(f"{k} {v}" for k, v in summary["patches_per_scene"].items())
+        + f" (total {summary['patches_per_scene_total']}, {summary['patches_per_100m_clear_path']} per 100 m of "
+        "clear path)"
+    )
     print(f"generate: {summary['generate_ms_off']} ms without terrain, {summary['generate_ms_on']} ms with")
     print(f"world build: {summary['world_ms_off']} ms without terrain, {summary['world_ms_on']} ms with")
     print(f"LiDAR grids: {summary['grids_ms_off']} ms without terrain, {summary['grids_ms_on']} ms with")

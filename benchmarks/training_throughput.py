@@ -84,11 +84,22 @@ def measure(task: str, backend: str, protocol: str, iterations: int) -> dict[str
             timer.update_s += time.perf_counter() - timer.mark  # the last update
     finally:
         vec.close()
-    return {"task": task, "backend": backend, "protocol": protocol, "n_envs": n_envs, "train_batch": batch,
-            "iterations": iterations, "env_steps": batch * iterations, "wall_s": round(wall, 2),
-            "env_steps_per_s": round(batch * iterations / wall, 1), "update_share": round(timer.update_s / wall, 3),
-            "warmup_s": round(warm_s, 1), "net_arch": run["hparams"]["net_arch"], "n_epochs": run["hparams"]["n_epochs"],
-            "load_avg_1min_before": None}
+    return {
+        "task": task,
+        "backend": backend,
+        "protocol": protocol,
+        "n_envs": n_envs,
+        "train_batch": batch,
+        "iterations": iterations,
+        "env_steps": batch * iterations,
+        "wall_s": round(wall, 2),
+        "env_steps_per_s": round(batch * iterations / wall, 1),
+        "update_share": round(timer.update_s / wall, 3),
+        "warmup_s": round(warm_s, 1),
+        "net_arch": run["hparams"]["net_arch"],
+        "n_epochs": run["hparams"]["n_epochs"],
+        "load_avg_1min_before": None,
+    }
 
 
 def bc_minibatch_ms(protocol: str, steps: int = 2_000) -> float:
@@ -106,17 +117,37 @@ def bc_minibatch_ms(protocol: str, steps: int = 2_000) -> float:
     rng = np.random.default_rng(0)
     n, d = 30_000, 329
     obs = rng.uniform(-1, 1, (n, d)).astype(np.float32)
-    demos = Transitions(obs=obs, actions=rng.uniform(-1, 1, (n, 2)).astype(np.float32), rewards=np.zeros(n, np.float32),
-                        next_obs=obs, terminals=np.zeros(n, bool), timeouts=np.zeros(n, bool))
+    demos = Transitions(
+        obs=obs,
+        actions=rng.uniform(-1, 1, (n, 2)).astype(np.float32),
+        rewards=np.zeros(n, np.float32),
+        next_obs=obs,
+        terminals=np.zeros(n, bool),
+        timeouts=np.zeros(n, bool),
+    )
     obs_space = gym.spaces.Box(-1.0, 1.0, (d,), np.float32)
     act_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
     h = get_protocol(protocol).algo_hparams("bc")
     with tempfile.TemporaryDirectory() as tmp:
-        train_bc(demos, Path(tmp) / "warm", steps=50, observation_space=obs_space, action_space=act_space, hparams=h,
-                 progress=False)
+        train_bc(
+            demos,
+            Path(tmp) / "warm",
+            steps=50,
+            observation_space=obs_space,
+            action_space=act_space,
+            hparams=h,
+            progress=False,
+        )
         t0 = time.perf_counter()
-        train_bc(demos, Path(tmp) / "bc", steps=steps, observation_space=obs_space, action_space=act_space, hparams=h,
-                 progress=False)
+        train_bc(
+            demos,
+            Path(tmp) / "bc",
+            steps=steps,
+            observation_space=obs_space,
+            action_space=act_space,
+            hparams=h,
+            progress=False,
+        )
     return 1000 * (time.perf_counter() - t0) / steps
 
 
@@ -168,9 +199,12 @@ def main() -> None:
         result["load_avg_1min_before"] = round(load, 2)
         summary["cases"][name] = result
         summary[f"{name}_env_steps_per_s"] = result["env_steps_per_s"]
-        print(f"{name}: {result['env_steps_per_s']:,.0f} env steps/s ({result['n_envs']} envs, batch "
-              f"{result['train_batch']:,}, update {100 * result['update_share']:.0f} % of the time; warm-up "
-              f"{result['warmup_s']} s; load before {load:.2f})", flush=True)
+        print(
+            f"{name}: {result['env_steps_per_s']:,.0f} env steps/s ({result['n_envs']} envs, batch "
+            f"{result['train_batch']:,}, update {100 * result['update_share']:.0f} % of the time; warm-up "
+            f"{result['warmup_s']} s; load before {load:.2f})",
+            flush=True,
+        )
         path.write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
     plot(summary, args.out / "summary.png")
 

@@ -23,8 +23,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 EPISODES = {"smoke": 3, "small": 50, "paper": 200}
-HORIZONS = {"10 m": {"route_length": [9.0, 11.0]},
-            "410 m": {"preset": "metaurban12k", "route_length": [380.0, 440.0]}}
+HORIZONS = {"10 m": {"route_length": [9.0, 11.0]}, "410 m": {"preset": "metaurban12k", "route_length": [380.0, 440.0]}}
 PEDESTRIANS = {1: 0.5, 2: 2.0, 3: 5.0, 4: 10.0}  # agents per 100 m of sidewalk
 
 
@@ -64,7 +63,9 @@ def main(budget: str, policy_dir: Path | None, out: Path | None) -> list[dict[st
         rows.append({"study": "long horizon", "setting": name, "task": "PointNav", **_pick(s)})
     for k, density in PEDESTRIANS.items():
         s = evaluate("SocialNav", {"agents": {"dynamic_density": density}}, n, policy_dir)
-        rows.append({"study": "pedestrians", "setting": f"{k} ({density:g} per 100 m)", "task": "SocialNav", **_pick(s)})
+        rows.append(
+            {"study": "pedestrians", "setting": f"{k} ({density:g} per 100 m)", "task": "SocialNav", **_pick(s)}
+        )
     who = "expert" if policy_dir is None else str(policy_dir)
     print(f"{'study':14} {'setting':18} {'SR':>5} {'SPL':>5} {'Cost':>6} {'PSC':>5}   ({who}, {n} episodes each)")
     for r in rows:
@@ -80,8 +81,13 @@ def main(budget: str, policy_dir: Path | None, out: Path | None) -> list[dict[st
 
 
 def _pick(summary: dict[str, Any]) -> dict[str, Any]:
-    return {"sr": summary["sr"], "spl": summary["spl"], "cost": summary.get("cost", float("nan")),
-            "psc": summary.get("psc"), "episodes": summary["episodes"]}
+    return {
+        "sr": summary["sr"],
+        "spl": summary["spl"],
+        "cost": summary.get("cost", float("nan")),
+        "psc": summary.get("psc"),
+        "episodes": summary["episodes"],
+    }
 
 
 if __name__ == "__main__":

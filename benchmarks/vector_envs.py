@@ -141,8 +141,9 @@ def main() -> None:
     if "sharded" in parts:
         sides["sharded"] = ShardedVectorEnv([fn] * (args.workers * args.per_worker), workers=args.workers)
     if "async" in parts:
-        sides["async"] = gym.vector.AsyncVectorEnv([fn] * args.workers, context="forkserver",
-                                                    autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
+        sides["async"] = gym.vector.AsyncVectorEnv(
+            [fn] * args.workers, context="forkserver", autoreset_mode=gym.vector.AutoresetMode.SAME_STEP
+        )
     steppers = Steppers(args.task, spec, args.workers) if {"barrier", "ceiling"} & set(parts) else None
     for venv in sides.values():
         venv.reset(seed=0)
@@ -154,8 +155,11 @@ def main() -> None:
         for name, sync in (("barrier", True), ("ceiling", False)):
             if name in parts:
                 rates[name] = steppers.rate(args.steps, sync)
-        row = {"round": r, **{f"{k}_steps_per_s": round(v, 1) for k, v in rates.items()},
-               **{f"{k}_speedup": round(v / rates["one"], 3) for k, v in rates.items() if k != "one"}}
+        row = {
+            "round": r,
+            **{f"{k}_steps_per_s": round(v, 1) for k, v in rates.items()},
+            **{f"{k}_speedup": round(v / rates["one"], 3) for k, v in rates.items() if k != "one"},
+        }
         rounds.append(row)
         print(json.dumps(row), flush=True)
     for venv in sides.values():
@@ -163,11 +167,20 @@ def main() -> None:
     for procs in (one, steppers):
         if procs is not None:
             procs.close()
-    summary = {"task": args.task, "workers": args.workers, "sharded_envs_per_worker": args.per_worker,
-               "steps": args.steps, "rounds": args.rounds, "cpu_count": os.cpu_count(),
-               "loadavg_1min": round(os.getloadavg()[0], 2),
-               **{f"median_{k}": round(statistics.median(row[k] for row in rounds), 2)
-                  for k in rounds[0] if k.endswith("_speedup") or k == "one_steps_per_s"}}
+    summary = {
+        "task": args.task,
+        "workers": args.workers,
+        "sharded_envs_per_worker": args.per_worker,
+        "steps": args.steps,
+        "rounds": args.rounds,
+        "cpu_count": os.cpu_count(),
+        "loadavg_1min": round(os.getloadavg()[0], 2),
+        **{
+            f"median_{k}": round(statistics.median(row[k] for row in rounds), 2)
+            for k in rounds[0]
+            if k.endswith("_speedup") or k == "one_steps_per_s"
+        },
+    }
     print(json.dumps(summary, sort_keys=True))
     if args.out:
         args.out.write_text(json.dumps({"summary": summary, "rounds": rounds}, indent=1) + "\n")

@@ -49,8 +49,9 @@ def trimmed_rss_mb() -> float:
     return rss_mb()
 
 
-def plain_mesh_shape(create: Callable[..., int], vertices: Sequence, indices: Sequence | None = None,
-                     **kwargs: Any) -> int:
+def plain_mesh_shape(
+    create: Callable[..., int], vertices: Sequence, indices: Sequence | None = None, **kwargs: Any
+) -> int:
     """The pybullet call without giving back its references (pybullet's own leak)."""
     if indices is None:
         return create(p.GEOM_MESH, vertices=vertices, **kwargs)
@@ -75,8 +76,14 @@ def bench_builds(n: int, n_specs: int) -> dict:
     after = rss_mb()
     trimmed = trimmed_rss_mb()
     p.disconnect(client)
-    return {"what": f"{n} World builds, one client ({n_specs} specs, {objects:.0f} objects each)",
-            "before_mb": before, "after_mb": after, "trimmed_mb": trimmed, "n": n, "seconds": seconds}
+    return {
+        "what": f"{n} World builds, one client ({n_specs} specs, {objects:.0f} objects each)",
+        "before_mb": before,
+        "after_mb": after,
+        "trimmed_mb": trimmed,
+        "n": n,
+        "seconds": seconds,
+    }
 
 
 def bench_envs(n: int) -> dict:
@@ -99,8 +106,14 @@ def bench_envs(n: int) -> dict:
             once(seed)
     seconds = time.perf_counter() - t0
     after = rss_mb()
-    return {"what": f"{n} PointNav envs opened, reset once, closed", "before_mb": before, "after_mb": after,
-            "trimmed_mb": trimmed_rss_mb(), "n": n, "seconds": seconds}
+    return {
+        "what": f"{n} PointNav envs opened, reset once, closed",
+        "before_mb": before,
+        "after_mb": after,
+        "trimmed_mb": trimmed_rss_mb(),
+        "n": n,
+        "seconds": seconds,
+    }
 
 
 def main() -> None:
@@ -122,9 +135,11 @@ def main() -> None:
         results.append(bench_envs(args.envs))
     for r in results:
         grow = r["after_mb"] - r["before_mb"]
-        print(f"{r['what']}: RSS {r['before_mb']:.1f} -> {r['after_mb']:.1f} MB ({grow:+.1f} MB, "
-              f"{grow / r['n'] * 1024:+.1f} KB each); after malloc_trim {r['trimmed_mb']:.1f} MB "
-              f"({r['trimmed_mb'] - r['before_mb']:+.1f}); {r['seconds'] / r['n'] * 1000:.0f} ms each")
+        print(
+            f"{r['what']}: RSS {r['before_mb']:.1f} -> {r['after_mb']:.1f} MB ({grow:+.1f} MB, "
+            f"{grow / r['n'] * 1024:+.1f} KB each); after malloc_trim {r['trimmed_mb']:.1f} MB "
+            f"({r['trimmed_mb'] - r['before_mb']:+.1f}); {r['seconds'] / r['n'] * 1000:.0f} ms each"
+        )
 
 
 if __name__ == "__main__":

@@ -37,15 +37,20 @@ class AlignedHeads:
         # The labelled calibration set (joint-space view embeddings, owner asset, asset category), when stored.
         self.calibration = None
         if "calibration_embeddings" in a:
-            self.calibration = (a["calibration_embeddings"].astype(np.float32), a["calibration_view_asset"],
-                                a["calibration_category"].astype(str))
+            self.calibration = (
+                a["calibration_embeddings"].astype(np.float32),
+                a["calibration_view_asset"],
+                a["calibration_category"].astype(str),
+            )
 
     def image(self, features: np.ndarray) -> np.ndarray:
         """(n, dim) unit joint-space vectors of (n, feature_dim) frozen view features."""
         f = np.asarray(features, dtype=np.float32)
         if f.ndim != 2 or f.shape[1] != self.feature_dim:
-            raise ValueError(f"aligned heads take (n, {self.feature_dim}) features, got {f.shape}; were the heads "
-                             f"trained on another feature version than {self.feature_version!r}?")
+            raise ValueError(
+                f"aligned heads take (n, {self.feature_dim}) features, got {f.shape}; were the heads "
+                f"trained on another feature version than {self.feature_version!r}?"
+            )
         h = _gelu(((f - self.mean) / self.std) @ self.w1 + self.b1)
         return _unit(h @ self.w2 + self.b2)
 
@@ -59,7 +64,9 @@ def load_heads(path: str | None = None) -> AlignedHeads:
     """The heads stored at `path` (default: the versioned retrieval/models/aligned.npz)."""
     p = Path(path) if path else DEFAULT_WEIGHTS
     if not p.is_file():
-        raise FileNotFoundError(f"no aligned scorer weights at {p}; train them with `dvc repro retrieval/dvc.yaml:"
-                                f"train_scorer` (or `python -m retrieval.aligned.train`), or pick another --scorer")
+        raise FileNotFoundError(
+            f"no aligned scorer weights at {p}; train them with `dvc repro retrieval/dvc.yaml:"
+            f"train_scorer` (or `python -m retrieval.aligned.train`), or pick another --scorer"
+        )
     with np.load(p, allow_pickle=False) as z:
         return AlignedHeads({k: z[k] for k in z.files})

@@ -68,9 +68,14 @@ def parse_table(text: str, where: str = "catalogs/categories.csv") -> dict[str, 
             raise ValueError(f"{at}: duplicate category; each category has one row")
         if not row["sources"].strip():
             raise ValueError(f"{at}: the sources column is empty; name where the sizes come from")
-        table[row["category"]] = Category(row["category"], row["object_class"], zones,
-                                          (float(row[AXES[0]]), float(row[AXES[1]]), float(row[AXES[2]])),
-                                          sources=row["sources"], **ranges)
+        table[row["category"]] = Category(
+            row["category"],
+            row["object_class"],
+            zones,
+            (float(row[AXES[0]]), float(row[AXES[1]]), float(row[AXES[2]])),
+            sources=row["sources"],
+            **ranges,
+        )
     return table
 
 
@@ -88,8 +93,10 @@ def category(name: str, *, where: str = "category") -> Category:
     try:
         return CATEGORIES[name]
     except (KeyError, TypeError):  # TypeError: an unhashable value (a list where a name belongs)
-        raise ConfigError(f"{where}: {name!r} is not in the curbside vocabulary (catalogs/categories.csv); "
-                         f"use one of: {', '.join(NAMES)}") from None
+        raise ConfigError(
+            f"{where}: {name!r} is not in the curbside vocabulary (catalogs/categories.csv); "
+            f"use one of: {', '.join(NAMES)}"
+        ) from None
 
 
 def check_category(name: str, *, where: str) -> str:

@@ -65,8 +65,7 @@ def dump_catalog(catalog_path: str | Path, out_dir: str | Path) -> list[str]:
     try:
         names = sorted(r[0] for r in con.execute("SELECT table_name FROM information_schema.tables").fetchall())
         for name in names:
-            write_parquet(con.sql(f'SELECT * FROM "{name}" ORDER BY ALL').to_arrow_table(),
-                          out_dir / f"{name}.parquet")
+            write_parquet(con.sql(f'SELECT * FROM "{name}" ORDER BY ALL').to_arrow_table(), out_dir / f"{name}.parquet")
     finally:
         con.close()
     return names

@@ -30,7 +30,18 @@ class QueryFilters:
     license: str | None = None
 
 
-RESULT_COLUMNS = ("asset_id", "category", "object_class", "source", "license", "depth", "width", "height", "description", "score")
+RESULT_COLUMNS = (
+    "asset_id",
+    "category",
+    "object_class",
+    "source",
+    "license",
+    "depth",
+    "width",
+    "height",
+    "description",
+    "score",
+)
 
 
 def _asset_filters(filters: QueryFilters) -> tuple[list[str], dict[str, object]]:
@@ -54,8 +65,13 @@ def _asset_filters(filters: QueryFilters) -> tuple[list[str], dict[str, object]]
 def has_view_embeddings(con: duckdb.DuckDBPyConnection, view_model: str = "aligned") -> bool:
     """Whether the catalog holds per-view embeddings of `view_model` (an aligned-scorer ingest)."""
     # An existence probe, not a count: every query of a 100k-asset catalog runs it.
-    return con.execute("SELECT 1 FROM embeddings WHERE owner_kind = ? AND model LIKE ? LIMIT 1",
-                       [ASSET_VIEW_KIND, f"{view_model}%#view%"]).fetchone() is not None
+    return (
+        con.execute(
+            "SELECT 1 FROM embeddings WHERE owner_kind = ? AND model LIKE ? LIMIT 1",
+            [ASSET_VIEW_KIND, f"{view_model}%#view%"],
+        ).fetchone()
+        is not None
+    )
 
 
 def search(
@@ -94,8 +110,14 @@ def search(
         v = np.asarray(view_vector, dtype=np.float32).reshape(-1)
         if v.shape[0] != dim or not np.isfinite(v).all() or not np.any(v):
             raise ValueError(f"view vector must be a finite non-zero vector of {dim} dimensions, got shape {v.shape}")
-        params.update({"vkind": ASSET_VIEW_KIND, "vmodel": f"{view_model}%#view%", "v": (v / np.linalg.norm(v)).tolist(),
-                       "w": float(view_weight)})
+        params.update(
+            {
+                "vkind": ASSET_VIEW_KIND,
+                "vmodel": f"{view_model}%#view%",
+                "v": (v / np.linalg.norm(v)).tolist(),
+                "w": float(view_weight),
+            }
+        )
         sql = f"""
             WITH txt AS (SELECT e.owner_id, {score} AS s FROM embeddings e
                          WHERE e.owner_kind = $kind AND e.model = $model),
@@ -103,7 +125,7 @@ def search(
                          WHERE owner_kind = $vkind AND model LIKE $vmodel GROUP BY owner_id)
             SELECT {columns}, (1 - $w) * txt.s + $w * coalesce(img.s, txt.s) AS score
             FROM txt JOIN assets a ON a.asset_id = txt.owner_id LEFT JOIN img ON img.owner_id = txt.owner_id
-            {'WHERE ' + ' AND '.join(where) if where else ''}
+            {"WHERE " + " AND ".join(where) if where else ""}
             ORDER BY score DESC, a.asset_id
             LIMIT $limit
         """
@@ -112,7 +134,7 @@ def search(
         sql = f"""
             SELECT {columns}, {score} AS score
             FROM embeddings e JOIN assets a ON a.asset_id = e.owner_id
-            WHERE e.owner_kind = $kind AND e.model = $model AND {' AND '.join(where)}
+            WHERE e.owner_kind = $kind AND e.model = $model AND {" AND ".join(where)}
             ORDER BY score DESC, a.asset_id
             LIMIT $limit
         """

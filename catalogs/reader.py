@@ -112,17 +112,17 @@ def descriptions(con: duckdb.DuckDBPyConnection) -> list[tuple[str, str, str | N
 
 def ranked_matches(con: duckdb.DuckDBPyConnection) -> list[tuple[str, str | None, float]]:
     """(asset_id, description category, score) of every match, best first within each category (ties by id)."""
-    return con.execute("SELECT m.asset_id, d.category, m.score FROM matches m JOIN descriptions d USING "
-                       "(description_id) ORDER BY d.category, m.score DESC, m.asset_id").fetchall()
+    return con.execute(
+        "SELECT m.asset_id, d.category, m.score FROM matches m JOIN descriptions d USING "
+        "(description_id) ORDER BY d.category, m.score DESC, m.asset_id"
+    ).fetchall()
 
 
 def open_catalog(path: str | Path) -> duckdb.DuckDBPyConnection:
     """Open a catalog read-only after checking it exists and has this curbside's schema version."""
     p = Path(path)
     if not p.exists():
-        raise CatalogMissing(
-            f"no catalog at {p}; build it with `curbside catalog build --catalog {p}`"
-        )
+        raise CatalogMissing(f"no catalog at {p}; build it with `curbside catalog build --catalog {p}`")
     if p.is_dir():
         raise CatalogMissing(f"{p} is a directory, not a catalog file; pass the .duckdb file to --catalog")
     con = None
@@ -205,8 +205,11 @@ class CatalogReader:
         # Per category: its sizes and, per zone, which of its assets allow it, so a query is a few array
         # comparisons; answers are cached because the generator asks the same few questions thousands of times.
         self._sizes = {c: self.table.size[ix] for c, ix in self._by_category.items()}
-        self._rows = {c: [(int(i), *map(float, self.table.size[i]), self.table.zones[i]) for i in ix]
-                      for c, ix in self._by_category.items() if len(ix) <= _SMALL}
+        self._rows = {
+            c: [(int(i), *map(float, self.table.size[i]), self.table.zones[i]) for i in ix]
+            for c, ix in self._by_category.items()
+            if len(ix) <= _SMALL
+        }
         self._in_zone: dict[tuple[str, str], np.ndarray] = {}
         self._answers: dict[tuple[Any, ...], np.ndarray] = {}
         self._fits: dict[tuple[tuple[str, ...], str | None], tuple[np.ndarray, np.ndarray]] = {}
@@ -268,9 +271,17 @@ class CatalogReader:
             return _NONE
         if len(ix) <= _SMALL:
             # A few assets: a Python filter costs less than building numpy masks.
-            out = np.array([i for i, d, w, h, zs in self._rows[category] if (zone is None or zone in zs) and (
-                max_depth is None or d <= max_depth) and (max_width is None or w <= max_width) and (
-                max_height is None or h <= max_height)], dtype=np.int64)
+            out = np.array(
+                [
+                    i
+                    for i, d, w, h, zs in self._rows[category]
+                    if (zone is None or zone in zs)
+                    and (max_depth is None or d <= max_depth)
+                    and (max_width is None or w <= max_width)
+                    and (max_height is None or h <= max_height)
+                ],
+                dtype=np.int64,
+            )
         else:
             keep = np.ones(len(ix), dtype=bool)
             size = self._sizes[category]

@@ -83,8 +83,7 @@ def read_safetensors(path: str | Path) -> dict[str, np.ndarray]:
         if dtype is None:
             raise ValueError(f"{path}: tensor {name} has dtype {info['dtype']}, which the numpy encoder cannot read")
         start, end = info["data_offsets"]
-        out[name] = np.ndarray(tuple(info["shape"]), dtype=dtype, buffer=buf, offset=base + start,
-                               order="C")
+        out[name] = np.ndarray(tuple(info["shape"]), dtype=dtype, buffer=buf, offset=base + start, order="C")
         if out[name].nbytes != end - start:
             raise ValueError(f"{path}: tensor {name} has {end - start} bytes, its shape needs {out[name].nbytes}")
     return out
@@ -117,8 +116,10 @@ class NumpyTextEncoder:
     def __init__(self, model: str | Path | None = None, batch_size: int = 32, threads: int | None = 1) -> None:
         path = model_folder(model) if not isinstance(model, Path) else model
         if not supports(path):
-            raise ValueError(f"{path} is not a BERT + mean-pooling sentence-transformers folder with "
-                             "model.safetensors and tokenizer.json; use retrieval.encoders.text.TextEncoder")
+            raise ValueError(
+                f"{path} is not a BERT + mean-pooling sentence-transformers folder with "
+                "model.safetensors and tokenizer.json; use retrieval.encoders.text.TextEncoder"
+            )
         from tokenizers import Tokenizer
 
         self.path = path
@@ -163,7 +164,7 @@ class NumpyTextEncoder:
         # Batch texts of similar length so little compute goes to padding (as sentence-transformers does).
         order = np.argsort([-len(e.ids) for e in encodings], kind="stable")
         for start in range(0, len(texts), self.batch_size):
-            idx = order[start:start + self.batch_size]
+            idx = order[start : start + self.batch_size]
             length = max(len(encodings[i].ids) for i in idx)
             ids = np.zeros((len(idx), length), dtype=np.int64)
             mask = np.zeros((len(idx), length), dtype=np.float32)
@@ -179,8 +180,11 @@ class NumpyTextEncoder:
         w, eps = self.w, self.eps
         b, length = ids.shape
         heads, head_dim = self.n_heads, self.dim // self.n_heads
-        x = (w["embeddings.word_embeddings.weight"][ids] + w["embeddings.position_embeddings.weight"][:length]
-             + w["embeddings.token_type_embeddings.weight"][0])
+        x = (
+            w["embeddings.word_embeddings.weight"][ids]
+            + w["embeddings.position_embeddings.weight"][:length]
+            + w["embeddings.token_type_embeddings.weight"][0]
+        )
         x = _layer_norm(x, w["embeddings.LayerNorm.weight"], w["embeddings.LayerNorm.bias"], eps)
         # Padded keys get float32's minimum added, as transformers' BERT does: their softmax weight is exactly 0.
         bias = ((1.0 - mask) * np.finfo(np.float32).min)[:, None, None, :]
@@ -199,8 +203,9 @@ class NumpyTextEncoder:
             probs = scores / scores.sum(-1, keepdims=True)
             ctx = (probs @ v).transpose(0, 2, 1, 3).reshape(b, length, self.dim)
             attn = ctx @ w[p + "attention.output.dense.weight"].T + w[p + "attention.output.dense.bias"]
-            x = _layer_norm(attn + x, w[p + "attention.output.LayerNorm.weight"],
-                            w[p + "attention.output.LayerNorm.bias"], eps)
+            x = _layer_norm(
+                attn + x, w[p + "attention.output.LayerNorm.weight"], w[p + "attention.output.LayerNorm.bias"], eps
+            )
             inter = _gelu(x @ w[p + "intermediate.dense.weight"].T + w[p + "intermediate.dense.bias"])
             ff = inter @ w[p + "output.dense.weight"].T + w[p + "output.dense.bias"]
             x = _layer_norm(ff + x, w[p + "output.LayerNorm.weight"], w[p + "output.LayerNorm.bias"], eps)

@@ -95,10 +95,14 @@ def check_asset_files(reader: CatalogReader, rec: AssetRecord, client: int) -> l
         out.append(Problem(rec.asset_id, reason))
     lo, hi = mesh.bounds
     centre_off = np.abs((lo[:2] + hi[:2]) / 2)
-    if lo[2] < -max(DIM_TOLERANCE * rec.height, ABS_TOLERANCE) or lo[2] > max(DIM_TOLERANCE * rec.height, ABS_TOLERANCE):
+    if lo[2] < -max(DIM_TOLERANCE * rec.height, ABS_TOLERANCE) or lo[2] > max(
+        DIM_TOLERANCE * rec.height, ABS_TOLERANCE
+    ):
         out.append(Problem(rec.asset_id, f"mesh base is at z = {lo[2]:.3f} m; the convention is base at z = 0"))
     if (centre_off > np.maximum(DIM_TOLERANCE * np.asarray(rec.size[:2]), ABS_TOLERANCE)).any():
-        out.append(Problem(rec.asset_id, f"mesh is not centred on the x/y origin (centre off by {centre_off.round(3)} m)"))
+        out.append(
+            Problem(rec.asset_id, f"mesh is not centred on the x/y origin (centre off by {centre_off.round(3)} m)")
+        )
     try:
         with _stdout_to_stderr():
             shape = p.createCollisionShape(p.GEOM_MESH, fileName=str(mesh_file), physicsClientId=client)

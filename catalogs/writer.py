@@ -103,11 +103,13 @@ class CatalogWriter:
         with self.transaction():
             for stmt in ddl(embedding_dim):
                 self.con.execute(stmt)
-            self._set_meta({
-                "schema_version": str(SCHEMA_VERSION),
-                "embedding_dim": str(embedding_dim),
-                "embedding_model": embedding_model,
-            })
+            self._set_meta(
+                {
+                    "schema_version": str(SCHEMA_VERSION),
+                    "embedding_dim": str(embedding_dim),
+                    "embedding_model": embedding_model,
+                }
+            )
         self.embedding_dim = embedding_dim
         self.embedding_model = embedding_model
 
@@ -208,8 +210,9 @@ class CatalogWriter:
         cols = list(RejectionRecord.__dataclass_fields__)
         return self._replace("rejections", ["source", "source_id", "stage"], rows, cols)
 
-    def upsert_embeddings(self, owner_kind: str, owner_ids: Sequence[str], vectors: np.ndarray,
-                          model: str | Sequence[str] | None = None) -> int:
+    def upsert_embeddings(
+        self, owner_kind: str, owner_ids: Sequence[str], vectors: np.ndarray, model: str | Sequence[str] | None = None
+    ) -> int:
         """Insert or replace embedding vectors (rows of `vectors`, L2-normalised here) for the given owners; `model`
         is one name for all rows or one per row."""
         vectors = np.asarray(vectors, dtype=np.float32)
@@ -230,12 +233,14 @@ class CatalogWriter:
         if len(set(zip(owner_ids, models))) != n:
             raise CatalogError(f"embeddings: duplicate owner ids in one batch ({owner_kind}); pass each owner once")
         vec = pa.FixedSizeListArray.from_arrays(pa.array(vectors.reshape(-1)), self.embedding_dim)
-        batch = pa.table({
-            "owner_kind": [owner_kind] * n,
-            "owner_id": list(owner_ids),
-            "model": models,
-            "vector": vec,
-        })
+        batch = pa.table(
+            {
+                "owner_kind": [owner_kind] * n,
+                "owner_id": list(owner_ids),
+                "model": models,
+                "vector": vec,
+            }
+        )
         self.con.register("_batch", batch)
         try:
             with self.transaction():
@@ -255,12 +260,12 @@ class CatalogWriter:
         rows = self.con.execute("SELECT source, source_id, content_hash FROM assets").fetchall()
         return {(s, i): h for s, i, h in rows}
 
-    def rejection_details(self, config_hash: str, *,
-                          retried: Sequence[str] = ()) -> dict[tuple[str, str], str | None]:
+    def rejection_details(self, config_hash: str, *, retried: Sequence[str] = ()) -> dict[tuple[str, str], str | None]:
         """Detail of each rejection made under `config_hash`, by (source, source_id), but those of `retried` reasons."""
         rows = self.con.execute(
             "SELECT source, source_id, detail FROM rejections WHERE config_hash = ? AND NOT list_contains(?, reason)",
-            [config_hash, list(retried)]).fetchall()
+            [config_hash, list(retried)],
+        ).fetchall()
         return {(s, i): d for s, i, d in rows}
 
     def descriptions(self) -> list[tuple[str, str, str | None]]:
@@ -272,9 +277,11 @@ class CatalogWriter:
         rows = self.con.execute(
             "SELECT a.asset_id, a.source, a.source_id, a.depth, a.width, a.height, e.vector, a.content_hash "
             "FROM assets a JOIN embeddings e ON e.owner_id = a.asset_id AND e.owner_kind = ? ORDER BY a.asset_id",
-            [owner_kind]).fetchall()
-        return [EmbeddedAsset(r[0], r[1], r[2], (r[3], r[4], r[5]), np.asarray(r[6], dtype=np.float64), r[7])
-                for r in rows]
+            [owner_kind],
+        ).fetchall()
+        return [
+            EmbeddedAsset(r[0], r[1], r[2], (r[3], r[4], r[5]), np.asarray(r[6], dtype=np.float64), r[7]) for r in rows
+        ]
 
     def delete_assets(self, asset_ids: Iterable[str]) -> None:
         """Delete assets and everything of theirs (views, matches, asset embeddings) in one transaction."""
@@ -284,8 +291,10 @@ class CatalogWriter:
         with self.transaction():
             for table in ("matches", "views", "assets"):
                 self.con.execute(f"DELETE FROM {table} WHERE list_contains(?, asset_id)", [ids])
-            self.con.execute("DELETE FROM embeddings WHERE list_contains(?, owner_id) AND "
-                             "list_contains(?, owner_kind)", [ids, list(ASSET_KINDS)])
+            self.con.execute(
+                "DELETE FROM embeddings WHERE list_contains(?, owner_id) AND list_contains(?, owner_kind)",
+                [ids, list(ASSET_KINDS)],
+            )
 
     def reject_assets(self, rejected: Iterable[tuple[str, RejectionRecord]]) -> int:
         """Record why assets (asset_id, rejection) were refused and delete any rows they had, in one transaction."""
@@ -313,19 +322,23 @@ class CatalogWriter:
         `view_embeddings` (one row per view of `view_ids`) are stored as `<image_model>#view<NN>`."""
         aid = asset.asset_id
         with self.transaction():
-            self.con.execute("DELETE FROM rejections WHERE source = ? AND source_id = ?",
-                             [asset.source, asset.source_id])
+            self.con.execute(
+                "DELETE FROM rejections WHERE source = ? AND source_id = ?", [asset.source, asset.source_id]
+            )
             for table in ("views", "matches"):
                 self.con.execute(f"DELETE FROM {table} WHERE asset_id = ?", [aid])
             self.upsert_views(views)
             if text_embedding is not None:
                 self.upsert_embeddings(ASSET_TEXT_KIND, [aid], np.asarray(text_embedding)[None, :])
             if image_embedding is not None:
-                self.upsert_embeddings(ASSET_IMAGE_KIND, [aid], np.asarray(image_embedding)[None, :],
-                                       model=image_model)
+                self.upsert_embeddings(ASSET_IMAGE_KIND, [aid], np.asarray(image_embedding)[None, :], model=image_model)
             if view_embeddings is not None and len(view_ids):
-                self.upsert_embeddings(ASSET_VIEW_KIND, [aid] * len(view_ids), np.asarray(view_embeddings),
-                                       model=[f"{image_model}#view{int(v):02d}" for v in view_ids])
+                self.upsert_embeddings(
+                    ASSET_VIEW_KIND,
+                    [aid] * len(view_ids),
+                    np.asarray(view_embeddings),
+                    model=[f"{image_model}#view{int(v):02d}" for v in view_ids],
+                )
             self.upsert_matches(matches)
             # Last: a resumed run treats an asset row with its content hash as a finished asset.
             self.upsert_assets([asset])

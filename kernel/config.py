@@ -11,7 +11,9 @@ class ConfigError(ValueError):
     """A configuration that names an unknown key or holds an invalid value."""
 
 
-def merge_strict(defaults: Mapping[str, Any], overrides: Mapping[str, Any] | None, *, name: str = "config") -> dict[str, Any]:
+def merge_strict(
+    defaults: Mapping[str, Any], overrides: Mapping[str, Any] | None, *, name: str = "config"
+) -> dict[str, Any]:
     """Return a deep copy of `defaults` updated by `overrides`, rejecting keys `defaults` does not have."""
     merged = copy.deepcopy(dict(defaults))
     if not overrides:
@@ -54,8 +56,10 @@ def load_yaml(text: str, what: str) -> Any:
         def compose_node(self, parent: Any, index: Any) -> Any:
             if self.check_event(yaml.AliasEvent):
                 event = self.peek_event()
-                raise ConfigError(f"{what}: YAML alias *{event.anchor} at line {event.start_mark.line + 1}; aliases "
-                                  "are not accepted in config files, write the value out")
+                raise ConfigError(
+                    f"{what}: YAML alias *{event.anchor} at line {event.start_mark.line + 1}; aliases "
+                    "are not accepted in config files, write the value out"
+                )
             return super().compose_node(parent, index)
 
     if len(text) > YAML_MAX_BYTES:

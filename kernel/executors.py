@@ -97,9 +97,18 @@ def die_with_parent(parent_pid: int) -> None:
     threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
 
 
-def run_map(fn: Callable[..., Any], items: Iterable[Any], *, executor: str = "local", workers: int | None = None,
-            address: str | None = None, args: tuple = (), progress: Progress | None = None,
-            max_retries: int = MAX_RETRIES, nodes: dict[str, int] | None = None) -> Iterator[Any]:
+def run_map(
+    fn: Callable[..., Any],
+    items: Iterable[Any],
+    *,
+    executor: str = "local",
+    workers: int | None = None,
+    address: str | None = None,
+    args: tuple = (),
+    progress: Progress | None = None,
+    max_retries: int = MAX_RETRIES,
+    nodes: dict[str, int] | None = None,
+) -> Iterator[Any]:
     """Yield fn(item, *args) for each item, in order, computed by the chosen executor.
 
     `workers`: processes (`process`), or at most this many items at once on the cluster (`ray`; a local cluster is
@@ -132,8 +141,9 @@ def run_map(fn: Callable[..., Any], items: Iterable[Any], *, executor: str = "lo
         yield from _ray_map(fn, items, workers, address, args, progress, max_retries, nodes)
 
 
-def _process_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | None, args: tuple,
-                 progress: Progress | None) -> Iterator[Any]:
+def _process_map(
+    fn: Callable[..., Any], items: Iterable[Any], workers: int | None, args: tuple, progress: Progress | None
+) -> Iterator[Any]:
     import multiprocessing as mp
     import os
     from collections import deque
@@ -142,8 +152,9 @@ def _process_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | No
     workers = workers or os.cpu_count() or 1
     # spawn: torch and pybullet state must not be forked from a parent that already loaded them.
     # die_with_parent: a SIGKILLed run must not leave its workers working for nobody.
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"), initializer=die_with_parent,
-                               initargs=(os.getpid(),))
+    pool = ProcessPoolExecutor(
+        max_workers=workers, mp_context=mp.get_context("spawn"), initializer=die_with_parent, initargs=(os.getpid(),)
+    )
     try:
         window: deque = deque()
         counted: set = set()
@@ -190,15 +201,21 @@ def connect_ray(workers: int | None = None, address: str | None = None) -> bool:
         return False
     address = address or os.environ.get("RAY_ADDRESS") or None  # Ray's own convention for "the cluster to use"
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")  # a local cluster for one run: no token to hand out
-    quiet: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.WARNING,
-             "configure_logging": True}
+    quiet: dict[str, Any] = {
+        "include_dashboard": False,
+        "log_to_driver": False,
+        "logging_level": logging.WARNING,
+        "configure_logging": True,
+    }
     if address:
         _check_reachable(address)
         try:
             ray.init(address=address, **quiet)
         except (ConnectionError, RuntimeError, ValueError) as exc:
-            raise ConfigError(f"cannot reach a Ray cluster at {address!r} ({exc}); start one with "
-                              "`ray start --head` and pass the address it prints, or leave out --address") from exc
+            raise ConfigError(
+                f"cannot reach a Ray cluster at {address!r} ({exc}); start one with "
+                "`ray start --head` and pass the address it prints, or leave out --address"
+            ) from exc
     else:
         # Ray lowers its workers' priority by 15 by default (to keep its raylet responsive); here the workers are
         # the work, and at nice +15 they lose every core to any other job (measured: 2 workers no faster than 1
@@ -219,8 +236,10 @@ def _check_reachable(address: str, timeout: float = 5.0) -> None:
     try:
         socket.create_connection((host, int(port)), timeout=timeout).close()
     except OSError as exc:
-        raise ConfigError(f"cannot reach a Ray cluster at {address!r} ({exc.strerror or exc}); start one with "
-                          "`ray start --head` and pass the address it prints, or leave out --address") from None
+        raise ConfigError(
+            f"cannot reach a Ray cluster at {address!r} ({exc.strerror or exc}); start one with "
+            "`ray start --head` and pass the address it prints, or leave out --address"
+        ) from None
 
 
 def in_flight(workers: int | None, cpus: int) -> int:
@@ -240,8 +259,16 @@ def on_node(fn: Callable[..., Any], item: Any, *args: Any) -> tuple[str, Any]:
     return ray.get_runtime_context().get_node_id(), fn(item, *args)
 
 
-def _ray_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | None, address: str | None, args: tuple,
-             progress: Progress | None, max_retries: int, nodes: dict[str, int] | None) -> Iterator[Any]:
+def _ray_map(
+    fn: Callable[..., Any],
+    items: Iterable[Any],
+    workers: int | None,
+    address: str | None,
+    args: tuple,
+    progress: Progress | None,
+    max_retries: int,
+    nodes: dict[str, int] | None,
+) -> Iterator[Any]:
     started = connect_ray(workers, address)
     import ray
 
@@ -253,7 +280,8 @@ def _ray_map(fn: Callable[..., Any], items: Iterable[Any], workers: int | None, 
         # tasks a CPU in flight (`in_flight`), Ray's default policy may queue them all on the driver's node while the
         # other nodes start their workers (seen on a loaded 3-node test cluster: 8 of 8 on the head).
         remote = ray.remote(num_cpus=1, max_retries=max_retries, scheduling_strategy="SPREAD")(on_node).options(
-            name=getattr(fn, "__name__", "item"))
+            name=getattr(fn, "__name__", "item")
+        )
         shared = [ray.put(fn)] + [ray.put(a) for a in args]
         capacity = in_flight(workers, int(ray.cluster_resources().get("CPU", 1)))
         done: dict[int, Any] = {}

@@ -46,6 +46,7 @@ def import_pybullet() -> ModuleType:
         finally:
             os.close(devnull)
         import pybullet
+
         _flush_c_stdout()
     finally:
         for fd, copy in saved:

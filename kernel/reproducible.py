@@ -14,8 +14,14 @@ from pathlib import Path
 from typing import Any
 
 PARQUET_OPTIONS: dict[str, Any] = {
-    "compression": "snappy", "version": "2.6", "data_page_version": "1.0", "use_dictionary": True,
-    "write_statistics": True, "row_group_size": 1 << 24, "write_page_index": False, "store_schema": True,
+    "compression": "snappy",
+    "version": "2.6",
+    "data_page_version": "1.0",
+    "use_dictionary": True,
+    "write_statistics": True,
+    "row_group_size": 1 << 24,
+    "write_page_index": False,
+    "store_schema": True,
 }
 
 

@@ -20,8 +20,17 @@ DEFAULTS: dict[str, Any] = {
     "catalog": "",
     "out_dir": "data/pool",
 }
-POOL_COLUMNS = ["description_id", "cluster_id", "text", "category", "members", "n_members", "sources",
-                "country_counts", "count"]
+POOL_COLUMNS = [
+    "description_id",
+    "cluster_id",
+    "text",
+    "category",
+    "members",
+    "n_members",
+    "sources",
+    "country_counts",
+    "count",
+]
 
 
 def dbscan_labels(vectors: np.ndarray, eps: float, min_samples: int) -> np.ndarray:
@@ -51,7 +60,9 @@ def build_pool(descriptions: Any, texts: list[str], vectors: np.ndarray, *, eps:
     index = {t: i for i, t in enumerate(texts)}
     missing = sorted(set(descriptions["text"]) - set(index))
     if missing:
-        raise PipelineError(f"{len(missing)} descriptions have no embedding (e.g. {missing[0]!r}); re-run the embed stage")
+        raise PipelineError(
+            f"{len(missing)} descriptions have no embedding (e.g. {missing[0]!r}); re-run the embed stage"
+        )
     labels = dbscan_labels(vectors, eps, min_samples)
     weight = np.zeros(len(texts))
     cats: dict[int, Counter] = defaultdict(Counter)
@@ -75,12 +86,18 @@ def build_pool(descriptions: Any, texts: list[str], vectors: np.ndarray, *, eps:
         # that joins "a statue" to a categorised description is that category's.
         named = {c: n for c, n in cats[int(lab)].items() if c is not None}
         cat = min(named.items(), key=lambda kv: (-kv[1], kv[0]))[0] if named else None
-        rows.append({
-            "description_id": "pool-" + hashlib.sha1(texts[rep].encode()).hexdigest()[:12],
-            "text": texts[rep], "category": cat, "members": [texts[m] for m in order], "n_members": len(members),
-            "sources": sorted(srcs[int(lab)]), "country_counts": json.dumps(dict(sorted(countries[int(lab)].items()))),
-            "count": int(w.sum()),
-        })
+        rows.append(
+            {
+                "description_id": "pool-" + hashlib.sha1(texts[rep].encode()).hexdigest()[:12],
+                "text": texts[rep],
+                "category": cat,
+                "members": [texts[m] for m in order],
+                "n_members": len(members),
+                "sources": sorted(srcs[int(lab)]),
+                "country_counts": json.dumps(dict(sorted(countries[int(lab)].items()))),
+                "count": int(w.sum()),
+            }
+        )
     # Cluster ids follow size so that id 0 is the largest cluster whatever DBSCAN's visiting order.
     rows.sort(key=lambda r: (-r["count"], -r["n_members"], r["text"]))
     for cid, r in enumerate(rows):
@@ -93,10 +110,18 @@ def write_pool_to_catalog(pool: Any, catalog: str | Path) -> int:
     from catalogs.records import DescriptionRecord
     from catalogs.writer import CatalogWriter
 
-    recs = [DescriptionRecord(description_id=r.description_id, text=r.text, category=r.category,
-                              cluster_id=int(r.cluster_id), members=list(r.members), sources=list(r.sources),
-                              country_counts={k: int(v) for k, v in json.loads(r.country_counts).items()})
-            for r in pool.itertuples()]
+    recs = [
+        DescriptionRecord(
+            description_id=r.description_id,
+            text=r.text,
+            category=r.category,
+            cluster_id=int(r.cluster_id),
+            members=list(r.members),
+            sources=list(r.sources),
+            country_counts={k: int(v) for k, v in json.loads(r.country_counts).items()},
+        )
+        for r in pool.itertuples()
+    ]
     with CatalogWriter(catalog) as w:
         return w.upsert_descriptions(recs)
 
@@ -111,14 +136,18 @@ def run(params_path: str | None = None) -> dict[str, Any]:
     if not 0 < float(p["eps"]) < 2 or int(p["min_samples"]) < 1:
         raise PipelineError(f"cluster.eps must be in (0, 2) and min_samples >= 1, got {p['eps']}, {p['min_samples']}")
     texts, vecs, _ = load_embeddings(p["embeddings"])
-    pool = build_pool(pd.read_parquet(p["descriptions"]), texts, vecs, eps=float(p["eps"]),
-                      min_samples=int(p["min_samples"]))
+    pool = build_pool(
+        pd.read_parquet(p["descriptions"]), texts, vecs, eps=float(p["eps"]), min_samples=int(p["min_samples"])
+    )
     out = Path(p["out_dir"])
     write_table(pool, out / "pool.parquet")
-    metrics = {"clusters": len(pool), "clusters_multi_member": int((pool["n_members"] > 1).sum()),
-               "largest_cluster_members": int(pool["n_members"].max()) if len(pool) else 0,
-               "clusters_open_vocabulary": int(pool["category"].isna().sum()),
-               "descriptions": int(pool["n_members"].sum())}
+    metrics = {
+        "clusters": len(pool),
+        "clusters_multi_member": int((pool["n_members"] > 1).sum()),
+        "largest_cluster_members": int(pool["n_members"].max()) if len(pool) else 0,
+        "clusters_open_vocabulary": int(pool["category"].isna().sum()),
+        "descriptions": int(pool["n_members"].sum()),
+    }
     if p["catalog"]:
         metrics["catalog_descriptions_written"] = write_pool_to_catalog(pool, p["catalog"])
     write_metrics(out / "metrics.json", metrics)

@@ -24,8 +24,17 @@ DEFAULTS: dict[str, Any] = {
     "out_dir": "data/describe",
 }
 DESCRIPTION_COLUMNS = ["text", "category", "source", "country", "count"]
-_MATERIAL_ADJ = {"wood": "wooden", "metal": "metal", "steel": "steel", "concrete": "concrete", "stone": "stone",
-                 "plastic": "plastic", "granite": "granite", "aluminium": "aluminium", "brick": "brick"}
+_MATERIAL_ADJ = {
+    "wood": "wooden",
+    "metal": "metal",
+    "steel": "steel",
+    "concrete": "concrete",
+    "stone": "stone",
+    "plastic": "plastic",
+    "granite": "granite",
+    "aluminium": "aluminium",
+    "brick": "brick",
+}
 
 
 def colour_name(rgb: tuple[float, float, float]) -> str:
@@ -38,8 +47,17 @@ def colour_name(rgb: tuple[float, float, float]) -> str:
     deg = h * 360
     if (deg < 45 or deg >= 345) and v < 0.55 and s > 0.3:
         return "brown"
-    for limit, name in ((15, "red"), (45, "orange"), (70, "yellow"), (165, "green"), (200, "teal"), (255, "blue"),
-                        (290, "purple"), (345, "pink"), (361, "red")):
+    for limit, name in (
+        (15, "red"),
+        (45, "orange"),
+        (70, "yellow"),
+        (165, "green"),
+        (200, "teal"),
+        (255, "blue"),
+        (290, "purple"),
+        (345, "pink"),
+        (361, "red"),
+    ):
         if deg < limit:
             return name
     return "red"
@@ -48,7 +66,9 @@ def colour_name(rgb: tuple[float, float, float]) -> str:
 def dominant_colour(pixels: np.ndarray) -> str:
     """Most frequent colour name over the pixels of an (h, w, 3) uint8 crop (inner 60 % to skip background)."""
     h, w = pixels.shape[:2]
-    inner = pixels[int(h * 0.2): max(int(h * 0.8), int(h * 0.2) + 1), int(w * 0.2): max(int(w * 0.8), int(w * 0.2) + 1)]
+    inner = pixels[
+        int(h * 0.2) : max(int(h * 0.8), int(h * 0.2) + 1), int(w * 0.2) : max(int(w * 0.8), int(w * 0.2) + 1)
+    ]
     flat = inner.reshape(-1, 3)
     # Sub-sample big crops: the mode of a few thousand pixels is stable and fast.
     if len(flat) > 4096:
@@ -93,8 +113,10 @@ def osm_description(row: Any, signs: SignTable | None = None) -> str:
     elif _tag(row, "category"):
         words = category(row["category"], where="describe").words
     else:
-        raise PipelineError(f"OSM object {row.get('osm_id')} ({tag}) has neither a category nor a label; "
-                            f"re-run the osm stage with catalogs/closed_set/osm_tags.csv")
+        raise PipelineError(
+            f"OSM object {row.get('osm_id')} ({tag}) has neither a category nor a label; "
+            f"re-run the osm stage with catalogs/closed_set/osm_tags.csv"
+        )
     adj = []
     colour, material = _tag(row, "colour"), _tag(row, "material")
     if colour:
@@ -133,30 +155,51 @@ def describe_detections(dets: Any, image_files: dict[str, str], *, small_max: fl
             with Image.open(file) as im:
                 pixels = np.asarray(im.convert("RGB"))
             for d in grp.itertuples():
-                crop = pixels[int(d.y0): max(int(np.ceil(d.y1)), int(d.y0) + 1), int(d.x0): max(int(np.ceil(d.x1)), int(d.x0) + 1)]
-                label = d.label[2:] if d.label.startswith("a ") else (d.label[3:] if d.label.startswith("an ") else d.label)
-                text = _article(f"{size_word(d.y1 - d.y0, d.img_height, small_max, medium_max)} "
-                                f"{dominant_colour(crop)} {label}")
+                crop = pixels[
+                    int(d.y0) : max(int(np.ceil(d.y1)), int(d.y0) + 1),
+                    int(d.x0) : max(int(np.ceil(d.x1)), int(d.x0) + 1),
+                ]
+                label = (
+                    d.label[2:] if d.label.startswith("a ") else (d.label[3:] if d.label.startswith("an ") else d.label)
+                )
+                text = _article(
+                    f"{size_word(d.y1 - d.y0, d.img_height, small_max, medium_max)} {dominant_colour(crop)} {label}"
+                )
                 rows.append({"text": text, "category": d.category, "source": "images", "country": d.country})
                 bar.advance(task)
     return rows
 
 
-def build_descriptions(closed_set: Any, osm_objects: Any, dets: Any, image_files: dict[str, str], *,
-                       small_max: float = 0.15, medium_max: float = 0.4) -> Any:
+def build_descriptions(
+    closed_set: Any,
+    osm_objects: Any,
+    dets: Any,
+    image_files: dict[str, str],
+    *,
+    small_max: float = 0.15,
+    medium_max: float = 0.4,
+) -> Any:
     """Pure function of the stage: unique (text, category, source, country) with how many objects share it."""
     import pandas as pd
 
-    rows = [{"text": t, "category": c, "source": "closed_set", "country": None}
-            for t, c in zip(closed_set["prompt"], closed_set["category"], strict=True)]
+    rows = [
+        {"text": t, "category": c, "source": "closed_set", "country": None}
+        for t, c in zip(closed_set["prompt"], closed_set["category"], strict=True)
+    ]
     signs = sign_table()
     for rec in osm_objects.to_dict("records"):
-        rows.append({"text": osm_description(rec, signs), "category": _tag(rec, "category"), "source": "osm",
-                     "country": rec["country"]})
+        rows.append(
+            {
+                "text": osm_description(rec, signs),
+                "category": _tag(rec, "category"),
+                "source": "osm",
+                "country": rec["country"],
+            }
+        )
     rows += describe_detections(dets, image_files, small_max=small_max, medium_max=medium_max)
     df = pd.DataFrame(rows, columns=DESCRIPTION_COLUMNS[:-1])
     df["country"] = df["country"].astype("string")
-    out = (df.groupby(["text", "category", "source", "country"], dropna=False).size().rename("count").reset_index())
+    out = df.groupby(["text", "category", "source", "country"], dropna=False).size().rename("count").reset_index()
     return out.sort_values(["source", "country", "category", "text"], na_position="first").reset_index(drop=True)
 
 
@@ -174,12 +217,21 @@ def run(params_path: str | None = None) -> dict[str, int]:
             raise PipelineError("describe needs describe.manifest (the detect manifest) to read the detected images")
         man = read_manifest(p["manifest"], p["images_dir"] or None)
         files = dict(zip(man["path"], man["file"], strict=True))
-    df = build_descriptions(pd.read_parquet(p["closed_set"]), pd.read_parquet(p["osm_objects"]), dets, files,
-                            small_max=float(p["small_max"]), medium_max=float(p["medium_max"]))
+    df = build_descriptions(
+        pd.read_parquet(p["closed_set"]),
+        pd.read_parquet(p["osm_objects"]),
+        dets,
+        files,
+        small_max=float(p["small_max"]),
+        medium_max=float(p["medium_max"]),
+    )
     out = Path(p["out_dir"])
     write_table(df, out / "descriptions.parquet")
-    metrics = {"descriptions_unique": len(df), "objects_described": int(df["count"].sum()),
-               "descriptions_open_vocabulary": int(df["category"].isna().sum())}
+    metrics = {
+        "descriptions_unique": len(df),
+        "objects_described": int(df["count"].sum()),
+        "descriptions_open_vocabulary": int(df["category"].isna().sum()),
+    }
     for src in ("closed_set", "osm", "images"):
         metrics[f"objects_{src}"] = int(df.loc[df["source"] == src, "count"].sum())
     write_metrics(out / "metrics.json", metrics)

@@ -45,21 +45,27 @@ class ZeroShotDetector:
             with torch.no_grad():
                 out = self.model(**inputs)
             res = self.processor.post_process_grounded_object_detection(
-                out, inputs.input_ids, threshold=threshold, text_threshold=threshold, target_sizes=[(h, w)])[0]
+                out, inputs.input_ids, threshold=threshold, text_threshold=threshold, target_sizes=[(h, w)]
+            )[0]
             names = [str(x) for x in res.get("text_labels", res.get("labels"))]
-            idx = np.array([next((i for i, p in enumerate(prompts) if n and n in p), -1) for n in names], dtype=np.int64)
+            idx = np.array(
+                [next((i for i, p in enumerate(prompts) if n and n in p), -1) for n in names], dtype=np.int64
+            )
             keep = idx >= 0
             return res["boxes"].cpu().numpy()[keep], res["scores"].cpu().numpy()[keep], idx[keep]
         # OWL text towers have 16 positions; pad every prompt to that length as the original models do.
-        inputs = self.processor(text=prompts, images=image, padding="max_length", truncation=True,
-                                return_tensors="pt").to(self.device)
+        inputs = self.processor(
+            text=prompts, images=image, padding="max_length", truncation=True, return_tensors="pt"
+        ).to(self.device)
         with torch.no_grad():
             out = self.model(**inputs)
         # OWLv2 pads images to a square before resizing, so boxes are relative to the padded square.
         side = max(h, w) if self.kind == "owlv2" else None
         size = (side, side) if side else (h, w)
-        post = getattr(self.processor, "post_process_object_detection", None) or \
-            self.processor.image_processor.post_process_object_detection
+        post = (
+            getattr(self.processor, "post_process_object_detection", None)
+            or self.processor.image_processor.post_process_object_detection
+        )
         res = post(out, threshold=threshold, target_sizes=[size])[0]
         boxes = res["boxes"].cpu().numpy().astype(np.float64)
         boxes[:, [0, 2]] = boxes[:, [0, 2]].clip(0, w)

@@ -38,7 +38,9 @@ def load_distribution(country: str, path: str | Path = DEFAULT_PATH) -> dict[str
 
     p = Path(path)
     if not p.exists():
-        raise FileNotFoundError(f"{p} does not exist; run `dvc repro distribution` (or `python -m pipelines.distribution`)")
+        raise FileNotFoundError(
+            f"{p} does not exist; run `dvc repro distribution` (or `python -m pipelines.distribution`)"
+        )
     code = GLOBAL if str(country).upper() == GLOBAL else check_country(country, where="load_distribution")
     df = pd.read_parquet(p)
     sel = df[df["country"] == code]

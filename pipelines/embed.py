@@ -35,7 +35,7 @@ def embed_texts(texts: list[str], model: str | None = None, batch_size: int = 64
     # np.unique sorts, so the batches (and their padding) depend only on the set of texts, not on their order.
     unique, inverse = np.unique(np.asarray(list(texts), dtype=object), return_inverse=True)
     todo = unique.tolist()
-    chunks = [todo[i:i + CHUNK] for i in range(0, len(todo), CHUNK)]
+    chunks = [todo[i : i + CHUNK] for i in range(0, len(todo), CHUNK)]
     was = torch.are_deterministic_algorithms_enabled()
     torch.use_deterministic_algorithms(True)  # no nondeterministic kernels; restored after, it is process-global
     try:

@@ -23,13 +23,41 @@ from pipelines.countries import check_country
 
 EARTH_RADIUS_M = 6_371_008.8
 # Tags copied to each object: they feed the textual description (colour, material, shape).
-ATTRIBUTE_TAGS = ("colour", "material", "support", "backrest", "leaf_type", "leaf_cycle", "genus", "lamp_mount",
-                  "vending", "shelter", "bicycle_parking", "height", "advertising", "street_cabinet")
+ATTRIBUTE_TAGS = (
+    "colour",
+    "material",
+    "support",
+    "backrest",
+    "leaf_type",
+    "leaf_cycle",
+    "genus",
+    "lamp_mount",
+    "vending",
+    "shelter",
+    "bicycle_parking",
+    "height",
+    "advertising",
+    "street_cabinet",
+)
 DEFAULTS: dict[str, Any] = {
     "extracts": [{"path": "", "country": "auto", "region": "Helsinki"}],
     "tags_csv": str(CLOSED_SET_DIR / "osm_tags.csv"),
-    "street_highways": ["motorway", "trunk", "primary", "secondary", "tertiary", "unclassified", "residential",
-                        "living_street", "pedestrian", "service", "footway", "cycleway", "path", "steps"],
+    "street_highways": [
+        "motorway",
+        "trunk",
+        "primary",
+        "secondary",
+        "tertiary",
+        "unclassified",
+        "residential",
+        "living_street",
+        "pedestrian",
+        "service",
+        "footway",
+        "cycleway",
+        "path",
+        "steps",
+    ],
     "snap_distance_m": 25.0,
     "max_gap_m": 300.0,
     "tile_deg": 0.25,
@@ -80,8 +108,10 @@ def load_tag_rules(path: str | Path) -> list[TagRule]:
     rules = []
     for i, r in enumerate(df.itertuples()):
         if not r.category and not r.label:
-            raise PipelineError(f"{p} row {i + 2}: give a category or, for an object outside the category table, "
-                                f"a label saying what it is")
+            raise PipelineError(
+                f"{p} row {i + 2}: give a category or, for an object outside the category table, "
+                f"a label saying what it is"
+            )
         cat = check_category(r.category, where=f"{p} row {i + 2}") if r.category else None
         rules.append(TagRule(r.key, r.value, r.extra_key, r.extra_value, cat, r.label))
     # A categorised rule outranks an open-vocabulary one (a memorial bench is a bench), then conditions first.
@@ -116,9 +146,14 @@ def read_extract(path: str | Path, rules: list[TagRule], street_highways: list[s
                 rule = next((r for r in rules if r.matches(obj.tags)), None)
                 if rule is None or not obj.location.valid():
                     continue
-                row = {"osm_id": int(obj.id), "lon": obj.location.lon, "lat": obj.location.lat,
-                       "category": rule.category, "label": rule.label or None,
-                       "tag": f"{rule.key}={obj.tags.get(rule.key)}"}
+                row = {
+                    "osm_id": int(obj.id),
+                    "lon": obj.location.lon,
+                    "lat": obj.location.lat,
+                    "category": rule.category,
+                    "label": rule.label or None,
+                    "tag": f"{rule.key}={obj.tags.get(rule.key)}",
+                }
                 row.update({t: obj.tags.get(t) for t in ATTRIBUTE_TAGS})
                 data.objects.append(row)
             elif obj.is_way():
@@ -166,8 +201,9 @@ def nearest_neighbour_m(lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
     return d[:, 1]
 
 
-def along_street_gaps(objects: Any, streets: list[np.ndarray], *, snap_m: float, max_gap_m: float,
-                      tile_deg: float) -> dict[str, list[float]]:
+def along_street_gaps(
+    objects: Any, streets: list[np.ndarray], *, snap_m: float, max_gap_m: float, tile_deg: float
+) -> dict[str, list[float]]:
     """Gaps (m) between consecutive same-category objects along the street each one snaps to, per category."""
     import shapely
 
@@ -186,12 +222,20 @@ def along_street_gaps(objects: Any, streets: list[np.ndarray], *, snap_m: float,
         # A local tangent plane per tile keeps metric distortion under ~1 % at any latitude.
         kx, ky = np.radians(1) * EARTH_RADIUS_M * np.cos(np.radians(la0)), np.radians(1) * EARTH_RADIUS_M
         x0, y0, x1, y1 = tile[0] * tile_deg, tile[1] * tile_deg, (tile[0] + 1) * tile_deg, (tile[1] + 1) * tile_deg
-        near = np.flatnonzero((bbox[:, 2] >= x0 - margin) & (bbox[:, 0] <= x1 + margin)
-                              & (bbox[:, 3] >= y0 - margin) & (bbox[:, 1] <= y1 + margin))
+        near = np.flatnonzero(
+            (bbox[:, 2] >= x0 - margin)
+            & (bbox[:, 0] <= x1 + margin)
+            & (bbox[:, 3] >= y0 - margin)
+            & (bbox[:, 1] <= y1 + margin)
+        )
         if len(near) == 0:
             continue
-        lines = np.array([shapely.LineString(np.column_stack([(streets[i][:, 0] - lo0) * kx,
-                                                              (streets[i][:, 1] - la0) * ky])) for i in near])
+        lines = np.array(
+            [
+                shapely.LineString(np.column_stack([(streets[i][:, 0] - lo0) * kx, (streets[i][:, 1] - la0) * ky]))
+                for i in near
+            ]
+        )
         pts = shapely.points((lon[sel] - lo0) * kx, (lat[sel] - la0) * ky)
         tree = shapely.STRtree(lines)
         pi, li = tree.query_nearest(pts, max_distance=snap_m, all_matches=False)
@@ -207,12 +251,24 @@ def along_street_gaps(objects: Any, streets: list[np.ndarray], *, snap_m: float,
 
 def _stats(values: np.ndarray) -> dict[str, float]:
     v = np.asarray(values, dtype=np.float64)
-    return {"n": int(len(v)), "mean_m": float(v.mean()), "median_m": float(np.median(v)),
-            "p10_m": float(np.percentile(v, 10)), "p90_m": float(np.percentile(v, 90))}
+    return {
+        "n": int(len(v)),
+        "mean_m": float(v.mean()),
+        "median_m": float(np.median(v)),
+        "p10_m": float(np.percentile(v, 10)),
+        "p90_m": float(np.percentile(v, 90)),
+    }
 
 
-def extract_osm(extracts: list[dict[str, Any]], rules: list[TagRule], *, street_highways: list[str], snap_m: float,
-                max_gap_m: float, tile_deg: float) -> tuple[Any, Any, Any]:
+def extract_osm(
+    extracts: list[dict[str, Any]],
+    rules: list[TagRule],
+    *,
+    street_highways: list[str],
+    snap_m: float,
+    max_gap_m: float,
+    tile_deg: float,
+) -> tuple[Any, Any, Any]:
     """Pure function of the stage: (objects, counts per country/region/category, spacing statistics) tables."""
     import pandas as pd
 
@@ -222,34 +278,58 @@ def extract_osm(extracts: list[dict[str, Any]], rules: list[TagRule], *, street_
         for i, ex in enumerate(extracts):
             unknown = set(ex) - {"path", "country", "region"}
             if unknown:
-                raise PipelineError(f"osm.extracts[{i}] has unknown key(s) {sorted(unknown)}; valid: path, country, region")
+                raise PipelineError(
+                    f"osm.extracts[{i}] has unknown key(s) {sorted(unknown)}; valid: path, country, region"
+                )
             path = Path(ex.get("path") or default_extract())
             data = read_extract(path, rules, street_highways)
             country = resolve_country(ex.get("country", "auto"), data.countries, path)
             region = ex.get("region") or path.name.split(".")[0]
-            df = pd.DataFrame(data.objects, columns=["osm_id", "lon", "lat", "category", "label", "tag",
-                                                     *ATTRIBUTE_TAGS])
+            df = pd.DataFrame(
+                data.objects, columns=["osm_id", "lon", "lat", "category", "label", "tag", *ATTRIBUTE_TAGS]
+            )
             df.insert(0, "region", region)
             df.insert(0, "country", country)
             df = df.sort_values("osm_id", kind="stable").reset_index(drop=True)
             obj_frames.append(df)
             # Spacing and counts are per category: open-vocabulary objects (category None) feed descriptions only.
-            gaps = along_street_gaps(df[df["category"].notna()], data.streets, snap_m=snap_m, max_gap_m=max_gap_m,
-                                     tile_deg=tile_deg)
+            gaps = along_street_gaps(
+                df[df["category"].notna()], data.streets, snap_m=snap_m, max_gap_m=max_gap_m, tile_deg=tile_deg
+            )
             for cat, g in sorted(gaps.items()):
-                spacing_rows.append({"country": country, "region": region, "category": cat, "method": "along_street",
-                                     **_stats(np.asarray(g))})
+                spacing_rows.append(
+                    {
+                        "country": country,
+                        "region": region,
+                        "category": cat,
+                        "method": "along_street",
+                        **_stats(np.asarray(g)),
+                    }
+                )
             for cat, grp in df.groupby("category", sort=True):
                 nn = nearest_neighbour_m(grp["lon"].to_numpy(), grp["lat"].to_numpy())
                 if len(nn):
-                    spacing_rows.append({"country": country, "region": region, "category": cat,
-                                         "method": "nearest_neighbour", **_stats(nn)})
+                    spacing_rows.append(
+                        {
+                            "country": country,
+                            "region": region,
+                            "category": cat,
+                            "method": "nearest_neighbour",
+                            **_stats(nn),
+                        }
+                    )
             bar.advance(task)
     objects = pd.concat(obj_frames, ignore_index=True)
-    counts = (objects.groupby(["country", "region", "category"]).size().rename("count").reset_index()
-              .sort_values(["country", "region", "count", "category"], ascending=[True, True, False, True]))
-    spacing = pd.DataFrame(spacing_rows, columns=["country", "region", "category", "method", "n", "mean_m",
-                                                  "median_m", "p10_m", "p90_m"])
+    counts = (
+        objects.groupby(["country", "region", "category"])
+        .size()
+        .rename("count")
+        .reset_index()
+        .sort_values(["country", "region", "count", "category"], ascending=[True, True, False, True])
+    )
+    spacing = pd.DataFrame(
+        spacing_rows, columns=["country", "region", "category", "method", "n", "mean_m", "median_m", "p10_m", "p90_m"]
+    )
     return objects, counts.reset_index(drop=True), spacing
 
 
@@ -260,18 +340,27 @@ def run(params_path: str | None = None) -> dict[str, int]:
         raise PipelineError("osm.extracts is empty; list at least one extract (path may be '' for Helsinki)")
     rules = load_tag_rules(p["tags_csv"])
     objects, counts, spacing = extract_osm(
-        p["extracts"], rules, street_highways=list(p["street_highways"]), snap_m=float(p["snap_distance_m"]),
-        max_gap_m=float(p["max_gap_m"]), tile_deg=float(p["tile_deg"]))
+        p["extracts"],
+        rules,
+        street_highways=list(p["street_highways"]),
+        snap_m=float(p["snap_distance_m"]),
+        max_gap_m=float(p["max_gap_m"]),
+        tile_deg=float(p["tile_deg"]),
+    )
     out = Path(p["out_dir"])
     write_table(objects, out / "objects.parquet")
     write_table(counts, out / "counts.parquet")
     write_table(spacing, out / "spacing.parquet")
     along = spacing[spacing["method"] == "along_street"][["country", "category", "n", "median_m"]]
     along.to_csv(out / "spacing.csv", index=False, float_format="%.2f")
-    metrics = {"extracts": len(p["extracts"]), "objects": len(objects), "countries": int(objects["country"].nunique()),
-               "categories": int(objects["category"].nunique()),
-               "open_vocabulary_objects": int(objects["category"].isna().sum()),
-               "spacing_gaps_along_street": int(spacing.loc[spacing["method"] == "along_street", "n"].sum())}
+    metrics = {
+        "extracts": len(p["extracts"]),
+        "objects": len(objects),
+        "countries": int(objects["country"].nunique()),
+        "categories": int(objects["category"].nunique()),
+        "open_vocabulary_objects": int(objects["category"].isna().sum()),
+        "spacing_gaps_along_street": int(spacing.loc[spacing["method"] == "along_street", "n"].sum()),
+    }
     write_metrics(out / "metrics.json", metrics)
     return metrics
 

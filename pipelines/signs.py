@@ -40,7 +40,9 @@ class SignTable:
         code = f"{m['cc']}:{m['num']}"
         best = None
         for pattern, text, with_value in self.rows:
-            fits = len(pattern) == len(code) and all(p == c or (p == "x" and c.isdigit()) for p, c in zip(pattern, code))
+            fits = len(pattern) == len(code) and all(
+                p == c or (p == "x" and c.isdigit()) for p, c in zip(pattern, code)
+            )
             if fits and (best is None or pattern.count("x") < best[0].count("x")):
                 best = (pattern, text, with_value)
         if best is None:

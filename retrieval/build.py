@@ -80,8 +80,13 @@ def build_procedural_catalog(
     records = []
     try:
         with Progress(
-            TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-            console=console, disable=not progress, transient=False,
+            TextColumn("[bold]{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeElapsedColumn(),
+            console=console,
+            disable=not progress,
+            transient=False,
         ) as bar:
             task = bar.add_task("generating assets", total=len(jobs))
             for category, s in jobs:
@@ -104,12 +109,14 @@ def build_procedural_catalog(
             ):
                 writer.upsert_assets(records)
                 writer.upsert_embeddings(ASSET_TEXT_KIND, [r.asset_id for r in records], vectors)
-                writer.set_meta({
-                    "built_by": "retrieval.build.build_procedural_catalog",
-                    "build_variants": str(variants),
-                    "build_seed": str(seed),
-                    "build_categories": ",".join(names),
-                })
+                writer.set_meta(
+                    {
+                        "built_by": "retrieval.build.build_procedural_catalog",
+                        "build_variants": str(variants),
+                        "build_seed": str(seed),
+                        "build_categories": ",".join(names),
+                    }
+                )
             bar.update(task, description="catalog written")
     except BaseException:
         for d in reversed(created):
@@ -119,7 +126,13 @@ def build_procedural_catalog(
     for r in records:
         per_category[r.category] = per_category.get(r.category, 0) + 1
     return BuildReport(
-        path=path, n_assets=len(records), per_category=per_category, variants=variants, seed=seed,
-        variant_seeds=seeds, embedding_model=encoder.name, seconds=time.perf_counter() - t0,
+        path=path,
+        n_assets=len(records),
+        per_category=per_category,
+        variants=variants,
+        seed=seed,
+        variant_seeds=seeds,
+        embedding_model=encoder.name,
+        seconds=time.perf_counter() - t0,
         asset_ids=[r.asset_id for r in records],
     )

@@ -40,13 +40,15 @@ OPEN_OBJECT_CLASS = "non_standard"
 
 def normalize_open_size(extents: np.ndarray) -> tuple[float, str]:
     """normalize_size for an asset outside the category table: the generic street-object height range."""
-    prior = Category("open_vocabulary", OPEN_OBJECT_CLASS, (), (1.0, 1.0, 1.0), (0.01, 50.0), (0.01, 50.0),
-                     OPEN_HEIGHT_RANGE, "")
+    prior = Category(
+        "open_vocabulary", OPEN_OBJECT_CLASS, (), (1.0, 1.0, 1.0), (0.01, 50.0), (0.01, 50.0), OPEN_HEIGHT_RANGE, ""
+    )
     return normalize_size(extents, prior.name, {prior.name: prior})
 
 
-def near_duplicates(ids: list[str], vectors: np.ndarray, dims: np.ndarray, threshold: float = 0.995,
-                    dim_tolerance: float = 0.02) -> dict[str, str]:
+def near_duplicates(
+    ids: list[str], vectors: np.ndarray, dims: np.ndarray, threshold: float = 0.995, dim_tolerance: float = 0.02
+) -> dict[str, str]:
     """Greedy near-duplicate detection in `ids` order: {duplicate_id: kept_id}.
 
     Two assets are near-duplicates when their image embeddings have cosine >= `threshold` AND their extents

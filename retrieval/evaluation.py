@@ -19,7 +19,15 @@ from retrieval.ingest import IngestConfig, ingest
 from retrieval.pipeline import asset_id
 from retrieval.sources import Source, SourceItem
 
-_NOISE = ("SM_{c}_low_v2", "{c} final FINAL", "untitled scan {k:02d}", "model_{k:04d}", "{c}", "Object{k}", "{c} 3d model free")
+_NOISE = (
+    "SM_{c}_low_v2",
+    "{c} final FINAL",
+    "untitled scan {k:02d}",
+    "model_{k:04d}",
+    "{c}",
+    "Object{k}",
+    "{c} 3d model free",
+)
 
 
 @dataclass
@@ -53,8 +61,13 @@ class _Unlabelled:
             yield dataclasses.replace(it, category=None, name=noisy, description=None, tags=[])
 
 
-def evaluate(source: Source, config: IngestConfig | None = None, ks: tuple[int, ...] = (1, 5),
-             limit: int | None = None, workdir: str | Path | None = None) -> EvalReport:
+def evaluate(
+    source: Source,
+    config: IngestConfig | None = None,
+    ks: tuple[int, ...] = (1, 5),
+    limit: int | None = None,
+    workdir: str | Path | None = None,
+) -> EvalReport:
     """Ingest `source` without its labels into a scratch catalog and score the matches against the labels."""
     wrapped = _Unlabelled(source)
     with tempfile.TemporaryDirectory() as tmp:

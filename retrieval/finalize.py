@@ -30,9 +30,18 @@ def remove_near_duplicates(writer: CatalogWriter, threshold: float) -> int:
     by_id = {r.asset_id: r for r in rows}
     # The content hash in the detail lets a re-run skip the duplicate instead of re-processing it.
     writer.reject_assets(
-        (d, RejectionRecord(by_id[d].source, by_id[d].source_id, "curate", "near_duplicate",
-                            f"duplicates {k} [sha256:{(by_id[d].content_hash or '')[:16]}]"))
-        for d, k in dup.items())
+        (
+            d,
+            RejectionRecord(
+                by_id[d].source,
+                by_id[d].source_id,
+                "curate",
+                "near_duplicate",
+                f"duplicates {k} [sha256:{(by_id[d].content_hash or '')[:16]}]",
+            ),
+        )
+        for d, k in dup.items()
+    )
     return len(dup)
 
 

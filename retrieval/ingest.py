@@ -36,9 +36,17 @@ class IngestReport:
     reasons: dict[str, int] = field(default_factory=dict)
 
 
-def ingest(source: Source, catalog_path: str | Path, config: IngestConfig | None = None, *, executor: str = "local",
-           workers: int | None = None, address: str | None = None, limit: int | None = None,
-           progress: bool = True) -> IngestReport:
+def ingest(
+    source: Source,
+    catalog_path: str | Path,
+    config: IngestConfig | None = None,
+    *,
+    executor: str = "local",
+    workers: int | None = None,
+    address: str | None = None,
+    limit: int | None = None,
+    progress: bool = True,
+) -> IngestReport:
     """Run the pipeline on every item of `source` into the catalog at `catalog_path` (created if missing); resumable."""
     config = config or IngestConfig()
     catalog_path = Path(catalog_path)
@@ -46,8 +54,18 @@ def ingest(source: Source, catalog_path: str | Path, config: IngestConfig | None
     created = not catalog_path.exists()
     try:
         with CatalogWriter(catalog_path) as writer:
-            _ingest_into(writer, source, catalog_path, config, report, executor=executor, workers=workers,
-                         address=address, limit=limit, progress=progress)
+            _ingest_into(
+                writer,
+                source,
+                catalog_path,
+                config,
+                report,
+                executor=executor,
+                workers=workers,
+                address=address,
+                limit=limit,
+                progress=progress,
+            )
     except BaseException:
         if created and report.written == 0 and report.rejected == 0:
             # Nothing was recorded (e.g. the source was unreachable): leave no empty catalog that looks built.
@@ -67,9 +85,19 @@ def _remove_empty_catalog(catalog_path: Path) -> None:
         shutil.rmtree(root, ignore_errors=True)
 
 
-def _ingest_into(writer: CatalogWriter, source: Source, catalog_path: Path, config: IngestConfig,
-                 report: IngestReport, *, executor: str, workers: int | None, address: str | None,
-                 limit: int | None, progress: bool) -> None:
+def _ingest_into(
+    writer: CatalogWriter,
+    source: Source,
+    catalog_path: Path,
+    config: IngestConfig,
+    report: IngestReport,
+    *,
+    executor: str,
+    workers: int | None,
+    address: str | None,
+    limit: int | None,
+    progress: bool,
+) -> None:
     """The body of `ingest` on an open writer; fills `report`."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -112,7 +140,8 @@ def _ingest_into(writer: CatalogWriter, source: Source, catalog_path: Path, conf
                     raise TooManyRejections(
                         f"{report.rejected} assets rejected (> max_rejections {config.max_rejections}); last: "
                         f"{res.source_id}: {res.rejection.reason}. Check the source, or raise max_rejections; "
-                        f"finished assets are kept and a re-run resumes")
+                        f"finished assets are kept and a re-run resumes"
+                    )
             else:
                 report.written += 1
             bar.advance(task)

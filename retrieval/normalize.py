@@ -138,7 +138,9 @@ def _face_colors(geom: trimesh.Trimesh) -> np.ndarray:
     return np.asarray(visual.face_colors, dtype=np.uint8)
 
 
-def load_canonical(path: str | Path, *, up_axis: str | None = None, limits: QualityLimits | None = None) -> CanonicalMesh:
+def load_canonical(
+    path: str | Path, *, up_axis: str | None = None, limits: QualityLimits | None = None
+) -> CanonicalMesh:
     """Load a mesh file, apply the quality filters, merge the scene and make it upright, centred, front +x."""
     path = Path(path)
     limits = limits or QualityLimits()
@@ -169,7 +171,9 @@ def load_canonical(path: str | Path, *, up_axis: str | None = None, limits: Qual
         raise AssetRejected("too_many_faces", f"{n_faces} faces > max_faces {limits.max_faces}")
     for g in geoms:
         if not np.isfinite(g.vertices).all():
-            raise AssetRejected("nan_vertices", f"{int((~np.isfinite(g.vertices)).any(axis=1).sum())} vertices are NaN or inf")
+            raise AssetRejected(
+                "nan_vertices", f"{int((~np.isfinite(g.vertices)).any(axis=1).sum())} vertices are NaN or inf"
+            )
 
     texture_image, uv = None, None
     if len(geoms) == 1 and geoms[0].visual.kind == "texture":
@@ -191,7 +195,9 @@ def load_canonical(path: str | Path, *, up_axis: str | None = None, limits: Qual
     if ext.max() <= 0 or not np.isfinite(ext).all() or mesh.area <= 0:
         raise AssetRejected("degenerate", f"extents {ext.tolist()}, area {mesh.area}")
     if ext.min() / ext.max() < limits.min_thickness_ratio:
-        raise AssetRejected("degenerate", f"thin: extents {np.round(ext, 6).tolist()} (ratio < {limits.min_thickness_ratio})")
+        raise AssetRejected(
+            "degenerate", f"thin: extents {np.round(ext, 6).tolist()} (ratio < {limits.min_thickness_ratio})"
+        )
 
     # Front guess: street objects present their long side to the street, so the long horizontal extent goes on y
     # and the front (+x) faces across the short side.
@@ -203,7 +209,11 @@ def load_canonical(path: str | Path, *, up_axis: str | None = None, limits: Qual
     lo, hi = mesh.bounds
     mesh.apply_translation([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
     return CanonicalMesh(
-        mesh=mesh, face_colors=colors, up_axis=up, texture_image=texture_image, uv=uv,
+        mesh=mesh,
+        face_colors=colors,
+        up_axis=up,
+        texture_image=texture_image,
+        uv=uv,
         params={"up_axis_in": up, "yaw_deg": yaw, "face_count": int(n_faces)},
     )
 

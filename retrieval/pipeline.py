@@ -112,7 +112,9 @@ class ItemResult:
     matches: list[MatchRecord] = field(default_factory=list)
     image_embedding: np.ndarray | None = None
     text_embedding: np.ndarray | None = None
-    view_embeddings: np.ndarray | None = None  # the scored (informative) views', in asset.params informative_views order
+    view_embeddings: np.ndarray | None = (
+        None  # the scored (informative) views', in asset.params informative_views order
+    )
     rejection: RejectionRecord | None = None
     seconds: dict[str, float] = field(default_factory=dict)
 
@@ -142,8 +144,14 @@ def rejected(item: SourceItem, content_hash: str, rejection: Rejection, cfg_hash
     """The result of a refused item: its rejection row, tagged with the content and configuration hashes."""
     # The content hash in the detail lets a re-run skip the same bytes yet retry a fixed file; the config hash
     # makes a run under another configuration retry it too (None: a DVC stage saw only part of the config).
-    rec = RejectionRecord(item.source, item.source_id, rejection.stage, rejection.reason,
-                          f"{rejection.detail} [sha256:{content_hash[:16]}]", cfg_hash)
+    rec = RejectionRecord(
+        item.source,
+        item.source_id,
+        rejection.stage,
+        rejection.reason,
+        f"{rejection.detail} [sha256:{content_hash[:16]}]",
+        cfg_hash,
+    )
     return ItemResult(item.source, item.source_id, content_hash, rejection=rec)
 
 
@@ -194,18 +202,30 @@ def render_step(item: SourceItem, obj: Path, bounds: np.ndarray, config: IngestC
         Image.fromarray(im).save(path, compress_level=1)  # fast zlib: 20 views an asset
         files.append(path)
     contact_sheet(images, selected, title=f"{item.source}:{item.source_id}", scores=info).save(
-        out / "contact_sheet.png", compress_level=1)
+        out / "contact_sheet.png", compress_level=1
+    )
     return Rendered(images, [s.azimuth for s in specs], [s.elevation for s in specs], selected, info, files)
 
 
 def view_records(aid: str, rendered: Rendered, catalog_dir: str | Path) -> list[ViewRecord]:
     """Catalog rows of the rendered views, whose files lie under `catalog_dir`."""
-    return [ViewRecord(aid, i, rendered.azimuths[i], rendered.elevations[i], stored_path(f, catalog_dir),
-                       i in rendered.selected, round(rendered.info[i], 6)) for i, f in enumerate(rendered.files)]
+    return [
+        ViewRecord(
+            aid,
+            i,
+            rendered.azimuths[i],
+            rendered.elevations[i],
+            stored_path(f, catalog_dir),
+            i in rendered.selected,
+            round(rendered.info[i], 6),
+        )
+        for i, f in enumerate(rendered.files)
+    ]
 
 
-def score_step(item: SourceItem, images: list[np.ndarray], config: IngestConfig, pool: DescriptionPool
-               ) -> tuple[AssetScores, list[tuple[int, float]]]:
+def score_step(
+    item: SourceItem, images: list[np.ndarray], config: IngestConfig, pool: DescriptionPool
+) -> tuple[AssetScores, list[tuple[int, float]]]:
     """Score the informative views and the metadata text against the pool; returns scores and the top matches."""
     from retrieval.scoring import cached_scorer
 
@@ -214,9 +234,18 @@ def score_step(item: SourceItem, images: list[np.ndarray], config: IngestConfig,
     return scores, scorer.top_matches(scores)
 
 
-def curate_step(item: SourceItem, content_hash: str, canon: CanonicalMesh, scores: AssetScores,
-                top: list[tuple[int, float]], selected: list[int], config: IngestConfig, pool: DescriptionPool,
-                out: Path, catalog_dir: str | Path) -> tuple[AssetRecord, list[MatchRecord]]:
+def curate_step(
+    item: SourceItem,
+    content_hash: str,
+    canon: CanonicalMesh,
+    scores: AssetScores,
+    top: list[tuple[int, float]],
+    selected: list[int],
+    config: IngestConfig,
+    pool: DescriptionPool,
+    out: Path,
+    catalog_dir: str | Path,
+) -> tuple[AssetRecord, list[MatchRecord]]:
     """Pick the category, normalise the size, export OBJ/collision/GLB into `out`; returns the asset and matches."""
     from catalogs.categories import CATEGORIES
     from retrieval.curation import OPEN_OBJECT_CLASS, normalize_open_size, normalize_size
@@ -230,13 +259,18 @@ def curate_step(item: SourceItem, content_hash: str, canon: CanonicalMesh, score
     if category is None:
         best = int(np.argmax(scores.fused))
         raw = scores.raw_fused[best] if scores.raw_fused is not None else scores.fused[best]
-        raise AssetRejected("no_match", f"best {pool.ids[best]}: calibrated {scores.fused[best]:.3f}, raw "
-                                        f"{raw:.3f} (threshold {config.scoring.threshold}, min_lift "
-                                        f"{config.scoring.min_lift})")
+        raise AssetRejected(
+            "no_match",
+            f"best {pool.ids[best]}: calibrated {scores.fused[best]:.3f}, raw "
+            f"{raw:.3f} (threshold {config.scoring.threshold}, min_lift "
+            f"{config.scoring.min_lift})",
+        )
     prior = CATEGORIES.get(category)
     if prior is None and not open_vocabulary:
-        raise AssetRejected("unknown_category", f"{category!r} is not in catalogs/categories.csv; give the source item "
-                                                f"one of: {', '.join(CATEGORIES)}")
+        raise AssetRejected(
+            "unknown_category",
+            f"{category!r} is not in catalogs/categories.csv; give the source item one of: {', '.join(CATEGORIES)}",
+        )
     scale, unit = normalize_size(canon.extents, category) if prior else normalize_open_size(canon.extents)
     final = scale_mesh(canon, scale)
     obj, _, _ = export_obj(final, out, "mesh")
@@ -249,24 +283,49 @@ def curate_step(item: SourceItem, content_hash: str, canon: CanonicalMesh, score
         return stored_path(p, catalog_dir) if p else None
 
     asset = AssetRecord(
-        asset_id=aid, source=item.source, source_id=item.source_id, category=category,
+        asset_id=aid,
+        source=item.source,
+        source_id=item.source_id,
+        category=category,
         object_class=prior.object_class if prior else OPEN_OBJECT_CLASS,
-        zones=list(prior.zones) if prior else [], depth=round(depth, 6), width=round(width, 6),
+        zones=list(prior.zones) if prior else [],
+        depth=round(depth, 6),
+        width=round(width, 6),
         height=round(height, 6),
         description=item.description or (f"{category.replace('_', ' ')}: {item.name}" if item.name else category),
-        synonyms=list(item.tags), license=item.license, attribution=item.attribution,
-        mesh_path=rel(obj), glb_path=rel(glb), collision=config.collision, collision_path=rel(coll),
-        face_count=int(final.mesh.faces.shape[0]), watertight=bool(final.mesh.is_watertight),
+        synonyms=list(item.tags),
+        license=item.license,
+        attribution=item.attribution,
+        mesh_path=rel(obj),
+        glb_path=rel(glb),
+        collision=config.collision,
+        collision_path=rel(coll),
+        face_count=int(final.mesh.faces.shape[0]),
+        watertight=bool(final.mesh.is_watertight),
         content_hash=content_hash,
-        params={**canon.params, "scale": round(scale, 9), "unit_guess": unit, "name": item.name,
-                "scorer": config.scoring.scorer_name, "informative_views": list(selected),
-                **({"open_vocabulary": True} if open_vocabulary else {}),
-                **{k: v for k, v in item.metadata.items() if k != "companion_files"}},
+        params={
+            **canon.params,
+            "scale": round(scale, 9),
+            "unit_guess": unit,
+            "name": item.name,
+            "scorer": config.scoring.scorer_name,
+            "informative_views": list(selected),
+            **({"open_vocabulary": True} if open_vocabulary else {}),
+            **{k: v for k, v in item.metadata.items() if k != "companion_files"},
+        },
     )
-    matches = [MatchRecord(aid, pool.ids[i], round(s, 6), config.scoring.scorer_name,
-                           None if scores.image is None else round(float(scores.image[i]), 6),
-                           None if scores.text is None else round(float(scores.text[i]), 6), rank)
-               for rank, (i, s) in enumerate(top, start=1)]
+    matches = [
+        MatchRecord(
+            aid,
+            pool.ids[i],
+            round(s, 6),
+            config.scoring.scorer_name,
+            None if scores.image is None else round(float(scores.image[i]), 6),
+            None if scores.text is None else round(float(scores.text[i]), 6),
+            rank,
+        )
+        for rank, (i, s) in enumerate(top, start=1)
+    ]
     return asset, matches
 
 
@@ -278,8 +337,9 @@ def open_label(text: str) -> str:
     return re.sub(r"[^a-z0-9]+", "_", words).strip("_")[:60] or "object"
 
 
-def process_item(item: SourceItem, config: IngestConfig, pool: DescriptionPool, root: str,
-                 catalog_dir: str) -> ItemResult:
+def process_item(
+    item: SourceItem, config: IngestConfig, pool: DescriptionPool, root: str, catalog_dir: str
+) -> ItemResult:
     """Run the four steps on one item, its files under the asset root `root`; never raises for a bad asset."""
     h = item.content_hash()
 
@@ -314,13 +374,24 @@ def process_item(item: SourceItem, config: IngestConfig, pool: DescriptionPool, 
     if rej is not None:
         return refuse(rej)
     scores, top = scored
-    curated, rej = timed("curate", curate_step, item, h, norm.canon, scores, top, rendered.selected, config, pool,
-                         out, catalog_dir)
+    curated, rej = timed(
+        "curate", curate_step, item, h, norm.canon, scores, top, rendered.selected, config, pool, out, catalog_dir
+    )
     if rej is not None:
         return refuse(rej)
     asset, matches = curated
-    return ItemResult(item.source, item.source_id, h, asset, views, matches, scores.image_embedding,
-                      scores.text_embedding, scores.view_embeddings, seconds=times)
+    return ItemResult(
+        item.source,
+        item.source_id,
+        h,
+        asset,
+        views,
+        matches,
+        scores.image_embedding,
+        scores.text_embedding,
+        scores.view_embeddings,
+        seconds=times,
+    )
 
 
 def record_pool(writer: CatalogWriter, pool: DescriptionPool, config: IngestConfig) -> None:
@@ -330,8 +401,10 @@ def record_pool(writer: CatalogWriter, pool: DescriptionPool, config: IngestConf
     if pool.origin != "category_prompts":
         return
     scorer = cached_scorer(config.scoring, pool)
-    writer.upsert_descriptions(DescriptionRecord(i, t, c, sources=["category_prompt"])
-                               for i, t, c in zip(pool.ids, pool.texts, pool.categories))
+    writer.upsert_descriptions(
+        DescriptionRecord(i, t, c, sources=["category_prompt"])
+        for i, t, c in zip(pool.ids, pool.texts, pool.categories)
+    )
     if scorer.pool_text.shape[1] == writer.embedding_dim:
         writer.upsert_embeddings(DESCRIPTION_KIND, list(pool.ids), scorer.pool_text)
 
@@ -351,6 +424,13 @@ def write_result(writer: CatalogWriter, res: ItemResult, config: IngestConfig, c
     per_view = res.view_embeddings
     if per_view is not None and per_view.shape[-1] != writer.embedding_dim:
         per_view = None  # another width than the catalog's (CLIP, BLIP): the mean above is kept beside the asset
-    writer.replace_asset(res.asset, res.views, res.matches, text_embedding=res.text_embedding,
-                         image_embedding=image, image_model=config.scoring.scorer_name.split(":")[0],
-                         view_embeddings=per_view, view_ids=res.asset.params.get("informative_views", []))
+    writer.replace_asset(
+        res.asset,
+        res.views,
+        res.matches,
+        text_embedding=res.text_embedding,
+        image_embedding=image,
+        image_model=config.scoring.scorer_name.split(":")[0],
+        view_embeddings=per_view,
+        view_ids=res.asset.params.get("informative_views", []),
+    )

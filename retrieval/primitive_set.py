@@ -13,9 +13,18 @@ import numpy as np
 import trimesh
 from trimesh.creation import box, cone, cylinder, icosphere
 
-RGB = {"gray": (128, 128, 132), "green": (40, 110, 50), "blue": (40, 70, 170), "red": (190, 30, 30),
-       "yellow": (225, 190, 30), "orange": (240, 120, 20), "black": (30, 30, 30), "brown": (120, 80, 45),
-       "white": (235, 235, 235), "silver": (185, 188, 192)}
+RGB = {
+    "gray": (128, 128, 132),
+    "green": (40, 110, 50),
+    "blue": (40, 70, 170),
+    "red": (190, 30, 30),
+    "yellow": (225, 190, 30),
+    "orange": (240, 120, 20),
+    "black": (30, 30, 30),
+    "brown": (120, 80, 45),
+    "white": (235, 235, 235),
+    "silver": (185, 188, 192),
+}
 
 
 def _at(mesh: trimesh.Trimesh, x: float = 0.0, y: float = 0.0, z: float = 0.0) -> trimesh.Trimesh:
@@ -53,15 +62,37 @@ def _traffic_cone() -> list:
 
 
 def _fire_hydrant() -> list:
-    return [_cyl(0.16, 0.08), _cyl(0.12, 0.55, 0.08), _at(icosphere(2, 0.12), z=0.63),
-            _at(cylinder(radius=0.05, height=0.36, sections=12, transform=trimesh.transformations.rotation_matrix(
-                np.pi / 2, [0, 1, 0])), z=0.45)]
+    return [
+        _cyl(0.16, 0.08),
+        _cyl(0.12, 0.55, 0.08),
+        _at(icosphere(2, 0.12), z=0.63),
+        _at(
+            cylinder(
+                radius=0.05,
+                height=0.36,
+                sections=12,
+                transform=trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0]),
+            ),
+            z=0.45,
+        ),
+    ]
 
 
 def _mailbox() -> list:
-    return [_box(0.12, 0.12, 0.7), _box(0.5, 0.45, 0.5, 0.7),
-            _at(cylinder(radius=0.225, height=0.5, sections=24, transform=trimesh.transformations.rotation_matrix(
-                np.pi / 2, [1, 0, 0]) @ trimesh.transformations.rotation_matrix(np.pi / 2, [0, 0, 1])), z=1.2)]
+    return [
+        _box(0.12, 0.12, 0.7),
+        _box(0.5, 0.45, 0.5, 0.7),
+        _at(
+            cylinder(
+                radius=0.225,
+                height=0.5,
+                sections=24,
+                transform=trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0])
+                @ trimesh.transformations.rotation_matrix(np.pi / 2, [0, 0, 1]),
+            ),
+            z=1.2,
+        ),
+    ]
 
 
 def _tree() -> list:
@@ -86,10 +117,18 @@ def _planter() -> list:
 
 # (builder, its two colours: the usual one first). The category is the builder's name, checked against the table.
 SHAPES: tuple[tuple[Callable[[], list], tuple[str, str]], ...] = (
-    (_bench, ("brown", "green")), (_trash_bin, ("gray", "green")), (_bollard, ("black", "yellow")),
-    (_street_lamp, ("black", "gray")), (_traffic_cone, ("orange", "red")), (_fire_hydrant, ("red", "yellow")),
-    (_mailbox, ("blue", "red")), (_tree, ("green", "green")), (_drink_can, ("red", "silver")),
-    (_cardboard_box, ("brown", "white")), (_parking_meter, ("gray", "black")), (_planter, ("gray", "brown")),
+    (_bench, ("brown", "green")),
+    (_trash_bin, ("gray", "green")),
+    (_bollard, ("black", "yellow")),
+    (_street_lamp, ("black", "gray")),
+    (_traffic_cone, ("orange", "red")),
+    (_fire_hydrant, ("red", "yellow")),
+    (_mailbox, ("blue", "red")),
+    (_tree, ("green", "green")),
+    (_drink_can, ("red", "silver")),
+    (_cardboard_box, ("brown", "white")),
+    (_parking_meter, ("gray", "black")),
+    (_planter, ("gray", "brown")),
 )
 FOLIAGE = (_tree, _planter)  # their last part is green foliage (a tree's trunk is brown)
 
@@ -109,12 +148,18 @@ def build_set(out: str | Path) -> list[Path]:
         for k, colour in enumerate(colours):
             parts = make()
             for n, part in enumerate(parts):
-                rgb = RGB["green"] if make in FOLIAGE and n == len(parts) - 1 else RGB[
-                    "brown" if make is _tree else colour]
+                rgb = (
+                    RGB["green"]
+                    if make in FOLIAGE and n == len(parts) - 1
+                    else RGB["brown" if make is _tree else colour]
+                )
                 part.visual.face_colors = np.array([*rgb, 255], dtype=np.uint8)
             path = out / f"{cat}-{colour}-{k}.glb"
             path.write_bytes(trimesh.util.concatenate(parts).export(file_type="glb"))
-            (out / f"{cat}-{colour}-{k}.json").write_text(json.dumps({
-                "category": cat, "license": "CC0-1.0", "attribution": "curbside primitive set", "up_axis": "+z"}))
+            (out / f"{cat}-{colour}-{k}.json").write_text(
+                json.dumps(
+                    {"category": cat, "license": "CC0-1.0", "attribution": "curbside primitive set", "up_axis": "+z"}
+                )
+            )
             paths.append(path)
     return paths

@@ -41,7 +41,9 @@ def view_specs(n_views: int = 8, elevations: tuple[float, float] = (15.0, 40.0))
     high = n_views - low
     specs = [ViewSpec(round(i * 360.0 / low + 30.0, 3) % 360.0, elevations[0]) for i in range(low)]
     if high:
-        specs += [ViewSpec(round(i * 360.0 / high + 30.0 + 180.0 / high, 3) % 360.0, elevations[1]) for i in range(high)]
+        specs += [
+            ViewSpec(round(i * 360.0 / high + 30.0 + 180.0 / high, 3) % 360.0, elevations[1]) for i in range(high)
+        ]
     return specs
 
 
@@ -63,7 +65,11 @@ def obj_bounds(obj_path: str | Path) -> np.ndarray:
 
 
 def render_obj(
-    obj_path: str | Path, specs: list[ViewSpec], size: int = 224, fov: float = 40.0, bounds: np.ndarray | None = None,
+    obj_path: str | Path,
+    specs: list[ViewSpec],
+    size: int = 224,
+    fov: float = 40.0,
+    bounds: np.ndarray | None = None,
 ) -> list[np.ndarray]:
     """Render a textured OBJ (z-up) from each view on a white background; returns HxWx3 uint8 images."""
     from kernel.quiet import import_pybullet
@@ -86,12 +92,23 @@ def render_obj(
         images = []
         for s in specs:
             view = p.computeViewMatrixFromYawPitchRoll(
-                centre.tolist(), dist, yaw=s.azimuth + 90.0, pitch=-s.elevation, roll=0, upAxisIndex=2,
+                centre.tolist(),
+                dist,
+                yaw=s.azimuth + 90.0,
+                pitch=-s.elevation,
+                roll=0,
+                upAxisIndex=2,
                 physicsClientId=cid,
             )
             _, _, rgba, _, seg = p.getCameraImage(
-                size, size, view, proj, renderer=p.ER_TINY_RENDERER, shadow=0,
-                lightDirection=[1.0, 0.6, 2.0], physicsClientId=cid,
+                size,
+                size,
+                view,
+                proj,
+                renderer=p.ER_TINY_RENDERER,
+                shadow=0,
+                lightDirection=[1.0, 0.6, 2.0],
+                physicsClientId=cid,
             )
             rgb = np.asarray(rgba, dtype=np.uint8).reshape(size, size, 4)[:, :, :3].copy()
             mask = np.asarray(seg).reshape(size, size) < 0
@@ -178,12 +195,19 @@ def select_informative(images: list[np.ndarray], k: int) -> tuple[list[int], lis
     return sorted(chosen), scores
 
 
-LEGEND = ("green frame: selected for scoring; number: view score = coverage x edge entropy x consensus with the "
-          "other views (Luo et al. 2024); near-duplicates of a selected view are skipped")
+LEGEND = (
+    "green frame: selected for scoring; number: view score = coverage x edge entropy x consensus with the "
+    "other views (Luo et al. 2024); near-duplicates of a selected view are skipped"
+)
 
 
-def contact_sheet(images: list[np.ndarray], selected: list[int] | None = None, cols: int = 5, title: str | None = None,
-                  scores: list[float] | None = None):
+def contact_sheet(
+    images: list[np.ndarray],
+    selected: list[int] | None = None,
+    cols: int = 5,
+    title: str | None = None,
+    scores: list[float] | None = None,
+):
     """Grid of the views as a PIL image: selected (informative) views framed green, each view's score in its
     corner, and a legend saying how the views were chosen."""
     from PIL import Image, ImageDraw
@@ -203,8 +227,11 @@ def contact_sheet(images: list[np.ndarray], selected: list[int] | None = None, c
         if selected and i in selected:
             draw.rectangle([x + 1, y + 1, x + w - 2, y + h - 2], outline=(0, 170, 0), width=3)
         if scores is not None:
-            draw.text((x + 5, y + 4), f"{i}: {scores[i]:.2f}", fill=(0, 120, 0) if selected and i in selected
-                      else (90, 90, 90))
+            draw.text(
+                (x + 5, y + 4),
+                f"{i}: {scores[i]:.2f}",
+                fill=(0, 120, 0) if selected and i in selected else (90, 90, 90),
+            )
     if scores is not None:
         import textwrap
 

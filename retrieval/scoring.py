@@ -43,8 +43,12 @@ class DescriptionPool:
 def category_pool(categories: list[str]) -> DescriptionPool:
     """One prompt per category ("a photo of a street lamp"), used when the catalog's description pool is empty."""
     cats = sorted(categories)
-    return DescriptionPool(tuple(f"category:{c}" for c in cats),
-                           tuple(f"a photo of a {c.replace('_', ' ')}" for c in cats), tuple(cats), "category_prompts")
+    return DescriptionPool(
+        tuple(f"category:{c}" for c in cats),
+        tuple(f"a photo of a {c.replace('_', ' ')}" for c in cats),
+        tuple(cats),
+        "category_prompts",
+    )
 
 
 def load_pool(rows: Sequence[tuple[str, str, str | None]], categories: list[str]) -> DescriptionPool:
@@ -85,8 +89,10 @@ class ScoringConfig:
         if self.temperature <= 0:
             raise ValueError(f"temperature must be > 0 (softmax calibration), got {self.temperature}")
         if self.image_encoder in ("clip", "blip", "blip2") and not self.clip_model:
-            raise ValueError(f"the {self.image_encoder} image encoder needs a local weights folder (--clip-model); "
-                             f"or use the offline `aligned` scorer")
+            raise ValueError(
+                f"the {self.image_encoder} image encoder needs a local weights folder (--clip-model); "
+                f"or use the offline `aligned` scorer"
+            )
         if self.image_weight < 0 or self.text_weight < 0 or self.image_weight + self.text_weight <= 0:
             raise ValueError("image_weight and text_weight must be >= 0 and not both 0")
 
@@ -184,15 +190,22 @@ class Scorer:
         if wi + wt == 0:
             fused = raw = np.zeros(n, dtype=np.float64)
         else:
+
             def mix(f):  # noqa: ANN001, ANN202 - weighted mean of f(signal) over the signals present
                 parts = [w * f(x) for w, x in ((wi, img_scores), (wt, txt_scores)) if x is not None and w > 0]
                 return sum(parts) / (wi + wt)
 
             raw = mix(lambda x: np.asarray(x, dtype=np.float64))
             fused = mix(lambda x: calibrate(x, c.calibration, c.temperature))
-        return AssetScores(np.asarray(fused, dtype=np.float64), img_scores, txt_scores, img_emb, txt_emb,
-                           raw_fused=np.asarray(raw, dtype=np.float64),
-                           view_embeddings=None if img_scores is None else np.asarray(views, dtype=np.float32))
+        return AssetScores(
+            np.asarray(fused, dtype=np.float64),
+            img_scores,
+            txt_scores,
+            img_emb,
+            txt_emb,
+            raw_fused=np.asarray(raw, dtype=np.float64),
+            view_embeddings=None if img_scores is None else np.asarray(views, dtype=np.float32),
+        )
 
     def passes(self, scores: AssetScores, i: int) -> bool:
         """Whether pool entry i clears the absolute threshold (raw fused cosine) and the calibrated lift."""

@@ -45,11 +45,16 @@ from retrieval.sources import Source, SourceItem
 
 # The params.yaml sections each stage reads; dvc.yaml lists exactly these (a test checks it).
 STAGE_PARAMS: dict[str, tuple[str, ...]] = {
-    "normalise": ("source", "normalise"), "render": ("render",), "score": ("score",), "curate": ("score", "curate"),
+    "normalise": ("source", "normalise"),
+    "render": ("render",),
+    "score": ("score",),
+    "curate": ("score", "curate"),
 }
 # Which IngestConfig fields each section sets (normalise -> QualityLimits, score -> ScoringConfig).
-_SECTION_FIELDS = {"render": ("n_views", "n_informative", "image_size", "elevations"),
-                   "curate": ("collision", "dedupe_threshold", "write_glb")}
+_SECTION_FIELDS = {
+    "render": ("n_views", "n_informative", "image_size", "elevations"),
+    "curate": ("collision", "dedupe_threshold", "write_glb"),
+}
 _REJECT_COLS = tuple(Rejection.__dataclass_fields__)  # stage, reason, detail
 
 
@@ -126,16 +131,20 @@ def _load_canon(out: Path, up_axis: str, params: dict[str, Any]) -> CanonicalMes
     z = np.load(out / "canonical.npz")
     mesh = trimesh.Trimesh(z["vertices"], z["faces"], process=False)
     tex = out / "canonical_texture.png"
-    return CanonicalMesh(mesh, z["face_colors"], up_axis, Image.open(tex) if tex.exists() else None,
-                         z.get("uv"), params)
+    return CanonicalMesh(
+        mesh, z["face_colors"], up_axis, Image.open(tex) if tex.exists() else None, z.get("uv"), params
+    )
 
 
 def normalise(source: Source, config: IngestConfig, out_dir: Path, manifest: Path, limit: int | None = None) -> int:
     """Fetch every item and normalise it into `out_dir`; writes the manifest; returns the number kept."""
     rows = []
     for item in source.items(limit):
-        row: dict[str, Any] = {"asset_id": asset_id(item.source, item.source_id), "content_hash": item.content_hash(),
-                               "item": json.dumps(asdict(item), sort_keys=True)}
+        row: dict[str, Any] = {
+            "asset_id": asset_id(item.source, item.source_id),
+            "content_hash": item.content_hash(),
+            "item": json.dumps(asdict(item), sort_keys=True),
+        }
         rej = prefiltered(item)
         out = retrieved_asset_dir(out_dir, item.source, item.source_id)
         if rej is None:
@@ -144,8 +153,15 @@ def normalise(source: Source, config: IngestConfig, out_dir: Path, manifest: Pat
             rows.append({**row, **asdict(rej)})
             continue
         _save_canon(norm.canon, out)
-        rows.append({**row, "obj": norm.obj.relative_to(out_dir).as_posix(), "up_axis": norm.canon.up_axis,
-                     "bounds": norm.canon.mesh.bounds.ravel().tolist(), "params": json.dumps(norm.canon.params)})
+        rows.append(
+            {
+                **row,
+                "obj": norm.obj.relative_to(out_dir).as_posix(),
+                "up_axis": norm.canon.up_axis,
+                "bounds": norm.canon.mesh.bounds.ravel().tolist(),
+                "params": json.dumps(norm.canon.params),
+            }
+        )
     _write(rows, manifest)
     return sum(not _rejected(r) for r in rows)
 
@@ -159,9 +175,18 @@ def render(manifest: Path, normalised_dir: Path, config: IngestConfig, views_dir
         bounds = np.asarray(row["bounds"], dtype=np.float64).reshape(2, 3)
         r, rej = guard("render", render_step, item, normalised_dir / row["obj"], bounds, config, out)
         base = {"asset_id": row["asset_id"]}
-        rows.append({**base, **asdict(rej)} if rej else {
-            **base, "files": [f.relative_to(views_dir).as_posix() for f in r.files], "azimuths": r.azimuths,
-            "elevations": r.elevations, "selected": r.selected, "info": r.info})
+        rows.append(
+            {**base, **asdict(rej)}
+            if rej
+            else {
+                **base,
+                "files": [f.relative_to(views_dir).as_posix() for f in r.files],
+                "azimuths": r.azimuths,
+                "elevations": r.elevations,
+                "selected": r.selected,
+                "info": r.info,
+            }
+        )
     _write(rows, views)
     return sum(not _rejected(r) for r in rows)
 
@@ -190,13 +215,24 @@ def score(manifest: Path, views: Path, views_dir: Path, config: IngestConfig, sc
             rows.append({**base, **asdict(rej)})
             continue
         s, top = res
-        rows.append({**base, "fused": _vec(s.fused), "raw_fused": _vec(s.raw_fused), "image": _vec(s.image),
-                     "text": _vec(s.text), "image_embedding": _vec(s.image_embedding),
-                     "image_embedding_dtype": _dtype(s.image_embedding), "text_embedding": _vec(s.text_embedding),
-                     "text_embedding_dtype": _dtype(s.text_embedding),
-                     "view_embeddings": None if s.view_embeddings is None else [_vec(v) for v in s.view_embeddings],
-                     "view_embeddings_dtype": _dtype(s.view_embeddings), "top_index": [int(i) for i, _ in top],
-                     "top_score": [float(x) for _, x in top], "scorer": config.scoring.scorer_name})
+        rows.append(
+            {
+                **base,
+                "fused": _vec(s.fused),
+                "raw_fused": _vec(s.raw_fused),
+                "image": _vec(s.image),
+                "text": _vec(s.text),
+                "image_embedding": _vec(s.image_embedding),
+                "image_embedding_dtype": _dtype(s.image_embedding),
+                "text_embedding": _vec(s.text_embedding),
+                "text_embedding_dtype": _dtype(s.text_embedding),
+                "view_embeddings": None if s.view_embeddings is None else [_vec(v) for v in s.view_embeddings],
+                "view_embeddings_dtype": _dtype(s.view_embeddings),
+                "top_index": [int(i) for i, _ in top],
+                "top_score": [float(x) for _, x in top],
+                "scorer": config.scoring.scorer_name,
+            }
+        )
     _write(rows, scores)
     return sum(not _rejected(r) for r in rows)
 
@@ -206,8 +242,15 @@ def _arr(v: Any, dtype: str | None = None) -> np.ndarray | None:
     return None if v is None else np.asarray(v, dtype=dtype or np.float64)
 
 
-def curate(manifest: Path, normalised_dir: Path, views: Path, views_dir: Path, scores: Path, config: IngestConfig,
-           catalog_path: Path) -> tuple[int, int]:
+def curate(
+    manifest: Path,
+    normalised_dir: Path,
+    views: Path,
+    views_dir: Path,
+    scores: Path,
+    config: IngestConfig,
+    catalog_path: Path,
+) -> tuple[int, int]:
     """Curate every scored asset into a fresh catalog, record every rejection, finalize; returns (written, rejected)."""
     from catalogs.writer import CatalogWriter
     from retrieval.finalize import finalize
@@ -225,8 +268,18 @@ def curate(manifest: Path, normalised_dir: Path, views: Path, views_dir: Path, s
             item, h, aid = _item(row), row["content_hash"], row["asset_id"]
             earlier = next((r for r in (row, *(t.get(aid) for t in by_stage)) if _rejected(r)), None)
             if earlier is None:
-                res = _curate_one(item, h, row, by_stage[0][aid], by_stage[1][aid], normalised_dir, views_dir, config,
-                                  pool, catalog_path)
+                res = _curate_one(
+                    item,
+                    h,
+                    row,
+                    by_stage[0][aid],
+                    by_stage[1][aid],
+                    normalised_dir,
+                    views_dir,
+                    config,
+                    pool,
+                    catalog_path,
+                )
             else:
                 # No config_hash: this stage saw only its own params sections, so a later ingest re-checks them.
                 res = rejected(item, h, _rejection(earlier), None)
@@ -236,32 +289,64 @@ def curate(manifest: Path, normalised_dir: Path, views: Path, views_dir: Path, s
     return n_written, n_rejected
 
 
-def _curate_one(item: SourceItem, h: str, row: dict, view_row: dict, score_row: dict, normalised_dir: Path,
-                views_dir: Path, config: IngestConfig, pool: DescriptionPool, catalog_path: Path) -> ItemResult:
+def _curate_one(
+    item: SourceItem,
+    h: str,
+    row: dict,
+    view_row: dict,
+    score_row: dict,
+    normalised_dir: Path,
+    views_dir: Path,
+    config: IngestConfig,
+    pool: DescriptionPool,
+    catalog_path: Path,
+) -> ItemResult:
     """Copy one asset's views into the catalog and curate it; returns its result (or its rejection)."""
     out = retrieved_asset_dir(asset_root(catalog_path), item.source, item.source_id)
     src = retrieved_asset_dir(views_dir, item.source, item.source_id)
     shutil.copytree(src, out, dirs_exist_ok=True)  # views/ and contact_sheet.png, where ingest puts them
-    canon = _load_canon(retrieved_asset_dir(normalised_dir, item.source, item.source_id), row["up_axis"],
-                        json.loads(row["params"]))
-    rendered = Rendered([], list(view_row["azimuths"]), list(view_row["elevations"]),
-                        [int(i) for i in view_row["selected"]], list(view_row["info"]),
-                        [out / Path(f).relative_to(src.relative_to(views_dir)) for f in view_row["files"]])
+    canon = _load_canon(
+        retrieved_asset_dir(normalised_dir, item.source, item.source_id), row["up_axis"], json.loads(row["params"])
+    )
+    rendered = Rendered(
+        [],
+        list(view_row["azimuths"]),
+        list(view_row["elevations"]),
+        [int(i) for i in view_row["selected"]],
+        list(view_row["info"]),
+        [out / Path(f).relative_to(src.relative_to(views_dir)) for f in view_row["files"]],
+    )
     views = view_records(asset_id(item.source, item.source_id), rendered, catalog_path.parent)
     s = score_row
-    scores = AssetScores(_arr(s["fused"]), _arr(s["image"]), _arr(s["text"]),
-                         _arr(s["image_embedding"], s["image_embedding_dtype"]),
-                         _arr(s["text_embedding"], s["text_embedding_dtype"]), raw_fused=_arr(s["raw_fused"]),
-                         view_embeddings=None if s.get("view_embeddings") is None else
-                         np.stack([np.asarray(v) for v in s["view_embeddings"]]).astype(s["view_embeddings_dtype"]))
+    scores = AssetScores(
+        _arr(s["fused"]),
+        _arr(s["image"]),
+        _arr(s["text"]),
+        _arr(s["image_embedding"], s["image_embedding_dtype"]),
+        _arr(s["text_embedding"], s["text_embedding_dtype"]),
+        raw_fused=_arr(s["raw_fused"]),
+        view_embeddings=None
+        if s.get("view_embeddings") is None
+        else np.stack([np.asarray(v) for v in s["view_embeddings"]]).astype(s["view_embeddings_dtype"]),
+    )
     top = [(int(i), float(x)) for i, x in zip(s["top_index"], s["top_score"])]
-    res, rej = guard("curate", curate_step, item, h, canon, scores, top, rendered.selected, config, pool,
-                     out, catalog_path.parent)
+    res, rej = guard(
+        "curate", curate_step, item, h, canon, scores, top, rendered.selected, config, pool, out, catalog_path.parent
+    )
     if rej is not None:
         return rejected(item, h, rej, None)
     asset, matches = res
-    return ItemResult(item.source, item.source_id, h, asset, views, matches, scores.image_embedding,
-                      scores.text_embedding, scores.view_embeddings)
+    return ItemResult(
+        item.source,
+        item.source_id,
+        h,
+        asset,
+        views,
+        matches,
+        scores.image_embedding,
+        scores.text_embedding,
+        scores.view_embeddings,
+    )
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -283,7 +368,13 @@ def main(argv: list[str] | None = None) -> None:
     a = ap.parse_args(argv)
     params = yaml.safe_load(a.params.read_text()) or {}
     config, r = config_for(params, a.stage), a.root
-    norm, man, vdir, vt, sc = r / "normalised", r / "manifest.parquet", r / "views", r / "views.parquet", r / "scores.parquet"
+    norm, man, vdir, vt, sc = (
+        r / "normalised",
+        r / "manifest.parquet",
+        r / "views",
+        r / "views.parquet",
+        r / "scores.parquet",
+    )
     if a.stage == "normalise":
         from retrieval.sources import open_source
 
@@ -306,8 +397,10 @@ def main(argv: list[str] | None = None) -> None:
         from catalogs.inspect import dump_catalog
 
         tables = dump_catalog(catalog, r / "catalog_tables")
-        summary = (f"{written} assets written, {rejected} rejected -> {catalog} "
-                   f"({len(tables)} tables dumped to {r / 'catalog_tables'})")
+        summary = (
+            f"{written} assets written, {rejected} rejected -> {catalog} "
+            f"({len(tables)} tables dumped to {r / 'catalog_tables'})"
+        )
     Console(highlight=False, soft_wrap=True).print(f"[bold]{a.stage}[/bold]: {summary}")
 
 

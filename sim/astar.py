@@ -55,8 +55,18 @@ def _pop(keys: np.ndarray, vals: np.ndarray, n: int) -> int:
 
 
 @njit(cache=True)
-def _astar(indptr: np.ndarray, indices: np.ndarray, weights: np.ndarray, rows: np.ndarray, cols: np.ndarray,
-           resolution: float, start: int, goal: int, limit: float, pred: np.ndarray) -> float:
+def _astar(
+    indptr: np.ndarray,
+    indices: np.ndarray,
+    weights: np.ndarray,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    resolution: float,
+    start: int,
+    goal: int,
+    limit: float,
+    pred: np.ndarray,
+) -> float:
     """Cost of a shortest path start -> goal (inf when over `limit`); `pred` (filled -1 by the caller) gets the
     predecessors along it."""
     n = rows.size
@@ -90,13 +100,24 @@ def _astar(indptr: np.ndarray, indices: np.ndarray, weights: np.ndarray, rows: n
     return np.inf
 
 
-def astar_chain(graph: object, rows: np.ndarray, cols: np.ndarray, resolution: float, start: int, goal: int,
-                limit: float) -> tuple[float, list[int]]:
+def astar_chain(
+    graph: object, rows: np.ndarray, cols: np.ndarray, resolution: float, start: int, goal: int, limit: float
+) -> tuple[float, list[int]]:
     """(cost, nodes start..goal) of a shortest path in the CSR `graph` over cells (rows, cols); (inf, []) when its
     cost exceeds `limit`."""
     pred = np.full(rows.size, -1, dtype=np.int64)
-    cost = _astar(graph.indptr, graph.indices, graph.data, rows, cols, float(resolution), int(start), int(goal),
-                  float(limit), pred)
+    cost = _astar(
+        graph.indptr,
+        graph.indices,
+        graph.data,
+        rows,
+        cols,
+        float(resolution),
+        int(start),
+        int(goal),
+        float(limit),
+        pred,
+    )
     if not math.isfinite(cost):
         return cost, []
     chain = [int(goal)]

@@ -22,8 +22,10 @@ from kernel.quiet import pybullet as p
 BENCH_SCENE = {"blocks": 3, "object_density": 2.5, "terrain": {"density": 0.0}}
 TASKS = ("PointNav", "SocialNav")
 # SocialNav's bench crowd: 20 agents of the usual kinds, plus vehicles at the default traffic density.
-SOCIALNAV_BENCH = {"agents": {"counts": {"pedestrian": 14, "cyclist": 2, "wheelchair_user": 2, "scooter_rider": 2}},
-                   "traffic": True}
+SOCIALNAV_BENCH = {
+    "agents": {"counts": {"pedestrian": 14, "cyclist": 2, "wheelchair_user": 2, "scooter_rider": 2}},
+    "traffic": True,
+}
 
 
 def bench_scene(target_objects: int = 200, seed: int = 0) -> dict[str, Any]:
@@ -127,9 +129,14 @@ def _new_scenes(task: str, count: int, machine: str) -> dict[str, float]:
     ref1 = _rss_mb()
     env.close()
     trend = float(np.polyfit(np.arange(len(rss)), rss, 1)[0]) * count if count > 1 else 0.0
-    return {"new_scene_reset_ms": round(1000 * dt / count, 1), "new_scenes": count,
-            "new_scenes_rss_ref_growth_mb": round(ref1 - ref0, 2), "new_scenes_rss_growth_mb": round(rss[-1] - rss[0], 2),
-            "new_scenes_rss_trend_mb": round(trend, 2), "new_scenes_rss_max_mb": round(max(rss) - rss[0], 2)}
+    return {
+        "new_scene_reset_ms": round(1000 * dt / count, 1),
+        "new_scenes": count,
+        "new_scenes_rss_ref_growth_mb": round(ref1 - ref0, 2),
+        "new_scenes_rss_growth_mb": round(rss[-1] - rss[0], 2),
+        "new_scenes_rss_trend_mb": round(trend, 2),
+        "new_scenes_rss_max_mb": round(max(rss) - rss[0], 2),
+    }
 
 
 def run_bench(quick: bool = False, machine: str = "delivery_bot", task: str = "PointNav") -> dict[str, Any]:
@@ -189,13 +196,20 @@ CAMERA_RUNS = ((), ("rgb",), ("depth",), ("semantic",), ("rgb", "depth", "semant
 PAPER_FPS = {"rgb": 50, "depth": 60, "lidar": 120}  # MetaUrban Table 6: 128x128, one process, V100
 
 
-def run_camera_bench(quick: bool = False, machine: str = "delivery_bot", size: int = 128,
-                     renderer: str = "tiny", task: str = "PointNav") -> dict[str, Any]:
+def run_camera_bench(
+    quick: bool = False, machine: str = "delivery_bot", size: int = 128, renderer: str = "tiny", task: str = "PointNav"
+) -> dict[str, Any]:
     """Env steps per CPU-second (and wall-second) in the bench scene with each camera modality at `size` pixels."""
     steps = 200 if quick else 1000
     spec = bench_scene()
-    out: dict[str, Any] = {"task": task, "machine": machine, "objects": len(spec["objects"]), "size": size,
-                           "renderer": renderer, "steps": steps}
+    out: dict[str, Any] = {
+        "task": task,
+        "machine": machine,
+        "objects": len(spec["objects"]),
+        "size": size,
+        "renderer": renderer,
+        "steps": steps,
+    }
     for mods in CAMERA_RUNS:
         cam = {"modalities": list(mods), "width": size, "height": size, "renderer": renderer}
         env = make_bench_env(task, {"scene_spec": spec, "machine": machine, "camera": cam})

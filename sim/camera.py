@@ -25,18 +25,26 @@ SEMANTIC_CLASSES: tuple[str, ...] = (*SURFACES, *NAMES, "agent", "vehicle", "ego
 SEMANTIC_ID = {name: k for k, name in enumerate(SEMANTIC_CLASSES)}
 
 CAMERA_DEFAULTS: dict[str, Any] = {
-    "modalities": [],        # any of rgb, depth, semantic; none: no camera (the flat observation)
-    "width": 128, "height": 128,
-    "fov": 90.0,             # vertical field of view, degrees
-    "near": 0.05, "far": 50.0,  # clipping planes (m); depth beyond `far` (or sky) reads `far`
-    "mount_height": None,    # metres above the ground; None: the machine's height
-    "pitch": -10.0,          # degrees, negative looks down
-    "renderer": "tiny",      # "tiny" (CPU TinyRenderer), "egl" (GPU OpenGL through PyBullet's EGL plugin)
+    "modalities": [],  # any of rgb, depth, semantic; none: no camera (the flat observation)
+    "width": 128,
+    "height": 128,
+    "fov": 90.0,  # vertical field of view, degrees
+    "near": 0.05,
+    "far": 50.0,  # clipping planes (m); depth beyond `far` (or sky) reads `far`
+    "mount_height": None,  # metres above the ground; None: the machine's height
+    "pitch": -10.0,  # degrees, negative looks down
+    "renderer": "tiny",  # "tiny" (CPU TinyRenderer), "egl" (GPU OpenGL through PyBullet's EGL plugin)
 }
 CAMERA_TABLE: dict[str, Rule] = {
-    "modalities": Rule("list", choices=MODALITIES), "width": Int(8, 2048), "height": Int(8, 2048),
-    "fov": Float(10.0, 170.0), "near": Float(0.001, 10.0), "far": Float(1.0, 10_000.0),
-    "mount_height": Pos(20.0, none=True), "pitch": Float(-89.0, 89.0), "renderer": Choice("tiny", "egl"),
+    "modalities": Rule("list", choices=MODALITIES),
+    "width": Int(8, 2048),
+    "height": Int(8, 2048),
+    "fov": Float(10.0, 170.0),
+    "near": Float(0.001, 10.0),
+    "far": Float(1.0, 10_000.0),
+    "mount_height": Pos(20.0, none=True),
+    "pitch": Float(-89.0, 89.0),
+    "renderer": Choice("tiny", "egl"),
 }
 
 _EGL: dict[int, int] = {}  # client -> loaded plugin id
@@ -49,13 +57,17 @@ def load_egl(client: int) -> None:
     import pkgutil
 
     if not any(os.path.exists(f"/dev/nvidia{k}") for k in range(8)) and not os.path.exists("/dev/dri/renderD128"):
-        raise ConfigError("camera.renderer 'egl' needs a GPU with EGL (no /dev/nvidia* or /dev/dri/renderD128 here); "
-                          "use renderer 'tiny' (CPU) or run on a GPU machine")
+        raise ConfigError(
+            "camera.renderer 'egl' needs a GPU with EGL (no /dev/nvidia* or /dev/dri/renderD128 here); "
+            "use renderer 'tiny' (CPU) or run on a GPU machine"
+        )
     egl = pkgutil.get_loader("eglRenderer")
     plugin = p.loadPlugin(egl.get_filename(), "_eglRendererPlugin", physicsClientId=client) if egl else -1
     if plugin < 0:
-        raise ConfigError("PyBullet's EGL plugin failed to load (eglRenderer); check the GPU driver's libEGL, or "
-                          "use camera.renderer 'tiny'")
+        raise ConfigError(
+            "PyBullet's EGL plugin failed to load (eglRenderer); check the GPU driver's libEGL, or "
+            "use camera.renderer 'tiny'"
+        )
     _EGL[client] = plugin
 
 
@@ -64,9 +76,11 @@ def camera_spaces(cfg: Mapping[str, Any]) -> dict[str, Any]:
     import gymnasium as gym
 
     h, w, far = int(cfg["height"]), int(cfg["width"]), float(cfg["far"])
-    table = {"rgb": gym.spaces.Box(0, 255, (h, w, 3), np.uint8),
-             "depth": gym.spaces.Box(0.0, far, (h, w, 1), np.float32),
-             "semantic": gym.spaces.Box(0, len(SEMANTIC_CLASSES) - 1, (h, w), np.uint8)}
+    table = {
+        "rgb": gym.spaces.Box(0, 255, (h, w, 3), np.uint8),
+        "depth": gym.spaces.Box(0.0, far, (h, w, 1), np.float32),
+        "semantic": gym.spaces.Box(0, len(SEMANTIC_CLASSES) - 1, (h, w), np.uint8),
+    }
     return {m: table[m] for m in cfg["modalities"]}
 
 
@@ -120,9 +134,16 @@ class EgoCamera:
         """One render from the machine's camera: {modality: array} for the configured modalities."""
         semantic = "semantic" in self.modalities
         flags = 0 if semantic else p.ER_NO_SEGMENTATION_MASK
-        _, _, rgba, depth, seg = p.getCameraImage(self.width, self.height, self.view(machine), self.projection,
-                                                  renderer=self.renderer, flags=flags, shadow=0,
-                                                  physicsClientId=self.client)
+        _, _, rgba, depth, seg = p.getCameraImage(
+            self.width,
+            self.height,
+            self.view(machine),
+            self.projection,
+            renderer=self.renderer,
+            flags=flags,
+            shadow=0,
+            physicsClientId=self.client,
+        )
         h, w = self.height, self.width
         out: dict[str, np.ndarray] = {}
         if "rgb" in self.modalities:

@@ -11,9 +11,19 @@ import numpy as np
 from sim.rollout import make_policy, rollout
 
 
-def evaluate(env_id: str, policy: str, episodes: int, config: Mapping[str, Any] | None = None, *,
-             seed: int = 0, progress: bool = False, executor: str = "local", workers: int | None = None,
-             address: str | None = None, nodes: dict[str, int] | None = None) -> dict[str, Any]:
+def evaluate(
+    env_id: str,
+    policy: str,
+    episodes: int,
+    config: Mapping[str, Any] | None = None,
+    *,
+    seed: int = 0,
+    progress: bool = False,
+    executor: str = "local",
+    workers: int | None = None,
+    address: str | None = None,
+    nodes: dict[str, int] | None = None,
+) -> dict[str, Any]:
     """Mean metrics over `episodes` episodes with seeds seed..seed+N-1: keys sr, spl, cost, episodes, ...
 
     `executor` (kernel.executors: local, process or ray at `address`) shards the episodes over workers; each
@@ -33,8 +43,18 @@ def evaluate(env_id: str, policy: str, episodes: int, config: Mapping[str, Any] 
         bar.start()
     try:
         advance = (lambda n: bar.advance(task, n)) if bar is not None else None
-        rows.extend(run_map(episode_metrics, range(seed, seed + episodes), executor=executor, workers=workers,
-                            address=address, args=(job,), progress=advance, nodes=nodes))
+        rows.extend(
+            run_map(
+                episode_metrics,
+                range(seed, seed + episodes),
+                executor=executor,
+                workers=workers,
+                address=address,
+                args=(job,),
+                progress=advance,
+                nodes=nodes,
+            )
+        )
     finally:
         if bar is not None:
             bar.stop()
@@ -106,7 +126,8 @@ def write_eval(summary: dict[str, Any], out: str | Path) -> tuple[Path, Path]:
     writer.writeheader()
     first = int(summary.get("seed", 0))
     for k, r in enumerate(rows):
-        writer.writerow({"seed": first + k, **{c: repr(r[c]) if isinstance(r.get(c), float) else r.get(c, "")
-                                                for c in cols}})
+        writer.writerow(
+            {"seed": first + k, **{c: repr(r[c]) if isinstance(r.get(c), float) else r.get(c, "") for c in cols}}
+        )
     write_atomic(out / "episodes.csv", buf.getvalue(), durable=False)
     return out / "metrics.json", out / "episodes.csv"

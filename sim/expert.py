@@ -56,7 +56,9 @@ class PurePursuitExpert:
             v_target = min(v_target, 0.5)  # facing away from the route: creep while turning back
         gap = self._corridor_gap(u)
         if gap < self.slow_distance:
-            v_target = min(v_target, spec.v_max * max(0.0, (gap - self.stop_distance) / (self.slow_distance - self.stop_distance)))
+            v_target = min(
+                v_target, spec.v_max * max(0.0, (gap - self.stop_distance) / (self.slow_distance - self.stop_distance))
+            )
         remaining = route.length - u.episode.progress
         v_target = min(v_target, max(0.5, math.sqrt(2.0 * 1.0 * max(remaining, 0.0))))
         err = v_target - v

@@ -92,7 +92,9 @@ def machine_spec(machine: str | Mapping[str, Any]) -> MachineSpec:
     """Resolve a machine name, or a dict of MachineSpec fields (optionally `base`: a name), into a MachineSpec."""
     if isinstance(machine, str):
         if machine not in MACHINES:
-            raise ConfigError(f"unknown machine {machine!r}; valid machines: {', '.join(MACHINES)} (or a dict of parameters)")
+            raise ConfigError(
+                f"unknown machine {machine!r}; valid machines: {', '.join(MACHINES)} (or a dict of parameters)"
+            )
         return MACHINES[machine]
     if not isinstance(machine, Mapping):
         raise ConfigError(f"machine must be a name or a dict of parameters, got {type(machine).__name__}")
@@ -167,9 +169,18 @@ class Machine:
         body = p.createMultiBody(s.mass, col, vis, basePosition=[0, 0, 1.0], physicsClientId=c)
         # Zero contact friction: traction and cornering come from the force model, Bullet only resolves
         # normal contacts (the ideal no-slip bicycle; sliding along walls instead of sticking to them).
-        p.changeDynamics(body, -1, lateralFriction=0.0, spinningFriction=0.0, rollingFriction=0.0,
-                         linearDamping=0.0, angularDamping=0.0, restitution=0.0,
-                         ccdSweptSphereRadius=0.8 * r, physicsClientId=c)
+        p.changeDynamics(
+            body,
+            -1,
+            lateralFriction=0.0,
+            spinningFriction=0.0,
+            rollingFriction=0.0,
+            linearDamping=0.0,
+            angularDamping=0.0,
+            restitution=0.0,
+            ccdSweptSphereRadius=0.8 * r,
+            physicsClientId=c,
+        )
         return body
 
     @property
@@ -188,8 +199,9 @@ class Machine:
         self.position = (x, y, z)
         if self.ground is not None:  # else the first substep would use the friction where the last episode ended
             self.surface_friction = self.ground(x, y)
-        p.resetBasePositionAndOrientation(self.body, [x, y, z + 0.005], p.getQuaternionFromEuler([0, 0, yaw]),
-                                          physicsClientId=self.client)
+        p.resetBasePositionAndOrientation(
+            self.body, [x, y, z + 0.005], p.getQuaternionFromEuler([0, 0, yaw]), physicsClientId=self.client
+        )
         p.resetBaseVelocity(self.body, [0, 0, 0], [0, 0, 0], physicsClientId=self.client)
 
     def command(self, steer: float, throttle: float, dt: float) -> None:
@@ -234,8 +246,9 @@ class Machine:
         self.yaw_rate = yaw_rate
         c, sn = math.cos(self.yaw), math.sin(self.yaw)
         lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.client)
-        p.resetBaseVelocity(self.body, [v_new * c, v_new * sn, lin[2]], [ang[0], ang[1], yaw_rate],
-                            physicsClientId=self.client)
+        p.resetBaseVelocity(
+            self.body, [v_new * c, v_new * sn, lin[2]], [ang[0], ang[1], yaw_rate], physicsClientId=self.client
+        )
 
     def sync(self) -> None:
         """Read pose and velocity back from Bullet after a substep (contacts may have changed them)."""

@@ -20,8 +20,7 @@ _py_decref.argtypes = [ctypes.py_object]
 _py_decref.restype = None
 
 
-def mesh_shape(create: Callable[..., int], vertices: Sequence, indices: Sequence | None = None,
-               **kwargs: Any) -> int:
+def mesh_shape(create: Callable[..., int], vertices: Sequence, indices: Sequence | None = None, **kwargs: Any) -> int:
     """`create(GEOM_MESH, vertices=..., indices=...)` (p.createCollisionShape/createVisualShape) without its leak.
 
     pybullet (3.2.7 and earlier) reads `vertices` and `indices` through new references it never releases: two

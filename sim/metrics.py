@@ -61,10 +61,12 @@ M = TypeVar("M", bound=type[Measure])
 
 def register_measure(name: str) -> Callable[[M], M]:
     """Class decorator adding a Measure subclass to the registry under `name`."""
+
     def deco(cls: M) -> M:
         cls.name = name
         MEASURES[name] = cls
         return cls
+
     return deco
 
 
@@ -77,9 +79,13 @@ def make_measures(names: list[str], *, agents: bool = True) -> list[Measure]:
         m = MEASURES[n]()
         missing = [r for r in m.requires if r not in names[:i]]
         if missing:
-            raise ConfigError(f"measure {n!r} needs {', '.join(map(repr, missing))} listed before it in config.measures")
+            raise ConfigError(
+                f"measure {n!r} needs {', '.join(map(repr, missing))} listed before it in config.measures"
+            )
         if m.needs_agents and not agents:
-            raise ConfigError(f"measure {n!r} needs cohabitants; use curbside/SocialNav-v0 or drop it from config.measures")
+            raise ConfigError(
+                f"measure {n!r} needs cohabitants; use curbside/SocialNav-v0 or drop it from config.measures"
+            )
         out.append(m)
     return out
 
@@ -96,16 +102,26 @@ class Readout(Measure):
 # name -> (what it measures, its values at episode end from the view); each row is registered as a Readout
 # subclass of its own, so every measure in MEASURES is a class.
 READOUTS: dict[str, tuple[str, Callable[[EpisodeView], dict[str, float]]]] = {
-    "success": ("1 when the episode completed >= success_completion of the route, else 0",
-                lambda v: {"success": float(v.episode.succeeded)}),
-    "route_completion": ("largest fraction of the reference route reached (0..1)",
-                         lambda v: {"route_completion": float(min(v.episode.max_progress / v.route_length, 1.0))}),
-    "path_length": ("planar distance the machine travelled, in metres",
-                    lambda v: {"path_length": float(v.episode.path_length)}),
-    "cost": ("steps in contact with a body of the env's `cost_kinds` (the episode's safety cost)",
-             lambda v: {"cost": float(v.episode.cost_total)}),
-    "time": ("simulated episode duration in seconds, and the number of steps",
-             lambda v: {"time": float(v.episode.steps * v.dt), "steps": float(v.episode.steps)}),
+    "success": (
+        "1 when the episode completed >= success_completion of the route, else 0",
+        lambda v: {"success": float(v.episode.succeeded)},
+    ),
+    "route_completion": (
+        "largest fraction of the reference route reached (0..1)",
+        lambda v: {"route_completion": float(min(v.episode.max_progress / v.route_length, 1.0))},
+    ),
+    "path_length": (
+        "planar distance the machine travelled, in metres",
+        lambda v: {"path_length": float(v.episode.path_length)},
+    ),
+    "cost": (
+        "steps in contact with a body of the env's `cost_kinds` (the episode's safety cost)",
+        lambda v: {"cost": float(v.episode.cost_total)},
+    ),
+    "time": (
+        "simulated episode duration in seconds, and the number of steps",
+        lambda v: {"time": float(v.episode.steps * v.dt), "steps": float(v.episode.steps)},
+    ),
 }
 for _name, (_doc, _read) in READOUTS.items():
     register_measure(_name)(type(f"Readout_{_name}", (Readout,), {"__doc__": _doc, "read": staticmethod(_read)}))

@@ -24,8 +24,12 @@ ZONE = {  # sidewalk zones, drawn over the sidewalk in spec plots
     "frontage": (1.00, 0.88, 0.70),
     "building": SURFACE["building"][:3],
 }
-OBJECT_CLASS = {"standard": (0.08, 0.40, 0.75), "non_standard": (0.90, 0.32, 0.0), "clutter": (0.76, 0.09, 0.36),
-                "building": (0.38, 0.49, 0.55)}
+OBJECT_CLASS = {
+    "standard": (0.08, 0.40, 0.75),
+    "non_standard": (0.90, 0.32, 0.0),
+    "clutter": (0.76, 0.09, 0.36),
+    "building": (0.38, 0.49, 0.55),
+}
 OBJECT = (0.55, 0.39, 0.24)  # an object whose spec names no object class
 LANE_LINE = (0.9, 0.85, 0.3)
 ISLAND = (0.51, 0.78, 0.52)  # planted median islands
@@ -38,8 +42,14 @@ COLLISION = (1.0, 0.24, 0.24)  # the ego while it touches something
 VEHICLE = (0.24, 0.24, 0.63)
 OUTLINE = (0.0, 0.0, 0.0)
 # Terrain surfaces (sim.terrain.wfc.SURFACES) as the runways colour their tiles (sim/terrain/runway.py).
-TERRAIN = {"asphalt": (0.25, 0.25, 0.27), "concrete": (0.7, 0.7, 0.68), "pavers": (0.65, 0.45, 0.35),
-           "grass": (0.35, 0.6, 0.3), "gravel": (0.55, 0.52, 0.47), "wet": (0.2, 0.22, 0.3)}
+TERRAIN = {
+    "asphalt": (0.25, 0.25, 0.27),
+    "concrete": (0.7, 0.7, 0.68),
+    "pavers": (0.65, 0.45, 0.35),
+    "grass": (0.35, 0.6, 0.3),
+    "gravel": (0.55, 0.52, 0.47),
+    "wet": (0.2, 0.22, 0.3),
+}
 ROUGH_SHADE = 0.8  # heaved or uneven ground is drawn a shade darker than its surface, so it stands out from the slab
 
 

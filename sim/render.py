@@ -10,8 +10,9 @@ import numpy as np
 from kernel.quiet import pybullet as p
 
 
-def camera_image(env: Any, camera: str = "top_down", width: int = 128, height: int = 128,
-                 top_down_height: float = 25.0) -> np.ndarray:
+def camera_image(
+    env: Any, camera: str = "top_down", width: int = 128, height: int = 128, top_down_height: float = 25.0
+) -> np.ndarray:
     """RGB (H, W, 3) uint8 frame of the env's world from PyBullet's TinyRenderer (CPU, no display)."""
     m = env.machine
     x, y, z = m.position
@@ -27,13 +28,23 @@ def camera_image(env: Any, camera: str = "top_down", width: int = 128, height: i
     else:
         raise ValueError(f"unknown camera {camera!r}; valid: top_down, chase")
     proj = p.computeProjectionMatrixFOV(fov, width / height, 0.1, 200.0)
-    _, _, rgba, _, _ = p.getCameraImage(width, height, view, proj, renderer=p.ER_TINY_RENDERER,
-                                        physicsClientId=env.client)
+    _, _, rgba, _, _ = p.getCameraImage(
+        width, height, view, proj, renderer=p.ER_TINY_RENDERER, physicsClientId=env.client
+    )
     return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
 
 
-def rollout_gif(env_id: str, policy: str, out: Any, config: dict | None = None, *, seed: int = 0,
-                chase: bool = True, map_px: int = 480, fps: int = 10) -> dict[str, float]:
+def rollout_gif(
+    env_id: str,
+    policy: str,
+    out: Any,
+    config: dict | None = None,
+    *,
+    seed: int = 0,
+    chase: bool = True,
+    map_px: int = 480,
+    fps: int = 10,
+) -> dict[str, float]:
     """Run one episode and write a GIF (map with route and growing trajectory, plus chase camera); return metrics."""
     from pathlib import Path
 
@@ -73,8 +84,16 @@ def rollout_gif(env_id: str, policy: str, out: Any, config: dict | None = None, 
         c = Canvas(view["extent"], view["px_per_m"], background=bg)
         c.line(u.episode.trajectory, TRAJECTORY, 3.0)
         m = u.machine
-        draw_ego(c, m.position[0], m.position[1], m.yaw, m.spec.length, m.spec.width,
-                 COLLISION if u.episode.step_collisions else EGO, min_px=12.0)
+        draw_ego(
+            c,
+            m.position[0],
+            m.position[1],
+            m.yaw,
+            m.spec.length,
+            m.spec.width,
+            COLLISION if u.episode.step_collisions else EGO,
+            min_px=12.0,
+        )
         frame = Image.fromarray(c.image())
         if chase and (u.episode.steps % 2 == 1 or done):
             view["cam"] = Image.fromarray(camera_image(u, "chase", 160, 160)).resize((h, h), Image.NEAREST)
@@ -96,8 +115,9 @@ def rollout_gif(env_id: str, policy: str, out: Any, config: dict | None = None, 
     return metrics
 
 
-def rollout_video(env_id: str, policy: str, out: Any, config: dict | None = None, *, seed: int = 0,
-                  fps: int = 10) -> dict[str, float]:
+def rollout_video(
+    env_id: str, policy: str, out: Any, config: dict | None = None, *, seed: int = 0, fps: int = 10
+) -> dict[str, float]:
     """Run one episode through Gymnasium's RecordVideo (the env's dashboard frames) and write it as MP4 to `out`."""
     import shutil
     import tempfile
@@ -116,8 +136,9 @@ def rollout_video(env_id: str, policy: str, out: Any, config: dict | None = None
     out = Path(out)
     with tempfile.TemporaryDirectory() as tmp:
         env = gym.make(env_id, config=dict(config or {}), render_mode="rgb_array")
-        env = gym.wrappers.RecordVideo(env, f"{tmp}/video", episode_trigger=lambda _: True, name_prefix="rollout",
-                                       fps=fps)
+        env = gym.wrappers.RecordVideo(
+            env, f"{tmp}/video", episode_trigger=lambda _: True, name_prefix="rollout", fps=fps
+        )
         try:
             metrics = rollout(env, make_policy(policy, env.unwrapped), seed)
         finally:

@@ -14,6 +14,7 @@ def make_policy(name: str, env: Any) -> Policy:
     """A callable (env, obs) -> action for `expert` (pure pursuit) or `random` (seeded by the env)."""
     if name == "expert":
         from sim.expert import PurePursuitExpert
+
         expert = PurePursuitExpert()
         return lambda e, obs: expert.act(e)
     if name == "random":
@@ -21,8 +22,14 @@ def make_policy(name: str, env: Any) -> Policy:
     raise ValueError(f"unknown policy {name!r}; valid: expert, random")
 
 
-def rollout(env: Any, policy: Policy, seed: int, *, on_reset: Callable[[Any], None] | None = None,
-            on_step: Callable[[Any, bool], None] | None = None) -> dict[str, float]:
+def rollout(
+    env: Any,
+    policy: Policy,
+    seed: int,
+    *,
+    on_reset: Callable[[Any], None] | None = None,
+    on_step: Callable[[Any, bool], None] | None = None,
+) -> dict[str, float]:
     """Run one episode from reset(seed) to its end and return its metrics (the final info's `metrics`).
 
     The action space is seeded with `seed` too, so a random policy repeats. `on_reset(env)` runs after the

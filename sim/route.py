@@ -29,8 +29,10 @@ class RouteError(RuntimeError):
 
 
 def _no_route(min_length: float, max_length: float, tries: int) -> RouteError:
-    return RouteError(f"found no route between {min_length} and {max_length} m in {tries} tries; use a larger scene "
-                      "(more blocks) or a shorter `route_length`")
+    return RouteError(
+        f"found no route between {min_length} and {max_length} m in {tries} tries; use a larger scene "
+        "(more blocks) or a shorter `route_length`"
+    )
 
 
 class Route(Polyline):
@@ -81,8 +83,9 @@ def _chaikin(pts: np.ndarray, iterations: int) -> np.ndarray:
 class RoutePlanner:
     """Grid planner for one scene and one machine width: samples start/goal pairs and plans smoothed routes."""
 
-    def __init__(self, scene: Scene | Mapping[str, Any], half_width: float, margin: float = 0.25,
-                 comfort: float = 0.75) -> None:
+    def __init__(
+        self, scene: Scene | Mapping[str, Any], half_width: float, margin: float = 0.25, comfort: float = 0.75
+    ) -> None:
         self.scene = as_scene(scene)  # a dict is parsed (checked) here, once
         self.grid = g = self.scene.walkable
         # Entrance steps block routes as objects do (a stair's footprint; rough and slick ground is drivable).
@@ -117,7 +120,9 @@ class RoutePlanner:
         pts = self.grid.cell_to_world(np.stack([self.rows, self.cols], -1))
         k = int(np.argmin((pts[:, 0] - x) ** 2 + (pts[:, 1] - y) ** 2))
         if math.hypot(pts[k, 0] - x, pts[k, 1] - y) > 2.0:
-            raise RouteError(f"({x:.2f}, {y:.2f}) is more than 2 m from any cell this machine can use; pick a point on a sidewalk")
+            raise RouteError(
+                f"({x:.2f}, {y:.2f}) is more than 2 m from any cell this machine can use; pick a point on a sidewalk"
+            )
         return k
 
     def _route(self, chain: list[int], spacing: float) -> Route:
@@ -173,8 +178,14 @@ class RoutePlanner:
             i = lo
         return total
 
-    def sample(self, rng: np.random.Generator, min_length: float = 5.0, max_length: float = 60.0,
-               tries: int = 20, spacing: float = 0.25) -> Route:
+    def sample(
+        self,
+        rng: np.random.Generator,
+        min_length: float = 5.0,
+        max_length: float = 60.0,
+        tries: int = 20,
+        spacing: float = 0.25,
+    ) -> Route:
         """Draw a start on a sidewalk cell and a goal on a sidewalk cell within `max_length` of it (straight line);
         plan it (A*, `sim.astar`) and keep it when its length is in [min, max], else draw both again.
 
@@ -190,8 +201,9 @@ class RoutePlanner:
             start, goal = int(candidates[k]), int(candidates[near[rng.integers(len(near))]])
             # Bounded so that a hopeless search ends early; above max_length because edges near obstacles cost up
             # to 3x their length.
-            cost, chain = astar_chain(self.graph, self.rows, self.cols, self.grid.resolution, start, goal,
-                                      1.5 * max_length)
+            cost, chain = astar_chain(
+                self.graph, self.rows, self.cols, self.grid.resolution, start, goal, 1.5 * max_length
+            )
             if cost < min_length or not chain:
                 continue
             route = self._route(chain, spacing)
@@ -239,8 +251,16 @@ class RoutePlanner:
         dist = dijkstra(self._without_recent(chain, cur), indices=cur, limit=2.0 * ahead_m)
         return bool((np.isfinite(dist) & (dist >= ahead_m)).any())
 
-    def _sample_legs(self, rng: np.random.Generator, min_length: float, max_length: float, candidates: np.ndarray,
-                     sidewalk: np.ndarray, spacing: float, tries: int = 12) -> Route:
+    def _sample_legs(
+        self,
+        rng: np.random.Generator,
+        min_length: float,
+        max_length: float,
+        candidates: np.ndarray,
+        sidewalk: np.ndarray,
+        spacing: float,
+        tries: int = 12,
+    ) -> Route:
         """A long route as legs between sidewalk points, each leading away from where the last one began."""
         open_sidewalk = sidewalk & (self.penalty[self.rows, self.cols] <= 1.0)
         for _ in range(tries):
@@ -262,7 +282,7 @@ class RoutePlanner:
                     ok &= prev > dist  # leads away from the previous leg's start
                 pick = np.nonzero(ok)[0]
                 leg: list[int] = []
-                for nxt in (pick[rng.permutation(len(pick))[:4]] if len(pick) else []):
+                for nxt in pick[rng.permutation(len(pick))[:4]] if len(pick) else []:
                     cand = [int(nxt)]
                     while cand[-1] != cur:
                         cand.append(int(pred[cand[-1]]))

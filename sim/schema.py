@@ -32,16 +32,16 @@ def _fmt(x: float) -> str:
 class Rule:
     """One key's valid values: its kind, numeric bounds, choices, and whether None is allowed."""
 
-    kind: str                      # int | float | bool | str | choice | pair | list | mapping | path | file | codes | any
+    kind: str  # int | float | bool | str | choice | pair | list | mapping | path | file | codes | any
     lo: float | None = None
     hi: float | None = None
-    lo_open: bool = False          # lo itself is not allowed
+    lo_open: bool = False  # lo itself is not allowed
     hi_open: bool = False
     choices: tuple[Any, ...] = ()  # choice: the valid values; codes: the valid letters; list: valid items
-    none: bool = False             # None is valid too
-    item: Rule | None = None     # pair: the rule of both elements; list: the rule of every item
-    max_len: int | None = None     # codes / list: longest allowed
-    hint: str = ""                 # appended to the message (what the value means, how to fix it)
+    none: bool = False  # None is valid too
+    item: Rule | None = None  # pair: the rule of both elements; list: the rule of every item
+    max_len: int | None = None  # codes / list: longest allowed
+    hint: str = ""  # appended to the message (what the value means, how to fix it)
 
     def describe(self) -> str:
         """The valid values in words, e.g. 'a finite number in (0, 1]'."""
@@ -49,7 +49,9 @@ class Rule:
         if k in ("int", "float"):
             what = "an integer" if k == "int" else "a finite number"
             if self.lo is not None and self.hi is not None:
-                what += f" in {'(' if self.lo_open else '['}{_fmt(self.lo)}, {_fmt(self.hi)}{')' if self.hi_open else ']'}"
+                what += (
+                    f" in {'(' if self.lo_open else '['}{_fmt(self.lo)}, {_fmt(self.hi)}{')' if self.hi_open else ']'}"
+                )
             elif self.lo is not None:
                 what += f" {'>' if self.lo_open else '>='} {_fmt(self.lo)}"
             elif self.hi is not None:
@@ -63,8 +65,13 @@ class Rule:
         elif k == "pair":
             what = f"a [min, max] pair with min <= max, each {self.item.describe() if self.item else 'a number'}"
         elif k == "list":
-            what = "a list" + (f" of {', '.join(map(str, self.choices))}" if self.choices else
-                               f" of {self.item.describe()}" if self.item else "")
+            what = "a list" + (
+                f" of {', '.join(map(str, self.choices))}"
+                if self.choices
+                else f" of {self.item.describe()}"
+                if self.item
+                else ""
+            )
         elif k == "mapping":
             what = "a JSON object (dict)" + (f" of {self.item.describe()}" if self.item else "")
         elif k == "path":
@@ -102,7 +109,7 @@ class Rule:
             return isinstance(v, (str, int, float)) and any(c == v and not isinstance(c, bool) for c in self.choices)
         if k == "pair":
             item = self.item or Rule("float")
-            return (isinstance(v, (list, tuple)) and len(v) == 2 and all(item.ok(x) for x in v) and v[0] <= v[1])
+            return isinstance(v, (list, tuple)) and len(v) == 2 and all(item.ok(x) for x in v) and v[0] <= v[1]
         if k == "list":
             if not isinstance(v, (list, tuple)) or (self.max_len is not None and len(v) > self.max_len):
                 return False
@@ -116,8 +123,11 @@ class Rule:
         if k == "file":
             return isinstance(v, (str, os.PathLike)) and str(v) != "" and os.path.isfile(v)
         if k == "codes":
-            return (isinstance(v, str) and 0 < len(v) <= (self.max_len or len(v))
-                    and all(c in self.choices for c in v.upper()))
+            return (
+                isinstance(v, str)
+                and 0 < len(v) <= (self.max_len or len(v))
+                and all(c in self.choices for c in v.upper())
+            )
         return True
 
     def check(self, v: Any, name: str) -> None:
@@ -135,8 +145,15 @@ def Int(lo: int | None = None, hi: int | None = None, *, none: bool = False, hin
     return Rule("int", lo, hi, none=none, hint=hint)
 
 
-def Float(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False, hi_open: bool = False,
-          none: bool = False, hint: str = "") -> Rule:
+def Float(
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    lo_open: bool = False,
+    hi_open: bool = False,
+    none: bool = False,
+    hint: str = "",
+) -> Rule:
     """A finite int or float in the range (open ends with lo_open / hi_open)."""
     return Rule("float", lo, hi, lo_open=lo_open, hi_open=hi_open, none=none, hint=hint)
 
@@ -183,8 +200,9 @@ def infer(default: Any) -> Rule:
     return Rule("any")
 
 
-def check_table(cfg: Mapping[str, Any], table: Table, *, name: str = "config",
-                defaults: Mapping[str, Any] | None = None) -> None:
+def check_table(
+    cfg: Mapping[str, Any], table: Table, *, name: str = "config", defaults: Mapping[str, Any] | None = None
+) -> None:
     """Check every key of `cfg` against `table` (nested tables for sub-configs); ConfigError on the first bad one."""
     for key, value in cfg.items():
         rule = table.get(key)
@@ -192,7 +210,9 @@ def check_table(cfg: Mapping[str, Any], table: Table, *, name: str = "config",
         full = f"{name}.{key}"
         if isinstance(rule, Mapping):
             if not isinstance(value, Mapping):
-                raise ConfigError(f"{full} must be a JSON object (dict) of {', '.join(sorted(rule))}, got {excerpt(value)}")
+                raise ConfigError(
+                    f"{full} must be a JSON object (dict) of {', '.join(sorted(rule))}, got {excerpt(value)}"
+                )
             check_table(value, rule, name=full, defaults=sub_defaults if isinstance(sub_defaults, Mapping) else None)
             continue
         if rule is None:

@@ -39,10 +39,18 @@ class PlanarLidar:
     `range_m` (1 = no hit) and stores what each beam hit in `hit_ids` (-1 for none).
     """
 
-    def __init__(self, beams: int = 240, range_m: float = 50.0, height: float = 0.4, start_radius: float = 0.5,
-                 encoding: str = "linear") -> None:
+    def __init__(
+        self,
+        beams: int = 240,
+        range_m: float = 50.0,
+        height: float = 0.4,
+        start_radius: float = 0.5,
+        encoding: str = "linear",
+    ) -> None:
         if beams < 1 or not range_m > start_radius or not math.isfinite(range_m):
-            raise ValueError(f"lidar needs beams >= 1 and a finite range_m > {start_radius}, got beams={beams}, range_m={range_m}")
+            raise ValueError(
+                f"lidar needs beams >= 1 and a finite range_m > {start_radius}, got beams={beams}, range_m={range_m}"
+            )
         if encoding not in ENCODINGS:
             raise ValueError(f"unknown lidar encoding {encoding!r}; valid: {', '.join(ENCODINGS)}")
         self.encoding = encoding
@@ -69,8 +77,15 @@ class Lidar(PlanarLidar):
     """The planar LiDAR as one Bullet `rayTestBatch` a scan: every body of the world (`lidar.static: bullet`);
     `hit_ids` holds the body ids, which tell objects, buildings and agents apart."""
 
-    def __init__(self, client: int, beams: int = 240, range_m: float = 50.0, height: float = 0.4,
-                 start_radius: float = 0.5, encoding: str = "linear") -> None:
+    def __init__(
+        self,
+        client: int,
+        beams: int = 240,
+        range_m: float = 50.0,
+        height: float = 0.4,
+        start_radius: float = 0.5,
+        encoding: str = "linear",
+    ) -> None:
         super().__init__(beams, range_m, height, start_radius, encoding)
         self.client = client
 
@@ -107,16 +122,33 @@ class GridLidar(PlanarLidar):
 
     STATIC_HIT = -2
 
-    def __init__(self, grids: SceneGrids, what: str, beams: int = 240, range_m: float = 50.0, height: float = 0.4,
-                 start_radius: float = 0.5, encoding: str = "linear") -> None:
+    def __init__(
+        self,
+        grids: SceneGrids,
+        what: str,
+        beams: int = 240,
+        range_m: float = 50.0,
+        height: float = 0.4,
+        start_radius: float = 0.5,
+        encoding: str = "linear",
+    ) -> None:
         super().__init__(beams, range_m, height, start_radius, encoding)
         self.grids = grids
         self.moving: MovingHits | None = None
         table = WHAT.index(what)
         # Per level: the flat table and the one-env frame `sim.raycast.march.trace_fan` reads.
-        self._frames = [(tables[table].ravel(), {
-            "x0": np.array([grids.origin[0]]), "y0": np.array([grids.origin[1]]),
-            "cols": np.array([grids.shape[1]]), "offset": np.zeros(1, dtype=np.int64)}) for tables in grids.tables]
+        self._frames = [
+            (
+                tables[table].ravel(),
+                {
+                    "x0": np.array([grids.origin[0]]),
+                    "y0": np.array([grids.origin[1]]),
+                    "cols": np.array([grids.shape[1]]),
+                    "offset": np.zeros(1, dtype=np.int64),
+                },
+            )
+            for tables in grids.tables
+        ]
 
     def scan(self, x: float, y: float, z: float, yaw: float) -> np.ndarray:
         """Normalised distances (beams,) in [0, 1]; also stores `hit_ids`."""
@@ -124,8 +156,19 @@ class GridLidar(PlanarLidar):
         flat, frame = self._frames[level]
         a = self.angles + yaw
         cos, sin = np.cos(a), np.sin(a)
-        d = trace_fan(flat, float(frame["x0"][0]), float(frame["y0"][0]), int(frame["cols"][0]), x, y, cos, sin,
-                      self.start_radius, self.range_m, self.grids.resolution)
+        d = trace_fan(
+            flat,
+            float(frame["x0"][0]),
+            float(frame["y0"][0]),
+            int(frame["cols"][0]),
+            x,
+            y,
+            cos,
+            sin,
+            self.start_radius,
+            self.range_m,
+            self.grids.resolution,
+        )
         ids = np.where(d < self.range_m, self.STATIC_HIT, -1)
         if self.moving is not None:
             dm, idm = self.moving(x, y, z + self.height, cos, sin, self.start_radius, self.range_m)

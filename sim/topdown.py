@@ -60,8 +60,9 @@ class Canvas:
     and radii given in pixels are output pixels. `background` (an RGB array of the output size) is drawn over.
     """
 
-    def __init__(self, extent: Sequence[float], px_per_m: float, *, ss: int = 1,
-                 background: np.ndarray | None = None) -> None:
+    def __init__(
+        self, extent: Sequence[float], px_per_m: float, *, ss: int = 1, background: np.ndarray | None = None
+    ) -> None:
         self.x0, self.y0, self.x1, self.y1 = (float(v) for v in extent)
         self.px_per_m, self.ss = float(px_per_m), int(ss)
         if background is not None:
@@ -85,8 +86,12 @@ class Canvas:
         xy = self.px(pts)
         if len(xy) < 3:
             return
-        self.draw.polygon(xy, fill=None if fill is None else rgb255(fill), outline=None if outline is None else rgb255(outline),
-                          width=max(1, round(width * self.ss)))
+        self.draw.polygon(
+            xy,
+            fill=None if fill is None else rgb255(fill),
+            outline=None if outline is None else rgb255(outline),
+            width=max(1, round(width * self.ss)),
+        )
 
     def line(self, pts: Any, colour: Colour, width: float = 1.0, dash: tuple[float, float] | None = None) -> None:
         """A polyline `width` pixels wide; `dash` = (on, off) metres draws it dashed."""
@@ -98,10 +103,14 @@ class Canvas:
 
     def disc(self, x: float, y: float, r: float, fill: Colour, outline: Colour | None = None) -> None:
         """A disc of radius `r` metres at (x, y)."""
-        (u, v), = self.px([(x, y)])
+        ((u, v),) = self.px([(x, y)])
         rp = r * self.scale
-        self.draw.ellipse([u - rp, v - rp, u + rp, v + rp], fill=rgb255(fill),
-                          outline=None if outline is None else rgb255(outline), width=self.ss)
+        self.draw.ellipse(
+            [u - rp, v - rp, u + rp, v + rp],
+            fill=rgb255(fill),
+            outline=None if outline is None else rgb255(outline),
+            width=self.ss,
+        )
 
     def image(self) -> np.ndarray:
         """The drawing as an RGB (H, W, 3) uint8 array of the output size."""
@@ -192,8 +201,9 @@ def draw_agents(c: Surface, agents: Any, colours: Sequence[Colour], trails: np.n
         c.disc(float(a["x"]), float(a["y"]), float(a["radius"]), col, OUTLINE)
 
 
-def draw_ego(c: Surface, x: float, y: float, yaw: float, length: float, width: float, colour: Colour = EGO,
-             min_px: float = 8.0) -> None:
+def draw_ego(
+    c: Surface, x: float, y: float, yaw: float, length: float, width: float, colour: Colour = EGO, min_px: float = 8.0
+) -> None:
     """The ego machine as an outlined box with a heading tick, grown to `min_px` pixels long where smaller."""
     grow = max(1.0, min_px / (length * c.px_per_m))
     c.polygon(box(x, y, yaw, length * grow, width * grow), colour, OUTLINE)
@@ -214,8 +224,16 @@ def _zebra(polygon: Any, bar: float = 0.5) -> list[np.ndarray]:
     bars = []
     for i in range(n):
         t0, t1 = (start + 2 * bar * i) / length, (start + 2 * bar * i + bar) / length
-        bars.append(np.array([q[0] + t0 * (q[1] - q[0]), q[0] + t1 * (q[1] - q[0]),
-                              q[3] + t1 * (q[2] - q[3]), q[3] + t0 * (q[2] - q[3])]))
+        bars.append(
+            np.array(
+                [
+                    q[0] + t0 * (q[1] - q[0]),
+                    q[0] + t1 * (q[1] - q[0]),
+                    q[3] + t1 * (q[2] - q[3]),
+                    q[3] + t0 * (q[2] - q[3]),
+                ]
+            )
+        )
     return bars
 
 

@@ -21,8 +21,13 @@ _WINDOWS: weakref.WeakKeyDictionary[Any, HumanWindow] = weakref.WeakKeyDictionar
 def semantic_palette() -> np.ndarray:
     """RGB uint8 colour per semantic id: surfaces and categories in the top-down map's colours."""
     out = np.zeros((len(SEMANTIC_CLASSES), 3), dtype=np.uint8)
-    extra = {"unlabeled": (0.55, 0.75, 0.95), "ground": SURFACE["ground"], "agent": (0.9, 0.2, 0.6),
-             "vehicle": (0.95, 0.85, 0.1), "ego": (0.1, 0.8, 0.9)}
+    extra = {
+        "unlabeled": (0.55, 0.75, 0.95),
+        "ground": SURFACE["ground"],
+        "agent": (0.9, 0.2, 0.6),
+        "vehicle": (0.95, 0.85, 0.1),
+        "ego": (0.1, 0.8, 0.9),
+    }
     for k, name in enumerate(SEMANTIC_CLASSES):
         colour = extra.get(name) or SURFACE.get(name) or category_color(name)
         out[k] = rgb255(colour)
@@ -56,18 +61,27 @@ def top_down_map(env: Any, size: int, view: float) -> np.ndarray:
     m = env.machine
     x, y, _ = m.position
     social = getattr(env, "has_agents", False)
-    return draw_top_down(env.scene, (x, y), agents=env.crowd.states() if social else None,
-                         trails=env.crowd.trail if social else None, vehicles=env.vehicle_states() if social else None,
-                         ego=(x, y, m.yaw, m.spec.length, m.spec.width),
-                         route=env.route.point_at(np.linspace(0.0, env.route.length, 200)), size=size, view=view)
+    return draw_top_down(
+        env.scene,
+        (x, y),
+        agents=env.crowd.states() if social else None,
+        trails=env.crowd.trail if social else None,
+        vehicles=env.vehicle_states() if social else None,
+        ego=(x, y, m.yaw, m.spec.length, m.spec.width),
+        route=env.route.point_at(np.linspace(0.0, env.route.length, 200)),
+        size=size,
+        view=view,
+    )
 
 
 def hud_text(env: Any) -> str:
     """One line of live metrics: step, speed, route completion, collisions and cost."""
     ep, m = env.episode, env.machine
     done = min(ep.max_progress / env.route.length, 1.0) if env.route.length > 0 else 0.0
-    return (f"step {ep.steps}/{ep.horizon}   {3.6 * m.speed:5.1f} km/h   route {100 * done:3.0f} %   "
-            f"cost {ep.cost_total}   {env.spec_machine.name}")
+    return (
+        f"step {ep.steps}/{ep.horizon}   {3.6 * m.speed:5.1f} km/h   route {100 * done:3.0f} %   "
+        f"cost {ep.cost_total}   {env.spec_machine.name}"
+    )
 
 
 def dashboard(env: Any, width: int, height: int, view: float) -> np.ndarray:
@@ -88,7 +102,7 @@ def dashboard(env: Any, width: int, height: int, view: float) -> np.ndarray:
         for k, (name, image) in enumerate(images.items()):
             x0 = 4 + k * (side + 4)
             if x0 + side <= chase_w:
-                frame[height - side - 4:height - 4, x0:x0 + side] = _fit(colourise(name, image), side, side)
+                frame[height - side - 4 : height - 4, x0 : x0 + side] = _fit(colourise(name, image), side, side)
     if bar:
         from PIL import Image, ImageDraw
 
@@ -141,8 +155,10 @@ def human_unavailable() -> str | None:
     if importlib.util.find_spec("pygame") is None:
         return "render_mode 'human' needs pygame: pip install 'curbside[viewer]'"
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") or os.environ.get("SDL_VIDEODRIVER")):
-        return ("render_mode 'human' needs a display and DISPLAY is not set; run under a desktop or `xvfb-run`, or "
-                "use render_mode 'rgb_array' (RecordVideo, `curbside sim rollout --video`)")
+        return (
+            "render_mode 'human' needs a display and DISPLAY is not set; run under a desktop or `xvfb-run`, or "
+            "use render_mode 'rgb_array' (RecordVideo, `curbside sim rollout --video`)"
+        )
     return None
 
 

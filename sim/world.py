@@ -61,9 +61,17 @@ def _obj_vertices(path: str) -> np.ndarray:
 class World:
     """The static PyBullet world built from one scene; `kinds` maps body id -> what it is."""
 
-    def __init__(self, scene: Scene | Mapping[str, Any], *, client: int | None = None, gui: bool = False,
-                 collision: str = "box", catalog: Any = None, visual_meshes: bool = False,
-                 physics_dt: float = 0.02) -> None:
+    def __init__(
+        self,
+        scene: Scene | Mapping[str, Any],
+        *,
+        client: int | None = None,
+        gui: bool = False,
+        collision: str = "box",
+        catalog: Any = None,
+        visual_meshes: bool = False,
+        physics_dt: float = 0.02,
+    ) -> None:
         self.scene = as_scene(scene)  # a dict is parsed (checked) here, once
         if collision not in ("box", "convex"):
             raise SceneError(f"unknown collision {collision!r}; valid: box, convex")
@@ -80,16 +88,24 @@ class World:
         p.setGravity(0, 0, -9.81, physicsClientId=self.client)
         p.setTimeStep(physics_dt, physicsClientId=self.client)
         # One solver pass per substep: the world holds one dynamic body, so more iterations buy nothing.
-        p.setPhysicsEngineParameter(numSolverIterations=10, deterministicOverlappingPairs=1,
-                                    physicsClientId=self.client)
+        p.setPhysicsEngineParameter(
+            numSolverIterations=10, deterministicOverlappingPairs=1, physicsClientId=self.client
+        )
         self._build()
 
     # -- building -----------------------------------------------------------------------------------
     def _add(self, kind: str, col: int, vis: int, pos=(0, 0, 0), orn=(0, 0, 0, 1)) -> int:
         # Maximal coordinates: a static btRigidBody instead of a fixed-base btMultiBody, which Bullet visits every
         # substep (250 static bodies: 98 -> 25 us a substep; a SocialNav step's Bullet time halves).
-        body = p.createMultiBody(0, col, vis, basePosition=list(pos), baseOrientation=list(orn),
-                                 useMaximalCoordinates=True, physicsClientId=self.client)
+        body = p.createMultiBody(
+            0,
+            col,
+            vis,
+            basePosition=list(pos),
+            baseOrientation=list(orn),
+            useMaximalCoordinates=True,
+            physicsClientId=self.client,
+        )
         self.kinds[body] = kind
         return body
 
@@ -107,7 +123,9 @@ class World:
         cx, cy = 0.5 * (xmin + xmax), 0.5 * (ymin + ymax)
         hx, hy = 0.5 * (xmax - xmin) + 50.0, 0.5 * (ymax - ymin) + 50.0
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[hx, hy, 0.5], physicsClientId=c)
-        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[hx, hy, 0.5], rgbaColor=list(SURFACE["ground"]), physicsClientId=c)
+        vis = p.createVisualShape(
+            p.GEOM_BOX, halfExtents=[hx, hy, 0.5], rgbaColor=list(SURFACE["ground"]), physicsClientId=c
+        )
         self.ground = self._add("ground", col, vis, (cx, cy, -0.5))
         # Painted surfaces on the road are visual only: the ground plane carries the wheels there.
         for road in scene.roads:
@@ -115,7 +133,9 @@ class World:
                 self._mesh_body("road", *extrusion_mesh(poly, 0.0, 0.002, walls=False), SURFACE["road"], collide=False)
         for cw in scene.crosswalks:
             for poly in polygons(Polygon(cw["polygon"]).buffer(0)):
-                self._mesh_body("crosswalk", *extrusion_mesh(poly, 0.0, 0.004, walls=False), SURFACE["crosswalk"], collide=False)
+                self._mesh_body(
+                    "crosswalk", *extrusion_mesh(poly, 0.0, 0.004, walls=False), SURFACE["crosswalk"], collide=False
+                )
         slabs, wedges = sidewalk_solids(scene, h)
         for pts, z in wedges:
             self._wedge("ramp", pts, z)
@@ -173,11 +193,17 @@ class World:
             scale = size / np.maximum(hi - lo, 1e-6)
             # The textured mesh in the same box, relative to the body's origin (the box centre, or the base).
             at = [-(lo[0] + hi[0]) / 2 * scale[0], -(lo[1] + hi[1]) / 2 * scale[1], -lo[2] * scale[2] + z - origin[2]]
-            vis = p.createVisualShape(p.GEOM_MESH, fileName=look, meshScale=scale.tolist(), visualFramePosition=at,
-                                      physicsClientId=c)  # no rgbaColor: the mesh's baked texture shows
+            vis = p.createVisualShape(
+                p.GEOM_MESH, fileName=look, meshScale=scale.tolist(), visualFramePosition=at, physicsClientId=c
+            )  # no rgbaColor: the mesh's baked texture shows
         else:
-            vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[d / 2, w / 2, hgt / 2], rgbaColor=color,
-                                      visualFramePosition=[0.0, 0.0, z + hgt / 2 - origin[2]], physicsClientId=c)
+            vis = p.createVisualShape(
+                p.GEOM_BOX,
+                halfExtents=[d / 2, w / 2, hgt / 2],
+                rgbaColor=color,
+                visualFramePosition=[0.0, 0.0, z + hgt / 2 - origin[2]],
+                physicsClientId=c,
+            )
         return self._add("object", col, vis, origin, orn)
 
     def _mesh_path(self, obj: Mapping[str, Any], field: str) -> str | None:
@@ -245,7 +271,9 @@ def sidewalk_solids(scene: Scene, h: float) -> tuple[list[list[Polygon]], list[t
     return slabs, wedges
 
 
-def ramp_wedges(scene: Scene, poly: Polygon, sidewalk: Mapping[str, Any] | None, h: float) -> list[tuple[np.ndarray, np.ndarray]]:
+def ramp_wedges(
+    scene: Scene, poly: Polygon, sidewalk: Mapping[str, Any] | None, h: float
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """A curb ramp's wedges as (footprint vertices [k, 2], their heights [k]): the ramp, rising from the road (vertices
     on the curb line) to the sidewalk top `h`, and a sloped flare on each side (the grid LiDAR rasterises the same)."""
     pts = np.asarray(orient(poly, 1.0).exterior.coords)[:-1]

@@ -73,10 +73,20 @@ def make_asset() -> Callable[..., object]:
 
     def make(asset_id: str, **overrides: object) -> AssetRecord:
         fields: dict[str, object] = dict(
-            asset_id=asset_id, source="procedural", source_id=asset_id, category="bench",
-            object_class="non_standard", zones=["furnishing"], depth=0.6, width=1.8, height=0.85,
-            description=f"a wooden bench {asset_id}", synonyms=["seat", "park bench"], license="CC0-1.0",
-            mass=40.0, params={"seed": 0},
+            asset_id=asset_id,
+            source="procedural",
+            source_id=asset_id,
+            category="bench",
+            object_class="non_standard",
+            zones=["furnishing"],
+            depth=0.6,
+            width=1.8,
+            height=0.85,
+            description=f"a wooden bench {asset_id}",
+            synonyms=["seat", "park bench"],
+            license="CC0-1.0",
+            mass=40.0,
+            params={"seed": 0},
         )
         fields.update(overrides)
         return AssetRecord(**fields)  # type: ignore[arg-type]
@@ -104,8 +114,12 @@ def x_display() -> Iterator[str]:
     server = None
     if shutil.which("Xvfb"):
         # -displayfd: Xvfb picks a free display (xdist workers start their own) and prints it once it is ready.
-        server = subprocess.Popen(["Xvfb", "-displayfd", "1", "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
-                                  stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        server = subprocess.Popen(
+            ["Xvfb", "-displayfd", "1", "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+        )
         mp.setenv("DISPLAY", f":{server.stdout.readline().strip()}")
         mp.delenv("SDL_VIDEODRIVER", raising=False)
     else:

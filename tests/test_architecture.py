@@ -46,14 +46,21 @@ def bad_imports(room: str, source: str) -> list[str]:
 
 
 def test_imports_follow_the_data_flow() -> None:
-    bad = [f"{f.relative_to(ROOT)}: {m}" for top in ROOMS for f in sorted((ROOT / top).rglob("*.py"))
-           if (room := _room(f)) is not None for m in bad_imports(room, f.read_text(encoding="utf-8"))]
+    bad = [
+        f"{f.relative_to(ROOT)}: {m}"
+        for top in ROOMS
+        for f in sorted((ROOT / top).rglob("*.py"))
+        if (room := _room(f)) is not None
+        for m in bad_imports(room, f.read_text(encoding="utf-8"))
+    ]
     assert bad == []
 
 
 def test_the_check_sees_violations() -> None:
     assert bad_imports("sim", "import retrieval.ingest\nfrom pipelines import osm\nimport catalogs.reader\n") == [
-        "retrieval.ingest", "pipelines"]
+        "retrieval.ingest",
+        "pipelines",
+    ]
     assert bad_imports("catalogs", "def f():\n    from sim.scene import generate_scene\n") == ["sim.scene"]
     assert bad_imports("kernel", "import curbside.cli.main\n") == ["curbside.cli.main"]  # the CLI sits on top
     assert bad_imports("kernel", "from catalogs import reader\n") == ["catalogs"]
@@ -72,8 +79,13 @@ def catalog_sql(source: str, tables: tuple[str, ...]) -> list[int]:
     dynamic = re.compile(r"\b(?:FROM|JOIN|INTO|UPDATE|TABLE)\s+\"?\{\}")  # upper case: prose says "from {path}"
     tree = ast.parse(source)
     # Docstrings describe tables in prose ("rows from assets"); only strings the code uses can be SQL.
-    docs = {id(body[0].value) for node in ast.walk(tree) if isinstance(node, (ast.Module, ast.ClassDef,
-            ast.FunctionDef, ast.AsyncFunctionDef)) and (body := node.body) and isinstance(body[0], ast.Expr)}
+    docs = {
+        id(body[0].value)
+        for node in ast.walk(tree)
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+        and (body := node.body)
+        and isinstance(body[0], ast.Expr)
+    }
     lines = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
@@ -91,20 +103,31 @@ def test_catalog_sql_lives_in_catalogs() -> None:
     # The catalog's tables are a contract owned by catalogs/ (writer, reader, query, inspect): code elsewhere
     # calls their functions, so a schema change touches one package (docs/architecture.md).
     tables = _catalog_tables()
-    files = subprocess.run(["git", "-C", str(ROOT), "ls-files", "--cached", "--others", "--exclude-standard", "*.py"],
-                           check=True, capture_output=True, text=True).stdout.split()
-    bad = {f: lines for f in sorted(set(files)) if f.split("/")[0] not in ("catalogs", "tests")
-           and (ROOT / f).is_file() and (lines := catalog_sql((ROOT / f).read_text(encoding="utf-8"), tables))}
+    files = subprocess.run(
+        ["git", "-C", str(ROOT), "ls-files", "--cached", "--others", "--exclude-standard", "*.py"],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.split()
+    bad = {
+        f: lines
+        for f in sorted(set(files))
+        if f.split("/")[0] not in ("catalogs", "tests")
+        and (ROOT / f).is_file()
+        and (lines := catalog_sql((ROOT / f).read_text(encoding="utf-8"), tables))
+    }
     assert bad == {}
 
 
 def test_the_sql_check_sees_sql() -> None:
     tables = _catalog_tables()
     assert {"assets", "views", "matches", "embeddings", "rejections", "descriptions", "meta"} <= set(tables)
-    src = ('"""Reads rows from assets."""\n'
-           'a = con.execute("SELECT asset_id FROM assets")\n'
-           'b = con.execute(f"DELETE FROM {table} WHERE asset_id = ?")\n'
-           'c = "select m.score from matches m " "join descriptions d using (description_id)"\n'
-           'd = con.execute("SELECT * FROM read_parquet(?)")\n'
-           'e = f"no catalog from {path}"\n')
+    src = (
+        '"""Reads rows from assets."""\n'
+        'a = con.execute("SELECT asset_id FROM assets")\n'
+        'b = con.execute(f"DELETE FROM {table} WHERE asset_id = ?")\n'
+        'c = "select m.score from matches m " "join descriptions d using (description_id)"\n'
+        'd = con.execute("SELECT * FROM read_parquet(?)")\n'
+        'e = f"no catalog from {path}"\n'
+    )
     assert catalog_sql(src, tables) == [2, 3, 4]

@@ -43,8 +43,11 @@ def undeclared(imports: dict[str, set[str]]) -> dict[str, list[str]]:
     """The modules of `imports` (module -> importing files) that no declared distribution provides."""
     dists = packages_distributions()
     names = declared()
-    return {m: sorted(files)[:3] for m, files in imports.items()
-            if m not in ALLOWED and not {_normal(d) for d in dists.get(m, [])} & names}
+    return {
+        m: sorted(files)[:3]
+        for m, files in imports.items()
+        if m not in ALLOWED and not {_normal(d) for d in dists.get(m, [])} & names
+    }
 
 
 def test_every_third_party_import_is_declared() -> None:

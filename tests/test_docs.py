@@ -13,8 +13,12 @@ OUTSIDE = ("../" + "shared", "DESIGN" + ".md", "/work/" + "shared")
 
 def _repo_files() -> list[Path]:
     """Tracked files plus untracked ones git does not ignore (what a commit of this tree would hold)."""
-    out = subprocess.run(["git", "-C", str(ROOT), "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
-                         check=True, capture_output=True, text=True).stdout
+    out = subprocess.run(
+        ["git", "-C", str(ROOT), "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
     return [ROOT / f for f in out.split("\0") if f and (ROOT / f).is_file()]
 
 

@@ -23,7 +23,9 @@ ObjectClass = Enum("ObjectClass", {c: c for c in OBJECT_CLASSES}, type=str)
 Zone = Enum("Zone", {z: z for z in ZONES}, type=str)
 ExportFormat = Enum("ExportFormat", {f: f for f in ("parquet", "csv", "jsonl")}, type=str)
 
-app = typer.Typer(rich_markup_mode=None, help="Build, search, inspect and validate the DuckDB asset catalog.", no_args_is_help=True)
+app = typer.Typer(
+    rich_markup_mode=None, help="Build, search, inspect and validate the DuckDB asset catalog.", no_args_is_help=True
+)
 CatalogOpt = typer.Option(DEFAULT_CATALOG, "--catalog", help="Path of the catalog's .duckdb file.")
 JsonOpt = typer.Option(False, "--json", help="Print one JSON document on stdout and nothing else.")
 
@@ -123,11 +125,17 @@ def query(
     from catalogs.reader import category_names, read_meta
 
     if not text.strip():
-        raise UsageError("the query text is empty; say what to look for, e.g. `curbside catalog query \"bench\"`")
+        raise UsageError('the query text is empty; say what to look for, e.g. `curbside catalog query "bench"`')
     if max_height is not None and not (0.0 < max_height < float("inf")):
         raise UsageError(f"--max-height must be a finite height in metres above 0, got {max_height}")
-    filters = QueryFilters(category=category, object_class=object_class.value if object_class else None,
-                           zone=zone.value if zone else None, max_height=max_height, source=source, license=license)
+    filters = QueryFilters(
+        category=category,
+        object_class=object_class.value if object_class else None,
+        zone=zone.value if zone else None,
+        max_height=max_height,
+        source=source,
+        license=license,
+    )
     con = _open(catalog)
     # Checksum errors surface while blocks are read, not on open: the whole read maps to one error line.
     with catalog_cli_errors(catalog), contextlib.closing(con):
@@ -150,8 +158,13 @@ def query(
         if category is not None and category not in known:
             hint += f"; this catalog has no category {category!r} (it has: {', '.join(sorted(known))})"
     if as_json:
-        doc: dict = {"query": text, "filters": active, "catalog": str(catalog), "count": len(results),
-                     "results": results}
+        doc: dict = {
+            "query": text,
+            "filters": active,
+            "catalog": str(catalog),
+            "count": len(results),
+            "results": results,
+        }
         if hint:
             doc["message"] = hint
         _emit_json(doc)
@@ -168,8 +181,9 @@ def query(
         table.add_column(col, overflow="fold")
     for i, r in enumerate(results, 1):
         dims = f"{r['depth']:.2f} x {r['width']:.2f} x {r['height']:.2f}"
-        table.add_row(str(i), f"{r['score']:.3f}", r["asset_id"], r["category"], r["object_class"], dims,
-                      r["description"])
+        table.add_row(
+            str(i), f"{r['score']:.3f}", r["asset_id"], r["category"], r["object_class"], dims, r["description"]
+        )
     console.print(table)
 
 
@@ -187,7 +201,9 @@ def show(
     try:
         rec = reader.get(asset_id)
     except KeyError:
-        raise UsageError(f"asset {asset_id!r} is not in {catalog}; find ids with `curbside catalog query TEXT`") from None
+        raise UsageError(
+            f"asset {asset_id!r} is not in {catalog}; find ids with `curbside catalog query TEXT`"
+        ) from None
     row = rec.to_row()
     for key in ("mesh_path", "glb_path", "collision_path"):
         resolved = reader.resolve(row[key])
@@ -273,8 +289,14 @@ def validate(
     with catalog_cli_errors(catalog):  # only a locked catalog gets here: corruption is reported as a problem below
         n, problems = validate_catalog(catalog, progress=not as_json)
     if as_json:
-        _emit_json({"catalog": str(catalog), "assets_checked": n, "ok": not problems,
-                    "problems": [p.to_dict() for p in problems]})
+        _emit_json(
+            {
+                "catalog": str(catalog),
+                "assets_checked": n,
+                "ok": not problems,
+                "problems": [p.to_dict() for p in problems],
+            }
+        )
     else:
         from rich.console import Console
         from rich.table import Table

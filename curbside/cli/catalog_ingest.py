@@ -15,8 +15,9 @@ from curbside.cli.executor_options import Executor  # kernel.executors.EXECUTORS
 
 # Option choices as Enums and ranges, so click refuses a bad value before the catalog is touched: a bad value
 # reaching the per-asset steps would be recorded as every asset's rejection.
-Scorer = Enum("Scorer", {e: e for e in ("aligned", "imagenet", "clip", "blip", "blip2", "none")},
-              type=str)  # retrieval.scoring.IMAGE_ENCODERS
+Scorer = Enum(
+    "Scorer", {e: e for e in ("aligned", "imagenet", "clip", "blip", "blip2", "none")}, type=str
+)  # retrieval.scoring.IMAGE_ENCODERS
 MeshSet = Enum("MeshSet", {e: e for e in ("procedural", "primitives")}, type=str)
 Calibration = Enum("Calibration", {e: e for e in ("softmax", "zscore", "none")}, type=str)  # scoring.CALIBRATIONS
 Thresholds = Enum("Thresholds", {e: e for e in ("global", "calibrated")}, type=str)  # scoring.THRESHOLDS
@@ -52,8 +53,10 @@ def register(app: typer.Typer) -> None:
         clip_model: str = typer.Option(None, help="CLIP/BLIP/BLIP-2 weights folder (with --scorer clip|blip|blip2)"),
         views: int = typer.Option(20, min=1, max=MAX_VIEWS, help="rendered views per asset"),
         calibration: Calibration = typer.Option(Calibration.softmax.value, help="per-signal calibration over the pool"),
-        thresholds: Thresholds = typer.Option(Thresholds("global").value, help="global: one threshold; calibrated: "
-                                              "per description, from the aligned scorer's labelled set"),
+        thresholds: Thresholds = typer.Option(
+            Thresholds("global").value,
+            help="global: one threshold; calibrated: per description, from the aligned scorer's labelled set",
+        ),
         per_category: int = typer.Option(2, min=1, help="procedural variants per category"),
         objaverse_cache: Path = typer.Option(None, help="objaverse / objaverse-xl cache folder (default ~/.objaverse)"),
     ) -> None:
@@ -71,16 +74,25 @@ def register(app: typer.Typer) -> None:
             opts = {"cache_dir": objaverse_cache}
         try:
             src = open_source(source, **opts)
-            config = IngestConfig(n_views=views, scoring=ScoringConfig(
-                image_encoder=Scorer(scorer).value, clip_model=clip_model, calibration=Calibration(calibration).value,
-                thresholds=Thresholds(thresholds).value))
+            config = IngestConfig(
+                n_views=views,
+                scoring=ScoringConfig(
+                    image_encoder=Scorer(scorer).value,
+                    clip_model=clip_model,
+                    calibration=Calibration(calibration).value,
+                    thresholds=Thresholds(thresholds).value,
+                ),
+            )
         except (ValueError, FileNotFoundError) as exc:
             raise UsageError(str(exc)) from None
         with catalog_cli_errors(catalog), _source_errors():
-            report = ingest(src, catalog, config, executor=Executor(executor).value, workers=workers, address=address,
-                            limit=limit)
-        rprint(f"[bold]ingest[/bold] {source} -> {catalog}: written {report.written}, rejected {report.rejected} "
-               f"{report.reasons}, skipped {report.skipped}, duplicates {report.duplicates}")
+            report = ingest(
+                src, catalog, config, executor=Executor(executor).value, workers=workers, address=address, limit=limit
+            )
+        rprint(
+            f"[bold]ingest[/bold] {source} -> {catalog}: written {report.written}, rejected {report.rejected} "
+            f"{report.reasons}, skipped {report.skipped}, duplicates {report.duplicates}"
+        )
 
     @app.command("eval")
     def eval_cmd(
@@ -88,12 +100,16 @@ def register(app: typer.Typer) -> None:
         scorer: Scorer = typer.Option(Scorer.aligned.value, help="image encoder"),
         clip_model: str = typer.Option(None, help="CLIP/BLIP/BLIP-2 weights folder (with --scorer clip|blip|blip2)"),
         objaverse_cache: Path = typer.Option(None, help="evaluate on this objaverse cache's LVIS labels instead"),
-        mesh_set: MeshSet = typer.Option(MeshSet.procedural.value, help="procedural: held-out library variants; "
-                                         "primitives: hand-built meshes the scorer never trained on"),
+        mesh_set: MeshSet = typer.Option(
+            MeshSet.procedural.value,
+            help="procedural: held-out library variants; primitives: hand-built meshes the scorer never trained on",
+        ),
         limit: int = typer.Option(None, min=1, help="at most this many assets"),
         calibration: Calibration = typer.Option(Calibration.softmax.value, help="per-signal calibration over the pool"),
-        thresholds: Thresholds = typer.Option(Thresholds("global").value, help="global: one threshold; calibrated: "
-                                              "per description, from the aligned scorer's labelled set"),
+        thresholds: Thresholds = typer.Option(
+            Thresholds("global").value,
+            help="global: one threshold; calibrated: per description, from the aligned scorer's labelled set",
+        ),
     ) -> None:
         """Retrieval quality (category accuracy, precision@k) on a labelled set."""
         import tempfile
@@ -104,9 +120,14 @@ def register(app: typer.Typer) -> None:
         from retrieval.sources import open_source
 
         try:
-            config = IngestConfig(scoring=ScoringConfig(image_encoder=Scorer(scorer).value, clip_model=clip_model,
-                                                        calibration=Calibration(calibration).value,
-                                                        thresholds=Thresholds(thresholds).value))
+            config = IngestConfig(
+                scoring=ScoringConfig(
+                    image_encoder=Scorer(scorer).value,
+                    clip_model=clip_model,
+                    calibration=Calibration(calibration).value,
+                    thresholds=Thresholds(thresholds).value,
+                )
+            )
         except (ValueError, FileNotFoundError) as exc:
             raise UsageError(str(exc)) from None
         with tempfile.TemporaryDirectory() as tmp, _source_errors():

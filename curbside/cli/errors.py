@@ -55,7 +55,7 @@ def echo_error(message: str) -> None:
 
     line = " ".join(str(message).split())  # one line, whatever the exception's text held
     while line.startswith("error: "):  # a message that already carries the prefix
-        line = line[len("error: "):]
+        line = line[len("error: ") :]
     if len(line) > MAX_LINE:  # a message that quotes a whole input: the start says what is wrong
         line = f"{line[:MAX_LINE]}... ({len(line) - MAX_LINE} more characters)"
     Console(stderr=True, soft_wrap=True).print(Text.assemble(("error: ", "bold red"), line), highlight=False)
@@ -84,7 +84,10 @@ def classify(exc: BaseException) -> tuple[str, int]:
         if extra is not None:
             return missing_line(extra, exc.name.split(".")[0]), 2
     if isinstance(exc, json.JSONDecodeError):
-        return f"invalid JSON ({exc.msg} at line {exc.lineno} column {exc.colno}); pass a JSON object such as '{{\"key\": 1}}'", 2
+        return (
+            f"invalid JSON ({exc.msg} at line {exc.lineno} column {exc.colno}); pass a JSON object such as '{{\"key\": 1}}'",
+            2,
+        )
     if isinstance(exc, FileNotFoundError):
         return f"{exc.filename or text}: no such file or directory; check the path", 2
     if isinstance(exc, NotADirectoryError):
@@ -92,16 +95,20 @@ def classify(exc: BaseException) -> tuple[str, int]:
     if isinstance(exc, FileExistsError):
         return f"{exc.filename or text} already exists and is not a folder; choose another path", 2
     if isinstance(exc, KeyError):
-        return (f"missing key {exc.args[0]!r} in the input (a file or config lacks it; compare it with the format "
-                "the docs give)"), 2
+        return (
+            f"missing key {exc.args[0]!r} in the input (a file or config lacks it; compare it with the format "
+            "the docs give)"
+        ), 2
     if isinstance(exc, IsADirectoryError):
         return f"{exc.filename or text} is a directory; give a file path", 2
     if isinstance(exc, PermissionError):
         return f"{exc.filename or text}: permission denied; choose a writable path", 2
     if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EFBIG, errno.EDQUOT):
         where = f"{exc.filename}: " if exc.filename else ""
-        return (f"{where}could not write: the disk is full or a file passes a size limit; free space or write "
-                "elsewhere, then rerun"), 1
+        return (
+            f"{where}could not write: the disk is full or a file passes a size limit; free space or write "
+            "elsewhere, then rerun"
+        ), 1
     if isinstance(exc, (ValueError, TypeError)):
         return f"{text}", 2
     if isinstance(exc, MemoryError):
@@ -171,8 +178,9 @@ def parse_config_json(config_json: str | None, option: str = "--config") -> dict
     try:
         cfg = json.loads(config_json)
     except json.JSONDecodeError as e:
-        raise UsageError(f"{option} is not valid JSON ({e.msg} at column {e.colno}); pass a JSON object such as "
-                         f"{CONFIG_EXAMPLE}") from None
+        raise UsageError(
+            f"{option} is not valid JSON ({e.msg} at column {e.colno}); pass a JSON object such as {CONFIG_EXAMPLE}"
+        ) from None
     if not isinstance(cfg, dict):
         raise UsageError(f"{option} must be a JSON object, got a JSON {type(cfg).__name__}; pass e.g. {CONFIG_EXAMPLE}")
     return cfg

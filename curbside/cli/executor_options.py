@@ -11,10 +11,14 @@ from curbside.cli.errors import UsageError
 
 # kernel.executors.EXECUTORS, as an Enum so `--help` lists them without importing the kernel's executors.
 Executor = Enum("Executor", {e: e for e in ("local", "process", "ray")}, type=str)  # type: ignore[misc]
-EXECUTOR_HELP = ("Where the work runs: local (this process), process (a pool of --workers processes) or ray (a Ray "
-                 "cluster: --address, or one started here with --workers CPUs). Every executor writes the same bytes.")
-ADDRESS_HELP = ("Ray cluster address with --executor ray: the HEAD:6379 that `ray start --head` prints, or auto "
-                "for the cluster this node joined (default: a local cluster for this run).")
+EXECUTOR_HELP = (
+    "Where the work runs: local (this process), process (a pool of --workers processes) or ray (a Ray "
+    "cluster: --address, or one started here with --workers CPUs). Every executor writes the same bytes."
+)
+ADDRESS_HELP = (
+    "Ray cluster address with --executor ray: the HEAD:6379 that `ray start --head` prints, or auto "
+    "for the cluster this node joined (default: a local cluster for this run)."
+)
 
 
 def executor_option(default: str = "local") -> Any:
@@ -27,8 +31,10 @@ def address_option() -> Any:
     return typer.Option(None, help=ADDRESS_HELP)
 
 
-def workers_option(default: int | None = None, help: str = "Worker processes (process), or items at once on the "
-                   "cluster (ray); default: every core / cluster CPU.") -> Any:
+def workers_option(
+    default: int | None = None,
+    help: str = "Worker processes (process), or items at once on the cluster (ray); default: every core / cluster CPU.",
+) -> Any:
     """The --workers option."""
     return typer.Option(default, min=1, max=1024, help=help)
 

@@ -11,8 +11,11 @@ from curbside.cli.errors import fail
 from curbside.cli.extras import require
 from kernel.config import ConfigError
 
-app = typer.Typer(rich_markup_mode=None, help="Run the MetaUrban paper's experiments (Table 1, 2, 5, ablations, seeds) and report them.",
-                  no_args_is_help=True)
+app = typer.Typer(
+    rich_markup_mode=None,
+    help="Run the MetaUrban paper's experiments (Table 1, 2, 5, ablations, seeds) and report them.",
+    no_args_is_help=True,
+)
 
 
 @app.command("list")
@@ -57,8 +60,9 @@ def report_cmd(
     name: str = typer.Argument(..., help="An experiment name or a path to a .yaml file."),
     budget: str = typer.Option("small", help="The budget whose runs to report."),
     root: Path = typer.Option(Path("outputs/experiments"), help="Where the runs are."),
-    out: Path = typer.Option(Path("benchmarks/results"), help="Reports go to OUT/<experiment>/ (budget small) or "
-                             "OUT/<experiment>/<budget>/."),
+    out: Path = typer.Option(
+        Path("benchmarks/results"), help="Reports go to OUT/<experiment>/ (budget small) or OUT/<experiment>/<budget>/."
+    ),
 ) -> None:
     """Write results.csv (ours beside the paper's numbers) and results.png for the experiment's finished runs."""
     from curbside.experiments.report import write_report
@@ -96,8 +100,10 @@ def release_cmd(
     for path in written:
         typer.echo(f"released {path}")
     if not written:
-        typer.echo(f"no finished run of {name} at budget {budget} yet: run `curbside experiment run {name} --budget "
-                   f"{budget}` first")
+        typer.echo(
+            f"no finished run of {name} at budget {budget} yet: run `curbside experiment run {name} --budget "
+            f"{budget}` first"
+        )
 
 
 @app.command("findings")

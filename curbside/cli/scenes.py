@@ -20,13 +20,19 @@ from curbside.cli.executor_options import (
     workers_option,
 )
 
-app = typer.Typer(rich_markup_mode=None, help="Generate, render and collect urban scenes (scene specs as JSON).", no_args_is_help=True)
+app = typer.Typer(
+    rich_markup_mode=None, help="Generate, render and collect urban scenes (scene specs as JSON).", no_args_is_help=True
+)
 
 
 def _terrain_density_option() -> Any:
     """The --terrain-density option of `generate` and `dataset`."""
-    return typer.Option(1.0, "--terrain-density", help="Terrain patches (tree-root heave, uneven pavers, entrance "
-                        "steps, wet ground): 1 a city's typical share, 0 none, at most 10 (docs/terrain.md).")
+    return typer.Option(
+        1.0,
+        "--terrain-density",
+        help="Terrain patches (tree-root heave, uneven pavers, entrance "
+        "steps, wet ground): 1 a city's typical share, 0 none, at most 10 (docs/terrain.md).",
+    )
 
 
 # Choices as Enums so `--help` lists them and a typo fails before any work (names kept in sync by tests).
@@ -51,7 +57,9 @@ def _catalog(path: Path | None) -> str | None:
         return DEFAULT_CATALOG
     typer.secho(
         f"warning: no catalog given and {DEFAULT_CATALOG} does not exist; objects are default-size boxes "
-        "(build a catalog with `curbside catalog build`)", fg="yellow", err=True,
+        "(build a catalog with `curbside catalog build`)",
+        fg="yellow",
+        err=True,
     )
     return None
 
@@ -83,15 +91,24 @@ def generate(
     blocks: str = typer.Option("3", help="Number of blocks (1-64), or block codes such as SXC (S, C, X, T, O)."),
     seed: int = typer.Option(0, min=0, max=MAX_SEED, help="Random seed."),
     templates: str = typer.Option("abcdef", help="Sidewalk templates to draw from (a-g)."),
-    object_density: float = typer.Option(1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."),
+    object_density: float = typer.Option(
+        1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."
+    ),
     country: str | None = typer.Option(None, help="ISO country code of the category distribution (default: uniform)."),
     catalog: Path | None = typer.Option(None, help=f"Asset catalog (default: {DEFAULT_CATALOG} if present)."),
-    crosswalk_density: float = typer.Option(0.5, "--crosswalk-density",
-                                            help="Fraction of crosswalk candidates built, in [0, 1]."),
+    crosswalk_density: float = typer.Option(
+        0.5, "--crosswalk-density", help="Fraction of crosswalk candidates built, in [0, 1]."
+    ),
     terrain_density: float = _terrain_density_option(),
-    from_file: Path | None = typer.Option(None, "--from", exists=True, dir_okay=False, readable=True,
-                                          help="A custom scene YAML (blocks, templates, object pool and density, "
-                                          "named objects, agent groups; docs/scenes.md) instead of the options."),
+    from_file: Path | None = typer.Option(
+        None,
+        "--from",
+        exists=True,
+        dir_okay=False,
+        readable=True,
+        help="A custom scene YAML (blocks, templates, object pool and density, "
+        "named objects, agent groups; docs/scenes.md) instead of the options.",
+    ),
 ) -> None:
     """Generate one scene spec."""
     import warnings
@@ -101,13 +118,22 @@ def generate(
 
     _file_out(out, "scene.json")
     if from_file is not None:
-        given = [name for name, value, default in (("--blocks", blocks, "3"), ("--seed", seed, 0),
-                                                   ("--templates", templates, "abcdef"),
-                                                   ("--object-density", object_density, 1.0), ("--country", country, None))
-                 if value != default]
+        given = [
+            name
+            for name, value, default in (
+                ("--blocks", blocks, "3"),
+                ("--seed", seed, 0),
+                ("--templates", templates, "abcdef"),
+                ("--object-density", object_density, 1.0),
+                ("--country", country, None),
+            )
+            if value != default
+        ]
         if given:
-            raise UsageError(f"--from takes the scene's settings from its file; drop {', '.join(given)} (or set them "
-                             "in the file: blocks, templates, seed, objects.density, objects.country)")
+            raise UsageError(
+                f"--from takes the scene's settings from its file; drop {', '.join(given)} (or set them "
+                "in the file: blocks, templates, seed, objects.density, objects.country)"
+            )
         from sim.scene.custom import generate_custom, generator_config, load_custom
 
         custom = load_custom(from_file)
@@ -117,11 +143,19 @@ def generate(
             spec = generate_custom(custom, _catalog(catalog))
         save(spec, out)
         agents = sum(spec.get("agents", {}).values())
-        typer.echo(f"{out}: blocks {spec['stats']['blocks']}, {len(spec['objects'])} objects "
-                   f"({len(custom['place'])} named), {agents} agents in groups")
+        typer.echo(
+            f"{out}: blocks {spec['stats']['blocks']}, {len(spec['objects'])} objects "
+            f"({len(custom['place'])} named), {agents} agents in groups"
+        )
         return
-    cfg = {"blocks": _blocks(blocks), "templates": templates, "object_density": object_density,
-           "country": country, "crosswalk_density": crosswalk_density, "terrain": {"density": terrain_density}}
+    cfg = {
+        "blocks": _blocks(blocks),
+        "templates": templates,
+        "object_density": object_density,
+        "country": country,
+        "crosswalk_density": crosswalk_density,
+        "terrain": {"density": terrain_density},
+    }
     resolve_config(cfg)  # a bad value (NaN, out of range) fails here, before the catalog warning or any work
     cat = _catalog(catalog)
     with _catalog_errors(), warnings.catch_warnings(record=True):
@@ -130,10 +164,16 @@ def generate(
     save(spec, out)
     st = spec["stats"]
     if st["fallback_categories"]:
-        typer.secho(f"warning: default-size boxes for {', '.join(st['fallback_categories'])} (not in the catalog)", fg="yellow", err=True)
-    typer.echo(f"{out}: blocks {st['blocks']}, {st['sidewalks']} sidewalks, {st['crosswalks']} crosswalks, "
-               f"{st['objects']} objects ({st['refused_total']} refused), {len(spec['terrain'])} terrain patches, "
-               f"street {st['street_length_m']:.0f} m")
+        typer.secho(
+            f"warning: default-size boxes for {', '.join(st['fallback_categories'])} (not in the catalog)",
+            fg="yellow",
+            err=True,
+        )
+    typer.echo(
+        f"{out}: blocks {st['blocks']}, {st['sidewalks']} sidewalks, {st['crosswalks']} crosswalks, "
+        f"{st['objects']} objects ({st['refused_total']} refused), {len(spec['terrain'])} terrain patches, "
+        f"street {st['street_length_m']:.0f} m"
+    )
 
 
 @app.command()
@@ -154,19 +194,29 @@ def render(
 @app.command()
 def dataset(
     out: Path = typer.Option(..., "--out", "-o", help="Output folder (scenes/*.json, index.jsonl, index.parquet)."),
-    split: Split = typer.Option("train", help="train | test (templates a-f) | unseen | finetune (template g, held-out categories)."),
+    split: Split = typer.Option(
+        "train", help="train | test (templates a-f) | unseen | finetune (template g, held-out categories)."
+    ),
     count: int = typer.Option(100, min=1, max=MAX_COUNT, help="Number of scenes."),
     blocks: str = typer.Option("3", help="Blocks per scene (count 1-64 or codes)."),
-    object_density: float = typer.Option(1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."),
+    object_density: float = typer.Option(
+        1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."
+    ),
     terrain_density: float = _terrain_density_option(),
     catalog: Path | None = typer.Option(None, help=f"Asset catalog (default: {DEFAULT_CATALOG} if present)."),
-    workers: int | None = workers_option(help="Worker processes (process; default: every core), or scenes at once "
-                                         "on the cluster (ray; default: every cluster CPU)."),
-    executor: Executor | None = typer.Option(None, help=EXECUTOR_HELP + " Default: process with --workers > 1, "
-                                             "else local."),
+    workers: int | None = workers_option(
+        help="Worker processes (process; default: every core), or scenes at once "
+        "on the cluster (ray; default: every cluster CPU)."
+    ),
+    executor: Executor | None = typer.Option(
+        None, help=EXECUTOR_HELP + " Default: process with --workers > 1, else local."
+    ),
     address: str | None = address_option(),
-    preset: Preset = typer.Option("metaurban12k", help="Scene preset: metaurban12k (the paper's density, the "
-                                  "default) or none (the generator's plain defaults, sparser scenes)."),
+    preset: Preset = typer.Option(
+        "metaurban12k",
+        help="Scene preset: metaurban12k (the paper's density, the "
+        "default) or none (the generator's plain defaults, sparser scenes).",
+    ),
 ) -> None:
     """Generate a MetaUrban-12K-style split: one JSON per scene plus an index of per-scene summaries.
 
@@ -202,13 +252,28 @@ def dataset(
     resolve_config(split_config(split.value, base)[0])  # bad values fail before the catalog warning and the bar
     cat = _catalog(catalog)
     t0 = time.perf_counter()
-    cols = (TextColumn(f"[bold]{split.value}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn())
+    cols = (
+        TextColumn(f"[bold]{split.value}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+    )
     nodes: dict[str, int] = {}
     with _catalog_errors(), Progress(*cols) as bar:
         task = bar.add_task(split.value, total=count)
-        rows = build_dataset(split.value, count, out, base=base,
-                             catalog=cat, workers=workers, progress=lambda n: bar.advance(task, n),
-                             executor=ex, address=address, nodes=nodes)
+        rows = build_dataset(
+            split.value,
+            count,
+            out,
+            base=base,
+            catalog=cat,
+            workers=workers,
+            progress=lambda n: bar.advance(task, n),
+            executor=ex,
+            address=address,
+            nodes=nodes,
+        )
     dt = time.perf_counter() - t0
     objs = sum(r["objects"] for r in rows)
     where = f", on {len(nodes)} Ray node(s)" if ex == "ray" else ""
@@ -217,18 +282,25 @@ def dataset(
 
 @app.command()
 def stats(
-    directory: Path = typer.Argument(..., exists=True, file_okay=False, help="Dataset folder written by `curbside scenes dataset`."),
+    directory: Path = typer.Argument(
+        ..., exists=True, file_okay=False, help="Dataset folder written by `curbside scenes dataset`."
+    ),
     vs_paper: bool = typer.Option(False, "--vs-paper", help="Print each MetaUrban-12K statistic beside ours (+ PNG)."),
-    route_preset: RoutePreset = typer.Option("metaurban12k", help="Routes and agent density for --vs-paper: short (the "
-                                     "default tasks) or metaurban12k (the paper-scale preset)."),
+    route_preset: RoutePreset = typer.Option(
+        "metaurban12k",
+        help="Routes and agent density for --vs-paper: short (the "
+        "default tasks) or metaurban12k (the paper-scale preset).",
+    ),
     seed: int = typer.Option(0, min=0, help="Seed of the route draws (--vs-paper)."),
 ) -> None:
     """Write a dataset's statistics (objects per scene, object area, street length) as PNG and JSON."""
     from sim.scene.dataset import dataset_stats
 
     st, png, js = dataset_stats(directory)
-    typer.echo(f"{st['scenes']} scenes: objects {st['objects']['mean']:.1f}±{st['objects']['std']:.1f}, "
-               f"object area {st['object_area_m2']['mean']:.1f} m², street {st['street_length_m']['mean']:.0f} m")
+    typer.echo(
+        f"{st['scenes']} scenes: objects {st['objects']['mean']:.1f}±{st['objects']['std']:.1f}, "
+        f"object area {st['object_area_m2']['mean']:.1f} m², street {st['street_length_m']['mean']:.0f} m"
+    )
     typer.echo(f"{png}\n{js}")
     if not vs_paper:
         return
@@ -245,15 +317,27 @@ def stats(
     from sim.tasks.socialnav import PRESETS as SOCIALNAV_PRESETS
 
     density = SOCIALNAV_PRESETS.get(route_preset, {}).get("agents", {}).get("dynamic_density")
-    result = dataset_vs_paper(directory, seed=seed, route_length=tuple(ROUTE_LENGTHS[route_preset]),
-                              agent_density=density, progress=lambda n: next(bar, None))
-    table = Table(title=f"{result['scenes']} scenes vs MetaUrban-12K (routes drawn in {result['route_length']} m); "
-                        "meets: within 25 % of the paper's mean, or its bound for >= and >")
+    result = dataset_vs_paper(
+        directory,
+        seed=seed,
+        route_length=tuple(ROUTE_LENGTHS[route_preset]),
+        agent_density=density,
+        progress=lambda n: next(bar, None),
+    )
+    table = Table(
+        title=f"{result['scenes']} scenes vs MetaUrban-12K (routes drawn in {result['route_length']} m); "
+        "meets: within 25 % of the paper's mean, or its bound for >= and >"
+    )
     for col in ("statistic", "curbside (min-max)", "paper", "ratio", "meets"):
         table.add_column(col, justify="left" if col == "statistic" else "right")
     for k, row in result["table"].items():
-        table.add_row(LABELS[k], f"{row['ours']:.3g} ({row['min']:.3g}-{row['max']:.3g})", row["paper_text"],
-                      f"{row['ratio']:.2f}", "yes" if row["meets"] else "no")
+        table.add_row(
+            LABELS[k],
+            f"{row['ours']:.3g} ({row['min']:.3g}-{row['max']:.3g})",
+            row["paper_text"],
+            f"{row['ratio']:.2f}",
+            "yes" if row["meets"] else "no",
+        )
     Console(width=max(Console().width, 110)).print(table)
     js2, png2 = write_vs_paper(result, directory)
     typer.echo(f"{png2}\n{js2}")

@@ -17,14 +17,23 @@ from curbside.cli.executor_options import (
     workers_option,
 )
 
-app = typer.Typer(rich_markup_mode=None, help="Run, evaluate, render and benchmark the PyBullet simulator.", no_args_is_help=True)
+app = typer.Typer(
+    rich_markup_mode=None, help="Run, evaluate, render and benchmark the PyBullet simulator.", no_args_is_help=True
+)
 
 # Task names on the command line -> Gymnasium env ids (SocialNav is added by sim.envs.socialnav).
 TASKS = {"PointNav": "curbside/PointNav-v0", "SocialNav": "curbside/SocialNav-v0"}
 POLICIES = ("expert", "random")
 # The names of sim.machines.MACHINES, listed here so `--help` does not import pybullet (a test keeps them equal).
-MACHINE_NAMES = ("delivery_bot", "delivery_bot_mod1", "delivery_bot_mod2", "wheelchair", "mobility_scooter",
-                 "robot_dog", "humanoid")
+MACHINE_NAMES = (
+    "delivery_bot",
+    "delivery_bot_mod1",
+    "delivery_bot_mod2",
+    "wheelchair",
+    "mobility_scooter",
+    "robot_dog",
+    "humanoid",
+)
 MAX_SEED = 2**31 - 1  # episode seeds seed..seed+N-1 must stay valid numpy seeds
 # bench --machine/--task defaults equal sim.tasks.pointnav.DEFAULT_CONFIG's machine and run_bench's (literals so
 # `--help` does not import sim): tests/cli/test_cli_defaults.py keeps them equal.
@@ -65,8 +74,11 @@ def eval_cmd(
     scene_path: Path | None = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of generated scenes."),
     config: str | None = typer.Option(None, help="Extra env config as a JSON object."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
-    out: Path | None = typer.Option(None, "--out", help="Also write the summary (metrics.json) and one row per "
-                                       "episode (episodes.csv) into this folder."),
+    out: Path | None = typer.Option(
+        None,
+        "--out",
+        help="Also write the summary (metrics.json) and one row per episode (episodes.csv) into this folder.",
+    ),
     executor: Executor = executor_option(),
     workers: int | None = workers_option(),
     address: str | None = address_option(),
@@ -85,15 +97,26 @@ def eval_cmd(
     env_id = TASKS[task.value]
     cfg = _env_config(machine, scene_path, config)
     _check_env(env_id, cfg)
-    summary = evaluate(env_id, policy.value, episodes, cfg, seed=seed, progress=not as_json, executor=ex,
-                       workers=workers, address=address)
+    summary = evaluate(
+        env_id,
+        policy.value,
+        episodes,
+        cfg,
+        seed=seed,
+        progress=not as_json,
+        executor=ex,
+        workers=workers,
+        address=address,
+    )
     if out is not None:
         write_eval(summary, out)
     if as_json:
         typer.echo(json.dumps(summary, sort_keys=True))
         return
-    typer.echo(f"{task.value} {policy.value} over {summary['episodes']} episodes: "
-               f"SR {summary['sr']:.3f}  SPL {summary['spl']:.3f}  Cost {summary['cost']:.2f}")
+    typer.echo(
+        f"{task.value} {policy.value} over {summary['episodes']} episodes: "
+        f"SR {summary['sr']:.3f}  SPL {summary['spl']:.3f}  Cost {summary['cost']:.2f}"
+    )
     for k, v in sorted(summary.items()):
         if k not in ("sr", "spl", "cost", "episodes") and isinstance(v, float):
             typer.echo(f"  {k}: {v:.3f}")
@@ -101,7 +124,9 @@ def eval_cmd(
 
 @app.command("rollout")
 def rollout_cmd(
-    out: Path = typer.Option(Path("outputs/rollout.gif"), help="GIF to write (a .png next to it holds the last frame)."),
+    out: Path = typer.Option(
+        Path("outputs/rollout.gif"), help="GIF to write (a .png next to it holds the last frame)."
+    ),
     task: Task = typer.Option("PointNav", help="Task to run."),
     policy: Policy = typer.Option("expert", help="expert or random."),
     machine: MachineName | None = typer.Option(None, help="Machine (default: the task's)."),
@@ -109,8 +134,12 @@ def rollout_cmd(
     scene_path: Path | None = typer.Option(None, **SCENE_PATH, help="A scene spec JSON instead of a generated scene."),
     config: str | None = typer.Option(None, help="Extra env config as a JSON object."),
     chase: bool = typer.Option(True, help="Add the chase-camera view next to the map."),
-    video: Path | None = typer.Option(None, "--video", help="Write an MP4 of the env's dashboard (chase view, map, "
-                                         "camera panels, metrics) through Gymnasium's RecordVideo instead of the GIF."),
+    video: Path | None = typer.Option(
+        None,
+        "--video",
+        help="Write an MP4 of the env's dashboard (chase view, map, "
+        "camera panels, metrics) through Gymnasium's RecordVideo instead of the GIF.",
+    ),
     metrics_out: Path | None = typer.Option(None, help="Also write the episode's metrics as JSON here."),
 ) -> None:
     """Run one episode and write an animated GIF: top-down map with route and trajectory (+ chase camera), or with
@@ -136,8 +165,10 @@ def rollout_cmd(
     if metrics_out:
         metrics_out.parent.mkdir(parents=True, exist_ok=True)
         metrics_out.write_text(json.dumps(metrics, indent=2, sort_keys=True))
-    typer.echo(f"wrote {out} (success {metrics['success']:.0f}, route completion {metrics['route_completion']:.2f}, "
-               f"steps {metrics['steps']:.0f})")
+    typer.echo(
+        f"wrote {out} (success {metrics['success']:.0f}, route completion {metrics['route_completion']:.2f}, "
+        f"steps {metrics['steps']:.0f})"
+    )
 
 
 @app.command("bench")
@@ -146,8 +177,11 @@ def bench_cmd(
     task: Task = typer.Option("PointNav", "--task", help="PointNav, or SocialNav (20 agents + traffic)."),
     machine: MachineName = typer.Option("delivery_bot", help="Machine to drive."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
-    cameras: bool = typer.Option(False, "--cameras", help="Steps/s with each ego-camera modality instead (rgb, "
-                                 "depth, semantic, all three) beside no camera."),
+    cameras: bool = typer.Option(
+        False,
+        "--cameras",
+        help="Steps/s with each ego-camera modality instead (rgb, depth, semantic, all three) beside no camera.",
+    ),
     size: int = typer.Option(128, "--size", min=8, max=2048, help="Camera width and height in pixels (--cameras)."),
     renderer: Renderer = typer.Option("tiny", "--renderer", help="tiny (CPU) or egl (GPU) (--cameras)."),
 ) -> None:
@@ -158,8 +192,9 @@ def bench_cmd(
     from sim.bench import run_bench, run_camera_bench
 
     if cameras:
-        result = run_camera_bench(quick=quick, machine=machine.value, size=size, renderer=renderer.value,
-                                  task=task.value)
+        result = run_camera_bench(
+            quick=quick, machine=machine.value, size=size, renderer=renderer.value, task=task.value
+        )
     else:
         result = run_bench(quick=quick, machine=machine.value, task=task.value)
     if as_json:
@@ -175,12 +210,20 @@ Device = Enum("Device", {k: k for k in ("keyboard", "gamepad", "wheel")}, type=s
 @app.command("teleop")
 def teleop_cmd(
     task: Task = typer.Option("PointNav", help="Task to drive."),
-    device: Device = typer.Option("keyboard", help="keyboard (arrows/WASD, R ends the episode, Esc stops), gamepad "
-                                  "or wheel (the first pygame joystick)."),
-    mapping: Path | None = typer.Option(None, exists=True, dir_okay=False, help="JSON axis map over the device's "
-                                           "preset (steer_axis, throttle_axis, brake_axis, invert_*, pedals, deadzone)."),
-    out: Path = typer.Option(Path("outputs/demos"), help="Minari datasets root; episodes go to "
-                             "OUT/curbside/<task>-teleop-v0."),
+    device: Device = typer.Option(
+        "keyboard",
+        help="keyboard (arrows/WASD, R ends the episode, Esc stops), gamepad or wheel (the first pygame joystick).",
+    ),
+    mapping: Path | None = typer.Option(
+        None,
+        exists=True,
+        dir_okay=False,
+        help="JSON axis map over the device's "
+        "preset (steer_axis, throttle_axis, brake_axis, invert_*, pedals, deadzone).",
+    ),
+    out: Path = typer.Option(
+        Path("outputs/demos"), help="Minari datasets root; episodes go to OUT/curbside/<task>-teleop-v0."
+    ),
     episodes: int | None = typer.Option(None, min=1, help="Stop after this many episodes (default: until Esc)."),
     machine: MachineName | None = typer.Option(None, help="Machine (default: the task's)."),
     seed: int = typer.Option(0, min=0, max=MAX_SEED, help="First episode's seed."),
@@ -194,7 +237,10 @@ def teleop_cmd(
     env_id = TASKS[task.value]
     cfg = _env_config(machine, scene_path, config)
     _check_env(env_id, cfg)
-    summary = teleop(task.value, out, device=device.value, mapping_file=mapping, env_config=cfg, episodes=episodes,
-                     seed=seed)
-    typer.echo(f"wrote {summary['path']}: {summary['episodes']} episode(s), {summary['steps']} steps, success rate "
-               f"{summary['success_rate']:.2f}")
+    summary = teleop(
+        task.value, out, device=device.value, mapping_file=mapping, env_config=cfg, episodes=episodes, seed=seed
+    )
+    typer.echo(
+        f"wrote {summary['path']}: {summary['episodes']} episode(s), {summary['steps']} steps, success rate "
+        f"{summary['success_rate']:.2f}"
+    )

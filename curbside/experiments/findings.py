@@ -67,14 +67,18 @@ def _cost(t: Table, task: str, method: str, split: str) -> float | None:
 
 
 def _far_from_solved(t: Table) -> dict[str, Any]:
-    best = {task: max((v for m in METHODS if (v := _sr(t, task, m, "test")) is not None), default=None)
-            for task in ("PointNav", "SocialNav")}
+    best = {
+        task: max((v for m in METHODS if (v := _sr(t, task, m, "test")) is not None), default=None)
+        for task in ("PointNav", "SocialNav")
+    }
     found = [v for v in best.values() if v is not None]
     if len(found) < len(best):
         return {"reproduced": None, "ours": best}
-    return {"reproduced": all(v < FAR_FROM_SOLVED for v in found), "ours": {f"best_test_sr_{k}": v
-                                                                           for k, v in best.items()},
-            "paper": {"best_test_sr_PointNav": 0.66, "best_test_sr_SocialNav": 0.36}}
+    return {
+        "reproduced": all(v < FAR_FROM_SOLVED for v in found),
+        "ours": {f"best_test_sr_{k}": v for k, v in best.items()},
+        "paper": {"best_test_sr_PointNav": 0.66, "best_test_sr_SocialNav": 0.36},
+    }
 
 
 def _unseen_below_test(t: Table) -> dict[str, Any]:
@@ -82,8 +86,11 @@ def _unseen_below_test(t: Table) -> dict[str, Any]:
     ours = {"ppo_pointnav_test_sr": test, "ppo_pointnav_unseen_sr": unseen}
     if test is None or unseen is None:
         return {"reproduced": None, "ours": ours}
-    return {"reproduced": unseen < test and unseen >= 0.5 * test, "ours": ours,
-            "paper": {"ppo_pointnav_test_sr": 0.66, "ppo_pointnav_unseen_sr": 0.49}}
+    return {
+        "reproduced": unseen < test and unseen >= 0.5 * test,
+        "ours": ours,
+        "paper": {"ppo_pointnav_test_sr": 0.66, "ppo_pointnav_unseen_sr": 0.49},
+    }
 
 
 def _socialnav_harder(t: Table) -> dict[str, Any]:
@@ -98,9 +105,17 @@ def _socialnav_harder(t: Table) -> dict[str, Any]:
     harder = sum(s < p for p, s in have.values())
     mean_p = sum(p for p, _ in have.values()) / len(have)
     mean_s = sum(s for _, s in have.values()) / len(have)
-    return {"reproduced": harder >= 5 and mean_s < mean_p, "ours": {**ours, "methods_harder": harder},
-            "paper": {m: {"PointNav": paper.PAPER_TABLE1[("PointNav", "test", m)]["sr"],
-                          "SocialNav": paper.PAPER_TABLE1[("SocialNav", "test", m)]["sr"]} for m in METHODS}}
+    return {
+        "reproduced": harder >= 5 and mean_s < mean_p,
+        "ours": {**ours, "methods_harder": harder},
+        "paper": {
+            m: {
+                "PointNav": paper.PAPER_TABLE1[("PointNav", "test", m)]["sr"],
+                "SocialNav": paper.PAPER_TABLE1[("SocialNav", "test", m)]["sr"],
+            }
+            for m in METHODS
+        },
+    }
 
 
 def _safe_rl(t: Table) -> dict[str, Any]:
@@ -114,22 +129,34 @@ def _safe_rl(t: Table) -> dict[str, Any]:
             if sr is None or cost is None or base_sr is None or base_cost is None:
                 return {"reproduced": None, "ours": ours}
             ok &= cost < base_cost and sr <= base_sr
-    return {"reproduced": ok, "ours": ours,
-            "paper": {f"{task}_{m}": {k: paper.PAPER_TABLE1[(task, "test", m)][k] for k in ("sr", "cost")}
-                      for task in ("PointNav", "SocialNav") for m in ("ppo", "ppo_lag", "ppo_et")}}
+    return {
+        "reproduced": ok,
+        "ours": ours,
+        "paper": {
+            f"{task}_{m}": {k: paper.PAPER_TABLE1[(task, "test", m)][k] for k in ("sr", "cost")}
+            for task in ("PointNav", "SocialNav")
+            for m in ("ppo", "ppo_lag", "ppo_et")
+        },
+    }
 
 
 def _scaling(t: Table) -> dict[str, Any]:
-    points = sorted((int(setting), cell["sr"]) for (_, _, split, setting), cell in t.items()
-                    if split == "test" and setting.isdigit() and "sr" in cell)
+    points = sorted(
+        (int(setting), cell["sr"])
+        for (_, _, split, setting), cell in t.items()
+        if split == "test" and setting.isdigit() and "sr" in cell
+    )
     ours = {str(n): sr for n, sr in points}
     if len(points) < 2:
         return {"reproduced": None, "ours": ours}
     xs, ys = [math.log(n) for n, _ in points], [sr for _, sr in points]
     mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
     slope = sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / max(sum((x - mx) ** 2 for x in xs), 1e-12)
-    return {"reproduced": ys[-1] > ys[0] and slope > 0, "ours": {**ours, "slope_per_log_scene": slope},
-            "paper": {str(n): c["sr"] for n, c in paper.PAPER_ABLATION_SCALING.items()}}
+    return {
+        "reproduced": ys[-1] > ys[0] and slope > 0,
+        "ours": {**ours, "slope_per_log_scene": slope},
+        "paper": {str(n): c["sr"] for n, c in paper.PAPER_ABLATION_SCALING.items()},
+    }
 
 
 def _density(static: Table, dynamic: Table) -> dict[str, Any]:
@@ -137,8 +164,10 @@ def _density(static: Table, dynamic: Table) -> dict[str, Any]:
     ok = True
     for name, t in (("static", static), ("dynamic", dynamic)):
         for split in ("train", "test"):
-            low, high = (next((c["sr"] for (_, _, sp, st), c in t.items() if sp == split and st == s and "sr" in c),
-                              None) for s in ("0.01", "1.0"))
+            low, high = (
+                next((c["sr"] for (_, _, sp, st), c in t.items() if sp == split and st == s and "sr" in c), None)
+                for s in ("0.01", "1.0")
+            )
             ours[f"{name}_{split}"] = {"density_1pc": low, "density_100pc": high}
             if low is None or high is None:
                 return {"reproduced": None, "ours": ours}
@@ -152,8 +181,11 @@ def _finetune(t: Table) -> dict[str, Any]:
     ours = {"setting3_scratch_sr": scratch, "setting4_pretrained_sr": pretrained}
     if scratch is None or pretrained is None:
         return {"reproduced": None, "ours": ours}
-    return {"reproduced": pretrained > scratch, "ours": ours,
-            "paper": {k: v.get("sr") for k, v in paper.PAPER_ABLATION_GENERALISATION.items()}}
+    return {
+        "reproduced": pretrained > scratch,
+        "ours": ours,
+        "paper": {k: v.get("sr") for k, v in paper.PAPER_ABLATION_GENERALISATION.items()},
+    }
 
 
 def _machines(t: Table) -> dict[str, Any]:
@@ -167,8 +199,11 @@ def _machines(t: Table) -> dict[str, Any]:
         return {"reproduced": None, "ours": ours}
     ranked = sorted(ours, key=lambda m: ours[m], reverse=True)
     ok = ranked[0] == "delivery_bot_mod1" and set(ranked[-2:]) == {"delivery_bot_mod2", "wheelchair"}
-    return {"reproduced": ok, "ours": {**ours, "ranking": ranked},
-            "paper": {m: sum(c["sr"] for c in paper.PAPER_TABLE2[m].values()) / 2 for m in need}}
+    return {
+        "reproduced": ok,
+        "ours": {**ours, "ranking": ranked},
+        "paper": {m: sum(c["sr"] for c in paper.PAPER_TABLE2[m].values()) / 2 for m in need},
+    }
 
 
 def _long_routes(t: Table) -> dict[str, Any]:
@@ -177,8 +212,11 @@ def _long_routes(t: Table) -> dict[str, Any]:
     ours = {"trained_10m_sr": short, "trained_410m_sr": long}
     if short is None or long is None:
         return {"reproduced": None, "ours": ours}
-    return {"reproduced": long > short, "ours": ours,
-            "paper": {k: v["sr"] for k, v in paper.PAPER_TABLE5_HORIZON.items()}}
+    return {
+        "reproduced": long > short,
+        "ours": ours,
+        "paper": {k: v["sr"] for k, v in paper.PAPER_TABLE5_HORIZON.items()},
+    }
 
 
 def _pedestrians(t: Table) -> dict[str, Any]:
@@ -186,13 +224,24 @@ def _pedestrians(t: Table) -> dict[str, Any]:
     one, two, three = sr["1"], sr["2"], sr["3"]
     if one is None or two is None or three is None:
         return {"reproduced": None, "ours": sr}
-    return {"reproduced": two < one and three < one, "ours": sr,
-            "paper": {k: v["sr"] for k, v in paper.PAPER_TABLE5_PEDESTRIANS.items()}}
+    return {
+        "reproduced": two < one and three < one,
+        "ours": sr,
+        "paper": {k: v["sr"] for k, v in paper.PAPER_TABLE5_PEDESTRIANS.items()},
+    }
 
 
 def _tables(root: Path) -> dict[str, Table]:
-    names = ("table1_paper", "table2", "table5_horizon", "table5_pedestrians", "ablation_generalisation",
-             "ablation_scaling", "ablation_static_density", "ablation_dynamic_density")
+    names = (
+        "table1_paper",
+        "table2",
+        "table5_horizon",
+        "table5_pedestrians",
+        "ablation_generalisation",
+        "ablation_scaling",
+        "ablation_static_density",
+        "ablation_dynamic_density",
+    )
     return {n: read_table(root / n / "results.csv") for n in names}
 
 
@@ -201,33 +250,76 @@ def findings(root: Path = RESULTS) -> list[dict[str, Any]]:
     t = _tables(Path(root))
     table1 = t["table1_paper"]
     items = [
-        (1, "The tasks are far from solved: best test SR 66 % (PointNav) and 36 % (SocialNav).", "table1_paper",
-         f"the best method's test SR is below {FAR_FROM_SOLVED} on both tasks", lambda: _far_from_solved(table1)),
-        (2, "Unseen is lower than test but generalises (PointNav PPO 49 % vs 66 %).", "table1_paper",
-         "PPO PointNav unseen SR below its test SR and at least half of it", lambda: _unseen_below_test(table1)),
-        (3, "SocialNav is much harder than PointNav for every method.", "table1_paper",
-         "SocialNav test SR below PointNav's for at least 5 of the 7 methods, and on average",
-         lambda: _socialnav_harder(table1)),
-        (4, "Safe RL (PPO-Lag, PPO-ET) lowers cost at some cost in SR.", "table1_paper",
-         "on both tasks, PPO-Lag and PPO-ET have a lower test cost than PPO and no higher SR",
-         lambda: _safe_rl(table1)),
-        (5, "More training scenes give a higher test SR (5 -> 1,000 scenes: 12 % -> 46 %).", "ablation_scaling",
-         "test SR at the most scenes above that at the fewest, and a positive slope over log(scenes)",
-         lambda: _scaling(t["ablation_scaling"])),
-        (6, "Higher static or dynamic density gives a lower SR.", "ablation_static_density, ablation_dynamic_density",
-         "for static and dynamic density, train and test SR at 100 % below those at 1 %",
-         lambda: _density(t["ablation_static_density"], t["ablation_dynamic_density"])),
-        (7, "Fine-tuning a pretrained policy beats training from scratch on the finetune split.",
-         "ablation_generalisation", "setting 4 (pretrained, fine-tuned) SR above setting 3 (scratch)",
-         lambda: _finetune(t["ablation_generalisation"])),
-        (8, "Machine design changes learning: mod-1 best, wheelchair and mod-2 worst.", "table2",
-         "mean test SR over S and X: mod-1 first, wheelchair and mod-2 the last two",
-         lambda: _machines(t["table2"])),
-        (9, "Training on long routes is what makes long routes solvable.", "table5_horizon",
-         "the 410 m-trained model's test SR above the 10 m-trained model's", lambda: _long_routes(t["table5_horizon"])),
-        (10, "Fewer pedestrians, or pedestrians only at intersections, in training give a worse SocialNav test SR.",
-         "table5_pedestrians", "settings 2 and 3 below setting 1 on the test split",
-         lambda: _pedestrians(t["table5_pedestrians"])),
+        (
+            1,
+            "The tasks are far from solved: best test SR 66 % (PointNav) and 36 % (SocialNav).",
+            "table1_paper",
+            f"the best method's test SR is below {FAR_FROM_SOLVED} on both tasks",
+            lambda: _far_from_solved(table1),
+        ),
+        (
+            2,
+            "Unseen is lower than test but generalises (PointNav PPO 49 % vs 66 %).",
+            "table1_paper",
+            "PPO PointNav unseen SR below its test SR and at least half of it",
+            lambda: _unseen_below_test(table1),
+        ),
+        (
+            3,
+            "SocialNav is much harder than PointNav for every method.",
+            "table1_paper",
+            "SocialNav test SR below PointNav's for at least 5 of the 7 methods, and on average",
+            lambda: _socialnav_harder(table1),
+        ),
+        (
+            4,
+            "Safe RL (PPO-Lag, PPO-ET) lowers cost at some cost in SR.",
+            "table1_paper",
+            "on both tasks, PPO-Lag and PPO-ET have a lower test cost than PPO and no higher SR",
+            lambda: _safe_rl(table1),
+        ),
+        (
+            5,
+            "More training scenes give a higher test SR (5 -> 1,000 scenes: 12 % -> 46 %).",
+            "ablation_scaling",
+            "test SR at the most scenes above that at the fewest, and a positive slope over log(scenes)",
+            lambda: _scaling(t["ablation_scaling"]),
+        ),
+        (
+            6,
+            "Higher static or dynamic density gives a lower SR.",
+            "ablation_static_density, ablation_dynamic_density",
+            "for static and dynamic density, train and test SR at 100 % below those at 1 %",
+            lambda: _density(t["ablation_static_density"], t["ablation_dynamic_density"]),
+        ),
+        (
+            7,
+            "Fine-tuning a pretrained policy beats training from scratch on the finetune split.",
+            "ablation_generalisation",
+            "setting 4 (pretrained, fine-tuned) SR above setting 3 (scratch)",
+            lambda: _finetune(t["ablation_generalisation"]),
+        ),
+        (
+            8,
+            "Machine design changes learning: mod-1 best, wheelchair and mod-2 worst.",
+            "table2",
+            "mean test SR over S and X: mod-1 first, wheelchair and mod-2 the last two",
+            lambda: _machines(t["table2"]),
+        ),
+        (
+            9,
+            "Training on long routes is what makes long routes solvable.",
+            "table5_horizon",
+            "the 410 m-trained model's test SR above the 10 m-trained model's",
+            lambda: _long_routes(t["table5_horizon"]),
+        ),
+        (
+            10,
+            "Fewer pedestrians, or pedestrians only at intersections, in training give a worse SocialNav test SR.",
+            "table5_pedestrians",
+            "settings 2 and 3 below setting 1 on the test split",
+            lambda: _pedestrians(t["table5_pedestrians"]),
+        ),
     ]
     out = []
     for number, claim, experiment, rule, check in items:
@@ -235,8 +327,10 @@ def findings(root: Path = RESULTS) -> list[dict[str, Any]]:
         entry = {"finding": number, "claim": claim, "experiment": experiment, "rule": rule, **result}
         if result["reproduced"] is None:
             first = experiment.split(",")[0]
-            entry["why"] = (f"not run yet: curbside experiment run {first} --budget small && curbside experiment "
-                            f"report {first} --budget small")
+            entry["why"] = (
+                f"not run yet: curbside experiment run {first} --budget small && curbside experiment "
+                f"report {first} --budget small"
+            )
         out.append(entry)
     return out
 
@@ -246,11 +340,19 @@ def write_findings(root: Path = RESULTS) -> Path:
     items = findings(root)
     path = Path(root) / "findings.json"
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps({
-        "reproduced": sum(f["reproduced"] is True for f in items),
-        "not_reproduced": sum(f["reproduced"] is False for f in items),
-        "not_run": sum(f["reproduced"] is None for f in items),
-        "command": "curbside experiment findings",
-        "findings": items}, indent=2, default=str) + "\n")
+    tmp.write_text(
+        json.dumps(
+            {
+                "reproduced": sum(f["reproduced"] is True for f in items),
+                "not_reproduced": sum(f["reproduced"] is False for f in items),
+                "not_run": sum(f["reproduced"] is None for f in items),
+                "command": "curbside experiment findings",
+                "findings": items,
+            },
+            indent=2,
+            default=str,
+        )
+        + "\n"
+    )
     tmp.replace(path)
     return path

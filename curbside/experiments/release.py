@@ -34,15 +34,17 @@ def _compact_copy(src: Path, dst: Path, algo: str) -> None:
 
         model = PPO.load(str(src), device="cpu")
         policy = model.policy
-        policy.optimizer = policy.optimizer_class(policy.parameters(), lr=model.learning_rate
-                                                  if isinstance(model.learning_rate, float) else 1e-4)
+        policy.optimizer = policy.optimizer_class(
+            policy.parameters(), lr=model.learning_rate if isinstance(model.learning_rate, float) else 1e-4
+        )
         save_policy(model, dst)
     else:
         shutil.copyfile(src, dst)
 
 
-def release(name: str, budget: str, *, root: Path = DEFAULT_ROOT, zoo: Path = ZOO, seed: int = 0,
-            only: list[str] | None = None) -> list[Path]:
+def release(
+    name: str, budget: str, *, root: Path = DEFAULT_ROOT, zoo: Path = ZOO, seed: int = 0, only: list[str] | None = None
+) -> list[Path]:
     """Copy the seed-`seed` policy of every finished training run of experiment `name` at `budget` (of the run ids in
     `only`, when given) into the zoo; return the folders written. A run without a result yet is skipped."""
     exp = load_experiment(name)
@@ -64,8 +66,9 @@ def release(name: str, budget: str, *, root: Path = DEFAULT_ROOT, zoo: Path = ZO
         policy_file = POLICY_FILES[run.method]
         _compact_copy(src / policy_file, tmp / policy_file, run.method)
         (tmp / "run.json").write_text(json.dumps(meta, indent=2) + "\n")
-        (tmp / "card.json").write_text(json.dumps(card(exp.name, budget, run, seed, meta, result, dst), indent=2)
-                                       + "\n")
+        (tmp / "card.json").write_text(
+            json.dumps(card(exp.name, budget, run, seed, meta, result, dst), indent=2) + "\n"
+        )
         if dst.exists():
             shutil.rmtree(dst)
         tmp.replace(dst)
@@ -73,19 +76,29 @@ def release(name: str, budget: str, *, root: Path = DEFAULT_ROOT, zoo: Path = ZO
     return written
 
 
-def card(experiment: str, budget: str, run: Run, seed: int, meta: dict[str, Any], result: dict[str, Any],
-         folder: Path) -> dict[str, Any]:
+def card(
+    experiment: str, budget: str, run: Run, seed: int, meta: dict[str, Any], result: dict[str, Any], folder: Path
+) -> dict[str, Any]:
     """What a released policy is: protocol, task, method, setting, steps, seed, training time, metrics, command."""
     return {
-        "task": run.task, "method": run.method, "setting": run.setting, "protocol": meta.get("protocol"),
-        "experiment": experiment, "budget": budget, "run": run.id, "seed": seed, "steps": result["steps"],
+        "task": run.task,
+        "method": run.method,
+        "setting": run.setting,
+        "protocol": meta.get("protocol"),
+        "experiment": experiment,
+        "budget": budget,
+        "run": run.id,
+        "seed": seed,
+        "steps": result["steps"],
         "backend": result.get("backend"),
         # A run resumed from a checkpoint records only its last part: its training time is unknown, not that part.
         "train_seconds": None if result.get("resumed", False) else result.get("train_s"),
         "env_config": meta.get("env_config", {}),
-        "metrics": {split: {k: ev.get(k) for k in ("sr", "spl", "sns", "cost", "route_completion", "episodes")
-                            if k in ev} for split, ev in result["evals"].items()},
+        "metrics": {
+            split: {k: ev.get(k) for k in ("sr", "spl", "sns", "cost", "route_completion", "episodes") if k in ev}
+            for split, ev in result["evals"].items()
+        },
         "command": f"curbside experiment run {experiment} --budget {budget} --only {run.id} && curbside experiment "
-                   f"release {experiment} --budget {budget}",
+        f"release {experiment} --budget {budget}",
         "evaluate": f"curbside train eval {folder.as_posix()}",
     }

@@ -13,8 +13,23 @@ import numpy as np
 from curbside.experiments.runner import DEFAULT_ROOT
 from curbside.experiments.spec import Experiment, load_experiment
 
-COLUMNS = ("experiment", "task", "method", "split", "setting", "seed", "steps", "sr", "spl", "sns", "cost",
-           "paper_sr", "paper_spl", "paper_sns", "paper_cost")
+COLUMNS = (
+    "experiment",
+    "task",
+    "method",
+    "split",
+    "setting",
+    "seed",
+    "steps",
+    "sr",
+    "spl",
+    "sns",
+    "cost",
+    "paper_sr",
+    "paper_spl",
+    "paper_sns",
+    "paper_cost",
+)
 
 
 def paper_cell(exp: Experiment, task: str, method: str, split: str, setting: str) -> dict[str, float]:
@@ -54,15 +69,25 @@ def rows_of(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> list[dic
             result = json.loads(f.read_text())
             for split, ev in result["evals"].items():
                 paper = paper_cell(exp, run.task, run.method, split, run.setting)
-                rows.append({"experiment": exp.name, "task": run.task, "method": run.method, "split": split,
-                             "setting": run.setting, "seed": seed, "steps": result["steps"],
-                             **{k: ev.get(k, "") for k in ("sr", "spl", "sns", "cost")},
-                             **{f"paper_{k}": paper.get(k, "") for k in ("sr", "spl", "sns", "cost")}})
+                rows.append(
+                    {
+                        "experiment": exp.name,
+                        "task": run.task,
+                        "method": run.method,
+                        "split": split,
+                        "setting": run.setting,
+                        "seed": seed,
+                        "steps": result["steps"],
+                        **{k: ev.get(k, "") for k in ("sr", "spl", "sns", "cost")},
+                        **{f"paper_{k}": paper.get(k, "") for k in ("sr", "spl", "sns", "cost")},
+                    }
+                )
     return rows
 
 
-def write_report(name: str, budget: str, *, root: Path = DEFAULT_ROOT,
-                 out_root: Path = Path("benchmarks/results")) -> Path:
+def write_report(
+    name: str, budget: str, *, root: Path = DEFAULT_ROOT, out_root: Path = Path("benchmarks/results")
+) -> Path:
     """Write results.csv, results.png and report.json into out_root/<experiment>/ (the `small` budget, the one every
     experiment runs) or out_root/<experiment>/<budget>/ (another budget); return the CSV path."""
     exp = load_experiment(name)
@@ -78,11 +103,22 @@ def write_report(name: str, budget: str, *, root: Path = DEFAULT_ROOT,
 
     expected = sum(len(r.seeds) for r in exp.runs)
     finished = sum((run_dir(root, exp, budget, r, s) / "result.json").is_file() for r in exp.runs for s in r.seeds)
-    (out / "report.json").write_text(json.dumps({
-        "experiment": exp.name, "title": exp.title, "budget": budget, "protocol": exp.protocol,
-        "runs_finished": finished, "runs_declared": expected,
-        "command": f"curbside experiment run {exp.name} --budget {budget} && curbside experiment report {exp.name} "
-                   f"--budget {budget}"}, indent=2) + "\n")
+    (out / "report.json").write_text(
+        json.dumps(
+            {
+                "experiment": exp.name,
+                "title": exp.title,
+                "budget": budget,
+                "protocol": exp.protocol,
+                "runs_finished": finished,
+                "runs_declared": expected,
+                "command": f"curbside experiment run {exp.name} --budget {budget} && curbside experiment report {exp.name} "
+                f"--budget {budget}",
+            },
+            indent=2,
+        )
+        + "\n"
+    )
     plot(exp, rows, out / "results.png", budget)
     return path
 
@@ -95,18 +131,30 @@ def plot(exp: Experiment, rows: list[dict[str, Any]], path: Path, budget: str) -
     import matplotlib.pyplot as plt
 
     splits = sorted({r["split"] for r in rows}) or ["test"]
-    fig, axes = plt.subplots(1, len(splits), figsize=(max(5.0, 0.6 * len(exp.runs) + 2) * len(splits) / 1.5, 4),
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        1, len(splits), figsize=(max(5.0, 0.6 * len(exp.runs) + 2) * len(splits) / 1.5, 4), squeeze=False
+    )
     for ax, split in zip(axes[0], splits):
         sel = [r for r in rows if r["split"] == split]
         keys = list(dict.fromkeys((r["task"], r["method"], r["setting"]) for r in sel))
         labels = [" ".join(x for x in (t[:1] + "N" if t else "", m, s) if x) for t, m, s in keys]
         ours = [[float(r["sr"]) for r in sel if (r["task"], r["method"], r["setting"]) == k] for k in keys]
-        paper = [next((r["paper_sr"] for r in sel if (r["task"], r["method"], r["setting"]) == k and
-                       r["paper_sr"] != ""), np.nan) for k in keys]
+        paper = [
+            next(
+                (r["paper_sr"] for r in sel if (r["task"], r["method"], r["setting"]) == k and r["paper_sr"] != ""),
+                np.nan,
+            )
+            for k in keys
+        ]
         x = np.arange(len(keys))
-        ax.bar(x - 0.2, [np.mean(o) for o in ours], 0.4, yerr=[np.std(o) for o in ours], label=f"curbside ({budget})",
-               color="#3b7dd8")
+        ax.bar(
+            x - 0.2,
+            [np.mean(o) for o in ours],
+            0.4,
+            yerr=[np.std(o) for o in ours],
+            label=f"curbside ({budget})",
+            color="#3b7dd8",
+        )
         ax.bar(x + 0.2, [float(p) for p in paper], 0.4, label="MetaUrban paper", color="#bbbbbb")
         ax.set_xticks(x, labels, rotation=45, ha="right", fontsize=7)
         ax.set_ylim(0, 1)

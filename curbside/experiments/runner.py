@@ -55,15 +55,30 @@ def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]
     meta = path / "curbside.json"
     have = json.loads(meta.read_text()).get("policy_fraction", 0.0) if meta.is_file() else None
     if have is None or (use and have != proto.demos.policy_fraction):
-        collect_demos(run.task, base, steps=int(b["demos_steps"]), noise=proto.demos.expert_noise,
-                      env_config=deep_merge(proto.env_config, run.env), num_scenes=int(b["scenes"] or 64), progress=False,
-                      policy=source if use else None, policy_fraction=proto.demos.policy_fraction if use else 0.0)
+        collect_demos(
+            run.task,
+            base,
+            steps=int(b["demos_steps"]),
+            noise=proto.demos.expert_noise,
+            env_config=deep_merge(proto.env_config, run.env),
+            num_scenes=int(b["scenes"] or 64),
+            progress=False,
+            policy=source if use else None,
+            policy_fraction=proto.demos.policy_fraction if use else 0.0,
+        )
     return path
 
 
-def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: list[str] | None = None,
-                   seeds: list[int] | None = None, progress: bool = True,
-                   log: Callable[[str], None] = print) -> list[dict[str, Any]]:
+def run_experiment(
+    name: str,
+    budget: str,
+    *,
+    root: Path = DEFAULT_ROOT,
+    only: list[str] | None = None,
+    seeds: list[int] | None = None,
+    progress: bool = True,
+    log: Callable[[str], None] = print,
+) -> list[dict[str, Any]]:
     """Train and evaluate every (run, seed) of experiment `name` at `budget` that has no result (of the runs in
     `only` and the seeds in `seeds`, when given); return all results."""
     from curbside.train.evaluate import evaluate_run
@@ -93,25 +108,46 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
                 backend = "pybullet"
             if run.method == "gail":
                 backend = "pybullet"  # GAIL's generator steps an SB3 VecEnv of the PyBullet envs
-            init_from = run_dir(root, exp, budget, next(r for r in exp.runs if r.id == run.init), seed) \
-                if run.init else None
+            init_from = (
+                run_dir(root, exp, budget, next(r for r in exp.runs if r.id == run.init), seed) if run.init else None
+            )
             demos = _demos(root, exp, budget, run, b) if not online and run.train else None
             steps = _steps(b, run.method)
             # A budget's hparams are PPO's (the generator's for GAIL); the other learners take its network alone.
-            hparams = b["hparams"] if run.method in ONLINE + ("gail",) else (
-                {"net_arch": b["hparams"]["net_arch"]} if "net_arch" in b["hparams"] else {})
+            hparams = (
+                b["hparams"]
+                if run.method in ONLINE + ("gail",)
+                else ({"net_arch": b["hparams"]["net_arch"]} if "net_arch" in b["hparams"] else {})
+            )
             t0 = time.time()
             resumed = (out / "run.json").is_file()  # then train_s holds this call's part of the training alone
             out.mkdir(parents=True, exist_ok=True)
             policy_dir = out
             if run.train:
-                log(f"[{exp.name} {budget}] {run.id} seed {seed}: training {run.method} on {run.task} {run.split} "
-                    f"for {steps:,} steps")
-                train(run.method, run.task, out, steps=steps, protocol=exp.protocol, backend=backend, split=run.split,
-                      env_config=run.env, n_envs=b["n_envs"], num_scenes=run.env.get("num_scenes") or b["scenes"],
-                      seed=seed, demos=demos,
-                      resume=resumed, init_from=init_from, eval_every=int(b["eval_every"]) if online else 0,
-                      eval_episodes=int(b["curve_episodes"]), hparams=hparams, progress=progress)
+                log(
+                    f"[{exp.name} {budget}] {run.id} seed {seed}: training {run.method} on {run.task} {run.split} "
+                    f"for {steps:,} steps"
+                )
+                train(
+                    run.method,
+                    run.task,
+                    out,
+                    steps=steps,
+                    protocol=exp.protocol,
+                    backend=backend,
+                    split=run.split,
+                    env_config=run.env,
+                    n_envs=b["n_envs"],
+                    num_scenes=run.env.get("num_scenes") or b["scenes"],
+                    seed=seed,
+                    demos=demos,
+                    resume=resumed,
+                    init_from=init_from,
+                    eval_every=int(b["eval_every"]) if online else 0,
+                    eval_episodes=int(b["curve_episodes"]),
+                    hparams=hparams,
+                    progress=progress,
+                )
             else:
                 assert init_from is not None
                 policy_dir, steps = init_from, 0
@@ -120,14 +156,36 @@ def run_experiment(name: str, budget: str, *, root: Path = DEFAULT_ROOT, only: l
             evals = {}
             for split in run.evaluate:
                 cfg = deep_merge(deep_merge(read_run(policy_dir).get("env_config", {}), run.env), run.eval_env)
-                evals[split] = evaluate_run(policy_dir, run.task, cfg, split=split, episodes=int(b["episodes"]),
-                                            num_scenes=proto.eval_scenes, workers=int(b["eval_workers"]),
-                                            progress=progress)
-                log(f"    {split}: SR {evals[split]['sr']:.2f}  SPL {evals[split]['spl']:.2f}  "
-                    f"Cost {evals[split]['cost']:.2f}")
-            result = {"experiment": exp.name, "budget": budget, "run": run.id, "task": run.task,
-                      "method": run.method, "split": run.split, "setting": run.setting, "seed": seed, "steps": steps,
-                      "backend": backend, "train_s": round(train_s, 1), "resumed": resumed, "protocol": exp.protocol, "evals": evals}
+                evals[split] = evaluate_run(
+                    policy_dir,
+                    run.task,
+                    cfg,
+                    split=split,
+                    episodes=int(b["episodes"]),
+                    num_scenes=proto.eval_scenes,
+                    workers=int(b["eval_workers"]),
+                    progress=progress,
+                )
+                log(
+                    f"    {split}: SR {evals[split]['sr']:.2f}  SPL {evals[split]['spl']:.2f}  "
+                    f"Cost {evals[split]['cost']:.2f}"
+                )
+            result = {
+                "experiment": exp.name,
+                "budget": budget,
+                "run": run.id,
+                "task": run.task,
+                "method": run.method,
+                "split": run.split,
+                "setting": run.setting,
+                "seed": seed,
+                "steps": steps,
+                "backend": backend,
+                "train_s": round(train_s, 1),
+                "resumed": resumed,
+                "protocol": exp.protocol,
+                "evals": evals,
+            }
             _write_json(done, result)
             results.append(result)
     return results

@@ -11,13 +11,45 @@ from kernel.config import ConfigError, load_yaml
 
 HERE = Path(__file__).resolve().parent
 BUDGETS = ("smoke", "small", "paper")
-BUDGET_KEYS = {"online_steps", "offline_steps", "bc_steps", "demos_steps", "episodes", "eval_every", "curve_episodes",
-               "n_envs", "scenes", "hparams", "backend", "eval_workers"}
-RUN_KEYS = {"id", "task", "method", "split", "setting", "env", "eval_env", "seeds", "init", "evaluate", "backend",
-            "train"}
+BUDGET_KEYS = {
+    "online_steps",
+    "offline_steps",
+    "bc_steps",
+    "demos_steps",
+    "episodes",
+    "eval_every",
+    "curve_episodes",
+    "n_envs",
+    "scenes",
+    "hparams",
+    "backend",
+    "eval_workers",
+}
+RUN_KEYS = {
+    "id",
+    "task",
+    "method",
+    "split",
+    "setting",
+    "env",
+    "eval_env",
+    "seeds",
+    "init",
+    "evaluate",
+    "backend",
+    "train",
+}
 EXPERIMENT_KEYS = {"name", "title", "paper", "protocol", "evaluate", "runs", "budgets", "description"}
-PAPER_KINDS = ("table1", "table2", "table5_horizon", "table5_pedestrians", "ablation_generalisation", "ablation_scaling",
-               "seed_robustness", "none")
+PAPER_KINDS = (
+    "table1",
+    "table2",
+    "table5_horizon",
+    "table5_pedestrians",
+    "ablation_generalisation",
+    "ablation_scaling",
+    "seed_robustness",
+    "none",
+)
 
 
 @dataclass(frozen=True)
@@ -29,13 +61,13 @@ class Run:
     method: str
     split: str = "train"
     setting: str = ""
-    env: dict[str, Any] = field(default_factory=dict)        # env config overrides, training and evaluation
-    eval_env: dict[str, Any] = field(default_factory=dict)   # overrides for evaluation alone
+    env: dict[str, Any] = field(default_factory=dict)  # env config overrides, training and evaluation
+    eval_env: dict[str, Any] = field(default_factory=dict)  # overrides for evaluation alone
     seeds: tuple[int, ...] = (0,)
-    init: str | None = None      # id of a run of this experiment whose policy (same seed) this run starts from
+    init: str | None = None  # id of a run of this experiment whose policy (same seed) this run starts from
     evaluate: tuple[str, ...] = ()
-    backend: str | None = None   # None: the budget's
-    train: bool = True           # False: evaluate the `init` run's policy as it is (another test setting of one model)
+    backend: str | None = None  # None: the budget's
+    train: bool = True  # False: evaluate the `init` run's policy as it is (another test setting of one model)
 
 
 @dataclass(frozen=True)
@@ -56,7 +88,9 @@ def _strict(d: Any, valid: set[str], where: str) -> dict[str, Any]:
         raise ConfigError(f"{where} must be a mapping, got {type(d).__name__}")
     unknown = sorted(set(d) - valid)
     if unknown:
-        raise ConfigError(f"unknown key(s) {', '.join(map(repr, unknown))} in {where}; valid: {', '.join(sorted(valid))}")
+        raise ConfigError(
+            f"unknown key(s) {', '.join(map(repr, unknown))} in {where}; valid: {', '.join(sorted(valid))}"
+        )
     return d
 
 
@@ -88,11 +122,22 @@ def load_experiment(name: str) -> Experiment:
         for split in [r.get("split", "train"), *r.get("evaluate", default_eval)]:
             if split not in SPLITS:
                 raise ConfigError(f"{path.name} run {k}: unknown split {split!r}; valid: {', '.join(SPLITS)}")
-        runs.append(Run(id=str(r.get("id") or f"{r['task']}-{r['method']}"), task=r["task"], method=r["method"],
-                        split=r.get("split", "train"), setting=str(r.get("setting", "")), env=dict(r.get("env") or {}),
-                        eval_env=dict(r.get("eval_env") or {}), seeds=tuple(int(s) for s in r.get("seeds", [0])),
-                        init=r.get("init"), evaluate=tuple(r.get("evaluate", default_eval)), backend=r.get("backend"),
-                        train=bool(r.get("train", True))))
+        runs.append(
+            Run(
+                id=str(r.get("id") or f"{r['task']}-{r['method']}"),
+                task=r["task"],
+                method=r["method"],
+                split=r.get("split", "train"),
+                setting=str(r.get("setting", "")),
+                env=dict(r.get("env") or {}),
+                eval_env=dict(r.get("eval_env") or {}),
+                seeds=tuple(int(s) for s in r.get("seeds", [0])),
+                init=r.get("init"),
+                evaluate=tuple(r.get("evaluate", default_eval)),
+                backend=r.get("backend"),
+                train=bool(r.get("train", True)),
+            )
+        )
     ids = [r.id for r in runs]
     if len(set(ids)) != len(ids):
         raise ConfigError(f"{path.name}: run ids repeat: {sorted({i for i in ids if ids.count(i) > 1})}")
@@ -104,9 +149,15 @@ def load_experiment(name: str) -> Experiment:
     budgets = _strict(raw.get("budgets") or {}, set(BUDGETS), f"{path.name} budgets")
     for b, values in budgets.items():
         _strict(values, BUDGET_KEYS, f"{path.name} budget {b}")
-    return Experiment(name=str(raw.get("name", path.stem)), title=str(raw.get("title", path.stem)), paper=paper,
-                      protocol=str(raw.get("protocol", "paper")), runs=tuple(runs), budgets=budgets,
-                      description=str(raw.get("description", "")))
+    return Experiment(
+        name=str(raw.get("name", path.stem)),
+        title=str(raw.get("title", path.stem)),
+        paper=paper,
+        protocol=str(raw.get("protocol", "paper")),
+        runs=tuple(runs),
+        budgets=budgets,
+        description=str(raw.get("description", "")),
+    )
 
 
 def check_run_ids(exp: Experiment, ids: list[str] | None) -> None:
@@ -122,14 +173,47 @@ def budget_of(exp: Experiment, budget: str) -> dict[str, Any]:
         raise ConfigError(f"unknown budget {budget!r}; valid: {', '.join(BUDGETS)}")
     defaults: dict[str, dict[str, Any]] = {
         # smoke checks the plumbing in minutes: tiny networks and rollouts, a few scenes and episodes.
-        "smoke": {"online_steps": 2_048, "offline_steps": 200, "bc_steps": 200, "demos_steps": 1_000, "episodes": 3,
-                  "eval_every": 0, "curve_episodes": 2, "n_envs": 2, "scenes": 4, "backend": "pybullet", "eval_workers": 1,
-                  "hparams": {"n_steps": 128, "batch_size": 128, "n_epochs": 2, "net_arch": [64, 64]}},
-        "small": {"online_steps": 500_000, "offline_steps": 20_000, "bc_steps": 20_000, "demos_steps": 30_000,
-                  "episodes": 50, "eval_every": 250_000, "curve_episodes": 10, "n_envs": None, "scenes": None,
-                  "backend": "batched", "hparams": {}, "eval_workers": 2},
-        "paper": {"online_steps": 5_000_000, "offline_steps": 1_000_000, "bc_steps": 18_750, "demos_steps": 30_000,
-                  "episodes": 200, "eval_every": 250_000, "curve_episodes": 20, "n_envs": None, "scenes": None,
-                  "backend": "batched", "hparams": {}, "eval_workers": 2},
+        "smoke": {
+            "online_steps": 2_048,
+            "offline_steps": 200,
+            "bc_steps": 200,
+            "demos_steps": 1_000,
+            "episodes": 3,
+            "eval_every": 0,
+            "curve_episodes": 2,
+            "n_envs": 2,
+            "scenes": 4,
+            "backend": "pybullet",
+            "eval_workers": 1,
+            "hparams": {"n_steps": 128, "batch_size": 128, "n_epochs": 2, "net_arch": [64, 64]},
+        },
+        "small": {
+            "online_steps": 500_000,
+            "offline_steps": 20_000,
+            "bc_steps": 20_000,
+            "demos_steps": 30_000,
+            "episodes": 50,
+            "eval_every": 250_000,
+            "curve_episodes": 10,
+            "n_envs": None,
+            "scenes": None,
+            "backend": "batched",
+            "hparams": {},
+            "eval_workers": 2,
+        },
+        "paper": {
+            "online_steps": 5_000_000,
+            "offline_steps": 1_000_000,
+            "bc_steps": 18_750,
+            "demos_steps": 30_000,
+            "episodes": 200,
+            "eval_every": 250_000,
+            "curve_episodes": 20,
+            "n_envs": None,
+            "scenes": None,
+            "backend": "batched",
+            "hparams": {},
+            "eval_workers": 2,
+        },
     }
     return {**defaults[budget], **exp.budgets.get(budget, {})}

@@ -8,8 +8,15 @@ from pathlib import Path
 from typing import Any
 
 
-def SplitEvalCallback(task: str, env_config: Mapping[str, Any], every: int, episodes: int, split: str,
-                      csv_path: Path, at_start: bool = False) -> Any:
+def SplitEvalCallback(
+    task: str,
+    env_config: Mapping[str, Any],
+    every: int,
+    episodes: int,
+    split: str,
+    csv_path: Path,
+    at_start: bool = False,
+) -> Any:
     """An SB3 callback that evaluates the current policy on `split` every `every` env steps into `csv_path` (and
     before the first step with `at_start`: a fine-tuned run's first row is its source policy's evaluation)."""
     from stable_baselines3.common.callbacks import BaseCallback
@@ -38,8 +45,14 @@ def SplitEvalCallback(task: str, env_config: Mapping[str, Any], every: int, epis
 
         def record(self) -> None:
             policy = self.model
-            summary = evaluate_policy(lambda obs: policy.predict(obs, deterministic=True)[0], task, env_config,
-                                      split=split, episodes=episodes, progress=False)
+            summary = evaluate_policy(
+                lambda obs: policy.predict(obs, deterministic=True)[0],
+                task,
+                env_config,
+                split=split,
+                episodes=episodes,
+                progress=False,
+            )
             append_eval_row(csv_path, self.num_timesteps, summary, self.logger, split)
 
     return _SplitEval()
@@ -64,8 +77,10 @@ def drop_rows_after(csv_path: Path, steps: int) -> None:
 def append_eval_row(csv_path: Path, steps: int, summary: Mapping[str, Any], logger: Any, split: str) -> None:
     """Append one evaluation (SR, SPL, cost, route completion, SNS) at `steps` to the learning-curve CSV and record
     it in the SB3 `logger` under eval_<split>/ (shared by the SB3 and RLlib trainers)."""
-    row = {"steps": steps, **{k: summary[k] for k in ("sr", "spl", "cost", "route_completion", "sns", "path_length")
-                              if k in summary}}
+    row = {
+        "steps": steps,
+        **{k: summary[k] for k in ("sr", "spl", "cost", "route_completion", "sns", "path_length") if k in summary},
+    }
     old: list[dict[str, str]] = []
     if csv_path.exists():
         with open(csv_path, newline="") as f:

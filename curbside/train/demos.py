@@ -51,11 +51,23 @@ def dataset_id(task: str) -> str:
     return f"curbside/{task.lower()}-expert-v0"
 
 
-def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0.7, random_prob: float = 0.0,
-                  env_config: Mapping[str, Any] | None = None, num_scenes: int = 64, seed: int = 0,
-                  progress: bool = True, executor: str = "local", workers: int | None = None,
-                  address: str | None = None, policy: Path | None = None, policy_fraction: float = 0.0
-                  ) -> dict[str, Any]:
+def collect_demos(
+    task: str,
+    out: Path,
+    *,
+    steps: int = 30_000,
+    noise: float = 0.7,
+    random_prob: float = 0.0,
+    env_config: Mapping[str, Any] | None = None,
+    num_scenes: int = 64,
+    seed: int = 0,
+    progress: bool = True,
+    executor: str = "local",
+    workers: int | None = None,
+    address: str | None = None,
+    policy: Path | None = None,
+    policy_fraction: float = 0.0,
+) -> dict[str, Any]:
     """Drive the noisy expert on the train split until `steps` steps (whole episodes); write a Minari dataset
     under `out` (its datasets root) and return a summary: path, episodes, steps, success rate.
 
@@ -89,8 +101,9 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
         with progress_bar(f"demos {task}", steps, progress) as update:
             # Endless episode indices: run_map keeps a window of episodes in flight and cancels the rest once the
             # steps are reached (those extra episodes are dropped, as a local run never starts them).
-            episodes = run_map(demo_episode, itertools.count(), executor=executor, workers=workers, address=address,
-                               args=(job,))
+            episodes = run_map(
+                demo_episode, itertools.count(), executor=executor, workers=workers, address=address, args=(job,)
+            )
             try:
                 for episode, success in episodes:
                     successes += int(success)
@@ -105,12 +118,26 @@ def collect_demos(task: str, out: Path, *, steps: int = 30_000, noise: float = 0
         algorithm = f"PurePursuitExpert(noise={noise}, random_prob={random_prob})"
         if policy_file is not None:
             algorithm = f"{policy_fraction:.0%} PPO policy {policy}, the rest {algorithm}"
-        meta = {"steps": total, "success_rate": successes / max(len(buffers), 1), "noise": noise,
-                "random_prob": random_prob, "task": task, "policy": None if policy is None else str(policy),
-                "policy_fraction": policy_fraction, "policy_episodes": by_policy}
-        return write_dataset(buffers, env, out, did, algorithm=algorithm, meta=meta,
-                             description=f"{task} demonstrations on the train split: the pure-pursuit expert with "
-                             "Gaussian action noise (curbside demos collect).")
+        meta = {
+            "steps": total,
+            "success_rate": successes / max(len(buffers), 1),
+            "noise": noise,
+            "random_prob": random_prob,
+            "task": task,
+            "policy": None if policy is None else str(policy),
+            "policy_fraction": policy_fraction,
+            "policy_episodes": by_policy,
+        }
+        return write_dataset(
+            buffers,
+            env,
+            out,
+            did,
+            algorithm=algorithm,
+            meta=meta,
+            description=f"{task} demonstrations on the train split: the pure-pursuit expert with "
+            "Gaussian action noise (curbside demos collect).",
+        )
     finally:
         env.close()
 
@@ -125,8 +152,9 @@ def demo_episode(k: int, job: tuple[Any, ...]) -> tuple[EpisodeRecorder, bool]:
     from sim.expert import PurePursuitExpert
 
     eid, cfg, noise, random_prob, seed, policy_file, policy_fraction = job
-    env = worker_state("demo_env", json.dumps([eid, cfg], sort_keys=True, default=str),
-                       lambda: gym.make(eid, config=dict(cfg)))
+    env = worker_state(
+        "demo_env", json.dumps([eid, cfg], sort_keys=True, default=str), lambda: gym.make(eid, config=dict(cfg))
+    )
     expert = PurePursuitExpert()
     rng = np.random.default_rng([seed, k])
     ep_seed = seed + k
@@ -162,13 +190,20 @@ class EpisodeRecorder:
     def __init__(self, first_obs: Any, seed: int | None, source: str = "expert") -> None:
         self.seed = seed
         self.source = source  # who drove: expert, random or policy
-        self.cols: dict[str, list] = {"observations": [first_obs], "actions": [], "rewards": [], "terminations": [],
-                                      "truncations": []}
+        self.cols: dict[str, list] = {
+            "observations": [first_obs],
+            "actions": [],
+            "rewards": [],
+            "terminations": [],
+            "truncations": [],
+        }
 
     def add(self, action: np.ndarray, obs: Any, reward: float, terminated: bool, truncated: bool) -> None:
         """Record one step: the action taken and what followed."""
-        for k, v in zip(("actions", "observations", "rewards", "terminations", "truncations"),
-                        (action, obs, reward, terminated, truncated)):
+        for k, v in zip(
+            ("actions", "observations", "rewards", "terminations", "truncations"),
+            (action, obs, reward, terminated, truncated),
+        ):
             self.cols[k].append(v)
 
     def __len__(self) -> int:
@@ -180,13 +215,27 @@ class EpisodeRecorder:
 
         o = self.cols["observations"]
         obs = {k: np.asarray([x[k] for x in o]) for k in o[0]} if isinstance(o[0], dict) else np.asarray(o)
-        return EpisodeBuffer(id=episode_id, seed=self.seed, observations=obs, actions=np.asarray(self.cols["actions"]),
-                             rewards=self.cols["rewards"], terminations=self.cols["terminations"],
-                             truncations=self.cols["truncations"])
+        return EpisodeBuffer(
+            id=episode_id,
+            seed=self.seed,
+            observations=obs,
+            actions=np.asarray(self.cols["actions"]),
+            rewards=self.cols["rewards"],
+            terminations=self.cols["terminations"],
+            truncations=self.cols["truncations"],
+        )
 
 
-def write_dataset(buffers: list[Any], env: Any, out: Path, did: str, *, algorithm: str, description: str,
-                  meta: Mapping[str, Any] | None = None) -> dict[str, Any]:
+def write_dataset(
+    buffers: list[Any],
+    env: Any,
+    out: Path,
+    did: str,
+    *,
+    algorithm: str,
+    description: str,
+    meta: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
     """Write episode buffers as the Minari dataset `did` under the datasets root `out` (replacing one of the same
     id once the new one is complete); returns its summary (id, path, episode count, Minari's step count and `meta`),
     also written to the dataset's curbside.json."""
@@ -207,10 +256,22 @@ def write_dataset(buffers: list[Any], env: Any, out: Path, did: str, *, algorith
         with warnings.catch_warnings():
             # Minari asks for a code permalink, an e-mail and an eval env; the env spec it records is the eval env.
             warnings.filterwarnings("ignore", category=UserWarning, module="minari")
-            ds = minari.create_dataset_from_buffers(dataset_id=did, buffer=buffers, env=env, algorithm_name=algorithm,
-                                                    author="curbside", description=description, data_format="arrow")
-            summary = {"dataset_id": did, "path": str(target), "episodes": len(buffers),
-                       "total_steps_minari": int(ds.total_steps), **(meta or {})}
+            ds = minari.create_dataset_from_buffers(
+                dataset_id=did,
+                buffer=buffers,
+                env=env,
+                algorithm_name=algorithm,
+                author="curbside",
+                description=description,
+                data_format="arrow",
+            )
+            summary = {
+                "dataset_id": did,
+                "path": str(target),
+                "episodes": len(buffers),
+                "total_steps_minari": int(ds.total_steps),
+                **(meta or {}),
+            }
         (staging / did / "curbside.json").write_text(json.dumps(summary, indent=2))
     finally:
         if previous is None:
@@ -235,13 +296,19 @@ def load_demos(path: Path) -> tuple[Transitions, dict[str, Any]]:
 
     path = Path(path)
     if not (path / "data").is_dir():
-        raise ConfigError(f"no demonstration dataset at {path}; collect one with "
-                          f"`curbside demos collect --task PointNav --out {path.parent.parent if path.parent != path else path}`")
+        raise ConfigError(
+            f"no demonstration dataset at {path}; collect one with "
+            f"`curbside demos collect --task PointNav --out {path.parent.parent if path.parent != path else path}`"
+        )
     ds = MinariDataset(path / "data")
     if isinstance(ds.observation_space, gym.spaces.Dict):
-        raise ConfigError(f"the dataset at {path} holds camera (Dict) observations; the offline and imitation "
-                          "baselines learn from the flat vector: record it again with camera.modalities []")
-    cols: dict[str, list[np.ndarray]] = {k: [] for k in ("obs", "actions", "rewards", "next_obs", "terminals", "timeouts")}
+        raise ConfigError(
+            f"the dataset at {path} holds camera (Dict) observations; the offline and imitation "
+            "baselines learn from the flat vector: record it again with camera.modalities []"
+        )
+    cols: dict[str, list[np.ndarray]] = {
+        k: [] for k in ("obs", "actions", "rewards", "next_obs", "terminals", "timeouts")
+    }
     for ep in ds.iterate_episodes():
         o = np.asarray(ep.observations, dtype=np.float32)
         cols["obs"].append(o[:-1])

@@ -31,8 +31,14 @@ def split_config(base: Mapping[str, Any] | None, split: str, num_scenes: int, sc
     return cfg
 
 
-def env_fns(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, split: str = "train",
-            wrappers: tuple[Callable[[gym.Env], gym.Env], ...] = ()) -> list[Callable[[], gym.Env]]:
+def env_fns(
+    task: str,
+    config: Mapping[str, Any],
+    n_envs: int,
+    num_scenes: int,
+    split: str = "train",
+    wrappers: tuple[Callable[[gym.Env], gym.Env], ...] = (),
+) -> list[Callable[[], gym.Env]]:
     """`n_envs` env constructors; worker k gets scenes [k n / N, (k + 1) n / N) of the split (n = num_scenes,
     N = n_envs; with fewer scenes than workers, worker k gets scene k mod n), up to MAX_WORKER_SCENES of them held
     in its scene cache."""
@@ -54,14 +60,24 @@ def env_fns(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, 
             for w in wrappers:
                 env = w(env)
             return Monitor(env, info_keywords=("is_success", "episode_cost", "route_completion"))
+
         return thunk
 
     return [make(k) for k in range(n_envs)]
 
 
-def make_vec_env(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, *, split: str = "train",
-                 subprocess: bool = True, seed: int = 0, workers: int | None = None,
-                 wrappers: tuple[Callable[[gym.Env], gym.Env], ...] = ()) -> Any:
+def make_vec_env(
+    task: str,
+    config: Mapping[str, Any],
+    n_envs: int,
+    num_scenes: int,
+    *,
+    split: str = "train",
+    subprocess: bool = True,
+    seed: int = 0,
+    workers: int | None = None,
+    wrappers: tuple[Callable[[gym.Env], gym.Env], ...] = (),
+) -> Any:
     """An SB3 VecEnv over `n_envs` sharded envs: `workers` shards (default: one per core, at most n_envs), shard 0
     in this process and the others in worker processes, that each step n_envs / workers envs with BLAS
     single-threaded (curbside.train.sharded), reset in the same step as SB3 expects; SB3's DummyVecEnv in this
@@ -84,8 +100,17 @@ def make_vec_env(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: 
     return vec
 
 
-def make_training_vec(task: str, config: Mapping[str, Any], n_envs: int, num_scenes: int, *, backend: str = "pybullet",
-                      split: str = "train", seed: int = 0, subprocess: bool = True) -> Any:
+def make_training_vec(
+    task: str,
+    config: Mapping[str, Any],
+    n_envs: int,
+    num_scenes: int,
+    *,
+    backend: str = "pybullet",
+    split: str = "train",
+    seed: int = 0,
+    subprocess: bool = True,
+) -> Any:
     """The SB3 VecEnv online training steps: `make_vec_env`'s sharded PyBullet envs, or (backend "batched") one
     sim.batched.BatchedPointNav of `n_envs` envs in this process, drawing from `num_scenes` scenes of `split`."""
     if backend == "pybullet":
@@ -99,7 +124,9 @@ def make_training_vec(task: str, config: Mapping[str, Any], n_envs: int, num_sce
 
     cfg = split_config(config, split, num_scenes)
     cfg.setdefault("scene_cache", min(num_scenes, max(2 * n_envs, 8)))
-    vec = VecMonitor(VectorEnvAdapter(BatchedPointNav(n_envs, config=cfg)),
-                     info_keywords=("is_success", "episode_cost", "route_completion"))
+    vec = VecMonitor(
+        VectorEnvAdapter(BatchedPointNav(n_envs, config=cfg)),
+        info_keywords=("is_success", "episode_cost", "route_completion"),
+    )
     vec.seed(seed)
     return vec

@@ -12,20 +12,40 @@ from curbside.train.envs import env_id, split_config
 EVAL_SCENES = 50  # scenes of the split an evaluation draws its episodes from
 
 
-def evaluate_policy(act: Callable[[np.ndarray], np.ndarray], task: str, env_config: Mapping[str, Any], *,
-                    split: str = "test", episodes: int = 50, seed: int = 0, num_scenes: int = EVAL_SCENES,
-                    progress: bool = True) -> dict[str, Any]:
+def evaluate_policy(
+    act: Callable[[np.ndarray], np.ndarray],
+    task: str,
+    env_config: Mapping[str, Any],
+    *,
+    split: str = "test",
+    episodes: int = 50,
+    seed: int = 0,
+    num_scenes: int = EVAL_SCENES,
+    progress: bool = True,
+) -> dict[str, Any]:
     """Mean metrics of `act(obs) -> action` over `episodes` episodes (seeds seed..seed+N-1) on `split`."""
     from sim.eval import summarize
 
-    summary = summarize(episode_rows(act, task, env_config, split=split, episodes=episodes, seed=seed,
-                                     num_scenes=num_scenes, progress=progress))
+    summary = summarize(
+        episode_rows(
+            act, task, env_config, split=split, episodes=episodes, seed=seed, num_scenes=num_scenes, progress=progress
+        )
+    )
     summary["split"] = split
     return summary
 
 
-def episode_rows(act: Callable[[np.ndarray], np.ndarray], task: str, env_config: Mapping[str, Any], *,
-                 split: str, episodes: int, seed: int, num_scenes: int, progress: bool) -> list[dict[str, float]]:
+def episode_rows(
+    act: Callable[[np.ndarray], np.ndarray],
+    task: str,
+    env_config: Mapping[str, Any],
+    *,
+    split: str,
+    episodes: int,
+    seed: int,
+    num_scenes: int,
+    progress: bool,
+) -> list[dict[str, float]]:
     """The metrics of each episode of `evaluate_policy`, in seed order."""
     import gymnasium as gym
 
@@ -39,6 +59,7 @@ def episode_rows(act: Callable[[np.ndarray], np.ndarray], task: str, env_config:
     seeds = range(seed, seed + episodes)
     if progress:
         from rich.progress import track
+
         seeds = track(seeds, description=f"eval {task} {split}")
     try:
         policy = lambda e, obs: np.asarray(act(obs), dtype=np.float32).reshape(2)  # noqa: E731
@@ -58,13 +79,23 @@ def _evaluate_shard(job: tuple[str, str, dict[str, Any], str, int, int, int]) ->
     run_dir, task, cfg, split, seed, episodes, num_scenes = job
     torch.set_num_threads(1)
     act, _ = load_policy(run_dir)
-    return episode_rows(act, task, cfg, split=split, episodes=episodes, seed=seed, num_scenes=num_scenes,
-                        progress=False)
+    return episode_rows(
+        act, task, cfg, split=split, episodes=episodes, seed=seed, num_scenes=num_scenes, progress=False
+    )
 
 
-def evaluate_run(run_dir: Any, task: str, env_config: Mapping[str, Any], *, split: str = "test", episodes: int = 50,
-                 seed: int = 0, num_scenes: int = EVAL_SCENES, workers: int = 1,
-                 progress: bool = True) -> dict[str, Any]:
+def evaluate_run(
+    run_dir: Any,
+    task: str,
+    env_config: Mapping[str, Any],
+    *,
+    split: str = "test",
+    episodes: int = 50,
+    seed: int = 0,
+    num_scenes: int = EVAL_SCENES,
+    workers: int = 1,
+    progress: bool = True,
+) -> dict[str, Any]:
     """`evaluate_policy` of the policy saved in `run_dir`, its episodes shared among `workers` processes: the same
     episodes in the same seed order, so the same figures whatever `workers` is."""
     workers = max(1, min(int(workers), episodes))
@@ -72,15 +103,19 @@ def evaluate_run(run_dir: Any, task: str, env_config: Mapping[str, Any], *, spli
         from curbside.train.policies import load_policy
 
         act, _ = load_policy(run_dir)
-        return evaluate_policy(act, task, env_config, split=split, episodes=episodes, seed=seed,
-                               num_scenes=num_scenes, progress=progress)
+        return evaluate_policy(
+            act, task, env_config, split=split, episodes=episodes, seed=seed, num_scenes=num_scenes, progress=progress
+        )
     from concurrent.futures import ProcessPoolExecutor
 
     from sim.eval import summarize
 
     bounds = np.linspace(seed, seed + episodes, workers + 1).astype(int)
-    jobs = [(str(run_dir), task, dict(env_config), split, int(a), int(b - a), num_scenes)
-            for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+    jobs = [
+        (str(run_dir), task, dict(env_config), split, int(a), int(b - a), num_scenes)
+        for a, b in zip(bounds[:-1], bounds[1:])
+        if b > a
+    ]
     with ProcessPoolExecutor(len(jobs)) as pool:
         rows = [row for part in pool.map(_evaluate_shard, jobs) for row in part]
     summary = summarize(rows)
@@ -88,9 +123,16 @@ def evaluate_run(run_dir: Any, task: str, env_config: Mapping[str, Any], *, spli
     return summary
 
 
-def evaluate_policy_batched(act_batch: Callable[[np.ndarray], np.ndarray], env_config: Mapping[str, Any], *,
-                            split: str = "test", episodes: int = 50, seed: int = 0, num_scenes: int = EVAL_SCENES,
-                            n_envs: int = 50) -> dict[str, Any]:
+def evaluate_policy_batched(
+    act_batch: Callable[[np.ndarray], np.ndarray],
+    env_config: Mapping[str, Any],
+    *,
+    split: str = "test",
+    episodes: int = 50,
+    seed: int = 0,
+    num_scenes: int = EVAL_SCENES,
+    n_envs: int = 50,
+) -> dict[str, Any]:
     """PointNav metrics of `act_batch(obs [n, d]) -> actions [n, 2]` on the batched env (sim.batched), episode for
     episode the ones `evaluate_policy` runs on the PyBullet env: episode k uses seed `seed + k` (batched sub-env i
     reset with seed s draws PointNavEnv.reset(seed=s)'s scene and route), in waves of `n_envs` episodes.
@@ -115,13 +157,21 @@ def evaluate_policy_batched(act_batch: Callable[[np.ndarray], np.ndarray], env_c
                     if i < n and i not in finished:
                         fi = info["final_info"]
                         env.autoreset[i] = False
-                        finished[i] = {"success": float(fi["is_success"][i]), "spl": float(fi["spl"][i]),
-                                       "cost": float(fi["episode_cost"][i]),
-                                       "route_completion": float(fi["route_completion"][i])}
+                        finished[i] = {
+                            "success": float(fi["is_success"][i]),
+                            "spl": float(fi["spl"][i]),
+                            "cost": float(fi["episode_cost"][i]),
+                            "route_completion": float(fi["route_completion"][i]),
+                        }
             rows.extend(finished[i] for i in range(n))
     finally:
         env.close()
-    return {"sr": float(np.mean([r["success"] for r in rows])), "spl": float(np.mean([r["spl"] for r in rows])),
-            "cost": float(np.mean([r["cost"] for r in rows])),
-            "route_completion": float(np.mean([r["route_completion"] for r in rows])), "episodes": len(rows),
-            "split": split, "env": "batched"}
+    return {
+        "sr": float(np.mean([r["success"] for r in rows])),
+        "spl": float(np.mean([r["spl"] for r in rows])),
+        "cost": float(np.mean([r["cost"] for r in rows])),
+        "route_completion": float(np.mean([r["route_completion"] for r in rows])),
+        "episodes": len(rows),
+        "split": split,
+        "env": "batched",
+    }

@@ -68,14 +68,20 @@ class Shared:
     raw buffers in a worker (`views`)."""
 
     def __init__(self, ctx: Any, n: int, workers: int, obs_space: gym.spaces.Box, act_space: gym.Space) -> None:
-        self.spec = {"obs": ((n, *obs_space.shape), np.dtype(obs_space.dtype).str),
-                     "rewards": ((n,), "<f8"), "terms": ((n,), "|b1"), "truncs": ((n,), "|b1"),
-                     "command": ((workers,), "<i8"), "reply": ((workers,), "<i8"),
-                     "infos": ((workers, INLINE_BYTES), "|u1")}
+        self.spec = {
+            "obs": ((n, *obs_space.shape), np.dtype(obs_space.dtype).str),
+            "rewards": ((n,), "<f8"),
+            "terms": ((n,), "|b1"),
+            "truncs": ((n,), "|b1"),
+            "command": ((workers,), "<i8"),
+            "reply": ((workers,), "<i8"),
+            "infos": ((workers, INLINE_BYTES), "|u1"),
+        }
         if isinstance(act_space, gym.spaces.Box):  # other action spaces travel through the pipe
             self.spec["actions"] = ((n, *act_space.shape), np.dtype(act_space.dtype).str)
-        self.raw = {k: ctx.RawArray("b", int(np.prod(shape)) * np.dtype(dt).itemsize)
-                    for k, (shape, dt) in self.spec.items()}
+        self.raw = {
+            k: ctx.RawArray("b", int(np.prod(shape)) * np.dtype(dt).itemsize) for k, (shape, dt) in self.spec.items()
+        }
 
     def views(self) -> dict[str, np.ndarray]:
         """numpy arrays over the shared buffers (call in the process that uses them)."""
@@ -85,12 +91,12 @@ class Shared:
 def run_command(envs: Sequence[gym.Env], arrays: dict[str, np.ndarray], lo: int, command: str, data: Any) -> Any:
     """Carry out one command on a shard's envs lo.. (observations, and a step's rewards and flags, written into the
     shared `arrays`); the reply's payload (a step's: its infos)."""
-    obs_out = arrays["obs"][lo: lo + len(envs)]
+    obs_out = arrays["obs"][lo : lo + len(envs)]
     if command == "step":
         infos = []
         rewards, terms, truncs = arrays["rewards"], arrays["terms"], arrays["truncs"]
         # A copy: the parent writes the next step's actions into the shared array while an env may keep this one.
-        actions = arrays["actions"][lo: lo + len(envs)].copy() if data is None else data
+        actions = arrays["actions"][lo : lo + len(envs)].copy() if data is None else data
         for k, (env, action) in enumerate(zip(envs, actions)):
             obs_out[k], rewards[lo + k], terms[lo + k], truncs[lo + k], info = _step_one(env, action)
             infos.append(info)
@@ -126,7 +132,7 @@ def reply(pipe: Connection, sem: Any, arrays: dict[str, np.ndarray], w: int, sta
     if status == "step":
         data = pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL)  # infos: 0.5 us where ForkingPickler takes 4
         if len(data) <= INLINE_BYTES:
-            arrays["infos"][w, :len(data)] = np.frombuffer(data, dtype=np.uint8)
+            arrays["infos"][w, : len(data)] = np.frombuffer(data, dtype=np.uint8)
             arrays["reply"][w] = len(data)
             sem.release()
             return
@@ -135,8 +141,9 @@ def reply(pipe: Connection, sem: Any, arrays: dict[str, np.ndarray], w: int, sta
     hand_over(pipe, sem, (status, payload))
 
 
-def serve(fns: list[Callable[[], gym.Env]], pipe: Connection, go: Any, done: Any, spin: float, shared: Shared,
-          w: int, lo: int) -> None:
+def serve(
+    fns: list[Callable[[], gym.Env]], pipe: Connection, go: Any, done: Any, spin: float, shared: Shared, w: int, lo: int
+) -> None:
     """Worker `w`, owning envs lo..lo + len(fns) - 1: observations, rewards and flags into the shared arrays, the
     rest back through its buffer or pipe."""
     envs: list[gym.Env] = []

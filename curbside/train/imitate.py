@@ -16,8 +16,17 @@ from curbside.train.progress import progress_bar
 DISC_NET_ARCH = (256, 256)  # the discriminator's MLP (the paper does not give one; the policy's size)
 
 
-def train_bc(demos: Transitions, out: Path, *, steps: int, observation_space: Any, action_space: Any,
-             seed: int = 0, hparams: Mapping[str, Any] | None = None, progress: bool = True) -> Path:
+def train_bc(
+    demos: Transitions,
+    out: Path,
+    *,
+    steps: int,
+    observation_space: Any,
+    action_space: Any,
+    seed: int = 0,
+    hparams: Mapping[str, Any] | None = None,
+    progress: bool = True,
+) -> Path:
     """Behaviour cloning for `steps` minibatches: maximise the log-likelihood of the demonstrated actions under an SB3
     ActorCriticPolicy (loss - log p(a|s) - 1e-3 entropy, as the `imitation` library's BC), saved as `policy.zip`; a
     loss log beside. The loop runs on tensors built once: a minibatch is an index draw.
@@ -51,7 +60,9 @@ def train_bc(demos: Transitions, out: Path, *, steps: int, observation_space: An
             loss.backward()
             policy.optimizer.step()
             if k % max(steps // 100, 1) == 0 or k == steps:
-                rows.append({"minibatches": k, "loss": float(loss.detach()), "log_prob": float(log_prob.detach().mean())})
+                rows.append(
+                    {"minibatches": k, "loss": float(loss.detach()), "log_prob": float(log_prob.detach().mean())}
+                )
                 update(k)
     with open(out / "logs" / "progress.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -84,10 +95,17 @@ class Discriminator:
         import torch.nn.functional as F
 
         with torch.no_grad():
-            return F.softplus(self.logits(torch.as_tensor(obs, dtype=torch.float32),
-                                          torch.as_tensor(act, dtype=torch.float32))).numpy().astype(np.float32)
+            return (
+                F.softplus(
+                    self.logits(torch.as_tensor(obs, dtype=torch.float32), torch.as_tensor(act, dtype=torch.float32))
+                )
+                .numpy()
+                .astype(np.float32)
+            )
 
-    def train(self, expert: tuple[Any, Any], generated: tuple[Any, Any], updates: int, batch: int, gen: Any) -> dict[str, float]:
+    def train(
+        self, expert: tuple[Any, Any], generated: tuple[Any, Any], updates: int, batch: int, gen: Any
+    ) -> dict[str, float]:
         """`updates` minibatches of `batch` expert and `batch` generated pairs (binary cross-entropy)."""
         import torch
         import torch.nn.functional as F
@@ -96,8 +114,9 @@ class Discriminator:
             i = torch.randint(len(expert[0]), (batch,), generator=gen)
             j = torch.randint(len(generated[0]), (batch,), generator=gen)
             le, lg = self.logits(expert[0][i], expert[1][i]), self.logits(generated[0][j], generated[1][j])
-            loss = (F.binary_cross_entropy_with_logits(le, torch.ones_like(le))
-                    + F.binary_cross_entropy_with_logits(lg, torch.zeros_like(lg)))
+            loss = F.binary_cross_entropy_with_logits(le, torch.ones_like(le)) + F.binary_cross_entropy_with_logits(
+                lg, torch.zeros_like(lg)
+            )
             self.opt.zero_grad()
             loss.backward()
             self.opt.step()
@@ -106,7 +125,9 @@ class Discriminator:
         return {"disc_loss": float(loss.detach()), "disc_acc_expert": acc_expert, "disc_acc_generated": acc_gen}
 
 
-def train_gail(demos: Transitions, out: Path, *, steps: int, venv: Any, hparams: Mapping[str, Any], seed: int = 0) -> Path:
+def train_gail(
+    demos: Transitions, out: Path, *, steps: int, venv: Any, hparams: Mapping[str, Any], seed: int = 0
+) -> Path:
     """GAIL for `steps` env steps: an SB3 PPO generator rewarded by the discriminator (the env's reward is kept
     in the logs only), the discriminator trained `disc_updates_per_round` minibatches after every rollout on
     `demo_batch_size` demonstrated and as many generated pairs. The generator goes to `policy.zip`, the
@@ -121,8 +142,13 @@ def train_gail(demos: Transitions, out: Path, *, steps: int, venv: Any, hparams:
 
     torch.set_num_threads(1)
     low, high = venv.action_space.low, venv.action_space.high
-    disc = Discriminator(int(np.prod(venv.observation_space.shape)), int(np.prod(venv.action_space.shape)),
-                         DISC_NET_ARCH, float(hparams.get("disc_lr", 1e-3)), seed)
+    disc = Discriminator(
+        int(np.prod(venv.observation_space.shape)),
+        int(np.prod(venv.action_space.shape)),
+        DISC_NET_ARCH,
+        float(hparams.get("disc_lr", 1e-3)),
+        seed,
+    )
 
     class DiscriminatorReward(VecEnvWrapper):
         """The venv with the discriminator's reward of (the observation acted on, the action taken)."""
@@ -143,8 +169,10 @@ def train_gail(demos: Transitions, out: Path, *, steps: int, venv: Any, hparams:
             self.last_obs = obs
             return obs, reward, dones, infos
 
-    expert = (torch.as_tensor(demos.obs, dtype=torch.float32),
-              torch.as_tensor(np.clip(demos.actions, low, high), dtype=torch.float32))
+    expert = (
+        torch.as_tensor(demos.obs, dtype=torch.float32),
+        torch.as_tensor(np.clip(demos.actions, low, high), dtype=torch.float32),
+    )
     updates = int(hparams.get("disc_updates_per_round", 4))
     batch = min(int(hparams.get("demo_batch_size", 512)), len(demos))
     gen = torch.Generator().manual_seed(seed)
@@ -154,9 +182,10 @@ def train_gail(demos: Transitions, out: Path, *, steps: int, venv: Any, hparams:
 
         def _on_rollout_end(self) -> None:
             buf = self.model.rollout_buffer
-            generated = (torch.as_tensor(buf.observations.reshape(-1, expert[0].shape[1]), dtype=torch.float32),
-                         torch.as_tensor(np.clip(buf.actions.reshape(-1, expert[1].shape[1]), low, high),
-                                         dtype=torch.float32))
+            generated = (
+                torch.as_tensor(buf.observations.reshape(-1, expert[0].shape[1]), dtype=torch.float32),
+                torch.as_tensor(np.clip(buf.actions.reshape(-1, expert[1].shape[1]), low, high), dtype=torch.float32),
+            )
             for key, value in disc.train(expert, generated, updates, batch, gen).items():
                 self.logger.record(f"gail/{key}", value)
 

@@ -201,8 +201,16 @@ class TD3BC:
 LEARNERS = {"iql": IQL, "td3bc": TD3BC}
 
 
-def train_offline(algo: str, demos: Transitions, out: Path, *, steps: int, seed: int = 0,
-                  hparams: Mapping[str, Any] | None = None, progress: bool = True) -> Path:
+def train_offline(
+    algo: str,
+    demos: Transitions,
+    out: Path,
+    *,
+    steps: int,
+    seed: int = 0,
+    hparams: Mapping[str, Any] | None = None,
+    progress: bool = True,
+) -> Path:
     """Train IQL or TD3+BC for `steps` gradient steps; write `policy.pt` and `train_log.json` under `out`."""
     import torch
 
@@ -232,8 +240,16 @@ def train_offline(algo: str, demos: Transitions, out: Path, *, steps: int, seed:
     (out / "train_log.json").write_text(json.dumps(log, indent=1))
     path = out / "policy.pt"
     tmp = path.with_suffix(".pt.tmp")
-    torch.save({"algo": algo, "obs_dim": int(obs.shape[1]), "act_dim": int(act.shape[1]),
-                "net_arch": list(h.net_arch), "actor": learner.actor.state_dict()}, tmp)
+    torch.save(
+        {
+            "algo": algo,
+            "obs_dim": int(obs.shape[1]),
+            "act_dim": int(act.shape[1]),
+            "net_arch": list(h.net_arch),
+            "actor": learner.actor.state_dict(),
+        },
+        tmp,
+    )
     tmp.replace(path)
     return path
 

@@ -75,12 +75,29 @@ def ppo_kwargs(hparams: Mapping[str, Any]) -> dict[str, Any]:
     return dict(h, policy_kwargs=policy_kwargs)
 
 
-def train_online(algo: str, task: str, out: Path, *, steps: int, env_config: Mapping[str, Any], n_envs: int,
-                 num_scenes: int, hparams: Mapping[str, Any], seed: int = 0, resume: bool = False,
-                 eval_every: int = 0, eval_episodes: int = 20, eval_split: str = "test", progress: bool = True,
-                 subprocess: bool = True, split: str = "train", backend: str = "pybullet",
-                 backend_config: Mapping[str, Any] | None = None, init_from: Path | None = None,
-                 meta: Mapping[str, Any] | None = None) -> Path:
+def train_online(
+    algo: str,
+    task: str,
+    out: Path,
+    *,
+    steps: int,
+    env_config: Mapping[str, Any],
+    n_envs: int,
+    num_scenes: int,
+    hparams: Mapping[str, Any],
+    seed: int = 0,
+    resume: bool = False,
+    eval_every: int = 0,
+    eval_episodes: int = 20,
+    eval_split: str = "test",
+    progress: bool = True,
+    subprocess: bool = True,
+    split: str = "train",
+    backend: str = "pybullet",
+    backend_config: Mapping[str, Any] | None = None,
+    init_from: Path | None = None,
+    meta: Mapping[str, Any] | None = None,
+) -> Path:
     """Train `algo` on `split` for `steps` env steps; checkpoints, CSV/TensorBoard logs and the final policy
     (`policy.zip`) go to `out`; returns the policy path. `resume` continues from `out/checkpoints`; `init_from`
     starts from another run's policy (its evaluation is the curve's first row when `eval_every` > 0).
@@ -97,13 +114,24 @@ def train_online(algo: str, task: str, out: Path, *, steps: int, env_config: Map
     out.mkdir(parents=True, exist_ok=True)
     ckpt_dir = out / "checkpoints"
     latest = _latest_checkpoint(ckpt_dir) if resume else None
-    source = (check_init_from(init_from, algo, task, env_config, hparams["net_arch"])
-              if init_from is not None and latest is None else None)
+    source = (
+        check_init_from(init_from, algo, task, env_config, hparams["net_arch"])
+        if init_from is not None and latest is None
+        else None
+    )
     train_config = early_termination_config(env_config, hparams["cost_limit"]) if algo == "ppo_et" else dict(env_config)
     # The batched env runs in this process (its LiDAR march uses every core between updates): torch may too.
     torch.set_num_threads(2 if backend == "batched" else 1)
-    vec = make_training_vec(task, {**train_config, **(backend_config or {})}, n_envs, num_scenes, backend=backend,
-                            split=split, seed=seed, subprocess=subprocess)
+    vec = make_training_vec(
+        task,
+        {**train_config, **(backend_config or {})},
+        n_envs,
+        num_scenes,
+        backend=backend,
+        split=split,
+        seed=seed,
+        subprocess=subprocess,
+    )
     kwargs = ppo_kwargs(hparams)
     if latest is not None:
         model = PPO.load(latest, env=vec, device="cpu")
@@ -119,51 +147,78 @@ def train_online(algo: str, task: str, out: Path, *, steps: int, env_config: Map
         state = out / "lagrange.json"
         if latest is None and state.exists():
             state.unlink()  # a fresh run starts from lag_init
-        callbacks.append(_lagrange_callback(float(hparams["lag_lr"]), float(hparams["cost_limit"]),
-                                            float(hparams["lag_init"]), state))
+        callbacks.append(
+            _lagrange_callback(
+                float(hparams["lag_lr"]), float(hparams["cost_limit"]), float(hparams["lag_init"]), state
+            )
+        )
     if eval_every > 0:
         curve = out / "eval_curve.csv"
         if latest is None and curve.exists():
             curve.unlink()  # a fresh run writes a fresh curve
-        callbacks.append(SplitEvalCallback(task, env_config, eval_every, eval_episodes, eval_split, curve,
-                                           at_start=latest is None))
-    (out / "run.json").write_text(json.dumps({"algo": algo, "task": task, "steps": steps, "n_envs": n_envs,
-                                              "num_scenes": num_scenes, "seed": seed, "hparams": dict(hparams),
-                                              "env_config": dict(env_config), **dict(meta or {})},
-                                             indent=2, default=str))
+        callbacks.append(
+            SplitEvalCallback(task, env_config, eval_every, eval_episodes, eval_split, curve, at_start=latest is None)
+        )
+    (out / "run.json").write_text(
+        json.dumps(
+            {
+                "algo": algo,
+                "task": task,
+                "steps": steps,
+                "n_envs": n_envs,
+                "num_scenes": num_scenes,
+                "seed": seed,
+                "hparams": dict(hparams),
+                "env_config": dict(env_config),
+                **dict(meta or {}),
+            },
+            indent=2,
+            default=str,
+        )
+    )
     remaining = max(steps - model.num_timesteps, 0)
     try:
-        model.learn(remaining, callback=CallbackList(callbacks), progress_bar=progress,
-                    reset_num_timesteps=latest is None)
+        model.learn(
+            remaining, callback=CallbackList(callbacks), progress_bar=progress, reset_num_timesteps=latest is None
+        )
     finally:
         vec.close()
     return save_policy(model, out / "policy.zip")
 
 
-def check_init_from(run_dir: Path, algo: str, task: str, env_config: Mapping[str, Any],
-                    net_arch: list[int] | None = None) -> Path:
+def check_init_from(
+    run_dir: Path, algo: str, task: str, env_config: Mapping[str, Any], net_arch: list[int] | None = None
+) -> Path:
     """The policy file of the run `run_dir` that a PPO-family run of `task` (with network `net_arch`, when given) can
     start from; a ConfigError when it is not one (another task, algorithm family, observation space or network)."""
     from curbside.train.policies import read_run
 
     run = read_run(Path(run_dir))
     if run["algo"] not in ONLINE_ALGOS + ("gail",) or run.get("engine") == "rllib":
-        raise ConfigError(f"--init-from {run_dir} is a {run['algo']} run; {algo} starts from a PPO, PPO-Lag, PPO-ET "
-                          "or GAIL run trained with --executor local")
+        raise ConfigError(
+            f"--init-from {run_dir} is a {run['algo']} run; {algo} starts from a PPO, PPO-Lag, PPO-ET "
+            "or GAIL run trained with --executor local"
+        )
     if run["task"] != task:
         raise ConfigError(f"--init-from {run_dir} was trained on {run['task']}, not {task}; start from a {task} run")
     mine, theirs = observation_shape(task, env_config), observation_shape(run["task"], run.get("env_config", {}))
     if mine != theirs:
-        raise ConfigError(f"--init-from {run_dir} observes {theirs}, this run {mine}: train with the source run's "
-                          "lidar and observation settings")
+        raise ConfigError(
+            f"--init-from {run_dir} observes {theirs}, this run {mine}: train with the source run's "
+            "lidar and observation settings"
+        )
     theirs_arch = list(run.get("hparams", {}).get("net_arch", []))
     if net_arch is not None and theirs_arch and theirs_arch != list(net_arch):
-        raise ConfigError(f"--init-from {run_dir} has a {theirs_arch} network, this run {list(net_arch)}: train with "
-                          "the source run's net_arch")
+        raise ConfigError(
+            f"--init-from {run_dir} has a {theirs_arch} network, this run {list(net_arch)}: train with "
+            "the source run's net_arch"
+        )
     path = Path(run_dir) / "policy.zip"
     if not path.is_file():
-        raise ConfigError(f"{path} is missing; the source run did not finish: resume it with `curbside train run "
-                          f"--resume --out {run_dir}`")
+        raise ConfigError(
+            f"{path} is missing; the source run did not finish: resume it with `curbside train run "
+            f"--resume --out {run_dir}`"
+        )
     return path
 
 

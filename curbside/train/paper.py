@@ -9,8 +9,15 @@ from __future__ import annotations
 
 TABLE1_SOURCE = "MetaUrban, ICLR 2025, Table 1 (PointNav and SocialNav benchmarks)"
 METHODS = ("ppo", "ppo_lag", "ppo_et", "iql", "td3bc", "bc", "gail")
-METHOD_NAMES = {"ppo": "PPO", "ppo_lag": "PPO-Lag", "ppo_et": "PPO-ET", "iql": "IQL", "td3bc": "TD3+BC", "bc": "BC",
-                "gail": "GAIL"}
+METHOD_NAMES = {
+    "ppo": "PPO",
+    "ppo_lag": "PPO-Lag",
+    "ppo_et": "PPO-ET",
+    "iql": "IQL",
+    "td3bc": "TD3+BC",
+    "bc": "BC",
+    "gail": "GAIL",
+}
 
 # (method) -> (PointNav test, PointNav unseen, SocialNav test, SocialNav unseen), each (SR, SPL or SNS, Cost).
 _TABLE1_ROWS: dict[str, tuple[tuple[float, float, float], ...]] = {
@@ -38,8 +45,10 @@ PAPER_TABLE1: dict[tuple[str, str, str], dict[str, float]] = _table1()
 
 SEED_ROBUSTNESS_SOURCE = "MetaUrban, ICLR 2025, appendix (robustness across seeds)"
 # PPO PointNav SR, mean and std over seeds.
-PAPER_SEED_ROBUSTNESS: dict[str, dict[str, float]] = {"test": {"sr": 0.695, "sr_std": 0.014},
-                                                      "unseen": {"sr": 0.638, "sr_std": 0.060}}
+PAPER_SEED_ROBUSTNESS: dict[str, dict[str, float]] = {
+    "test": {"sr": 0.695, "sr_std": 0.014},
+    "unseen": {"sr": 0.638, "sr_std": 0.060},
+}
 
 TABLE2_SOURCE = "MetaUrban, ICLR 2025, Table 2 (policy learning across machines; PPO, PointNav setting)"
 # machine -> block (S: straight, mainly static obstacles; X: intersection, dense pedestrians) -> SR, SPL, Cost.
@@ -53,13 +62,17 @@ PAPER_TABLE2: dict[str, dict[str, dict[str, float]]] = {
 
 TABLE5_SOURCE = "MetaUrban, ICLR 2025, Table 5 (unique challenges; PPO, tested on MetaUrban-test)"
 # Long horizon: models trained on a mean route of 10 m (setting 1) and 410 m (setting 2).
-PAPER_TABLE5_HORIZON: dict[str, dict[str, float]] = {"10 m": {"sr": 0.10, "spl": 0.08},
-                                                     "410 m": {"sr": 0.41, "spl": 0.38}}
+PAPER_TABLE5_HORIZON: dict[str, dict[str, float]] = {
+    "10 m": {"sr": 0.10, "spl": 0.08},
+    "410 m": {"sr": 0.41, "spl": 0.38},
+}
 # Dense pedestrians (SocialNav): 1 trains with 10 pedestrians per 100 m, 2 with 5, 3 with 10 at intersections only,
 # 4 tests the setting-1 model at 30 per 100 m.
 PAPER_TABLE5_PEDESTRIANS: dict[str, dict[str, float]] = {
-    "1": {"sr": 0.24, "cost": 0.51}, "2": {"sr": 0.16, "cost": 0.75},
-    "3": {"sr": 0.10, "cost": 0.74}, "4": {"sr": 0.08, "cost": 0.68},
+    "1": {"sr": 0.24, "cost": 0.51},
+    "2": {"sr": 0.16, "cost": 0.75},
+    "3": {"sr": 0.10, "cost": 0.74},
+    "4": {"sr": 0.08, "cost": 0.68},
 }
 
 ABLATION_SOURCE = "MetaUrban, ICLR 2025, ablation figure (PPO, PointNav unless stated)"

@@ -12,8 +12,15 @@ import numpy as np
 from kernel.config import ConfigError
 
 ALGOS = ("ppo", "ppo_lag", "ppo_et", "iql", "td3bc", "bc", "gail")
-POLICY_FILES = {"ppo": "policy.zip", "ppo_lag": "policy.zip", "ppo_et": "policy.zip", "gail": "policy.zip",
-                "bc": "policy.zip", "iql": "policy.pt", "td3bc": "policy.pt"}
+POLICY_FILES = {
+    "ppo": "policy.zip",
+    "ppo_lag": "policy.zip",
+    "ppo_et": "policy.zip",
+    "gail": "policy.zip",
+    "bc": "policy.zip",
+    "iql": "policy.pt",
+    "td3bc": "policy.pt",
+}
 
 
 def save_policy(model: Any, path: Path) -> Path:
@@ -37,7 +44,9 @@ def read_run(run_dir: Path) -> dict[str, Any]:
     """The run.json of a training output folder (clear errors when it is not one)."""
     f = Path(run_dir) / "run.json"
     if not f.is_file():
-        raise ConfigError(f"{run_dir} is not a training run (no run.json); train one with `curbside train run --out {run_dir}`")
+        raise ConfigError(
+            f"{run_dir} is not a training run (no run.json); train one with `curbside train run --out {run_dir}`"
+        )
     run = json.loads(f.read_text())
     check_algo(run.get("algo", "?"))
     return run
@@ -52,12 +61,16 @@ def load_policy(run_dir: Path) -> tuple[Callable[[np.ndarray], np.ndarray], dict
 
         policy_dir = Path(run_dir) / "policy"
         if not policy_dir.is_dir():
-            raise ConfigError(f"{policy_dir} is missing; the run did not finish: resume it with `curbside train run "
-                              f"--executor ray --resume --out {run_dir}`")
+            raise ConfigError(
+                f"{policy_dir} is missing; the run did not finish: resume it with `curbside train run "
+                f"--executor ray --resume --out {run_dir}`"
+            )
         return load_rllib_policy(policy_dir), run
     path = Path(run_dir) / POLICY_FILES[algo]
     if not path.is_file():
-        raise ConfigError(f"{path} is missing; the run did not finish: resume it with `curbside train run --resume --out {run_dir}`")
+        raise ConfigError(
+            f"{path} is missing; the run did not finish: resume it with `curbside train run --resume --out {run_dir}`"
+        )
     if algo in ("iql", "td3bc"):
         import torch
 

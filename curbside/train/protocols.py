@@ -43,23 +43,24 @@ class Protocol:
 
     name: str
     description: str
-    env_config: Mapping[str, Any]          # env config every run of the protocol starts from (task-independent)
-    split_scenes: Mapping[str, int]        # scenes in each split (train draws episodes from all of its scenes)
-    n_envs: int                            # parallel envs of online training on the batched backend
-    pybullet_envs: int                     # ... and on the PyBullet envs (a process per core steps its share)
+    env_config: Mapping[str, Any]  # env config every run of the protocol starts from (task-independent)
+    split_scenes: Mapping[str, int]  # scenes in each split (train draws episodes from all of its scenes)
+    n_envs: int  # parallel envs of online training on the batched backend
+    pybullet_envs: int  # ... and on the PyBullet envs (a process per core steps its share)
     hparams: Mapping[str, Mapping[str, Any]]  # per algorithm (curbside.train.policies.ALGOS)
     demos: Demonstrations
-    eval_episodes: int                     # episodes per split in an evaluation
-    eval_scenes: int = 50                  # scenes of the split an evaluation draws from
-    curve_episodes: int = 20               # episodes per point of a learning curve
+    eval_episodes: int  # episodes per split in an evaluation
+    eval_scenes: int = 50  # scenes of the split an evaluation draws from
+    curve_episodes: int = 20  # episodes per point of a learning curve
     batched_config: Mapping[str, Any] = field(default_factory=dict)  # extra env config of the batched backend
     sources: Mapping[str, str] = field(default_factory=dict)  # where each value comes from
 
     def algo_hparams(self, algo: str) -> dict[str, Any]:
         """The hyper-parameters of `algo` under this protocol (a copy)."""
         if algo not in self.hparams:
-            raise ConfigError(f"protocol {self.name!r} has no hyper-parameters for {algo!r}; valid: "
-                              f"{', '.join(self.hparams)}")
+            raise ConfigError(
+                f"protocol {self.name!r} has no hyper-parameters for {algo!r}; valid: {', '.join(self.hparams)}"
+            )
         return dict(self.hparams[algo])
 
     def scenes(self, split: str) -> int:
@@ -72,21 +73,43 @@ class Protocol:
 # PPO as SB3 names it. `train_batch` is the paper's "train batch" (env steps per update, across envs): a run sets
 # SB3's n_steps = train_batch // n_envs. The curbside values are SB3's usual ones with 8 envs of 512 steps.
 CURBSIDE_PPO: dict[str, Any] = {
-    "learning_rate": 3e-4, "train_batch": 4_096, "batch_size": 256, "n_epochs": 10, "gamma": 0.99, "gae_lambda": 0.95,
-    "clip_range": 0.2, "ent_coef": 0.0, "vf_coef": 0.5, "max_grad_norm": 0.5, "net_arch": [256, 256],
-    "log_std_init": -0.5, "cost_limit": 1.0, "lag_lr": 0.05, "lag_init": 0.1,
+    "learning_rate": 3e-4,
+    "train_batch": 4_096,
+    "batch_size": 256,
+    "n_epochs": 10,
+    "gamma": 0.99,
+    "gae_lambda": 0.95,
+    "clip_range": 0.2,
+    "ent_coef": 0.0,
+    "vf_coef": 0.5,
+    "max_grad_norm": 0.5,
+    "net_arch": [256, 256],
+    "log_std_init": -0.5,
+    "cost_limit": 1.0,
+    "lag_lr": 0.05,
+    "lag_init": 0.1,
 }
 # MetaUrban, ICLR 2025, appendix table of PPO / PPO-Lag / PPO-ET hyper-parameters: horizon 1,000, lr 5e-5, gamma 0.99,
 # GAE lambda 0.95, clip 0.2, train batch 25,600, SGD minibatch 256, value-loss coefficient 1.0, entropy 0.0, cost
 # limit 1. Not in the paper (docs/protocols.md): epochs per batch, network, initial log-std, the Lagrange multiplier's
 # step and start, the early-termination penalty.
 PAPER_PPO: dict[str, Any] = {
-    **CURBSIDE_PPO, "learning_rate": 5e-5, "train_batch": 25_600, "batch_size": 256, "vf_coef": 1.0, "ent_coef": 0.0,
-    "gamma": 0.99, "gae_lambda": 0.95, "clip_range": 0.2, "cost_limit": 1.0,
+    **CURBSIDE_PPO,
+    "learning_rate": 5e-5,
+    "train_batch": 25_600,
+    "batch_size": 256,
+    "vf_coef": 1.0,
+    "ent_coef": 0.0,
+    "gamma": 0.99,
+    "gae_lambda": 0.95,
+    "clip_range": 0.2,
+    "cost_limit": 1.0,
 }
 CURBSIDE_OFFLINE = {"learning_rate": 3e-4, "batch_size": 256, "gamma": 0.99, "tau": 5e-3}
 HPARAMS_CURBSIDE: dict[str, dict[str, Any]] = {
-    "ppo": CURBSIDE_PPO, "ppo_lag": CURBSIDE_PPO, "ppo_et": CURBSIDE_PPO,
+    "ppo": CURBSIDE_PPO,
+    "ppo_lag": CURBSIDE_PPO,
+    "ppo_et": CURBSIDE_PPO,
     "iql": {**CURBSIDE_OFFLINE, "expectile": 0.7, "beta": 3.0},
     "td3bc": {**CURBSIDE_OFFLINE, "alpha": 2.5, "actor_delay": 2},
     "bc": {"learning_rate": 1e-3, "batch_size": 256, "net_arch": [256, 256]},
@@ -94,12 +117,22 @@ HPARAMS_CURBSIDE: dict[str, dict[str, Any]] = {
 }
 # MetaUrban, ICLR 2025, appendix tables of IQL, TD3+BC, BC and GAIL hyper-parameters.
 HPARAMS_PAPER: dict[str, dict[str, Any]] = {
-    "ppo": PAPER_PPO, "ppo_lag": PAPER_PPO, "ppo_et": PAPER_PPO,
+    "ppo": PAPER_PPO,
+    "ppo_lag": PAPER_PPO,
+    "ppo_et": PAPER_PPO,
     "iql": {"learning_rate": 1e-4, "batch_size": 256, "gamma": 0.99, "tau": 5e-3, "expectile": 0.7, "beta": 3.0},
     "td3bc": {"learning_rate": 1e-4, "batch_size": 256, "gamma": 0.99, "tau": 5e-3, "alpha": 2.5, "actor_delay": 2},
     "bc": {"learning_rate": 1e-4, "batch_size": 64, "net_arch": [256, 256]},  # 40 epochs: 18,750 minibatches
-    "gail": {**PAPER_PPO, "learning_rate": 1e-4, "train_batch": 12_800, "demo_batch_size": 64, "n_epochs": 5,
-             "disc_updates_per_round": 2_000, "disc_lr": 3e-3, "clip_range": 0.2},
+    "gail": {
+        **PAPER_PPO,
+        "learning_rate": 1e-4,
+        "train_batch": 12_800,
+        "demo_batch_size": 64,
+        "n_epochs": 5,
+        "disc_updates_per_round": 2_000,
+        "disc_lr": 3e-3,
+        "clip_range": 0.2,
+    },
 }
 
 PROTOCOLS: dict[str, Protocol] = {
@@ -117,7 +150,7 @@ PROTOCOLS: dict[str, Protocol] = {
     "paper": Protocol(
         name="paper",
         description="MetaUrban's: MetaUrban-12K-scale scenes and splits, the paper's hyper-parameters, 200 "
-                    "evaluation episodes a split",
+        "evaluation episodes a split",
         # LiDAR grids at 0.1 m: a paper-scale scene's grids at the default 0.05 m hold ~40 M cells, and 64 envs in
         # 64 scenes would pass the 2**31 cells the batched tracer indexes (docs/protocols.md).
         env_config=_frozen({"preset": "metaurban12k", "lidar": {"resolution": 0.1}}),
@@ -131,14 +164,16 @@ PROTOCOLS: dict[str, Protocol] = {
         # A paper-scale scene costs ~2 s to build and a long route ~0.1 s to plan: each env keeps its scene for 20,000
         # steps and each scene a pool of 16 routes (docs/protocols.md).
         batched_config=_frozen({"scene_steps": 20_000, "route_pool": 16}),
-        sources=_frozen({
-            "split_scenes": "MetaUrban, ICLR 2025, Sec. 4 (MetaUrban-12K: train 12,800, test 1,000, unseen 100, "
-                            "finetune 1,000)",
-            "hparams": "MetaUrban, ICLR 2025, appendix hyper-parameter tables (PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, "
-                       "BC, GAIL)",
-            "demos": "MetaUrban, ICLR 2025, appendix: 30,000 steps, 80 % from a trained PPO policy, ~60 % success",
-            "env_config": "docs/protocols.md: the metaurban12k preset (scenes, 250-650 m routes, horizon rule)",
-        }),
+        sources=_frozen(
+            {
+                "split_scenes": "MetaUrban, ICLR 2025, Sec. 4 (MetaUrban-12K: train 12,800, test 1,000, unseen 100, "
+                "finetune 1,000)",
+                "hparams": "MetaUrban, ICLR 2025, appendix hyper-parameter tables (PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, "
+                "BC, GAIL)",
+                "demos": "MetaUrban, ICLR 2025, appendix: 30,000 steps, 80 % from a trained PPO policy, ~60 % success",
+                "env_config": "docs/protocols.md: the metaurban12k preset (scenes, 250-650 m routes, horizon rule)",
+            }
+        ),
     ),
 }
 

@@ -54,8 +54,17 @@ def make_rllib_env(ctx: Mapping[str, Any]) -> Any:
     return gym.make(env_id(ctx["task"]), config=cfg)
 
 
-def ppo_config(algo: str, task: str, env_config: Mapping[str, Any], hparams: Mapping[str, Any], *,
-               num_env_runners: int, envs_per_runner: int, num_scenes: int, seed: int) -> Any:
+def ppo_config(
+    algo: str,
+    task: str,
+    env_config: Mapping[str, Any],
+    hparams: Mapping[str, Any],
+    *,
+    num_env_runners: int,
+    envs_per_runner: int,
+    num_scenes: int,
+    seed: int,
+) -> Any:
     """The RLlib PPOConfig of our PPO hyperparameters (SB3 names mapped onto RLlib's)."""
     from ray.rllib.algorithms.ppo import PPOConfig
     from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
@@ -66,22 +75,42 @@ def ppo_config(algo: str, task: str, env_config: Mapping[str, Any], hparams: Map
     register_env(rllib_env_name(task), make_rllib_env)
     h = dict(hparams)
     n_envs = num_env_runners * envs_per_runner
-    ctx = {"task": task, "env_config": dict(env_config), "num_scenes": num_scenes, "algo": algo,
-           "cost_limit": float(h["cost_limit"])}
+    ctx = {
+        "task": task,
+        "env_config": dict(env_config),
+        "num_scenes": num_scenes,
+        "algo": algo,
+        "cost_limit": float(h["cost_limit"]),
+    }
     return (
         PPOConfig()
         .environment(rllib_env_name(task), env_config=ctx)
-        .env_runners(num_env_runners=num_env_runners, num_envs_per_env_runner=envs_per_runner,
-                     num_cpus_per_env_runner=1, rollout_fragment_length=int(h["n_steps"]))
+        .env_runners(
+            num_env_runners=num_env_runners,
+            num_envs_per_env_runner=envs_per_runner,
+            num_cpus_per_env_runner=1,
+            rollout_fragment_length=int(h["n_steps"]),
+        )
         .learners(num_learners=0)  # the learner runs in the driver; env runners are the scaled-out part
-        .training(lr=float(h["learning_rate"]), gamma=float(h["gamma"]), lambda_=float(h["gae_lambda"]),
-                  clip_param=float(h["clip_range"]), entropy_coeff=float(h["ent_coef"]),
-                  vf_loss_coeff=float(h["vf_coef"]), grad_clip=float(h["max_grad_norm"]),
-                  num_epochs=int(h["n_epochs"]), minibatch_size=int(h["batch_size"]),
-                  train_batch_size_per_learner=int(h["n_steps"]) * n_envs,
-                  use_kl_loss=False, vf_clip_param=float("inf"))  # SB3's PPO: no KL term, no value clipping
-        .rl_module(model_config=DefaultModelConfig(fcnet_hiddens=list(h["net_arch"]), fcnet_activation="tanh",
-                                                   vf_share_layers=False))
+        .training(
+            lr=float(h["learning_rate"]),
+            gamma=float(h["gamma"]),
+            lambda_=float(h["gae_lambda"]),
+            clip_param=float(h["clip_range"]),
+            entropy_coeff=float(h["ent_coef"]),
+            vf_loss_coeff=float(h["vf_coef"]),
+            grad_clip=float(h["max_grad_norm"]),
+            num_epochs=int(h["n_epochs"]),
+            minibatch_size=int(h["batch_size"]),
+            train_batch_size_per_learner=int(h["n_steps"]) * n_envs,
+            use_kl_loss=False,
+            vf_clip_param=float("inf"),
+        )  # SB3's PPO: no KL term, no value clipping
+        .rl_module(
+            model_config=DefaultModelConfig(
+                fcnet_hiddens=list(h["net_arch"]), fcnet_activation="tanh", vf_share_layers=False
+            )
+        )
         .debugging(seed=seed, log_level="ERROR")
     )
 
@@ -91,10 +120,26 @@ def _latest_checkpoint(ckpt_dir: Path) -> Path | None:
     return dirs[-1] if dirs else None
 
 
-def train_rllib(algo: str, task: str, out: Path, *, steps: int, env_config: Mapping[str, Any], n_envs: int,
-                num_env_runners: int, num_scenes: int, hparams: Mapping[str, Any], seed: int = 0,
-                resume: bool = False, eval_every: int = 0, eval_episodes: int = 20, eval_split: str = "test",
-                address: str | None = None, progress: bool = True, meta: Mapping[str, Any] | None = None) -> Path:
+def train_rllib(
+    algo: str,
+    task: str,
+    out: Path,
+    *,
+    steps: int,
+    env_config: Mapping[str, Any],
+    n_envs: int,
+    num_env_runners: int,
+    num_scenes: int,
+    hparams: Mapping[str, Any],
+    seed: int = 0,
+    resume: bool = False,
+    eval_every: int = 0,
+    eval_episodes: int = 20,
+    eval_split: str = "test",
+    address: str | None = None,
+    progress: bool = True,
+    meta: Mapping[str, Any] | None = None,
+) -> Path:
     """Train PPO on RLlib for `steps` env steps with `num_env_runners` env runners (each stepping
     ceil(n_envs / runners) envs) on the Ray cluster at `address` (or one started here); returns the policy folder."""
     import logging
@@ -115,8 +160,16 @@ def train_rllib(algo: str, task: str, out: Path, *, steps: int, env_config: Mapp
     started = connect_ray(num_env_runners + 1, address)  # one CPU for the driver's learner
     algo_obj = None
     try:
-        config = ppo_config(algo, task, env_config, hparams, num_env_runners=num_env_runners,
-                            envs_per_runner=envs_per_runner, num_scenes=num_scenes, seed=seed)
+        config = ppo_config(
+            algo,
+            task,
+            env_config,
+            hparams,
+            num_env_runners=num_env_runners,
+            envs_per_runner=envs_per_runner,
+            num_scenes=num_scenes,
+            seed=seed,
+        )
         algo_obj = config.build_algo()
         ckpt_dir = out / "checkpoints"
         latest = _latest_checkpoint(ckpt_dir) if resume else None
@@ -124,12 +177,26 @@ def train_rllib(algo: str, task: str, out: Path, *, steps: int, env_config: Mapp
         if latest is not None:
             algo_obj.restore_from_path(str(latest.resolve()))
             done = int(latest.name.split("_")[-2])
-        (out / "run.json").write_text(json.dumps({
-            "algo": algo, "task": task, "steps": steps, "n_envs": num_env_runners * envs_per_runner,
-            "num_scenes": num_scenes, "seed": seed, "hparams": dict(hparams), "env_config": dict(env_config),
-            "engine": "rllib", "num_env_runners": num_env_runners, "envs_per_runner": envs_per_runner,
-            **dict(meta or {}),
-        }, indent=2, default=str))
+        (out / "run.json").write_text(
+            json.dumps(
+                {
+                    "algo": algo,
+                    "task": task,
+                    "steps": steps,
+                    "n_envs": num_env_runners * envs_per_runner,
+                    "num_scenes": num_scenes,
+                    "seed": seed,
+                    "hparams": dict(hparams),
+                    "env_config": dict(env_config),
+                    "engine": "rllib",
+                    "num_env_runners": num_env_runners,
+                    "envs_per_runner": envs_per_runner,
+                    **dict(meta or {}),
+                },
+                indent=2,
+                default=str,
+            )
+        )
         logger = configure(str(out / "logs"), ["csv", "tensorboard"])
         next_ckpt = (done // CHECKPOINT_EVERY + 1) * CHECKPOINT_EVERY
         next_eval = (done // eval_every + 1) * eval_every if eval_every > 0 else None
@@ -147,8 +214,14 @@ def train_rllib(algo: str, task: str, out: Path, *, steps: int, env_config: Mapp
                     next_ckpt = (done // CHECKPOINT_EVERY + 1) * CHECKPOINT_EVERY
                 if next_eval is not None and done >= next_eval:
                     next_eval = (done // eval_every + 1) * eval_every
-                    summary = evaluate_policy(module_policy(algo_obj.get_module()), task, env_config,
-                                              split=eval_split, episodes=eval_episodes, progress=False)
+                    summary = evaluate_policy(
+                        module_policy(algo_obj.get_module()),
+                        task,
+                        env_config,
+                        split=eval_split,
+                        episodes=eval_episodes,
+                        progress=False,
+                    )
                     append_eval_row(out / "eval_curve.csv", done, summary, logger, eval_split)
                     logger.dump(done)
         path = out / "policy"
@@ -161,7 +234,9 @@ def train_rllib(algo: str, task: str, out: Path, *, steps: int, env_config: Mapp
             ray.shutdown()
 
 
-def _log(logger: Any, result: Mapping[str, Any], steps: int, iteration: int, elapsed: float, session_steps: int) -> None:
+def _log(
+    logger: Any, result: Mapping[str, Any], steps: int, iteration: int, elapsed: float, session_steps: int
+) -> None:
     """One row of logs/progress.csv under SB3's key names."""
     runners = result.get("env_runners", {})
     learner = result.get("learners", {}).get("default_policy", {})
@@ -172,8 +247,12 @@ def _log(logger: Any, result: Mapping[str, Any], steps: int, iteration: int, ela
     for key, name in (("episode_return_mean", "rollout/ep_rew_mean"), ("episode_len_mean", "rollout/ep_len_mean")):
         if key in runners and np.isfinite(float(runners[key])):
             logger.record(name, float(runners[key]))
-    for key, name in (("policy_loss", "train/policy_gradient_loss"), ("vf_loss", "train/value_loss"),
-                      ("entropy", "train/entropy"), ("default_optimizer_learning_rate", "train/learning_rate")):
+    for key, name in (
+        ("policy_loss", "train/policy_gradient_loss"),
+        ("vf_loss", "train/value_loss"),
+        ("entropy", "train/entropy"),
+        ("default_optimizer_learning_rate", "train/learning_rate"),
+    ):
         if key in learner:
             logger.record(name, float(learner[key]))
     logger.dump(steps)
@@ -202,8 +281,10 @@ def load_rllib_policy(policy_dir: Path) -> Any:
     logging.getLogger("ray.rllib").setLevel(logging.ERROR)  # RLlib's own deprecation notice about its checkpoints
     module_dir = Path(policy_dir) / "learner_group" / "learner" / "rl_module" / "default_policy"
     if not module_dir.is_dir():
-        raise ConfigError(f"{policy_dir} is not an RLlib PPO checkpoint (no {module_dir.relative_to(policy_dir)}); "
-                          "train again with `curbside train run --executor ray`")
+        raise ConfigError(
+            f"{policy_dir} is not an RLlib PPO checkpoint (no {module_dir.relative_to(policy_dir)}); "
+            "train again with `curbside train run --executor ray`"
+        )
     return module_policy(RLModule.from_checkpoint(str(module_dir.resolve())))
 
 

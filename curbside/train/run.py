@@ -25,9 +25,18 @@ def check_backend(backend: str, task: str, algo: str) -> str:
     return backend
 
 
-def resolve_run(algo: str, task: str, *, protocol: str = "curbside", env_config: Mapping[str, Any] | None = None,
-                n_envs: int | None = None, num_scenes: int | None = None, split: str = "train",
-                hparams: Mapping[str, Any] | None = None, backend: str = "pybullet") -> dict[str, Any]:
+def resolve_run(
+    algo: str,
+    task: str,
+    *,
+    protocol: str = "curbside",
+    env_config: Mapping[str, Any] | None = None,
+    n_envs: int | None = None,
+    num_scenes: int | None = None,
+    split: str = "train",
+    hparams: Mapping[str, Any] | None = None,
+    backend: str = "pybullet",
+) -> dict[str, Any]:
     """What a run trains with: the protocol's env config (the caller's merged key by key), envs (the protocol's for
     `backend`), scenes of `split` and `algo`'s hyper-parameters, each overridden by the caller's values (None keeps
     the protocol's)."""
@@ -41,8 +50,10 @@ def resolve_run(algo: str, task: str, *, protocol: str = "curbside", env_config:
         raise ConfigError(f"unknown split {split!r}; valid: {', '.join(SPLITS)}")
     cfg = deep_merge(proto.env_config, env_config)
     if "split" in (env_config or {}) and env_config["split"] != split:  # type: ignore[index]
-        raise ConfigError(f"config.split {env_config['split']!r} differs from --split {split!r}; "  # type: ignore[index]
-                          "choose the training split with --split")
+        raise ConfigError(
+            f"config.split {env_config['split']!r} differs from --split {split!r}; "  # type: ignore[index]
+            "choose the training split with --split"
+        )
     cfg.pop("split", None)
     envs = int(n_envs or (proto.n_envs if backend == "batched" else proto.pybullet_envs))
     num_scenes = num_scenes or cfg.pop("num_scenes", None)  # an experiment's scene count (ablation b) is env config
@@ -55,8 +66,14 @@ def resolve_run(algo: str, task: str, *, protocol: str = "curbside", env_config:
     h = {**h, **(hparams or {})}
     if algo in ("ppo", "ppo_lag", "ppo_et", "gail"):
         h = ppo_hparams(h, envs)
-    return {"protocol": proto.name, "env_config": cfg, "n_envs": envs, "split": split, "hparams": h,
-            "num_scenes": int(num_scenes or proto.scenes(split))}
+    return {
+        "protocol": proto.name,
+        "env_config": cfg,
+        "n_envs": envs,
+        "split": split,
+        "hparams": h,
+        "num_scenes": int(num_scenes or proto.scenes(split)),
+    }
 
 
 def check_run_folder(out: Path, algo: str, task: str, resume: bool) -> None:
@@ -78,12 +95,31 @@ def check_run_folder(out: Path, algo: str, task: str, resume: bool) -> None:
         raise ConfigError(f"--resume of {out}: it holds {held}, not {algo} on {task}; train into another --out")
 
 
-def train(algo: str, task: str, out: Path, *, steps: int, protocol: str = "curbside", backend: str = "pybullet",
-          split: str = "train", env_config: Mapping[str, Any] | None = None, n_envs: int | None = None,
-          num_scenes: int | None = None, seed: int = 0, demos: Path | None = None, resume: bool = False,
-          init_from: Path | None = None, eval_every: int = 0, eval_episodes: int | None = None,
-          hparams: Mapping[str, Any] | None = None, progress: bool = True, subprocess: bool = True,
-          executor: str = "local", num_env_runners: int = 2, address: str | None = None) -> Path:
+def train(
+    algo: str,
+    task: str,
+    out: Path,
+    *,
+    steps: int,
+    protocol: str = "curbside",
+    backend: str = "pybullet",
+    split: str = "train",
+    env_config: Mapping[str, Any] | None = None,
+    n_envs: int | None = None,
+    num_scenes: int | None = None,
+    seed: int = 0,
+    demos: Path | None = None,
+    resume: bool = False,
+    init_from: Path | None = None,
+    eval_every: int = 0,
+    eval_episodes: int | None = None,
+    hparams: Mapping[str, Any] | None = None,
+    progress: bool = True,
+    subprocess: bool = True,
+    executor: str = "local",
+    num_env_runners: int = 2,
+    address: str | None = None,
+) -> Path:
     """Train `algo` on `task`'s `split` under `protocol`; write run.json and the policy into `out`; return the policy
     path.
 
@@ -98,46 +134,110 @@ def train(algo: str, task: str, out: Path, *, steps: int, protocol: str = "curbs
     check_algo(algo)
     check_backend(backend, task, algo)
     check_run_folder(Path(out), algo, task, resume)
-    r = resolve_run(algo, task, protocol=protocol, env_config=env_config, n_envs=n_envs, num_scenes=num_scenes,
-                    split=split, hparams=hparams, backend=backend)
+    r = resolve_run(
+        algo,
+        task,
+        protocol=protocol,
+        env_config=env_config,
+        n_envs=n_envs,
+        num_scenes=num_scenes,
+        split=split,
+        hparams=hparams,
+        backend=backend,
+    )
     cfg, h, envs, scenes = r["env_config"], r["hparams"], r["n_envs"], r["num_scenes"]
     proto = get_protocol(protocol)
     episodes = int(eval_episodes or proto.curve_episodes)
     out = Path(out)
     if executor not in ("local", "ray"):
-        raise ConfigError(f"training runs on executor local (SB3, envs in local processes) or ray (RLlib), got "
-                          f"{executor!r}")
+        raise ConfigError(
+            f"training runs on executor local (SB3, envs in local processes) or ray (RLlib), got {executor!r}"
+        )
     if executor == "ray":
         if init_from is not None or split != "train" or backend != "pybullet":
-            raise ConfigError("--executor ray trains from scratch on the train split with the PyBullet envs; drop "
-                              "--init-from, --split and --backend, or use --executor local")
+            raise ConfigError(
+                "--executor ray trains from scratch on the train split with the PyBullet envs; drop "
+                "--init-from, --split and --backend, or use --executor local"
+            )
         from curbside.train.rllib import train_rllib
-        return train_rllib(algo, task, out, steps=steps, env_config=cfg, n_envs=envs, num_env_runners=num_env_runners,
-                           num_scenes=scenes, hparams=h, seed=seed, resume=resume, eval_every=eval_every,
-                           address=address, progress=progress,
-                           meta={"protocol": r["protocol"], "split": split, "backend": backend})
-    meta = {"protocol": r["protocol"], "split": split, "backend": backend,
-            "init_from": None if init_from is None else str(init_from)}
+
+        return train_rllib(
+            algo,
+            task,
+            out,
+            steps=steps,
+            env_config=cfg,
+            n_envs=envs,
+            num_env_runners=num_env_runners,
+            num_scenes=scenes,
+            hparams=h,
+            seed=seed,
+            resume=resume,
+            eval_every=eval_every,
+            address=address,
+            progress=progress,
+            meta={"protocol": r["protocol"], "split": split, "backend": backend},
+        )
+    meta = {
+        "protocol": r["protocol"],
+        "split": split,
+        "backend": backend,
+        "init_from": None if init_from is None else str(init_from),
+    }
     if algo in ONLINE_ALGOS:
-        return train_online(algo, task, out, steps=steps, env_config=cfg, n_envs=envs, num_scenes=scenes, hparams=h,
-                            seed=seed, resume=resume, eval_every=eval_every, eval_episodes=episodes,
-                            progress=progress, subprocess=subprocess, split=split, backend=backend,
-                            backend_config=proto.batched_config if backend == "batched" else {},
-                            init_from=init_from, meta=meta)
+        return train_online(
+            algo,
+            task,
+            out,
+            steps=steps,
+            env_config=cfg,
+            n_envs=envs,
+            num_scenes=scenes,
+            hparams=h,
+            seed=seed,
+            resume=resume,
+            eval_every=eval_every,
+            eval_episodes=episodes,
+            progress=progress,
+            subprocess=subprocess,
+            split=split,
+            backend=backend,
+            backend_config=proto.batched_config if backend == "batched" else {},
+            init_from=init_from,
+            meta=meta,
+        )
     from curbside.train.demos import load_demos
 
     if demos is None:
-        raise ConfigError(f"{algo} learns from demonstrations: pass --demos DIR (collect with `curbside demos "
-                          f"collect --task {task}`)")
+        raise ConfigError(
+            f"{algo} learns from demonstrations: pass --demos DIR (collect with `curbside demos collect --task {task}`)"
+        )
     transitions, demos_meta = load_demos(demos)
     if demos_meta.get("task", task) != task:
-        raise ConfigError(f"the demonstrations at {demos} are of {demos_meta['task']}, not {task}; collect {task} "
-                          f"demonstrations with `curbside demos collect --task {task}`")
+        raise ConfigError(
+            f"the demonstrations at {demos} are of {demos_meta['task']}, not {task}; collect {task} "
+            f"demonstrations with `curbside demos collect --task {task}`"
+        )
     out.mkdir(parents=True, exist_ok=True)
-    (out / "run.json").write_text(json.dumps({"algo": algo, "task": task, "steps": steps, "seed": seed,
-                                              "demos": str(demos), "demos_meta": demos_meta, "env_config": cfg,
-                                              "n_envs": envs, "num_scenes": scenes, "hparams": h, **meta},
-                                             indent=2, default=str))
+    (out / "run.json").write_text(
+        json.dumps(
+            {
+                "algo": algo,
+                "task": task,
+                "steps": steps,
+                "seed": seed,
+                "demos": str(demos),
+                "demos_meta": demos_meta,
+                "env_config": cfg,
+                "n_envs": envs,
+                "num_scenes": scenes,
+                "hparams": h,
+                **meta,
+            },
+            indent=2,
+            default=str,
+        )
+    )
     import gymnasium as gym
 
     import sim  # noqa: F401
@@ -147,15 +247,27 @@ def train(algo: str, task: str, out: Path, *, steps: int, protocol: str = "curbs
     obs_space, act_space = probe.observation_space, probe.action_space
     probe.close()
     if transitions.obs.shape[1:] != obs_space.shape:
-        raise ConfigError(f"the demonstrations' observations have shape {transitions.obs.shape[1:]}, the env's "
-                          f"{obs_space.shape}; collect them again with the same env config")
+        raise ConfigError(
+            f"the demonstrations' observations have shape {transitions.obs.shape[1:]}, the env's "
+            f"{obs_space.shape}; collect them again with the same env config"
+        )
     if algo in ("iql", "td3bc"):
         from curbside.train.offline import train_offline
+
         return train_offline(algo, transitions, out, steps=steps, hparams=h, seed=seed, progress=progress)
     if algo == "bc":
         from curbside.train.imitate import train_bc
-        return train_bc(transitions, out, steps=steps, observation_space=obs_space, action_space=act_space, seed=seed,
-                        hparams=h, progress=progress)
+
+        return train_bc(
+            transitions,
+            out,
+            steps=steps,
+            observation_space=obs_space,
+            action_space=act_space,
+            seed=seed,
+            hparams=h,
+            progress=progress,
+        )
     from curbside.train.imitate import train_gail
 
     vec = make_vec_env(task, cfg, envs, scenes, split=split, subprocess=subprocess, seed=seed)

@@ -54,8 +54,14 @@ class ShardedVectorEnv(VectorEnv):
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}
 
-    def __init__(self, env_fns: Sequence[Callable[[], gym.Env]], workers: int, context: str = "forkserver",
-                 local: bool = True, spin: float | None = None) -> None:
+    def __init__(
+        self,
+        env_fns: Sequence[Callable[[], gym.Env]],
+        workers: int,
+        context: str = "forkserver",
+        local: bool = True,
+        spin: float | None = None,
+    ) -> None:
         n = len(env_fns)
         if not 1 <= workers <= n:
             raise ValueError(f"workers must be in [1, {n}] (the number of envs), got {workers}")
@@ -64,8 +70,10 @@ class ShardedVectorEnv(VectorEnv):
         self.render_mode = probe.render_mode
         probe.close()
         if not isinstance(self.single_observation_space, gym.spaces.Box):
-            raise ValueError(f"ShardedVectorEnv shares Box observations only, got {self.single_observation_space}; "
-                             "use gymnasium's AsyncVectorEnv for other spaces")
+            raise ValueError(
+                f"ShardedVectorEnv shares Box observations only, got {self.single_observation_space}; "
+                "use gymnasium's AsyncVectorEnv for other spaces"
+            )
         self.num_envs = n
         self.observation_space = batch_space(self.single_observation_space, n)
         self.action_space = batch_space(self.single_action_space, n)
@@ -90,8 +98,7 @@ class ShardedVectorEnv(VectorEnv):
             parent, child = ctx.Pipe()
             go, done = ctx.Semaphore(0), ctx.Semaphore(0)
             fns = [CloudpickleWrapper(fn) for fn in env_fns[lo:hi]]  # closures travel to forkserver/spawn workers
-            proc = ctx.Process(target=serve, args=(fns, child, go, done, self._spin, self._shared, w, lo),
-                               daemon=True)
+            proc = ctx.Process(target=serve, args=(fns, child, go, done, self._spin, self._shared, w, lo), daemon=True)
             proc.start()
             child.close()
             self._pipes.append(parent)
@@ -164,8 +171,9 @@ class ShardedVectorEnv(VectorEnv):
         proc = self._procs[w]
         proc.join(timeout=1.0)
         self.close(terminate=True)
-        raise RuntimeError(f"ShardedVectorEnv worker {w} (pid {proc.pid}) died (exit code {proc.exitcode}); the "
-                           "vector env is closed")
+        raise RuntimeError(
+            f"ShardedVectorEnv worker {w} (pid {proc.pid}) died (exit code {proc.exitcode}); the vector env is closed"
+        )
 
     def _gather(self) -> list[Any]:
         """The replies owed, worker by worker; RuntimeError (the env closed) when a worker failed or died."""
@@ -231,11 +239,15 @@ class ShardedVectorEnv(VectorEnv):
             vector_infos[key], vector_infos[mask_key] = array, mask
         return vector_infos
 
-    def reset(self, *, seed: int | list[int | None] | None = None,
-              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every env (`seed` an int gives env i seed + i, as Gymnasium's vector envs do)."""
-        seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, int) else (
-            list(seed) if seed is not None else [None] * self.num_envs)
+        seeds = (
+            [seed + i for i in range(self.num_envs)]
+            if isinstance(seed, int)
+            else (list(seed) if seed is not None else [None] * self.num_envs)
+        )
         if len(seeds) != self.num_envs:
             raise ValueError(f"reset got {len(seeds)} seeds for {self.num_envs} envs")
         infos = [i for part in self._run("reset", [(seeds[lo:hi], options) for lo, hi in self._bounds]) for i in part]
@@ -247,8 +259,10 @@ class ShardedVectorEnv(VectorEnv):
             raise AlreadyPendingCallError("step_async while a step is pending; call step_wait first", "step")
         actions = np.asarray(actions)
         if "actions" in self._arrays and actions.shape != self._arrays["actions"].shape:
-            raise ValueError(f"step got actions of shape {actions.shape}; this vector env of {self.num_envs} envs "
-                             f"takes {self._arrays['actions'].shape}")
+            raise ValueError(
+                f"step got actions of shape {actions.shape}; this vector env of {self.num_envs} envs "
+                f"takes {self._arrays['actions'].shape}"
+            )
         pending = [actions[lo:hi] for lo, hi in self._bounds]
         self._send("step", pending)
         self._pending = pending

@@ -22,10 +22,28 @@ from kernel.config import ConfigError, merge_strict
 
 # Axis maps. Pedals rest at +1 and read -1 pressed on most wheels (`pedals`); stick y is -1 pushed forward.
 DEVICE_PRESETS: dict[str, dict[str, Any]] = {
-    "gamepad": {"steer_axis": 0, "throttle_axis": 1, "brake_axis": None, "invert_steer": True,
-                "invert_throttle": True, "pedals": False, "deadzone": 0.08, "end_button": 0, "quit_button": 1},
-    "wheel": {"steer_axis": 0, "throttle_axis": 2, "brake_axis": 3, "invert_steer": True,
-              "invert_throttle": False, "pedals": True, "deadzone": 0.02, "end_button": 0, "quit_button": 1},
+    "gamepad": {
+        "steer_axis": 0,
+        "throttle_axis": 1,
+        "brake_axis": None,
+        "invert_steer": True,
+        "invert_throttle": True,
+        "pedals": False,
+        "deadzone": 0.08,
+        "end_button": 0,
+        "quit_button": 1,
+    },
+    "wheel": {
+        "steer_axis": 0,
+        "throttle_axis": 2,
+        "brake_axis": 3,
+        "invert_steer": True,
+        "invert_throttle": False,
+        "pedals": True,
+        "deadzone": 0.02,
+        "end_button": 0,
+        "quit_button": 1,
+    },
 }
 DEVICES = ("keyboard", *DEVICE_PRESETS)
 STEER_RATE = 3.0  # keyboard steering slews at this many full-scale units a second, as a hand turns a wheel
@@ -75,6 +93,7 @@ class KeyboardControls(Controls):
 
 def axes_action(axes: list[float], mapping: Mapping[str, Any]) -> np.ndarray:
     """[steering, throttle_brake] from joystick axis values under an axis map (deadzone, inversion, pedals)."""
+
     def axis(i: int | None) -> float:
         if i is None or i >= len(axes):
             return 0.0
@@ -122,16 +141,27 @@ def device_mapping(device: str, mapping_file: Path | None = None) -> dict[str, A
     try:
         extra = json.loads(Path(mapping_file).read_text()) if mapping_file is not None else {}
     except json.JSONDecodeError as e:
-        raise ConfigError(f"--mapping {mapping_file} is not JSON ({e}); write an object such as "
-                          '{"steer_axis": 0, "throttle_axis": 2}') from None
+        raise ConfigError(
+            f"--mapping {mapping_file} is not JSON ({e}); write an object such as "
+            '{"steer_axis": 0, "throttle_axis": 2}'
+        ) from None
     if not isinstance(extra, dict):
         raise ConfigError(f"--mapping {mapping_file} must hold a JSON object of axis settings")
     return merge_strict(DEVICE_PRESETS[device], extra, name=f"--mapping {mapping_file}")
 
 
-def teleop(task: str, out: Path, *, device: str = "keyboard", mapping_file: Path | None = None,
-           env_config: Mapping[str, Any] | None = None, episodes: int | None = None, max_steps: int | None = None,
-           seed: int = 0, before_step: Callable[[int], None] | None = None) -> dict[str, Any]:
+def teleop(
+    task: str,
+    out: Path,
+    *,
+    device: str = "keyboard",
+    mapping_file: Path | None = None,
+    env_config: Mapping[str, Any] | None = None,
+    episodes: int | None = None,
+    max_steps: int | None = None,
+    seed: int = 0,
+    before_step: Callable[[int], None] | None = None,
+) -> dict[str, Any]:
     """Drive `task` by hand until `episodes` end, `max_steps` pass or the user stops; write what was driven as
     the Minari dataset curbside/<task>-teleop-v0 under `out` and return its summary. `before_step(k)` runs
     before step k (scripted input in tests)."""
@@ -148,7 +178,9 @@ def teleop(task: str, out: Path, *, device: str = "keyboard", mapping_file: Path
     recorded, successes, total = [], 0, 0
     try:
         obs, _ = env.reset(seed=seed)  # opens the window: pygame is up for the devices
-        controls = KeyboardControls() if device == "keyboard" else JoystickControls(device_mapping(device, mapping_file))
+        controls = (
+            KeyboardControls() if device == "keyboard" else JoystickControls(device_mapping(device, mapping_file))
+        )
         window = window_of(u)
         episode = EpisodeRecorder(obs, seed)
         while True:
@@ -168,8 +200,14 @@ def teleop(task: str, out: Path, *, device: str = "keyboard", mapping_file: Path
                 obs, _ = env.reset(seed=seed + len(recorded))
                 episode = EpisodeRecorder(obs, seed + len(recorded))
         meta = {"steps": total, "success_rate": successes / max(len(recorded), 1), "task": task, "device": device}
-        return write_dataset(recorded, env, out, f"curbside/{task.lower()}-teleop-v0", algorithm=f"teleop({device})",
-                             meta=meta,
-                             description=f"{task} episodes driven by a person with `curbside sim teleop` ({device}).")
+        return write_dataset(
+            recorded,
+            env,
+            out,
+            f"curbside/{task.lower()}-teleop-v0",
+            algorithm=f"teleop({device})",
+            meta=meta,
+            description=f"{task} episodes driven by a person with `curbside sim teleop` ({device}).",
+        )
     finally:
         env.close()

@@ -57,8 +57,10 @@ class VectorEnvAdapter(VecEnv):
     def __init__(self, venv: gym.vector.VectorEnv, wrappers: Sequence[type] = ()) -> None:
         mode = venv.metadata.get("autoreset_mode")
         if mode != AutoresetMode.SAME_STEP:
-            raise ValueError(f"the vector env must reset finished episodes in the same step (autoreset_mode="
-                             f"AutoresetMode.SAME_STEP, as SB3 expects), got {mode!r}")
+            raise ValueError(
+                f"the vector env must reset finished episodes in the same step (autoreset_mode="
+                f"AutoresetMode.SAME_STEP, as SB3 expects), got {mode!r}"
+            )
         self.venv = venv  # before VecEnv.__init__, which asks the sub-envs for their render mode
         self.wrappers = tuple(wrappers)
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
@@ -69,8 +71,10 @@ class VectorEnvAdapter(VecEnv):
         """Reset every env (with the seeds and options set by `seed` and `set_options`, used once)."""
         seeds = None if self._seeds == [None] * self.num_envs else list(self._seeds)
         if any(o != self._options[0] for o in self._options):
-            raise ValueError("the sub-envs were given different reset options; a Gymnasium vector env resets all "
-                             "its envs with one options dict: pass one dict to set_options")
+            raise ValueError(
+                "the sub-envs were given different reset options; a Gymnasium vector env resets all "
+                "its envs with one options dict: pass one dict to set_options"
+            )
         obs, info = self.venv.reset(seed=seeds, options=self._options[0] or None)
         self.reset_infos = unbatch(info, self.num_envs)
         self._reset_seeds()
@@ -124,7 +128,9 @@ class VectorEnvAdapter(VecEnv):
         current = self.venv.get_attr(attr_name)
         self.venv.set_attr(attr_name, [value if i in chosen else current[i] for i in range(self.num_envs)])
 
-    def env_method(self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any) -> list[Any]:
+    def env_method(
+        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
+    ) -> list[Any]:
         """Call a method of the sub-envs (every worker runs it; the answers of `indices` are returned)."""
         return self._select(self.venv.call(method_name, *method_args, **method_kwargs), indices)
 

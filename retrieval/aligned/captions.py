@@ -14,8 +14,14 @@ from dataclasses import dataclass
 import numpy as np
 
 # A colour also answers to its family's names: a dark green lamp is a green lamp, a light gray cabinet a gray one.
-COLOUR_FAMILY = {"dark green": ("green",), "light green": ("green",), "light gray": ("gray",), "tan": ("brown",),
-                 "terracotta": ("orange", "brown"), "beige": ("tan",)}
+COLOUR_FAMILY = {
+    "dark green": ("green",),
+    "light green": ("green",),
+    "light gray": ("gray",),
+    "tan": ("brown",),
+    "terracotta": ("orange", "brown"),
+    "beige": ("tan",),
+}
 SPELLINGS = {"gray": ("gray", "grey"), "light gray": ("light gray", "light grey")}
 SIZE_WORDS = {"small": ("small", "short", "low"), "large": ("tall", "large", "big")}
 
@@ -59,17 +65,33 @@ def attributes_of(asset) -> Attributes:  # noqa: ANN001 - retrieval.procedural.P
 
     lo, hi = RECIPES[asset.category].height
     colours = frozenset((asset.color, *COLOUR_FAMILY.get(asset.color, ())))
-    return Attributes(asset.category, colours, asset.material, size_class(asset.dims[2], lo, hi),
-                      detail_phrases(asset.description), (asset.category.replace("_", " "), *asset.synonyms),
-                      asset.description)
+    return Attributes(
+        asset.category,
+        colours,
+        asset.material,
+        size_class(asset.dims[2], lo, hi),
+        detail_phrases(asset.description),
+        (asset.category.replace("_", " "), *asset.synonyms),
+        asset.description,
+    )
 
 
 def satisfies(attrs: Attributes, requirement: Requirement) -> bool:
     """Whether an asset with `attrs` meets every (key, value) of a caption's requirement."""
     for key, value in requirement:
-        ok = (attrs.category == value if key == "category" else value in attrs.colours if key == "colour"
-              else attrs.material == value if key == "material" else attrs.size == value if key == "size"
-              else value in attrs.details if key == "detail" else attrs.description == value)
+        ok = (
+            attrs.category == value
+            if key == "category"
+            else value in attrs.colours
+            if key == "colour"
+            else attrs.material == value
+            if key == "material"
+            else attrs.size == value
+            if key == "size"
+            else value in attrs.details
+            if key == "detail"
+            else attrs.description == value
+        )
         if not ok:
             return False
     return True
@@ -111,5 +133,6 @@ def caption(attrs: Attributes, rng: np.random.Generator) -> tuple[str, Requireme
 
 def positives(attrs: list[Attributes], requirements: list[Requirement]) -> np.ndarray:
     """(len(attrs), len(requirements)) bool matrix: asset i satisfies caption j."""
-    return np.array([[satisfies(a, r) for r in requirements] for a in attrs], dtype=bool).reshape(len(attrs),
-                                                                                                   len(requirements))
+    return np.array([[satisfies(a, r) for r in requirements] for a in attrs], dtype=bool).reshape(
+        len(attrs), len(requirements)
+    )

@@ -29,8 +29,9 @@ class Split:
     attrs: list[Attributes]
 
 
-def render_asset(category: str, seed: int, n_views: int, size: int, elevations: tuple[float, float],
-                 work: Path) -> tuple[list[np.ndarray], Attributes]:
+def render_asset(
+    category: str, seed: int, n_views: int, size: int, elevations: tuple[float, float], work: Path
+) -> tuple[list[np.ndarray], Attributes]:
     """The views of procedural (category, seed) as the ingest renders them, and its attributes."""
     from retrieval.normalize import export_obj, load_canonical
     from retrieval.procedural import export_asset, generate
@@ -44,8 +45,14 @@ def render_asset(category: str, seed: int, n_views: int, size: int, elevations: 
     return images, attributes_of(asset)
 
 
-def build_split(categories: list[str], seeds: list[int], n_views: int, size: int,
-                elevations: tuple[float, float] = (15.0, 40.0), progress: bool = True) -> Split:
+def build_split(
+    categories: list[str],
+    seeds: list[int],
+    n_views: int,
+    size: int,
+    elevations: tuple[float, float] = (15.0, 40.0),
+    progress: bool = True,
+) -> Split:
     """Render every (category, seed) and compute its views' features (rich progress)."""
     from rich.progress import Progress
 

@@ -34,7 +34,7 @@ def colour_features(image: np.ndarray, mask: np.ndarray | None = None) -> np.nda
     chroma = (hsv[:, 1] >= CHROMA_MIN) & (hsv[:, 2] >= 40)
     out[:HUE_BINS] = np.bincount(hsv[chroma, 0] * HUE_BINS // 180, minlength=HUE_BINS)[:HUE_BINS] / n
     gray_bins = np.searchsorted(np.asarray(GRAY_EDGES), hsv[~chroma, 2], side="right")
-    out[HUE_BINS:HUE_BINS + len(GRAY_EDGES) + 1] = np.bincount(gray_bins, minlength=len(GRAY_EDGES) + 1) / n
+    out[HUE_BINS : HUE_BINS + len(GRAY_EDGES) + 1] = np.bincount(gray_bins, minlength=len(GRAY_EDGES) + 1) / n
     lab = cv2.cvtColor(image, cv2.COLOR_RGB2LAB)[fg].astype(np.float32).mean(axis=0)
     out[-3:] = (lab - 128.0) / 128.0
     return out

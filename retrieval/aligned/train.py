@@ -120,8 +120,13 @@ def fit(train, text_emb: np.ndarray, pos: np.ndarray, cfg: TrainConfig, progress
             bar.update(task, advance=1, description=f"train heads (loss {loss.item():.3f})")
     sd = {f"image.{k}": v.detach().numpy() for k, v in image.state_dict().items()}
     sd.update({f"text.{k}": v.detach().numpy() for k, v in text.state_dict().items()})
-    return {**sd, "feature_mean": mean.astype(np.float32), "feature_std": std.astype(np.float32),
-            "logit_scale": np.float32(log_scale.exp().item()), "final_loss": np.float32(loss.item())}
+    return {
+        **sd,
+        "feature_mean": mean.astype(np.float32),
+        "feature_std": std.astype(np.float32),
+        "logit_scale": np.float32(log_scale.exp().item()),
+        "final_loss": np.float32(loss.item()),
+    }
 
 
 def heldout_report(weights: dict[str, Any], split, text_encoder) -> dict[str, float]:  # noqa: ANN001
@@ -145,8 +150,11 @@ def heldout_report(weights: dict[str, Any], split, text_encoder) -> dict[str, fl
             n_col += 1
             right_col += colours[int(np.argmax((views @ texts.T).max(0)))] in a.colours
     n = len(split.attrs)
-    return {"heldout_assets": n, "category_accuracy": round(right_cat / n, 4),
-            "colour_accuracy": round(right_col / max(n_col, 1), 4)}
+    return {
+        "heldout_assets": n,
+        "category_accuracy": round(right_cat / n, 4),
+        "colour_accuracy": round(right_col / max(n_col, 1), 4),
+    }
 
 
 def train(cfg: TrainConfig, out: Path = DEFAULT_WEIGHTS, progress: bool = True) -> dict[str, Any]:
@@ -163,14 +171,26 @@ def train(cfg: TrainConfig, out: Path = DEFAULT_WEIGHTS, progress: bool = True) 
     cats = list(cfg.categories) if cfg.categories else category_names()
     unknown = sorted(set(cats) - set(category_names()))
     if unknown:
-        raise ConfigError(f"unknown procedural categories {unknown} in params section 'aligned'; valid: "
-                          f"{', '.join(category_names())}")
-    train_split = build_split(cats, list(range(TRAIN_SEED0, TRAIN_SEED0 + cfg.train_seeds)), cfg.n_views,
-                              cfg.image_size, progress=progress)
-    held = build_split(cats, list(range(HELDOUT_SEED0, HELDOUT_SEED0 + cfg.heldout_seeds)), cfg.n_views,
-                       cfg.image_size, progress=progress)
-    calib = build_split(cats, list(range(CALIBRATION_SEED0, CALIBRATION_SEED0 + cfg.calibration_seeds)), cfg.n_views,
-                        cfg.image_size, progress=progress)
+        raise ConfigError(
+            f"unknown procedural categories {unknown} in params section 'aligned'; valid: {', '.join(category_names())}"
+        )
+    train_split = build_split(
+        cats, list(range(TRAIN_SEED0, TRAIN_SEED0 + cfg.train_seeds)), cfg.n_views, cfg.image_size, progress=progress
+    )
+    held = build_split(
+        cats,
+        list(range(HELDOUT_SEED0, HELDOUT_SEED0 + cfg.heldout_seeds)),
+        cfg.n_views,
+        cfg.image_size,
+        progress=progress,
+    )
+    calib = build_split(
+        cats,
+        list(range(CALIBRATION_SEED0, CALIBRATION_SEED0 + cfg.calibration_seeds)),
+        cfg.n_views,
+        cfg.image_size,
+        progress=progress,
+    )
     t_data = time.perf_counter() - t0
     te = TextEncoder(None)
     texts, _, pos = caption_bank(train_split.attrs, cfg.captions_per_asset, cfg.seed)
@@ -180,18 +200,33 @@ def train(cfg: TrainConfig, out: Path = DEFAULT_WEIGHTS, progress: bool = True) 
 
     # The labelled calibration set, as joint-space view embeddings: Scorers derive per-description thresholds
     # from it for whatever pool they match against (AlignedEncoder.thresholds).
-    weights["calibration_embeddings"] = AlignedEncoder.from_arrays(weights, te).project_features(
-        calib.features).astype(np.float16)
+    weights["calibration_embeddings"] = (
+        AlignedEncoder.from_arrays(weights, te).project_features(calib.features).astype(np.float16)
+    )
     weights["calibration_view_asset"] = calib.view_asset.astype(np.int32)
     weights["calibration_category"] = np.array([a.category for a in calib.attrs])
-    meta = {"config": asdict(cfg), "feature_version": FEATURE_VERSION, "text_model": te.name,
-            "train_assets": len(train_split.attrs), "train_views": len(train_split.features),
-            "captions": len(texts), "final_loss": round(float(weights["final_loss"]), 4),
-            "seconds": {"data": round(t_data, 1), "total": round(time.perf_counter() - t0, 1)}, "heldout": report}
-    write_npz({"feature_version": np.str_(FEATURE_VERSION), "text_model": np.str_(te.name),
-               **{k: v for k, v in weights.items() if k != "final_loss"}}, out)
-    out.with_suffix(".json").write_text(json.dumps({k: v for k, v in meta.items() if k != "seconds"}, indent=2,
-                                                   sort_keys=True) + "\n")
+    meta = {
+        "config": asdict(cfg),
+        "feature_version": FEATURE_VERSION,
+        "text_model": te.name,
+        "train_assets": len(train_split.attrs),
+        "train_views": len(train_split.features),
+        "captions": len(texts),
+        "final_loss": round(float(weights["final_loss"]), 4),
+        "seconds": {"data": round(t_data, 1), "total": round(time.perf_counter() - t0, 1)},
+        "heldout": report,
+    }
+    write_npz(
+        {
+            "feature_version": np.str_(FEATURE_VERSION),
+            "text_model": np.str_(te.name),
+            **{k: v for k, v in weights.items() if k != "final_loss"},
+        },
+        out,
+    )
+    out.with_suffix(".json").write_text(
+        json.dumps({k: v for k, v in meta.items() if k != "seconds"}, indent=2, sort_keys=True) + "\n"
+    )
     return meta
 
 

@@ -19,8 +19,13 @@ class AlignedEncoder:
 
     name = "aligned"
 
-    def __init__(self, text_encoder: Any, weights: str | None = None, heads: AlignedHeads | None = None,
-                 threads: int | None = None) -> None:
+    def __init__(
+        self,
+        text_encoder: Any,
+        weights: str | None = None,
+        heads: AlignedHeads | None = None,
+        threads: int | None = None,
+    ) -> None:
         from retrieval.aligned.features import FEATURE_DIM, FEATURE_VERSION
 
         if threads:  # a fixed thread count: the same float sums in every worker, so every executor scores alike
@@ -33,8 +38,10 @@ class AlignedEncoder:
             threadpool_limits(limits=threads, user_api="blas")
         self.heads = heads or load_heads(weights)
         if self.heads.feature_version != FEATURE_VERSION or self.heads.feature_dim != FEATURE_DIM:
-            raise ValueError(f"aligned weights were trained on features {self.heads.feature_version!r}, this code makes "
-                             f"{FEATURE_VERSION!r}; retrain them (dvc repro retrieval/dvc.yaml:train_scorer)")
+            raise ValueError(
+                f"aligned weights were trained on features {self.heads.feature_version!r}, this code makes "
+                f"{FEATURE_VERSION!r}; retrain them (dvc repro retrieval/dvc.yaml:train_scorer)"
+            )
         self.text_encoder = text_encoder
         self.dim = self.heads.dim
 

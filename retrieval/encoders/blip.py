@@ -36,7 +36,8 @@ def _load(kind: str, model: str, device: str):  # noqa: ANN202 - (model, process
         raise FileNotFoundError(
             f"{kind.upper()} model {model!r} could not be loaded offline ({exc.__class__.__name__}); download the "
             f"weights (e.g. Salesforce/blip-itm-base-coco) to a folder and pass `--clip-model FOLDER`, or use the "
-            f"offline `aligned` scorer") from None
+            f"offline `aligned` scorer"
+        ) from None
     finally:
         hf_logging.set_verbosity(verbosity)
     return net, proc
@@ -52,8 +53,10 @@ class BlipEncoder:
             raise ValueError(f"unknown BLIP kind {kind!r}; valid: {', '.join(KINDS)}")
         path = Path(model).expanduser()
         if not path.exists() and (model.startswith(("/", ".", "~")) or model.count("/") != 1):
-            raise FileNotFoundError(f"{kind.upper()} model {model!r} is neither an existing folder nor a hub name "
-                                    f"(owner/name); pass a weights folder with --clip-model")
+            raise FileNotFoundError(
+                f"{kind.upper()} model {model!r} is neither an existing folder nor a hub name "
+                f"(owner/name); pass a weights folder with --clip-model"
+            )
         self.name = kind
         self.kind = kind
         self.device = device or ("cuda" if torch.cuda.is_available() else "cpu")
@@ -75,14 +78,17 @@ class BlipEncoder:
         m, out = self.model, []
         for i in range(0, len(images), self.batch_size):
             with torch.inference_mode():
-                hidden = m.vision_model(pixel_values=self._pixels(images[i:i + self.batch_size])).last_hidden_state
+                hidden = m.vision_model(pixel_values=self._pixels(images[i : i + self.batch_size])).last_hidden_state
                 if self.kind == "blip":
                     z = m.vision_proj(hidden[:, :1, :])
                 else:
                     q = m.query_tokens.expand(hidden.shape[0], -1, -1)
                     att = torch.ones(hidden.shape[:-1], dtype=torch.long, device=hidden.device)
-                    z = m.vision_projection(m.qformer(query_embeds=q, encoder_hidden_states=hidden,
-                                                      encoder_attention_mask=att).last_hidden_state)
+                    z = m.vision_projection(
+                        m.qformer(
+                            query_embeds=q, encoder_hidden_states=hidden, encoder_attention_mask=att
+                        ).last_hidden_state
+                    )
             out.append(normalize(z.float(), dim=-1).cpu().numpy())
         return np.concatenate(out).astype(np.float32) if out else np.zeros((0, 1, self.dim), np.float32)
 
@@ -98,7 +104,7 @@ class BlipEncoder:
 
         m, out = self.model, []
         for i in range(0, len(texts), self.batch_size):
-            tok = self._tokens(texts[i:i + self.batch_size])
+            tok = self._tokens(texts[i : i + self.batch_size])
             with torch.inference_mode():
                 if self.kind == "blip":
                     h = m.text_encoder(input_ids=tok["input_ids"], attention_mask=tok["attention_mask"])
@@ -129,10 +135,18 @@ class BlipEncoder:
             pix = self._pixels([im]).expand(len(texts), -1, -1, -1)
             with torch.inference_mode():
                 if self.kind == "blip":
-                    logits = self.model(input_ids=tok["input_ids"], attention_mask=tok["attention_mask"],
-                                        pixel_values=pix, use_itm_head=True).itm_score
+                    logits = self.model(
+                        input_ids=tok["input_ids"],
+                        attention_mask=tok["attention_mask"],
+                        pixel_values=pix,
+                        use_itm_head=True,
+                    ).itm_score
                 else:
-                    logits = self.model(input_ids=tok["input_ids"], attention_mask=tok["attention_mask"],
-                                        pixel_values=pix, use_image_text_matching_head=True).logits_per_image
+                    logits = self.model(
+                        input_ids=tok["input_ids"],
+                        attention_mask=tok["attention_mask"],
+                        pixel_values=pix,
+                        use_image_text_matching_head=True,
+                    ).logits_per_image
             out[i] = torch.softmax(logits.float(), dim=-1)[:, 1].cpu().numpy()
         return out

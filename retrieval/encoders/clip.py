@@ -38,8 +38,10 @@ class ClipEncoder:
 
         looks_like_path = "/" not in model or model.startswith(("/", ".", "~")) or model.count("/") > 1
         if not Path(model).expanduser().exists() and looks_like_path:
-            raise FileNotFoundError(f"CLIP model {model!r} is neither an existing folder nor a hub name "
-                                    f"(owner/name); pass a weights folder with --clip-model")
+            raise FileNotFoundError(
+                f"CLIP model {model!r} is neither an existing folder nor a hub name "
+                f"(owner/name); pass a weights folder with --clip-model"
+            )
         model = str(Path(model).expanduser()) if Path(model).expanduser().exists() else model
         self.device = device or ("cuda" if torch.cuda.is_available() else "cpu")
         self.model_name = model
@@ -57,7 +59,7 @@ class ClipEncoder:
 
         out = []
         for i in range(0, len(images), self.batch_size):
-            inputs = self.processor(images=list(images[i:i + self.batch_size]), return_tensors="pt").to(self.device)
+            inputs = self.processor(images=list(images[i : i + self.batch_size]), return_tensors="pt").to(self.device)
             with torch.inference_mode():
                 feats = self._as_tensor(self.model.get_image_features(**inputs)).float()
             out.append(torch.nn.functional.normalize(feats, dim=-1).cpu().numpy())
@@ -69,8 +71,9 @@ class ClipEncoder:
 
         out = []
         for i in range(0, len(texts), self.batch_size):
-            inputs = self.processor(text=list(texts[i:i + self.batch_size]), return_tensors="pt", padding=True,
-                                    truncation=True).to(self.device)
+            inputs = self.processor(
+                text=list(texts[i : i + self.batch_size]), return_tensors="pt", padding=True, truncation=True
+            ).to(self.device)
             with torch.inference_mode():
                 feats = self._as_tensor(self.model.get_text_features(**inputs)).float()
             out.append(torch.nn.functional.normalize(feats, dim=-1).cpu().numpy())

@@ -17,8 +17,15 @@ import numpy as np
 
 IMAGENET_MODEL_NAME = "efficientnet-lite0-imagenet1k"
 # (expand ratio, kernel, stride, out channels, repeats) of EfficientNet-Lite0: B0 without squeeze-excitation.
-_LITE0_STAGES = ((1, 3, 1, 16, 1), (6, 3, 2, 24, 2), (6, 5, 2, 40, 2), (6, 3, 2, 80, 3), (6, 5, 1, 112, 3),
-                 (6, 5, 2, 192, 4), (6, 3, 1, 320, 1))
+_LITE0_STAGES = (
+    (1, 3, 1, 16, 1),
+    (6, 3, 2, 24, 2),
+    (6, 5, 2, 40, 2),
+    (6, 3, 2, 80, 3),
+    (6, 5, 1, 112, 3),
+    (6, 5, 2, 192, 4),
+    (6, 3, 1, 320, 1),
+)
 
 
 def class_names() -> list[str]:
@@ -127,8 +134,10 @@ def image_batch(images: list[np.ndarray], size: int = 224):  # noqa: ANN201 - to
     import torch
     from PIL import Image
 
-    batch = [im if im.shape[:2] == (size, size) else np.asarray(Image.fromarray(im).resize((size, size), Image.BILINEAR))
-             for im in images]
+    batch = [
+        im if im.shape[:2] == (size, size) else np.asarray(Image.fromarray(im).resize((size, size), Image.BILINEAR))
+        for im in images
+    ]
     x = torch.from_numpy(np.stack(batch)).permute(0, 3, 1, 2).float()
     return (x - 127.0) / 128.0  # EfficientNet-Lite's input normalisation
 
@@ -141,7 +150,7 @@ def pooled_features(images: list[np.ndarray], size: int = 224, batch_size: int =
     out = []
     for i in range(0, len(images), batch_size):
         with torch.inference_mode():
-            out.append(model.pooled(image_batch(images[i:i + batch_size], size)).numpy())
+            out.append(model.pooled(image_batch(images[i : i + batch_size], size)).numpy())
     return np.concatenate(out).astype(np.float32) if out else np.zeros((0, 1280), dtype=np.float32)
 
 
@@ -169,7 +178,7 @@ class ImageNetEncoder:
 
         out = []
         for i in range(0, len(images), self.batch_size):
-            x = image_batch(images[i:i + self.batch_size])
+            x = image_batch(images[i : i + self.batch_size])
             with torch.inference_mode():
                 out.append(torch.softmax(self.model(x), dim=1).numpy())
         return np.concatenate(out) if out else np.zeros((0, 1000), dtype=np.float32)

@@ -11,6 +11,18 @@ from retrieval.procedural.render import render_views
 from retrieval.procedural.spec import CategorySpec, Variant, load_recipes
 
 __all__ = [
-    "RECIPES", "GENERATORS", "CategorySpec", "ExportedAsset", "ProceduralAsset", "Variant", "category_names",
-    "contact_sheet", "export_asset", "generate", "load_recipes", "pybullet_extents", "render_views", "to_record",
+    "RECIPES",
+    "GENERATORS",
+    "CategorySpec",
+    "ExportedAsset",
+    "ProceduralAsset",
+    "Variant",
+    "category_names",
+    "contact_sheet",
+    "export_asset",
+    "generate",
+    "load_recipes",
+    "pybullet_extents",
+    "render_views",
+    "to_record",
 ]

@@ -28,8 +28,13 @@ def _pairs(assets: list, tmp: Path) -> list[tuple[ProceduralAsset, ExportedAsset
     return out
 
 
-def contact_sheet(assets: list[ProceduralAsset] | list[tuple[ProceduralAsset, ExportedAsset]], out_png: Path,
-                  size: int = 160, azimuth: float = 35.0, elevation: float = 20.0) -> Path:
+def contact_sheet(
+    assets: list[ProceduralAsset] | list[tuple[ProceduralAsset, ExportedAsset]],
+    out_png: Path,
+    size: int = 160,
+    azimuth: float = 35.0,
+    elevation: float = 20.0,
+) -> Path:
     """Render one labelled thumbnail per asset into a grid PNG at `out_png`; returns the path."""
     if not assets:
         raise ValueError("contact_sheet needs at least one asset")

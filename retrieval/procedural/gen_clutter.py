@@ -77,8 +77,15 @@ def bicycle(g: Ctx, p: Parts) -> str:
         p.torus(R - tyre * 2.5, tyre * 0.4, (x, 0.0, axle), STEEL, sections=24)
         p.rod((x, -0.05, axle), (x, 0.05, axle), 0.02, METAL, sections=8)
     tube = 0.018
-    for a, b in ((bb, seat), (seat, head_top), (bb, head_bot), (head_bot, head_top), ((xr, 0.0, axle), bb),
-                 ((xr, 0.0, axle), (seat[0] + 0.03, 0.0, seat[2] - 0.12)), (head_bot, (xf, 0.0, axle))):
+    for a, b in (
+        (bb, seat),
+        (seat, head_top),
+        (bb, head_bot),
+        (head_bot, head_top),
+        ((xr, 0.0, axle), bb),
+        ((xr, 0.0, axle), (seat[0] + 0.03, 0.0, seat[2] - 0.12)),
+        (head_bot, (xf, 0.0, axle)),
+    ):
         p.rod(a, b, tube, g.body, sections=8)
     p.rod(head_top, (head_top[0] - 0.05, 0.0, h - 0.02), 0.014, METAL, sections=8)
     p.rod((head_top[0] - 0.05, -w / 2, h - 0.02), (head_top[0] - 0.05, w / 2, h - 0.02), 0.012, DARK)
@@ -155,6 +162,11 @@ def drink_can(g: Ctx, p: Parts) -> str:
 
 
 GENERATORS = {
-    "traffic_cone": traffic_cone, "barrier": barrier, "bicycle": bicycle, "e_scooter": e_scooter,
-    "shopping_bag": shopping_bag, "cardboard_box": cardboard_box, "drink_can": drink_can,
+    "traffic_cone": traffic_cone,
+    "barrier": barrier,
+    "bicycle": bicycle,
+    "e_scooter": e_scooter,
+    "shopping_bag": shopping_bag,
+    "cardboard_box": cardboard_box,
+    "drink_can": drink_can,
 }

@@ -45,8 +45,12 @@ def advertising_board(g: Ctx, p: Parts) -> str:
     p.slab((-t / 2, t / 2), (-w / 2, w / 2), (h - panel_h, h), g.body)
     for s in (-1, 1):
         x0 = s * t / 2
-        p.slab((min(x0, x0 + s * 0.005), max(x0, x0 + s * 0.005)), (-w / 2 + 0.06, w / 2 - 0.06),
-               (h - panel_h + 0.06, h - 0.06), "#f3efe3" if s > 0 else "#e0e7ef")
+        p.slab(
+            (min(x0, x0 + s * 0.005), max(x0, x0 + s * 0.005)),
+            (-w / 2 + 0.06, w / 2 - 0.06),
+            (h - panel_h + 0.06, h - 0.06),
+            "#f3efe3" if s > 0 else "#e0e7ef",
+        )
     return f"on {legs} with a poster on each side"
 
 
@@ -141,7 +145,7 @@ def street_cabinet(g: Ctx, p: Parts) -> str:
     p.slab((-d / 2, d / 2), (-w / 2, w / 2), (h - 0.04, h), g.body)
     if doors == 2:
         p.slab((d / 2 - 0.03, d / 2 - 0.025), (-0.005, 0.005), (plinth + 0.05, h - 0.1), DARK)
-    for y in ([-0.06, 0.06] if doors == 2 else [w / 2 - 0.1]):
+    for y in [-0.06, 0.06] if doors == 2 else [w / 2 - 0.1]:
         p.slab((d / 2 - 0.03, d / 2 - 0.01), (y - 0.015, y + 0.015), (h * 0.5, h * 0.5 + 0.12), METAL)
     for z in np.linspace(h - 0.3, h - 0.15, 4):
         p.slab((d / 2 - 0.03, d / 2 - 0.025), (-w / 2 + 0.1, -w / 2 + 0.3), (z, z + 0.015), DARK)
@@ -196,7 +200,13 @@ def building_facade(g: Ctx, p: Parts) -> str:
 
 
 GENERATORS = {
-    "bus_shelter": bus_shelter, "advertising_board": advertising_board, "kiosk": kiosk, "cafe_table": cafe_table,
-    "chair": chair, "food_cart": food_cart, "street_cabinet": street_cabinet,
-    "drinking_fountain": drinking_fountain, "building_facade": building_facade,
+    "bus_shelter": bus_shelter,
+    "advertising_board": advertising_board,
+    "kiosk": kiosk,
+    "cafe_table": cafe_table,
+    "chair": chair,
+    "food_cart": food_cart,
+    "street_cabinet": street_cabinet,
+    "drinking_fountain": drinking_fountain,
+    "building_facade": building_facade,
 }

@@ -208,7 +208,13 @@ def phone_booth(g: Ctx, p: Parts) -> str:
 
 
 GENERATORS = {
-    "bench": bench, "trash_bin": trash_bin, "recycling_bin": recycling_bin, "planter": planter,
-    "mailbox": mailbox, "bike_rack": bike_rack, "newspaper_box": newspaper_box,
-    "vending_machine": vending_machine, "phone_booth": phone_booth,
+    "bench": bench,
+    "trash_bin": trash_bin,
+    "recycling_bin": recycling_bin,
+    "planter": planter,
+    "mailbox": mailbox,
+    "bike_rack": bike_rack,
+    "newspaper_box": newspaper_box,
+    "vending_machine": vending_machine,
+    "phone_booth": phone_booth,
 }

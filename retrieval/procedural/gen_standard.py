@@ -41,8 +41,13 @@ def utility_pole(g: Ctx, p: Parts) -> str:
     return f"with a crossarm and {n} insulators"
 
 
-_SIGN_SHAPES = {"red": "octagonal", "yellow": "diamond", "blue": "square", "white": "rectangular",
-                "green": "rectangular"}
+_SIGN_SHAPES = {
+    "red": "octagonal",
+    "yellow": "diamond",
+    "blue": "square",
+    "white": "rectangular",
+    "green": "rectangular",
+}
 
 
 def traffic_sign(g: Ctx, p: Parts) -> str:
@@ -183,7 +188,12 @@ def parking_meter(g: Ctx, p: Parts) -> str:
 
 
 GENERATORS = {
-    "street_lamp": street_lamp, "utility_pole": utility_pole, "traffic_sign": traffic_sign,
-    "traffic_light": traffic_light, "fire_hydrant": fire_hydrant, "bollard": bollard, "tree": tree,
+    "street_lamp": street_lamp,
+    "utility_pole": utility_pole,
+    "traffic_sign": traffic_sign,
+    "traffic_light": traffic_light,
+    "fire_hydrant": fire_hydrant,
+    "bollard": bollard,
+    "tree": tree,
     "parking_meter": parking_meter,
 }

@@ -18,7 +18,10 @@ from retrieval.procedural.spec import CategorySpec, load_recipes
 RECIPES: dict[str, CategorySpec] = load_recipes()
 
 GENERATORS: dict[str, Callable[[Ctx, Parts], str]] = {
-    **gen_standard.GENERATORS, **gen_nonstandard.GENERATORS, **gen_furniture.GENERATORS, **gen_clutter.GENERATORS,
+    **gen_standard.GENERATORS,
+    **gen_nonstandard.GENERATORS,
+    **gen_furniture.GENERATORS,
+    **gen_clutter.GENERATORS,
 }
 
 if set(GENERATORS) != set(RECIPES):
@@ -104,13 +107,29 @@ def generate(category: str, seed: int) -> ProceduralAsset:
     dims = tuple(round(float(v), 6) for v in hi - lo)
     params = dict(ctx.params)
     params.update(variant=f"{variant.color} {variant.material}", fit_scale=[round(s, 4) for s in scale])
-    values = {"depth": dims[0], "width": dims[1], "height": dims[2], "color": variant.color,
-              "material": variant.material, "detail": detail}
+    values = {
+        "depth": dims[0],
+        "width": dims[1],
+        "height": dims[2],
+        "color": variant.color,
+        "material": variant.material,
+        "detail": detail,
+    }
     description = " ".join(spec.description.format(**values).split())
     description = re.sub(r"\ba ([aeiou])", r"an \1", description)
     return ProceduralAsset(
-        category=category, seed=int(seed), object_class=spec.object_class, zones=list(spec.zones), mesh=mesh,
-        face_colors=colors, color=variant.color, material=variant.material, dims=dims,  # type: ignore[arg-type]
-        mass=_mass(spec, dims), description=description, synonyms=list(spec.synonyms), params=params,
+        category=category,
+        seed=int(seed),
+        object_class=spec.object_class,
+        zones=list(spec.zones),
+        mesh=mesh,
+        face_colors=colors,
+        color=variant.color,
+        material=variant.material,
+        dims=dims,  # type: ignore[arg-type]
+        mass=_mass(spec, dims),
+        description=description,
+        synonyms=list(spec.synonyms),
+        params=params,
         watertight=bool(mesh.is_watertight),
     )

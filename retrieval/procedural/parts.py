@@ -53,8 +53,14 @@ class Parts:
         self._colors.append(rgba(color))
         return mesh
 
-    def box(self, size: tuple[float, float, float], center: tuple[float, float, float], color: str | RGBA,
-            rot_x: float = 0.0, rot_y: float = 0.0) -> trimesh.Trimesh:
+    def box(
+        self,
+        size: tuple[float, float, float],
+        center: tuple[float, float, float],
+        color: str | RGBA,
+        rot_x: float = 0.0,
+        rot_y: float = 0.0,
+    ) -> trimesh.Trimesh:
         """Axis-aligned box of extents `size` (x, y, z) at `center`, optionally rotated about x then y (radians)."""
         m = trimesh.creation.box(extents=np.maximum(np.asarray(size, dtype=float), 1e-4))
         if rot_x:
@@ -63,15 +69,25 @@ class Parts:
             m.apply_transform(trimesh.transformations.rotation_matrix(rot_y, [0, 1, 0]))
         return self.add(_placed(m, center), color)
 
-    def slab(self, x: tuple[float, float], y: tuple[float, float], z: tuple[float, float],
-             color: str | RGBA) -> trimesh.Trimesh:
+    def slab(
+        self, x: tuple[float, float], y: tuple[float, float], z: tuple[float, float], color: str | RGBA
+    ) -> trimesh.Trimesh:
         """Box spanning the intervals x, y, z (min, max); the easiest way to lay out furniture."""
         size = (x[1] - x[0], y[1] - y[0], z[1] - z[0])
         center = ((x[0] + x[1]) / 2, (y[0] + y[1]) / 2, (z[0] + z[1]) / 2)
         return self.box(size, center, color)
 
-    def frustum(self, r_bottom: float, r_top: float, z0: float, z1: float, color: str | RGBA,
-                xy: tuple[float, float] = (0.0, 0.0), sections: int = 24, rot_z: float = 0.0) -> trimesh.Trimesh:
+    def frustum(
+        self,
+        r_bottom: float,
+        r_top: float,
+        z0: float,
+        z1: float,
+        color: str | RGBA,
+        xy: tuple[float, float] = (0.0, 0.0),
+        sections: int = 24,
+        rot_z: float = 0.0,
+    ) -> trimesh.Trimesh:
         """Vertical truncated cone (a cylinder when the radii match) from height z0 to z1."""
         m = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=sections)
         v = m.vertices.copy()
@@ -83,43 +99,75 @@ class Parts:
             m.apply_transform(trimesh.transformations.rotation_matrix(rot_z, [0, 0, 1]))
         return self.add(_placed(m, (xy[0], xy[1], 0.0)), color)
 
-    def cylinder(self, radius: float, z0: float, z1: float, color: str | RGBA,
-                 xy: tuple[float, float] = (0.0, 0.0), sections: int = 24) -> trimesh.Trimesh:
+    def cylinder(
+        self,
+        radius: float,
+        z0: float,
+        z1: float,
+        color: str | RGBA,
+        xy: tuple[float, float] = (0.0, 0.0),
+        sections: int = 24,
+    ) -> trimesh.Trimesh:
         """Vertical cylinder from height z0 to z1 centred at `xy`."""
         return self.frustum(radius, radius, z0, z1, color, xy, sections)
 
-    def rod(self, p0: tuple[float, float, float], p1: tuple[float, float, float], radius: float,
-            color: str | RGBA, sections: int = 12) -> trimesh.Trimesh:
+    def rod(
+        self,
+        p0: tuple[float, float, float],
+        p1: tuple[float, float, float],
+        radius: float,
+        color: str | RGBA,
+        sections: int = 12,
+    ) -> trimesh.Trimesh:
         """Cylinder between two points (tubes, arms, axles)."""
         m = trimesh.creation.cylinder(radius=radius, sections=sections, segment=np.array([p0, p1], dtype=float))
         return self.add(m, color)
 
-    def sphere(self, radii: float | tuple[float, float, float], center: tuple[float, float, float],
-               color: str | RGBA, subdivisions: int = 2) -> trimesh.Trimesh:
+    def sphere(
+        self,
+        radii: float | tuple[float, float, float],
+        center: tuple[float, float, float],
+        color: str | RGBA,
+        subdivisions: int = 2,
+    ) -> trimesh.Trimesh:
         """Icosphere, or an ellipsoid when `radii` is a triple."""
         m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
         m.apply_scale(np.broadcast_to(np.asarray(radii, dtype=float), (3,)))
         return self.add(_placed(m, center), color)
 
-    def cone(self, radius: float, z0: float, z1: float, color: str | RGBA,
-             xy: tuple[float, float] = (0.0, 0.0), sections: int = 24) -> trimesh.Trimesh:
+    def cone(
+        self,
+        radius: float,
+        z0: float,
+        z1: float,
+        color: str | RGBA,
+        xy: tuple[float, float] = (0.0, 0.0),
+        sections: int = 24,
+    ) -> trimesh.Trimesh:
         """Pointed vertical cone with its base at z0 and tip at z1."""
         m = trimesh.creation.cone(radius=radius, height=z1 - z0, sections=sections)
         return self.add(_placed(m, (xy[0], xy[1], z0)), color)
 
-    def torus(self, major: float, minor: float, center: tuple[float, float, float], color: str | RGBA,
-              axis: str = "y", sections: int = 32) -> trimesh.Trimesh:
+    def torus(
+        self,
+        major: float,
+        minor: float,
+        center: tuple[float, float, float],
+        color: str | RGBA,
+        axis: str = "y",
+        sections: int = 32,
+    ) -> trimesh.Trimesh:
         """Ring (wheel, tyre) around `axis` ('x', 'y' or 'z')."""
-        m = trimesh.creation.torus(major_radius=major, minor_radius=minor, major_sections=sections,
-                                   minor_sections=8)
+        m = trimesh.creation.torus(major_radius=major, minor_radius=minor, major_sections=sections, minor_sections=8)
         if axis == "y":
             m.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
         elif axis == "x":
             m.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0]))
         return self.add(_placed(m, center), color)
 
-    def capsule(self, radius: float, p0: tuple[float, float, float], p1: tuple[float, float, float],
-                color: str | RGBA) -> trimesh.Trimesh:
+    def capsule(
+        self, radius: float, p0: tuple[float, float, float], p1: tuple[float, float, float], color: str | RGBA
+    ) -> trimesh.Trimesh:
         """Capsule (rounded rod) between two points."""
         a, b = np.asarray(p0, dtype=float), np.asarray(p1, dtype=float)
         length = float(np.linalg.norm(b - a))
@@ -128,8 +176,17 @@ class Parts:
         m.apply_transform(trimesh.geometry.align_vectors([0, 0, 1], direction))
         return self.add(_placed(m, tuple((a + b) / 2)), color)
 
-    def arc(self, center: tuple[float, float, float], radius: float, tube: float, a0: float, a1: float,
-            color: str | RGBA, plane: str = "xz", segments: int = 8) -> None:
+    def arc(
+        self,
+        center: tuple[float, float, float],
+        radius: float,
+        tube: float,
+        a0: float,
+        a1: float,
+        color: str | RGBA,
+        plane: str = "xz",
+        segments: int = 8,
+    ) -> None:
         """Bent tube along a circular arc from angle a0 to a1 (radians) in the `plane` ('xz' or 'yz')."""
         angles = np.linspace(a0, a1, segments + 1)
         pts = []
@@ -147,8 +204,9 @@ class Parts:
         if not self._meshes:
             raise ValueError("a generator produced no parts")
         mesh = trimesh.util.concatenate(self._meshes)
-        colors = np.concatenate([np.tile(np.asarray(c, dtype=np.uint8), (len(m.faces), 1))
-                                 for m, c in zip(self._meshes, self._colors)])
+        colors = np.concatenate(
+            [np.tile(np.asarray(c, dtype=np.uint8), (len(m.faces), 1)) for m, c in zip(self._meshes, self._colors)]
+        )
         return mesh, colors
 
 

@@ -13,8 +13,9 @@ from pathlib import Path
 import numpy as np
 
 
-def render_views(obj_path: str | Path, dims: Sequence[float], azimuths: Sequence[float], elevation: float = 20.0,
-                 size: int = 224) -> list[np.ndarray]:
+def render_views(
+    obj_path: str | Path, dims: Sequence[float], azimuths: Sequence[float], elevation: float = 20.0, size: int = 224
+) -> list[np.ndarray]:
     """Render `obj_path` once per azimuth as RGB uint8 arrays (size x size) on a white background."""
     from retrieval.render import ViewSpec, render_obj
 

@@ -13,8 +13,19 @@ from catalogs.categories import AXES, category
 TABLE_PATH = Path(__file__).with_name("recipes.csv")
 
 COLUMNS = (
-    "category", "depth_min", "depth_max", "width_min", "width_max",
-    "height_min", "height_max", "mass_min", "mass_max", "variants", "description", "synonyms", "source",
+    "category",
+    "depth_min",
+    "depth_max",
+    "width_min",
+    "width_max",
+    "height_min",
+    "height_max",
+    "mass_min",
+    "mass_max",
+    "variants",
+    "description",
+    "synonyms",
+    "source",
 )
 
 
@@ -80,8 +91,10 @@ def _parse_row(row: dict[str, str], where: str) -> CategorySpec:
     for a, (lo, hi) in ranges.items():
         plo, phi = cat.range(a)
         if lo < plo or hi > phi:
-            raise ValueError(f"{where}: {a} {lo}..{hi} leaves the category's prior {plo}..{phi}; generated assets must "
-                             "pass curation: narrow the recipe or widen the prior in catalogs/categories.csv")
+            raise ValueError(
+                f"{where}: {a} {lo}..{hi} leaves the category's prior {plo}..{phi}; generated assets must "
+                "pass curation: narrow the recipe or widen the prior in catalogs/categories.csv"
+            )
     return CategorySpec(
         name=cat.name,
         object_class=cat.object_class,

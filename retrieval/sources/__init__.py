@@ -90,10 +90,12 @@ def open_source(spec: str, **options: Any) -> Source:
         chosen = tuple(s.strip() for s in spec.split(":", 1)[1].split(",")) if ":" in spec else XL_SOURCES
         return ObjaverseXLSource(sources=chosen, **options)
     if spec.startswith("local:"):
-        if not spec[len("local:"):].strip():
+        if not spec[len("local:") :].strip():
             raise ConfigError("--source local: needs a folder, as in local:path/to/meshes")
         from retrieval.sources.local import LocalSource
 
-        return LocalSource(spec[len("local:"):], **options)
-    raise ValueError(f"unknown source {spec!r}; use `objaverse`, `objaverse-xl[:smithsonian,thingiverse,sketchfab]`, "
-                     f"`local:DIR` or `procedural`")
+        return LocalSource(spec[len("local:") :], **options)
+    raise ValueError(
+        f"unknown source {spec!r}; use `objaverse`, `objaverse-xl[:smithsonian,thingiverse,sketchfab]`, "
+        f"`local:DIR` or `procedural`"
+    )

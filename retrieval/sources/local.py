@@ -28,12 +28,17 @@ def _companions(path: Path) -> tuple[list[str], str | None]:
                 out.append(str(path.parent / mtl))
                 m = referenced_file(path, mtl)
                 if m is not None:
-                    out += [str(m.parent / t) for t in re.findall(r"^\s*map_Kd\s+(.+?)\s*$", read_reference(m), flags=re.M)]
+                    out += [
+                        str(m.parent / t) for t in re.findall(r"^\s*map_Kd\s+(.+?)\s*$", read_reference(m), flags=re.M)
+                    ]
         elif path.suffix.lower() == ".gltf":
             try:
                 doc = json.loads(read_reference(path))
-                out += [str(path.parent / e["uri"]) for e in doc.get("images", []) + doc.get("buffers", [])
-                        if e.get("uri") and not e["uri"].startswith("data:")]
+                out += [
+                    str(path.parent / e["uri"])
+                    for e in doc.get("images", []) + doc.get("buffers", [])
+                    if e.get("uri") and not e["uri"].startswith("data:")
+                ]
             except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, AttributeError):
                 pass
     except AssetRejected as e:
@@ -58,8 +63,9 @@ class LocalSource:
         for n, path in enumerate(files):
             if limit is not None and n >= limit:
                 return
-            sidecar = next((c for c in (path.with_name(path.name + ".json"), path.with_suffix(".json")) if c.exists()),
-                           None)
+            sidecar = next(
+                (c for c in (path.with_name(path.name + ".json"), path.with_suffix(".json")) if c.exists()), None
+            )
             meta: dict = {}
             problem = None
             if sidecar is not None:
@@ -74,11 +80,17 @@ class LocalSource:
                 # The sidecar is part of the content hash: fixing it changes the hash, so a re-run retries the asset.
                 metadata["rejected"] = ["bad_metadata", problem]
             yield SourceItem(
-                source="local", source_id=rel, path=str(path),
+                source="local",
+                source_id=rel,
+                path=str(path),
                 name=meta.get("name") or re.sub(r"[_\-.]+", " ", path.stem).strip(),
-                description=meta.get("description"), tags=list(meta.get("tags", [])), category=meta.get("category"),
-                license=meta.get("license", self.default_license), attribution=meta.get("attribution"),
-                up_axis=meta.get("up_axis"), metadata=metadata,
+                description=meta.get("description"),
+                tags=list(meta.get("tags", [])),
+                category=meta.get("category"),
+                license=meta.get("license", self.default_license),
+                attribution=meta.get("attribution"),
+                up_axis=meta.get("up_axis"),
+                metadata=metadata,
             )
 
 

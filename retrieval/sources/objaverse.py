@@ -31,16 +31,41 @@ DEFAULT_CACHE = Path.home() / ".objaverse"
 
 # LVIS category -> curbside category, for the LVIS categories that are street objects of one category.
 LVIS_TO_CATEGORY = {
-    "bench": "bench", "trash_can": "trash_bin", "dumpster": "trash_bin", "fireplug": "fire_hydrant",
-    "traffic_light": "traffic_light", "parking_meter": "parking_meter", "mailbox_(at_home)": "mailbox",
-    "postbox_(public)": "mailbox", "street_sign": "traffic_sign", "stop_sign": "traffic_sign",
-    "streetlight": "street_lamp", "lamppost": "street_lamp", "bicycle": "bicycle", "cone": "traffic_cone",
-    "shopping_bag": "shopping_bag", "carton": "cardboard_box", "can": "drink_can", "soda_can": "drink_can",
-    "beer_can": "drink_can", "chair": "chair", "vending_machine": "vending_machine", "telephone_booth": "phone_booth",
-    "flowerpot": "planter", "kiosk": "kiosk", "telephone_pole": "utility_pole", "signboard": "advertising_board",
-    "billboard": "advertising_board", "water_fountain": "drinking_fountain", "newsstand": "newspaper_box",
-    "cafe_table": "cafe_table", "table": "cafe_table", "scooter": "e_scooter", "pushcart": "food_cart",
-    "barrel": "barrier", "cart": "food_cart",
+    "bench": "bench",
+    "trash_can": "trash_bin",
+    "dumpster": "trash_bin",
+    "fireplug": "fire_hydrant",
+    "traffic_light": "traffic_light",
+    "parking_meter": "parking_meter",
+    "mailbox_(at_home)": "mailbox",
+    "postbox_(public)": "mailbox",
+    "street_sign": "traffic_sign",
+    "stop_sign": "traffic_sign",
+    "streetlight": "street_lamp",
+    "lamppost": "street_lamp",
+    "bicycle": "bicycle",
+    "cone": "traffic_cone",
+    "shopping_bag": "shopping_bag",
+    "carton": "cardboard_box",
+    "can": "drink_can",
+    "soda_can": "drink_can",
+    "beer_can": "drink_can",
+    "chair": "chair",
+    "vending_machine": "vending_machine",
+    "telephone_booth": "phone_booth",
+    "flowerpot": "planter",
+    "kiosk": "kiosk",
+    "telephone_pole": "utility_pole",
+    "signboard": "advertising_board",
+    "billboard": "advertising_board",
+    "water_fountain": "drinking_fountain",
+    "newsstand": "newspaper_box",
+    "cafe_table": "cafe_table",
+    "table": "cafe_table",
+    "scooter": "e_scooter",
+    "pushcart": "food_cart",
+    "barrel": "barrier",
+    "cart": "food_cart",
 }
 # LVIS categories of street objects that name no single curbside category (a pole may be a bollard, a street
 # lamp or a utility pole; a statue is none of the 33): their items carry no category, so the scorer decides, and
@@ -48,8 +73,15 @@ LVIS_TO_CATEGORY = {
 LVIS_SCORED = ("pole", "statue_(sculpture)", "sculpture", "flagpole", "milestone", "parasol", "birdbath")
 # Sketchfab licence codes in the annotations; the default keeps those that allow redistribution with attribution.
 DEFAULT_LICENSES = ("by", "by-sa", "cc0")
-LICENSE_NAMES = {"by": "CC-BY-4.0", "by-sa": "CC-BY-SA-4.0", "by-nd": "CC-BY-ND-4.0", "by-nc": "CC-BY-NC-4.0",
-                 "by-nc-sa": "CC-BY-NC-SA-4.0", "by-nc-nd": "CC-BY-NC-ND-4.0", "cc0": "CC0-1.0"}
+LICENSE_NAMES = {
+    "by": "CC-BY-4.0",
+    "by-sa": "CC-BY-SA-4.0",
+    "by-nd": "CC-BY-ND-4.0",
+    "by-nc": "CC-BY-NC-4.0",
+    "by-nc-sa": "CC-BY-NC-SA-4.0",
+    "by-nc-nd": "CC-BY-NC-ND-4.0",
+    "cc0": "CC0-1.0",
+}
 
 
 class DownloadError(OSError):
@@ -83,7 +115,7 @@ def download(url: str, dest: Path, *, timeout: float = 60.0, retries: int = 3) -
             if isinstance(exc, urllib.error.HTTPError) and 400 <= exc.code < 500:
                 break  # the file is not there (404) or not ours to fetch: asking again will not change it
             if attempt + 1 < retries:
-                time.sleep(min(2 ** attempt, 10))
+                time.sleep(min(2**attempt, 10))
         except BaseException:
             tmp.unlink(missing_ok=True)  # interrupted: no half file left behind
             raise
@@ -94,8 +126,9 @@ def download(url: str, dest: Path, *, timeout: float = 60.0, retries: int = 3) -
 class ObjaverseCache:
     """The objaverse cache folder: reads files from it, downloading what is missing."""
 
-    def __init__(self, root: str | Path | None = None, *, timeout: float = 60.0, retries: int = 3,
-                 base_url: str | None = None) -> None:
+    def __init__(
+        self, root: str | Path | None = None, *, timeout: float = 60.0, retries: int = 3, base_url: str | None = None
+    ) -> None:
         self.root = Path(root) if root is not None else DEFAULT_CACHE
         self.base = self.root / "hf-objaverse-v1"
         self.url = (base_url or os.environ.get(URL_ENV) or HF_URL).rstrip("/")
@@ -133,10 +166,19 @@ class ObjaverseSource:
 
     name = "objaverse"
 
-    def __init__(self, cache_dir: str | Path | None = None, lvis_categories: list[str] | None = None,
-                 licenses: tuple[str, ...] = DEFAULT_LICENSES, max_faces: int = 200_000,
-                 max_bytes: int = 50_000_000, timeout: float = 60.0, retries: int = 3, batch: int = 16,
-                 base_url: str | None = None, **_: object) -> None:
+    def __init__(
+        self,
+        cache_dir: str | Path | None = None,
+        lvis_categories: list[str] | None = None,
+        licenses: tuple[str, ...] = DEFAULT_LICENSES,
+        max_faces: int = 200_000,
+        max_bytes: int = 50_000_000,
+        timeout: float = 60.0,
+        retries: int = 3,
+        batch: int = 16,
+        base_url: str | None = None,
+        **_: object,
+    ) -> None:
         self.cache = ObjaverseCache(cache_dir, timeout=timeout, retries=retries, base_url=base_url)
         chosen = [*LVIS_TO_CATEGORY, *LVIS_SCORED] if lvis_categories is None else list(lvis_categories)
         self.lvis = {k: LVIS_TO_CATEGORY.get(k) for k in chosen}
@@ -185,7 +227,7 @@ class ObjaverseSource:
         if limit is not None:
             chosen = chosen[:limit]
         for start in range(0, len(chosen), self.batch):
-            part = chosen[start:start + self.batch]
+            part = chosen[start : start + self.batch]
             ann = self._annotations([u for u, _, _ in part])
             ok = []
             verdicts: dict[str, tuple[str, str]] = {}
@@ -208,14 +250,21 @@ class ObjaverseSource:
                 verdict = verdicts.get(uid) or (("download_failed", errors[uid]) if uid in errors else None)
                 tags = [t.get("name", "") for t in a.get("tags", [])][:20]
                 yield SourceItem(
-                    source="objaverse", source_id=uid, path=paths.get(uid, ""), name=a.get("name", ""),
+                    source="objaverse",
+                    source_id=uid,
+                    path=paths.get(uid, ""),
+                    name=a.get("name", ""),
                     description=(a.get("description") or "").strip()[:500] or None,
                     # The LVIS name is a human label too: it tells the text signal what an uncategorised item is.
-                    tags=tags if cat else [*tags, lvis_label(lvis_cat)], category=cat,
+                    tags=tags if cat else [*tags, lvis_label(lvis_cat)],
+                    category=cat,
                     license=LICENSE_NAMES.get(a.get("license"), a.get("license") or "unknown"),
                     attribution=attribution(a, uid),
-                    metadata={"lvis": lvis_cat, **provenance(a, uid),
-                              **({"rejected": list(verdict)} if verdict else {})},
+                    metadata={
+                        "lvis": lvis_cat,
+                        **provenance(a, uid),
+                        **({"rejected": list(verdict)} if verdict else {}),
+                    },
                 )
 
 
@@ -235,6 +284,9 @@ def attribution(annotation: dict, uid: str) -> str:
 def provenance(annotation: dict, uid: str) -> dict[str, str | None]:
     """What the catalog keeps about where an asset came from: licence code, author and its page, model page."""
     user = annotation.get("user") or {}
-    return {"license_code": annotation.get("license"), "author": user.get("displayName") or user.get("username"),
-            "author_url": user.get("profileUrl"),
-            "source_url": annotation.get("viewerUrl") or f"https://sketchfab.com/3d-models/{uid}"}
+    return {
+        "license_code": annotation.get("license"),
+        "author": user.get("displayName") or user.get("username"),
+        "author_url": user.get("profileUrl"),
+        "source_url": annotation.get("viewerUrl") or f"https://sketchfab.com/3d-models/{uid}",
+    }

@@ -49,8 +49,14 @@ OBJECTS = (
     FixtureObject("bin", "trash_can", "cc0", "Green street litter bin", ("trash", "bin", "litter"), "000-000"),
     FixtureObject("lamp", "lamppost", "by-sa", "Old town lamp post", ("lamp", "streetlight", "lamppost"), "000-001"),
     FixtureObject("bollard", "pole", "by", "Steel traffic bollard", ("bollard", "barrier", "street"), "000-001"),
-    FixtureObject("statue", "statue_(sculpture)", "by", "Bronze statue on a plinth",
-                  ("statue", "sculpture", "monument"), "000-001"),
+    FixtureObject(
+        "statue",
+        "statue_(sculpture)",
+        "by",
+        "Bronze statue on a plinth",
+        ("statue", "sculpture", "monument"),
+        "000-001",
+    ),
     FixtureObject("broken", "bench", "by", "Bench (corrupt upload)", ("bench",), "000-000"),
     FixtureObject("nc", "bench", "by-nc", "Bench, non-commercial", ("bench",), "000-000"),
 )
@@ -75,25 +81,38 @@ def fixture_mesh(key: str) -> trimesh.Trimesh:
     """The z-up mesh (metres) of a fixture object, built from primitives."""
     box, cyl, sphere = trimesh.creation.box, trimesh.creation.cylinder, trimesh.creation.icosphere
     if key in ("bench", "broken", "nc"):
-        parts = [_coloured(_at(box([0.6, 1.8, 0.1]), (0, 0, 0.45)), (150, 90, 40)),
-                 _coloured(_at(box([0.08, 1.8, 0.5]), (-0.28, 0, 0.75)), (120, 70, 30))]
-        parts += [_coloured(_at(box([0.08, 0.08, 0.45]), (x, y, 0.225)), (40, 40, 40))
-                  for x in (-0.25, 0.25) for y in (-0.8, 0.8)]
+        parts = [
+            _coloured(_at(box([0.6, 1.8, 0.1]), (0, 0, 0.45)), (150, 90, 40)),
+            _coloured(_at(box([0.08, 1.8, 0.5]), (-0.28, 0, 0.75)), (120, 70, 30)),
+        ]
+        parts += [
+            _coloured(_at(box([0.08, 0.08, 0.45]), (x, y, 0.225)), (40, 40, 40))
+            for x in (-0.25, 0.25)
+            for y in (-0.8, 0.8)
+        ]
     elif key == "bin":
-        parts = [_coloured(_at(cyl(radius=0.25, height=0.9, sections=24), (0, 0, 0.45)), (30, 120, 50)),
-                 _coloured(_at(cyl(radius=0.27, height=0.05, sections=24), (0, 0, 0.92)), (20, 20, 20))]
+        parts = [
+            _coloured(_at(cyl(radius=0.25, height=0.9, sections=24), (0, 0, 0.45)), (30, 120, 50)),
+            _coloured(_at(cyl(radius=0.27, height=0.05, sections=24), (0, 0, 0.92)), (20, 20, 20)),
+        ]
     elif key == "lamp":
-        parts = [_coloured(_at(cyl(radius=0.06, height=4.0, sections=16), (0, 0, 2.0)), (30, 30, 30)),
-                 _coloured(_at(box([0.9, 0.12, 0.08]), (0.4, 0, 3.95)), (30, 30, 30)),
-                 _coloured(_at(box([0.4, 0.3, 0.15]), (0.8, 0, 3.85)), (250, 240, 180))]
+        parts = [
+            _coloured(_at(cyl(radius=0.06, height=4.0, sections=16), (0, 0, 2.0)), (30, 30, 30)),
+            _coloured(_at(box([0.9, 0.12, 0.08]), (0.4, 0, 3.95)), (30, 30, 30)),
+            _coloured(_at(box([0.4, 0.3, 0.15]), (0.8, 0, 3.85)), (250, 240, 180)),
+        ]
     elif key == "bollard":
-        parts = [_coloured(_at(cyl(radius=0.1, height=0.9, sections=20), (0, 0, 0.45)), (90, 90, 95)),
-                 _coloured(_at(sphere(subdivisions=2, radius=0.1), (0, 0, 0.9)), (90, 90, 95)),
-                 _coloured(_at(cyl(radius=0.105, height=0.08, sections=20), (0, 0, 0.7)), (230, 200, 20))]
+        parts = [
+            _coloured(_at(cyl(radius=0.1, height=0.9, sections=20), (0, 0, 0.45)), (90, 90, 95)),
+            _coloured(_at(sphere(subdivisions=2, radius=0.1), (0, 0, 0.9)), (90, 90, 95)),
+            _coloured(_at(cyl(radius=0.105, height=0.08, sections=20), (0, 0, 0.7)), (230, 200, 20)),
+        ]
     elif key == "statue":
-        parts = [_coloured(_at(box([0.8, 0.8, 1.0]), (0, 0, 0.5)), (170, 170, 165)),
-                 _coloured(_at(cyl(radius=0.18, height=1.1, sections=16), (0, 0, 1.55)), (110, 80, 40)),
-                 _coloured(_at(sphere(subdivisions=2, radius=0.16), (0, 0, 2.25)), (110, 80, 40))]
+        parts = [
+            _coloured(_at(box([0.8, 0.8, 1.0]), (0, 0, 0.5)), (170, 170, 165)),
+            _coloured(_at(cyl(radius=0.18, height=1.1, sections=16), (0, 0, 1.55)), (110, 80, 40)),
+            _coloured(_at(sphere(subdivisions=2, radius=0.16), (0, 0, 2.25)), (110, 80, 40)),
+        ]
     else:
         raise ValueError(f"unknown fixture object {key!r}; use one of {[o.key for o in OBJECTS]}")
     return trimesh.util.concatenate(parts)
@@ -117,19 +136,44 @@ def sketchfab_annotation(obj: FixtureObject, glb_size: int, faces: int, vertices
     """A Sketchfab annotation with the fields (and nesting) of Objaverse 1.0's metadata shards."""
     uid = fixture_uid(obj.key)
     return {
-        "uid": uid, "name": obj.name, "license": obj.license,
-        "viewerUrl": f"https://sketchfab.com/3d-models/{uid}", "embedUrl": f"https://sketchfab.com/models/{uid}/embed",
-        "publishedAt": "2021-06-01T12:00:00.000000", "createdAt": "2021-06-01T11:00:00.000000",
-        "description": f"{obj.name}. Low-poly model for street scenes.", "isDownloadable": True,
-        "faceCount": faces, "vertexCount": vertices, "animationCount": 0, "viewCount": 100, "likeCount": 3,
-        "commentCount": 0, "staffpickedAt": None, "isAgeRestricted": False,
-        "tags": [{"name": t, "slug": t.replace(" ", "-"), "uri": f"https://api.sketchfab.com/v3/tags/{t}"}
-                 for t in obj.tags],
+        "uid": uid,
+        "name": obj.name,
+        "license": obj.license,
+        "viewerUrl": f"https://sketchfab.com/3d-models/{uid}",
+        "embedUrl": f"https://sketchfab.com/models/{uid}/embed",
+        "publishedAt": "2021-06-01T12:00:00.000000",
+        "createdAt": "2021-06-01T11:00:00.000000",
+        "description": f"{obj.name}. Low-poly model for street scenes.",
+        "isDownloadable": True,
+        "faceCount": faces,
+        "vertexCount": vertices,
+        "animationCount": 0,
+        "viewCount": 100,
+        "likeCount": 3,
+        "commentCount": 0,
+        "staffpickedAt": None,
+        "isAgeRestricted": False,
+        "tags": [
+            {"name": t, "slug": t.replace(" ", "-"), "uri": f"https://api.sketchfab.com/v3/tags/{t}"} for t in obj.tags
+        ],
         "categories": [{"name": "Architecture", "slug": "architecture"}],
-        "user": {"uid": "0" * 32, "username": "curbside-fixture", "displayName": "Curbside Fixture Maker",
-                 "profileUrl": "https://sketchfab.com/curbside-fixture", "account": "basic"},
-        "archives": {"glb": {"size": glb_size, "type": "glb", "faceCount": faces, "vertexCount": vertices,
-                             "textureCount": 0, "textureMaxResolution": 0}},
+        "user": {
+            "uid": "0" * 32,
+            "username": "curbside-fixture",
+            "displayName": "Curbside Fixture Maker",
+            "profileUrl": "https://sketchfab.com/curbside-fixture",
+            "account": "basic",
+        },
+        "archives": {
+            "glb": {
+                "size": glb_size,
+                "type": "glb",
+                "faceCount": faces,
+                "vertexCount": vertices,
+                "textureCount": 0,
+                "textureMaxResolution": 0,
+            }
+        },
     }
 
 
@@ -151,8 +195,9 @@ def build_objaverse_cache(root: str | Path, *, xl: bool = False) -> Path:
         (base / rel).parent.mkdir(parents=True, exist_ok=True)
         (base / rel).write_bytes(data)
         paths[uid] = rel
-        shards.setdefault(obj.shard, {})[uid] = sketchfab_annotation(obj, len(data), len(mesh.faces),
-                                                                     len(mesh.vertices))
+        shards.setdefault(obj.shard, {})[uid] = sketchfab_annotation(
+            obj, len(data), len(mesh.faces), len(mesh.vertices)
+        )
         if obj.lvis:
             lvis.setdefault(obj.lvis, []).append(uid)
     _write_gz_json(base / "object-paths.json.gz", paths)
@@ -173,8 +218,9 @@ def _write_parquet(rows: list[dict], path: Path) -> None:
 
     from kernel.reproducible import write_frame
 
-    write_frame(pd.DataFrame(rows, columns=["fileIdentifier", "source", "license", "fileType", "sha256",
-                                              "metadata"]), path)
+    write_frame(
+        pd.DataFrame(rows, columns=["fileIdentifier", "source", "license", "fileType", "sha256", "metadata"]), path
+    )
 
 
 def build_xl_sources(root: str | Path) -> Path:
@@ -183,8 +229,12 @@ def build_xl_sources(root: str | Path) -> Path:
     # Smithsonian: a bollard GLB stored under its uuid5, and one listed object never downloaded (fetched on demand).
     smith = []
     for key, url, title, store in (
-        ("bollard", "https://3d-api.si.edu/content/document/3d_package:fixture-bollard/bollard.glb",
-         "Cast-iron bollard", True),
+        (
+            "bollard",
+            "https://3d-api.si.edu/content/document/3d_package:fixture-bollard/bollard.glb",
+            "Cast-iron bollard",
+            True,
+        ),
         ("bench", "https://3d-api.si.edu/content/document/3d_package:fixture-bench/bench.glb", "Park bench", False),
     ):
         data = _glb_bytes(fixture_mesh(key))
@@ -192,19 +242,36 @@ def build_xl_sources(root: str | Path) -> Path:
             path = root / "smithsonian" / "objects" / f"{uuid.uuid5(uuid.NAMESPACE_DNS, url)}.glb"
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(data)
-        smith.append({"fileIdentifier": url, "source": "smithsonian", "license": "CC0", "fileType": "glb",
-                      "sha256": _sha256(data), "metadata": json.dumps({"title": title, "unit_name": "NMAH"})})
+        smith.append(
+            {
+                "fileIdentifier": url,
+                "source": "smithsonian",
+                "license": "CC0",
+                "fileType": "glb",
+                "sha256": _sha256(data),
+                "metadata": json.dumps({"title": title, "unit_name": "NMAH"}),
+            }
+        )
     _write_parquet(smith, root / "smithsonian" / "smithsonian.parquet")
     # Thingiverse: STL files named thing-<thing id>-file-<file id>.stl; one licence that forbids redistribution.
     thing = []
-    for thing_id, file_id, key, lic in ((1001, 2001, "bin", "Creative Commons - Attribution"),
-                                        (1002, 2002, "lamp", "All Rights Reserved")):
+    for thing_id, file_id, key, lic in (
+        (1001, 2001, "bin", "Creative Commons - Attribution"),
+        (1002, 2002, "lamp", "All Rights Reserved"),
+    ):
         data = fixture_mesh(key).export(file_type="stl")
         path = root / "thingiverse" / f"thing-{thing_id}-file-{file_id}.stl"
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(data)
-        thing.append({"fileIdentifier": f"https://www.thingiverse.com/thing:{thing_id}/files?fileId={file_id}",
-                      "source": "thingiverse", "license": lic, "fileType": "stl", "sha256": _sha256(data),
-                      "metadata": json.dumps({"name": f"thing {thing_id}"})})
+        thing.append(
+            {
+                "fileIdentifier": f"https://www.thingiverse.com/thing:{thing_id}/files?fileId={file_id}",
+                "source": "thingiverse",
+                "license": lic,
+                "fileType": "stl",
+                "sha256": _sha256(data),
+                "metadata": json.dumps({"name": f"thing {thing_id}"}),
+            }
+        )
     _write_parquet(thing, root / "thingiverse" / "thingiverse.parquet")
     return root

@@ -26,11 +26,20 @@ from retrieval.sources.objaverse import DEFAULT_CACHE, DownloadError, ObjaverseC
 XL_URL = "https://huggingface.co/datasets/allenai/objaverse-xl/resolve/main"
 XL_SOURCES = ("smithsonian", "thingiverse", "sketchfab")
 # Licence strings of the XL annotations -> SPDX-style names; the default keeps those that allow redistribution.
-XL_LICENSES = {"CC0": "CC0-1.0", "Public Domain": "public-domain", "Creative Commons - Public Domain Dedication":
-               "CC0-1.0", "Creative Commons - Attribution": "CC-BY", "Creative Commons - Attribution - Share Alike":
-               "CC-BY-SA", "by": "CC-BY-4.0", "by-sa": "CC-BY-SA-4.0", "cc0": "CC0-1.0",
-               "Creative Commons - Attribution - Non-Commercial": "CC-BY-NC", "by-nc": "CC-BY-NC-4.0",
-               "Creative Commons - Attribution - No Derivatives": "CC-BY-ND", "All Rights Reserved": "all-rights-reserved"}
+XL_LICENSES = {
+    "CC0": "CC0-1.0",
+    "Public Domain": "public-domain",
+    "Creative Commons - Public Domain Dedication": "CC0-1.0",
+    "Creative Commons - Attribution": "CC-BY",
+    "Creative Commons - Attribution - Share Alike": "CC-BY-SA",
+    "by": "CC-BY-4.0",
+    "by-sa": "CC-BY-SA-4.0",
+    "cc0": "CC0-1.0",
+    "Creative Commons - Attribution - Non-Commercial": "CC-BY-NC",
+    "by-nc": "CC-BY-NC-4.0",
+    "Creative Commons - Attribution - No Derivatives": "CC-BY-ND",
+    "All Rights Reserved": "all-rights-reserved",
+}
 DEFAULT_XL_LICENSES = ("CC0-1.0", "public-domain", "CC-BY", "CC-BY-SA", "CC-BY-4.0", "CC-BY-SA-4.0")
 
 
@@ -47,17 +56,28 @@ class ObjaverseXLSource:
 
     name = "objaverse-xl"
 
-    def __init__(self, cache_dir: str | Path | None = None, sources: tuple[str, ...] = XL_SOURCES,
-                 licenses: tuple[str, ...] = DEFAULT_XL_LICENSES, timeout: float = 60.0, retries: int = 3,
-                 base_url: str | None = None, **_: object) -> None:
+    def __init__(
+        self,
+        cache_dir: str | Path | None = None,
+        sources: tuple[str, ...] = XL_SOURCES,
+        licenses: tuple[str, ...] = DEFAULT_XL_LICENSES,
+        timeout: float = 60.0,
+        retries: int = 3,
+        base_url: str | None = None,
+        **_: object,
+    ) -> None:
         unknown = sorted(set(sources) - set(XL_SOURCES))
         if "github" in unknown:
-            raise ValueError("objaverse-xl:github is not supported (each object needs its repository cloned); fetch "
-                             "them with objaverse.xl.download_objects(save_repo_format='files') and use --source "
-                             "local:DIR")
+            raise ValueError(
+                "objaverse-xl:github is not supported (each object needs its repository cloned); fetch "
+                "them with objaverse.xl.download_objects(save_repo_format='files') and use --source "
+                "local:DIR"
+            )
         if unknown or not sources:
-            raise ValueError(f"unknown Objaverse-XL source(s) {unknown}; use some of {', '.join(XL_SOURCES)}, e.g. "
-                             f"--source objaverse-xl:smithsonian,thingiverse")
+            raise ValueError(
+                f"unknown Objaverse-XL source(s) {unknown}; use some of {', '.join(XL_SOURCES)}, e.g. "
+                f"--source objaverse-xl:smithsonian,thingiverse"
+            )
         self.root = Path(cache_dir) if cache_dir is not None else DEFAULT_CACHE
         self.sources = tuple(s for s in XL_SOURCES if s in sources)
         self.licenses = tuple(licenses)
@@ -77,12 +97,15 @@ class ObjaverseXLSource:
                 raise SourceUnavailable(
                     f"objaverse-xl needs network access to download {source}/{source}.parquet into {self.root} "
                     f"({exc}); connect to the network, pass --objaverse-cache DIR holding a filled cache, or "
-                    f"ingest local meshes with --source local:DIR") from None
+                    f"ingest local meshes with --source local:DIR"
+                ) from None
         try:
             return downloaders[source].get_annotations(download_dir=str(self.root))
         except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid is a ValueError
-            raise SourceCacheCorrupt(f"objaverse-xl cache file {path} is truncated or corrupt ({type(exc).__name__}: "
-                                     f"{exc}); delete it and rerun to download it again") from None
+            raise SourceCacheCorrupt(
+                f"objaverse-xl cache file {path} is truncated or corrupt ({type(exc).__name__}: "
+                f"{exc}); delete it and rerun to download it again"
+            ) from None
 
     def _local(self, source: str, ident: str) -> tuple[Path, str | None]:
         """Where the XL downloader stores the object, and the URL to fetch it from (None: via the 1.0 cache)."""
@@ -90,8 +113,10 @@ class ObjaverseXLSource:
             return self.root / "smithsonian" / "objects" / f"{uuid.uuid5(uuid.NAMESPACE_DNS, ident)}.glb", ident
         if source == "thingiverse":
             thing, file_id = ident.split("/")[-2].split(":")[1], ident.split("fileId=")[-1]
-            return (self.root / "thingiverse" / f"thing-{thing}-file-{file_id}.stl",
-                    f"https://www.thingiverse.com/download:{file_id}")
+            return (
+                self.root / "thingiverse" / f"thing-{thing}-file-{file_id}.stl",
+                f"https://www.thingiverse.com/download:{file_id}",
+            )
         uid = ident.rstrip("/").split("/")[-1]
         return self.sketchfab.base / self.sketchfab.annotation("object-paths.json.gz").get(uid, f"glbs/{uid}.glb"), None
 
@@ -107,8 +132,10 @@ class ObjaverseXLSource:
         except DownloadError as exc:
             return "", ("download_failed", str(exc)[:200])
         if sha256 and _sha256(path) != sha256:
-            why = (f"sha256 of {path.name} differs from the Objaverse-XL annotation (the file changed upstream); "
-                   f"delete it to fetch it again")
+            why = (
+                f"sha256 of {path.name} differs from the Objaverse-XL annotation (the file changed upstream); "
+                f"delete it to fetch it again"
+            )
             return str(path), ("download_failed", why)
         return str(path), None
 
@@ -132,12 +159,26 @@ class ObjaverseXLSource:
                 else:
                     path, verdict = self._fetch(source, ident, str(row.get("sha256") or ""))
                 title = str(meta.get("title") or meta.get("name") or Path(ident.split("?")[0]).stem)
-                holder = {"smithsonian": "the Smithsonian Institution", "thingiverse": "a Thingiverse author",
-                          "sketchfab": "a Sketchfab author"}[source]
+                holder = {
+                    "smithsonian": "the Smithsonian Institution",
+                    "thingiverse": "a Thingiverse author",
+                    "sketchfab": "a Sketchfab author",
+                }[source]
                 yield SourceItem(
-                    source="objaverse-xl", source_id=f"{source}:{hashlib.sha1(ident.encode()).hexdigest()[:16]}",
-                    path=path, name=title, description=None, tags=[source], category=None, license=licence,
+                    source="objaverse-xl",
+                    source_id=f"{source}:{hashlib.sha1(ident.encode()).hexdigest()[:16]}",
+                    path=path,
+                    name=title,
+                    description=None,
+                    tags=[source],
+                    category=None,
+                    license=licence,
                     attribution=f"{title} by {holder} ({ident})",
-                    metadata={"xl_source": source, "source_url": ident, "license_code": row.get("license"),
-                              "sha256": row.get("sha256"), **({"rejected": list(verdict)} if verdict else {})},
+                    metadata={
+                        "xl_source": source,
+                        "source_url": ident,
+                        "license_code": row.get("license"),
+                        "sha256": row.get("sha256"),
+                        **({"rejected": list(verdict)} if verdict else {}),
+                    },
                 )

@@ -20,8 +20,14 @@ class ProceduralSource:
 
     name = "procedural"
 
-    def __init__(self, per_category: int = 2, categories: list[str] | None = None, seed: int = 0,
-                 work_dir: str | Path | None = None, **_: object) -> None:
+    def __init__(
+        self,
+        per_category: int = 2,
+        categories: list[str] | None = None,
+        seed: int = 0,
+        work_dir: str | Path | None = None,
+        **_: object,
+    ) -> None:
         from retrieval.procedural import category_names
 
         known = list(category_names())
@@ -52,8 +58,15 @@ class ProceduralSource:
                 companions = [str(p) for p in (exported.mtl_path, exported.texture_path) if p]
                 n += 1
                 yield SourceItem(
-                    source="procedural", source_id=f"{cat}-{seed:04d}", path=str(exported.obj_path),
-                    name=cat.replace("_", " "), description=asset.description, tags=list(asset.synonyms),
-                    category=cat, license=PROCEDURAL_LICENSE, attribution=PROCEDURAL_ATTRIBUTION, up_axis="+z",
+                    source="procedural",
+                    source_id=f"{cat}-{seed:04d}",
+                    path=str(exported.obj_path),
+                    name=cat.replace("_", " "),
+                    description=asset.description,
+                    tags=list(asset.synonyms),
+                    category=cat,
+                    license=PROCEDURAL_LICENSE,
+                    attribution=PROCEDURAL_ATTRIBUTION,
+                    up_axis="+z",
                     metadata={"companion_files": companions, "generator": "library", "seed": seed},
                 )

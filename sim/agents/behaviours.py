@@ -122,7 +122,7 @@ class Groups:
         k = placed = 0
         while placed < target and len(order) - k >= lo:
             size = min(int(rng.integers(lo, hi + 1)), len(order) - k)
-            members = order[k:k + size]
+            members = order[k : k + size]
             k += size
             if self._place(m, members, rng, clear):
                 gid = len(self.members)
@@ -135,8 +135,9 @@ class Groups:
                 self.formed += 1
                 self.stands += 1
 
-    def _place(self, m: AgentManager, members: np.ndarray, rng: np.random.Generator,
-               clear: list[tuple[float, float, float]]) -> bool:
+    def _place(
+        self, m: AgentManager, members: np.ndarray, rng: np.random.Generator, clear: list[tuple[float, float, float]]
+    ) -> bool:
         """Move `members` into a ring on a sidewalk near the first one's spawn point; False if none fits nearby."""
         g, c = m.grid, m.config
         spacing = ring_spacing(m, members)
@@ -223,6 +224,13 @@ class Groups:
     def stats(self) -> dict[str, int]:
         """Groups formed, standing now, walking now, stands so far, dispersals and walks together."""
         walking = sum(self.walking.values())
-        return {"groups": len(self.members), "grouped_agents": int((self.of >= 0).sum()),
-                "standing_groups": len(self.members) - walking, "walking_groups": walking,
-                "formed": self.formed, "stands": self.stands, "dispersed": self.dispersed, "walks": self.walks}
+        return {
+            "groups": len(self.members),
+            "grouped_agents": int((self.of >= 0).sum()),
+            "standing_groups": len(self.members) - walking,
+            "walking_groups": walking,
+            "formed": self.formed,
+            "stands": self.stands,
+            "dispersed": self.dispersed,
+            "walks": self.walks,
+        }

@@ -50,7 +50,9 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         self.config = merge_strict(AGENT_DEFAULTS, config, name="agents config")
         check_behaviour_config(self.config)
         if self.config["spawn_area"] not in SPAWN_AREAS:
-            raise ConfigError(f"unknown agents spawn_area {self.config['spawn_area']!r}; valid: {', '.join(SPAWN_AREAS)}")
+            raise ConfigError(
+                f"unknown agents spawn_area {self.config['spawn_area']!r}; valid: {', '.join(SPAWN_AREAS)}"
+            )
         self._area: Any = None
         self._route_length = 0.0
         for kind in self.config["counts"]:
@@ -61,13 +63,19 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         c = self.config
         asked = sum(int(v) for v in c["counts"].values()) if c["counts"] else None
         if asked is not None and asked > c["max_agents"]:
-            raise ConfigError(f"agents config counts ask for {asked} agents but max_agents is {c['max_agents']}; "
-                              "lower the counts or raise max_agents")
+            raise ConfigError(
+                f"agents config counts ask for {asked} agents but max_agents is {c['max_agents']}; "
+                "lower the counts or raise max_agents"
+            )
         if asked is None and c["dynamic_density"] > 0 and c["max_agents"] < 1:
-            raise ConfigError(f"agents config max_agents is 0 with dynamic_density {c['dynamic_density']:g}; set "
-                              "dynamic_density 0 for no agents, or raise max_agents")
+            raise ConfigError(
+                f"agents config max_agents is 0 with dynamic_density {c['dynamic_density']:g}; set "
+                "dynamic_density 0 for no agents, or raise max_agents"
+            )
         if self.config["lookahead_cells"] not in (1, 2, 4, 8):
-            raise ConfigError(f"agents config lookahead_cells must be 1, 2, 4 or 8, got {self.config['lookahead_cells']}")
+            raise ConfigError(
+                f"agents config lookahead_cells must be 1, 2, 4 or 8, got {self.config['lookahead_cells']}"
+            )
         self.grid: NavGrid | None = None
         self._scene: Scene | None = None  # the scene the cached grid and ORCA obstacles belong to
         self.n = 0
@@ -77,8 +85,14 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         self.crossings = Crossings()
 
     # ------------------------------------------------------------------ reset
-    def reset(self, scene: Scene | Mapping[str, Any], rng: np.random.Generator, ego: EgoState | None = None,
-              keep_clear: Sequence[tuple[float, float, float]] = (), route: np.ndarray | None = None) -> np.ndarray:
+    def reset(
+        self,
+        scene: Scene | Mapping[str, Any],
+        rng: np.random.Generator,
+        ego: EgoState | None = None,
+        keep_clear: Sequence[tuple[float, float, float]] = (),
+        route: np.ndarray | None = None,
+    ) -> np.ndarray:
         """Build the planner for `scene` (a dict is parsed), spawn agents away from `keep_clear` discs (x, y, r)
         and return states().
 
@@ -203,9 +217,14 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
 
     def behaviour_stats(self) -> dict[str, int]:
         """Standing groups (sim.agents.behaviours.Groups.stats), crossings started and done, pushes started and ended."""
-        return {**self.groups.stats(), "crossings_started": self.cross_counts["started"],
-                "crossings_done": self.cross_counts["done"], "crossing_now": int(self.crossing.sum()),
-                "pushes": self.push.started, "pushes_done": self.push.finished}
+        return {
+            **self.groups.stats(),
+            "crossings_started": self.cross_counts["started"],
+            "crossings_done": self.cross_counts["done"],
+            "crossing_now": int(self.crossing.sum()),
+            "pushes": self.push.started,
+            "pushes_done": self.push.finished,
+        }
 
     # ------------------------------------------------------------------ scripted scenarios
     def place(self, i: int, xy: Sequence[float]) -> None:
@@ -225,8 +244,13 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         site = g.add_site(int(g.nearest_node(p)[0]))
         if self.groups.of[i] >= 0:
             self.groups.dissolve(self, int(self.groups.of[i]))
-        self._new_goal(i, int(g.nearest_node(self.pos[i:i + 1])[0]), site=site, goal_xy=p[0],
-                       speed=self._walking_speed(i) if speed is None else float(speed))
+        self._new_goal(
+            i,
+            int(g.nearest_node(self.pos[i : i + 1])[0]),
+            site=site,
+            goal_xy=p[0],
+            speed=self._walking_speed(i) if speed is None else float(speed),
+        )
 
     def overdue(self) -> int:
         """Agents still travelling whose time budget has already run out (goals that will count as late)."""

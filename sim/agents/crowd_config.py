@@ -66,10 +66,18 @@ def check_behaviour_config(config: Mapping[str, Any]) -> None:
         value = config[key]
         items = list(value) if pair and isinstance(value, (list, tuple)) else [value]
         number = "an integer" if integer else "a finite number"
-        ok = (len(items) == (2 if pair else 1)
-              and all(isinstance(v, (int, float)) and not isinstance(v, bool) and (isinstance(v, int) or not integer)
-                      and math.isfinite(v) and lo <= v <= hi for v in items)
-              and (not pair or items[0] <= items[1]))
+        ok = (
+            len(items) == (2 if pair else 1)
+            and all(
+                isinstance(v, (int, float))
+                and not isinstance(v, bool)
+                and (isinstance(v, int) or not integer)
+                and math.isfinite(v)
+                and lo <= v <= hi
+                for v in items
+            )
+            and (not pair or items[0] <= items[1])
+        )
         if not ok:
             span = f"{number} in [{lo:g}, {hi:g}]"
             what = f"a [min, max] pair (min <= max), each {span}" if pair else span

@@ -12,8 +12,15 @@ from sim.agents.navgrid import JUMPS
 class GoalFollowing:
     """AgentManager's goal-following part: picks goals, tracks progress and steers at a carrot."""
 
-    def _new_goal(self, i: int, node: int, abandon: bool = False, site: int | None = None,
-                  goal_xy: np.ndarray | None = None, speed: float | None = None) -> None:
+    def _new_goal(
+        self,
+        i: int,
+        node: int,
+        abandon: bool = False,
+        site: int | None = None,
+        goal_xy: np.ndarray | None = None,
+        speed: float | None = None,
+    ) -> None:
         """Send agent i (at `node`) to a random goal, or to `site` (its cell nearest `goal_xy`) walking at `speed`."""
         c, g, rng = self.config, self.grid, self.rng
         spread = c["goal_spread"]
@@ -26,7 +33,7 @@ class GoalFollowing:
                 self.cross_counts["started"] += 1
                 spread = min(spread, 1.0)  # stay by the crosswalk's far end, not 2.5 m around it
         if site is None:
-            spread_sites = g.sites[:g.n_spread]  # crossing sites are goals of crossings only
+            spread_sites = g.sites[: g.n_spread]  # crossing sites are goals of crossings only
             here = int(np.argmin(np.linalg.norm(g.node_xy(spread_sites) - self.pos[i], axis=1)))
             choices = np.delete(np.arange(len(spread_sites)), here) if len(spread_sites) > 1 else np.arange(1)
             site = int(rng.choice(choices))
@@ -82,9 +89,21 @@ class GoalFollowing:
         moving = np.flatnonzero(self.movement != IDLE)
         if not len(moving):
             return
-        arrived, abandon = progress(moving, self.pos, self.goal, nodes, self.site, g._dist, self.stall, self.best,
-                                    float(c["arrive_radius"]), float(c["crowded_arrive_radius"]), int(c["stuck_steps"]),
-                                    float(c["stuck_progress"]), int(c["regoal_steps"]))  # _new_goal planned every field
+        arrived, abandon = progress(
+            moving,
+            self.pos,
+            self.goal,
+            nodes,
+            self.site,
+            g._dist,
+            self.stall,
+            self.best,
+            float(c["arrive_radius"]),
+            float(c["crowded_arrive_radius"]),
+            int(c["stuck_steps"]),
+            float(c["stuck_progress"]),
+            int(c["regoal_steps"]),
+        )  # _new_goal planned every field
         if arrived.any():
             for i in moving[arrived].tolist():
                 late = self.time - self.goal_t0[i] > self.budget[i]
@@ -111,8 +130,19 @@ class GoalFollowing:
         ox, oy = float(g.origin[0]), float(g.origin[1])
         # Keep right: shortest paths hug the same inner edges in both directions, so opposing flows would meet
         # head-on in one lane (ORCA then herds the weaker side backwards); a right offset forms two lanes.
-        carrot = carrots(idx, nodes, self.pos, self.site, g._jump[JUMPS.index(steps)], g.centres,
-                         float(c["keep_right"]), ox, oy, float(g.res), g.free)
+        carrot = carrots(
+            idx,
+            nodes,
+            self.pos,
+            self.site,
+            g._jump[JUMPS.index(steps)],
+            g.centres,
+            float(c["keep_right"]),
+            ox,
+            oy,
+            float(g.res),
+            g.free,
+        )
         # A carrot behind a concave corner (a crosswalk mouth) would press the agent into the curb: fall back
         # to nearer points of the path (steps, steps/2, ..., 1 cells; the last without a check) until one is in
         # sight. The rungs are looked up at once for the few agents that need them.
@@ -130,8 +160,9 @@ class GoalFollowing:
                 else:
                     carrot[k] = ladder[-1][m]
         # Close to the site the field's single target cell would pull everyone to one point: aim at the own goal.
-        direction, speed = headings(idx, nodes, self.pos, carrot, self.goal, self.site, g._dist, self.speed,
-                                    1.5 * c["goal_spread"])
+        direction, speed = headings(
+            idx, nodes, self.pos, carrot, self.goal, self.site, g._dist, self.speed, 1.5 * c["goal_spread"]
+        )
         stall = self.stall[idx]
         stuck = stall >= c["stuck_steps"]
         if stuck.any():

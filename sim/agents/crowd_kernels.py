@@ -25,8 +25,9 @@ def _cell(x: float, y: float, ox: float, oy: float, res: float, h: int, w: int):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def nearest_nodes(xy: np.ndarray, ox: float, oy: float, res: float, nearest_rc: np.ndarray,
-                  node_of: np.ndarray) -> np.ndarray:  # pragma: no cover - numba
+def nearest_nodes(
+    xy: np.ndarray, ox: float, oy: float, res: float, nearest_rc: np.ndarray, node_of: np.ndarray
+) -> np.ndarray:  # pragma: no cover - numba
     """Graph node nearest to each world point [n, 2] (NavGrid.nearest_node)."""
     h, w = node_of.shape
     out = np.empty(xy.shape[0], dtype=node_of.dtype)
@@ -70,9 +71,21 @@ def idle_tick(movement: np.ndarray, idle_left: np.ndarray, dt: float, idle: int)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def progress(moving: np.ndarray, pos: np.ndarray, goal: np.ndarray, nodes: np.ndarray, site: np.ndarray,
-             dist_table: np.ndarray, stall: np.ndarray, best: np.ndarray, arrive_radius: float,
-             crowded_radius: float, stuck_steps: int, stuck_progress: float, regoal_steps: int):  # pragma: no cover
+def progress(
+    moving: np.ndarray,
+    pos: np.ndarray,
+    goal: np.ndarray,
+    nodes: np.ndarray,
+    site: np.ndarray,
+    dist_table: np.ndarray,
+    stall: np.ndarray,
+    best: np.ndarray,
+    arrive_radius: float,
+    crowded_radius: float,
+    stuck_steps: int,
+    stuck_progress: float,
+    regoal_steps: int,
+):  # pragma: no cover
     """Arrivals, progress and stall counts of the moving agents (GoalFollowing._update_goals): updates `stall` and
     `best` in place; returns (arrived, abandon) masks over `moving`."""
     k_n = moving.size
@@ -98,9 +111,19 @@ def progress(moving: np.ndarray, pos: np.ndarray, goal: np.ndarray, nodes: np.nd
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def carrots(idx: np.ndarray, nodes: np.ndarray, pos: np.ndarray, site: np.ndarray, jump: np.ndarray,
-            centres: np.ndarray, keep_right: float, ox: float, oy: float, res: float,
-            free: np.ndarray) -> np.ndarray:  # pragma: no cover - numba
+def carrots(
+    idx: np.ndarray,
+    nodes: np.ndarray,
+    pos: np.ndarray,
+    site: np.ndarray,
+    jump: np.ndarray,
+    centres: np.ndarray,
+    keep_right: float,
+    ox: float,
+    oy: float,
+    res: float,
+    free: np.ndarray,
+) -> np.ndarray:  # pragma: no cover - numba
     """The carrot of agents `idx` (at `nodes`): the cell `jump` steps ahead on the own goal field, shifted
     `keep_right` m to the right of the way there when that point is a planning cell."""
     h, w = free.shape
@@ -120,8 +143,17 @@ def carrots(idx: np.ndarray, nodes: np.ndarray, pos: np.ndarray, site: np.ndarra
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def headings(idx: np.ndarray, nodes: np.ndarray, pos: np.ndarray, carrot: np.ndarray, goal: np.ndarray,
-             site: np.ndarray, dist_table: np.ndarray, speed: np.ndarray, near_goal: float):  # pragma: no cover
+def headings(
+    idx: np.ndarray,
+    nodes: np.ndarray,
+    pos: np.ndarray,
+    carrot: np.ndarray,
+    goal: np.ndarray,
+    site: np.ndarray,
+    dist_table: np.ndarray,
+    speed: np.ndarray,
+    near_goal: float,
+):  # pragma: no cover
     """Unit directions [k, 2] at the carrots (at the own goal near the goal site) and speeds (slowing within
     0.3 m of the goal) of agents `idx`."""
     direction = np.empty((idx.size, 2))

@@ -51,17 +51,32 @@ class OrcaCrowd:
         cap = 1 << max(self.n - 1, 0).bit_length()
         sim = self._sims.get(cap)
         if sim is None:
-            sim = pyrvo.RVOSimulator(0.1, c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
-                                     c["time_horizon_obst"], 0.3, 2.0)
+            sim = pyrvo.RVOSimulator(
+                0.1, c["neighbor_dist"], c["max_neighbors"], c["time_horizon"], c["time_horizon_obst"], 0.3, 2.0
+            )
             for i in range(cap):
-                sim.add_agent(self._parked(i), c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
-                              c["time_horizon_obst"], 0.1, 0.0)
+                sim.add_agent(
+                    self._parked(i),
+                    c["neighbor_dist"],
+                    c["max_neighbors"],
+                    c["time_horizon"],
+                    c["time_horizon_obst"],
+                    0.1,
+                    0.0,
+                )
             # The ego is the last ORCA agent; it starts parked far away so it influences nobody until placed.
             # Its max speed is 0: agents see its position, velocity and radius only, and its own ORCA velocity is
             # never used (_set_ego overwrites both before every step), but RVO2 would gather every obstacle within
             # time_horizon_obst * max speed of it each step (about half of do_step at 50 m/s).
-            sim.add_agent(self._parked(cap), c["neighbor_dist"], c["max_neighbors"], c["time_horizon"],
-                          c["time_horizon_obst"], 0.1, 0.0)
+            sim.add_agent(
+                self._parked(cap),
+                c["neighbor_dist"],
+                c["max_neighbors"],
+                c["time_horizon"],
+                c["time_horizon_obst"],
+                0.1,
+                0.0,
+            )
             for vertices in self._obstacles:
                 sim.add_obstacle(vertices)
             sim.process_obstacles()

@@ -55,8 +55,10 @@ class AgentSpawning:
             p = np.array([c["mix"][k] for k in names], dtype=np.float64)
             kinds = list(rng.choice(names, size=n, p=p / p.sum())) if n else []
         if len(kinds) > c["max_agents"]:
-            raise ConfigError(f"{len(kinds)} agents requested but max_agents is {c['max_agents']}; "
-                              "lower dynamic_density/counts or raise max_agents")
+            raise ConfigError(
+                f"{len(kinds)} agents requested but max_agents is {c['max_agents']}; "
+                "lower dynamic_density/counts or raise max_agents"
+            )
         return [str(k) for k in kinds]
 
     def _area_length(self, scene: Scene) -> float:
@@ -96,6 +98,8 @@ class AgentSpawning:
             pos[placed] = p
             placed += 1
         if placed < self.n:
-            raise ValueError(f"only {placed} of {self.n} agents fit on this scene's walkable area; "
-                             "lower dynamic_density or the explicit counts")
+            raise ValueError(
+                f"only {placed} of {self.n} agents fit on this scene's walkable area; "
+                "lower dynamic_density or the explicit counts"
+            )
         return pos

@@ -195,7 +195,7 @@ class PushResolver:
             mv = p.mover
             done = m.movement[mv] == IDLE or int(m.site[mv]) != p.site or p.steps > m.config["regoal_steps"]
             if not done:
-                left = float(g.distance(nodes[mv:mv + 1], m.site[mv:mv + 1], planned=True)[0])
+                left = float(g.distance(nodes[mv : mv + 1], m.site[mv : mv + 1], planned=True)[0])
                 need = m.radius[y] + m.radius[mv]
                 done = left < p.hold_field - need
             if done:

@@ -32,8 +32,13 @@ def run_episode(out: Path, seed: int = 0, n_agents: int = 24, size: int = 320) -
     expert = PurePursuitExpert()
     frames: list[np.ndarray] = []
     try:
-        metrics = rollout(env, lambda e, obs: expert.act(e), seed, on_reset=lambda e: frames.append(e.render()),
-                          on_step=lambda e, done: frames.append(e.render()))
+        metrics = rollout(
+            env,
+            lambda e, obs: expert.act(e),
+            seed,
+            on_reset=lambda e: frames.append(e.render()),
+            on_step=lambda e, done: frames.append(e.render()),
+        )
     finally:
         env.close()
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -53,8 +58,10 @@ def main() -> None:
     ap.add_argument("--agents", type=int, default=24)
     args = ap.parse_args()
     m = run_episode(args.out, args.seed, args.agents)
-    print(f"SocialNav expert episode: success {m['success']:.0f}  SNS {m['sns']:.3f}  PSC {m['psc']:.3f}  "
-          f"STL {m['stl']:.3f}  cost {m['cost']:.0f}  -> {args.out}.gif / .json")
+    print(
+        f"SocialNav expert episode: success {m['success']:.0f}  SNS {m['sns']:.3f}  PSC {m['psc']:.3f}  "
+        f"STL {m['stl']:.3f}  cost {m['cost']:.0f}  -> {args.out}.gif / .json"
+    )
 
 
 if __name__ == "__main__":

@@ -34,24 +34,38 @@ def figure_parts(kind: str, height: float, radius: float, colour: tuple[float, f
     rgba = [*colour, 1.0]
     z0 = -height / 2
     if kind == "delivery_robot":
-        return [(p.GEOM_BOX, [radius, 0.8 * radius, height / 2 - 0.05], [0.0, 0.0, 0.05], rgba),
-                *[(p.GEOM_SPHERE, [0.07], [sx * 0.7 * radius, sy * 0.7 * radius, z0 + 0.07], DARK)
-                  for sx in (-1, 1) for sy in (-1, 1)]]
+        return [
+            (p.GEOM_BOX, [radius, 0.8 * radius, height / 2 - 0.05], [0.0, 0.0, 0.05], rgba),
+            *[
+                (p.GEOM_SPHERE, [0.07], [sx * 0.7 * radius, sy * 0.7 * radius, z0 + 0.07], DARK)
+                for sx in (-1, 1)
+                for sy in (-1, 1)
+            ],
+        ]
     if kind == "robot_dog":
         leg = 0.45 * height
-        return [(p.GEOM_BOX, [radius, 0.4 * radius, 0.12], [0.0, 0.0, z0 + leg + 0.12], rgba),
-                (p.GEOM_BOX, [0.09, 0.08, 0.07], [radius + 0.05, 0.0, z0 + leg + 0.2], DARK),
-                *[(p.GEOM_BOX, [0.03, 0.03, leg / 2], [sx * 0.75 * radius, sy * 0.3 * radius, z0 + leg / 2], DARK)
-                  for sx in (-1, 1) for sy in (-1, 1)]]
+        return [
+            (p.GEOM_BOX, [radius, 0.4 * radius, 0.12], [0.0, 0.0, z0 + leg + 0.12], rgba),
+            (p.GEOM_BOX, [0.09, 0.08, 0.07], [radius + 0.05, 0.0, z0 + leg + 0.2], DARK),
+            *[
+                (p.GEOM_BOX, [0.03, 0.03, leg / 2], [sx * 0.75 * radius, sy * 0.3 * radius, z0 + leg / 2], DARK)
+                for sx in (-1, 1)
+                for sy in (-1, 1)
+            ],
+        ]
     if kind == "wheelchair_user":
         seat = z0 + 0.5
-        return [(p.GEOM_BOX, [0.25, 0.25, 0.04], [0.0, 0.0, seat], DARK),
-                (p.GEOM_BOX, [0.04, 0.25, 0.25], [-0.25, 0.0, seat + 0.25], DARK),
-                *[(p.GEOM_BOX, [0.3, 0.02, 0.3], [0.0, s * 0.3, z0 + 0.3], METAL) for s in (-1, 1)],
-                (p.GEOM_BOX, [0.22, 0.16, 0.06], [0.12, 0.0, seat + 0.1], DARK),  # thighs
-                (p.GEOM_BOX, [0.1, 0.18, 0.22], [-0.08, 0.0, seat + 0.3], rgba),
-                (p.GEOM_SPHERE, [0.1], [-0.08, 0.0, seat + 0.62], SKIN)]
-    parts = _person(height if kind == "pedestrian" else 0.92 * height, rgba, z0 + (0.08 * height if kind != "pedestrian" else 0.0))
+        return [
+            (p.GEOM_BOX, [0.25, 0.25, 0.04], [0.0, 0.0, seat], DARK),
+            (p.GEOM_BOX, [0.04, 0.25, 0.25], [-0.25, 0.0, seat + 0.25], DARK),
+            *[(p.GEOM_BOX, [0.3, 0.02, 0.3], [0.0, s * 0.3, z0 + 0.3], METAL) for s in (-1, 1)],
+            (p.GEOM_BOX, [0.22, 0.16, 0.06], [0.12, 0.0, seat + 0.1], DARK),  # thighs
+            (p.GEOM_BOX, [0.1, 0.18, 0.22], [-0.08, 0.0, seat + 0.3], rgba),
+            (p.GEOM_SPHERE, [0.1], [-0.08, 0.0, seat + 0.62], SKIN),
+        ]
+    parts = _person(
+        height if kind == "pedestrian" else 0.92 * height, rgba, z0 + (0.08 * height if kind != "pedestrian" else 0.0)
+    )
     if kind in ("skateboarder", "scooter_rider"):
         parts.append((p.GEOM_BOX, [0.4, 0.1, 0.02], [0.0, 0.0, z0 + 0.06], METAL))
     if kind == "scooter_rider":

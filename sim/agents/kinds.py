@@ -44,10 +44,19 @@ def _load_kinds() -> tuple[dict[str, AgentKind], dict[str, float]]:
     """The kinds table `kinds.csv` beside this module (row order is the kind index) and each kind's spawn share."""
     with resources.files("sim.agents").joinpath("kinds.csv").open(encoding="utf-8") as f:
         rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
-    kinds = {r["name"]: AgentKind(
-        r["name"], float(r["radius"]), float(r["pref_speed"]), float(r["speed_std"]),
-        float(r["run_speed"]) if r["run_speed"] else None, float(r["height"]),
-        tuple(float(c) for c in r["color"].split()), r["source"]) for r in rows}  # type: ignore[arg-type]
+    kinds = {
+        r["name"]: AgentKind(
+            r["name"],
+            float(r["radius"]),
+            float(r["pref_speed"]),
+            float(r["speed_std"]),
+            float(r["run_speed"]) if r["run_speed"] else None,
+            float(r["height"]),
+            tuple(float(c) for c in r["color"].split()),
+            r["source"],
+        )
+        for r in rows
+    }  # type: ignore[arg-type]
     return kinds, {r["name"]: float(r["mix"]) for r in rows}
 
 
@@ -55,6 +64,7 @@ def _load_kinds() -> tuple[dict[str, AgentKind], dict[str, float]]:
 AGENT_KINDS, DEFAULT_MIX = _load_kinds()
 KIND_NAMES: tuple[str, ...] = tuple(AGENT_KINDS)
 KIND_INDEX: dict[str, int] = {n: i for i, n in enumerate(KIND_NAMES)}
+
 
 def agent_kind(name: str) -> AgentKind:
     """Return the kind called `name`, or raise naming the valid kinds."""

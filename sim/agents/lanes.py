@@ -24,8 +24,15 @@ class Lane(Polyline):
     """One lane: its polyline (arc lengths `s`), the crosswalk intervals [s_in, s_out] along it, its road and rank,
     and for connectors the lanes it joins."""
 
-    def __init__(self, points: np.ndarray, crossings: list[tuple[int, float, float]] | None = None, road: int = -1,
-                 rank: int = 0, src: int = -1, dst: int = -1) -> None:
+    def __init__(
+        self,
+        points: np.ndarray,
+        crossings: list[tuple[int, float, float]] | None = None,
+        road: int = -1,
+        rank: int = 0,
+        src: int = -1,
+        dst: int = -1,
+    ) -> None:
         pts = np.asarray(points, dtype=np.float64)
         # Lanes have always measured their segments with np.linalg.norm; Polyline's np.hypot differs in the
         # last bit, and traffic would then drift from the episodes recorded so far.
@@ -89,8 +96,9 @@ def build_lanes(scene: Scene | Mapping[str, Any]) -> list[Lane]:
 JUNCTIONS = ("X", "T")
 
 
-def build_connectors(scene: Scene | Mapping[str, Any], lanes: list[Lane],
-                     max_turn: float = math.radians(100.0)) -> list[Lane]:
+def build_connectors(
+    scene: Scene | Mapping[str, Any], lanes: list[Lane], max_turn: float = math.radians(100.0)
+) -> list[Lane]:
     """Paths through every intersection and T-junction: from each lane ending at the junction's box to each lane
     of another arm starting there (straight on, left, right; no U-turns), as cubic Bezier curves tangent to both.
 
@@ -136,7 +144,7 @@ def _bezier(p0: np.ndarray, h0: float, p3: np.ndarray, h3: float, n: int = 17) -
     p1 = p0 + k * np.array([math.cos(h0), math.sin(h0)])
     p2 = p3 - k * np.array([math.cos(h3), math.sin(h3)])
     t = np.linspace(0.0, 1.0, n)[:, None]
-    return (1 - t) ** 3 * p0 + 3 * (1 - t) ** 2 * t * p1 + 3 * (1 - t) * t * t * p2 + t ** 3 * p3
+    return (1 - t) ** 3 * p0 + 3 * (1 - t) ** 2 * t * p1 + 3 * (1 - t) * t * t * p2 + t**3 * p3
 
 
 def connector_compatibility(lanes: list[Lane], width: float, margin: float = 0.3) -> np.ndarray:
@@ -220,8 +228,14 @@ def build_conflict_zones(lanes: list[Lane], width: float, merge: float = 12.0) -
         s_in.append(max(lo, 0.0))
         s_out.append(min(hi, lanes[li].length))
         axis.append(_heading(lanes[li], 0.5 * (lo + hi)))
-    return ConflictZones(np.array(lane, dtype=np.int64), np.array(zone, dtype=np.int64), np.array(s_in),
-                         np.array(s_out), np.array(axis), int(zone_of.max()) + 1)
+    return ConflictZones(
+        np.array(lane, dtype=np.int64),
+        np.array(zone, dtype=np.int64),
+        np.array(s_in),
+        np.array(s_out),
+        np.array(axis),
+        int(zone_of.max()) + 1,
+    )
 
 
 def _heading(lane: Lane, s: float) -> float:

@@ -21,7 +21,9 @@ from sim.scene.grid import SIDEWALK, grid_graph, obstacle_mask
 from sim.scene.scene import Scene, as_scene
 
 
-def boundary_segments(mask: np.ndarray, origin: np.ndarray, res: float) -> list[tuple[tuple[float, float], tuple[float, float]]]:
+def boundary_segments(
+    mask: np.ndarray, origin: np.ndarray, res: float
+) -> list[tuple[tuple[float, float], tuple[float, float]]]:
     """Return the edges between True and False cells of `mask` as merged straight segments in world metres."""
     segs: list[tuple[tuple[float, float], tuple[float, float]]] = []
     padded = np.pad(mask, 1, constant_values=False)
@@ -107,8 +109,9 @@ class NavGrid:
         """World centres [n_nodes, 2] of every graph node."""
         if self._centres is None:
             rc = self.node_rc
-            self._centres = np.stack([self.origin[0] + (rc[:, 1] + 0.5) * self.res,
-                                      self.origin[1] + (rc[:, 0] + 0.5) * self.res], -1)
+            self._centres = np.stack(
+                [self.origin[0] + (rc[:, 1] + 0.5) * self.res, self.origin[1] + (rc[:, 0] + 0.5) * self.res], -1
+            )
         return self._centres
 
     def node_xy(self, nodes: np.ndarray) -> np.ndarray:
@@ -140,8 +143,10 @@ class NavGrid:
         fx, fy = self._frac(xy)
         h, w = self.cells.shape
         inside = (fx >= 0) & (fx < w) & (fy >= 0) & (fy < h)
-        return inside & self.walkable[np.floor(fy).clip(0, h - 1).astype(np.int64),
-                                      np.floor(fx).clip(0, w - 1).astype(np.int64)]
+        return (
+            inside
+            & self.walkable[np.floor(fy).clip(0, h - 1).astype(np.int64), np.floor(fx).clip(0, w - 1).astype(np.int64)]
+        )
 
     def nearest_node(self, xy: np.ndarray) -> np.ndarray:
         """Graph node nearest to each world point (agents pushed off the graph snap back to it)."""
@@ -198,7 +203,10 @@ class NavGrid:
         fx, fy = self._frac(xy)
         h, w = self.cells.shape
         inside = (fx >= 0) & (fx < w) & (fy >= 0) & (fy < h)
-        return inside & self.free[np.floor(fy).clip(0, h - 1).astype(np.int64), np.floor(fx).clip(0, w - 1).astype(np.int64)]
+        return (
+            inside
+            & self.free[np.floor(fy).clip(0, h - 1).astype(np.int64), np.floor(fx).clip(0, w - 1).astype(np.int64)]
+        )
 
 
 JUMPS = [1, 2, 4, 8]

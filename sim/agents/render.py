@@ -12,10 +12,18 @@ from sim.scene.scene import Scene
 from sim.topdown import Canvas, draw_agents, draw_ego, draw_route, draw_scene, draw_vehicles
 
 
-def draw_top_down(scene: Scene | Mapping[str, Any], centre: tuple[float, float], *, agents: np.ndarray | None = None,
-                  trails: np.ndarray | None = None, vehicles: np.ndarray | None = None,
-                  ego: tuple[float, float, float, float, float] | None = None, route: np.ndarray | None = None,
-                  size: int = 256, view: float = 40.0) -> np.ndarray:
+def draw_top_down(
+    scene: Scene | Mapping[str, Any],
+    centre: tuple[float, float],
+    *,
+    agents: np.ndarray | None = None,
+    trails: np.ndarray | None = None,
+    vehicles: np.ndarray | None = None,
+    ego: tuple[float, float, float, float, float] | None = None,
+    route: np.ndarray | None = None,
+    size: int = 256,
+    view: float = 40.0,
+) -> np.ndarray:
     """RGB (size, size, 3) map of a `view` x `view` m window around `centre`; ego = (x, y, yaw, length, width)."""
     cx, cy = centre
     # Drawn once a step: no supersampling, so a frame costs a few milliseconds and agents keep their exact colour.

@@ -15,10 +15,26 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def leaders(order: np.ndarray, lane_id: np.ndarray, s: np.ndarray, v: np.ndarray, nxt_lane: np.ndarray,
-            lane_len: np.ndarray, is_connector: np.ndarray, granted: np.ndarray, occupied: np.ndarray,
-            cross_lane: np.ndarray, cross_cw: np.ndarray, cross_s: np.ndarray, length: float, stop_gap: float,
-            dt: float, comfort_decel: float, junction_stop: float, n_lanes: int):  # pragma: no cover - numba
+def leaders(
+    order: np.ndarray,
+    lane_id: np.ndarray,
+    s: np.ndarray,
+    v: np.ndarray,
+    nxt_lane: np.ndarray,
+    lane_len: np.ndarray,
+    is_connector: np.ndarray,
+    granted: np.ndarray,
+    occupied: np.ndarray,
+    cross_lane: np.ndarray,
+    cross_cw: np.ndarray,
+    cross_s: np.ndarray,
+    length: float,
+    stop_gap: float,
+    dt: float,
+    comfort_decel: float,
+    junction_stop: float,
+    n_lanes: int,
+):  # pragma: no cover - numba
     """Vehicles sorted by (lane, s): same-lane gaps and speed differences (stop lines of occupied crosswalks on
     the own lane included), each lane's rearmost vehicle, the lanes' front vehicles and whether one wants a grant.
 
@@ -62,12 +78,35 @@ def leaders(order: np.ndarray, lane_id: np.ndarray, s: np.ndarray, v: np.ndarray
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def follow(order: np.ndarray, ls: np.ndarray, vs: np.ndarray, gap: np.ndarray, dv: np.ndarray, front: np.ndarray,
-           to_end: np.ndarray, rear_s: np.ndarray, rear_v: np.ndarray, lane_id: np.ndarray, s: np.ndarray,
-           v: np.ndarray, v0: np.ndarray, nxt_lane: np.ndarray, prev_lane: np.ndarray, lane_len: np.ndarray,
-           vlim: np.ndarray, is_connector: np.ndarray, granted: np.ndarray, occupied: np.ndarray,
-           cross_lane: np.ndarray, cross_cw: np.ndarray, cross_s: np.ndarray, length: float, stop_gap: float,
-           junction_stop: float, comfort_decel: float):  # pragma: no cover - numba
+def follow(
+    order: np.ndarray,
+    ls: np.ndarray,
+    vs: np.ndarray,
+    gap: np.ndarray,
+    dv: np.ndarray,
+    front: np.ndarray,
+    to_end: np.ndarray,
+    rear_s: np.ndarray,
+    rear_v: np.ndarray,
+    lane_id: np.ndarray,
+    s: np.ndarray,
+    v: np.ndarray,
+    v0: np.ndarray,
+    nxt_lane: np.ndarray,
+    prev_lane: np.ndarray,
+    lane_len: np.ndarray,
+    vlim: np.ndarray,
+    is_connector: np.ndarray,
+    granted: np.ndarray,
+    occupied: np.ndarray,
+    cross_lane: np.ndarray,
+    cross_cw: np.ndarray,
+    cross_s: np.ndarray,
+    length: float,
+    stop_gap: float,
+    junction_stop: float,
+    comfort_decel: float,
+):  # pragma: no cover - numba
     """The front vehicles' leaders on their next lanes (its rearmost vehicle, a vehicle whose rear is still on the
     own lane, an occupied crosswalk, a junction without a grant), into `gap` and `dv` in place; returns each
     vehicle's speed over its desired speed (sorted order)."""
@@ -115,9 +154,21 @@ def follow(order: np.ndarray, ls: np.ndarray, vs: np.ndarray, gap: np.ndarray, d
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def idm(order: np.ndarray, vs: np.ndarray, gap: np.ndarray, dv: np.ndarray, free_term: np.ndarray, v: np.ndarray,
-        s: np.ndarray, min_gap: float, time_headway: float, max_accel: float, comfort_decel: float,
-        max_decel: float, dt: float):  # pragma: no cover - numba
+def idm(
+    order: np.ndarray,
+    vs: np.ndarray,
+    gap: np.ndarray,
+    dv: np.ndarray,
+    free_term: np.ndarray,
+    v: np.ndarray,
+    s: np.ndarray,
+    min_gap: float,
+    time_headway: float,
+    max_accel: float,
+    comfort_decel: float,
+    max_decel: float,
+    dt: float,
+):  # pragma: no cover - numba
     """IDM accelerations (`free_term` = (v / v0) ** delta, sorted order) and one Euler step: (new v, new s)."""
     n = s.size
     root = 2.0 * math.sqrt(max_accel * comfort_decel)
@@ -136,8 +187,14 @@ def idm(order: np.ndarray, vs: np.ndarray, gap: np.ndarray, dv: np.ndarray, free
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def lane_points(lane_id: np.ndarray, s: np.ndarray, lane_off: np.ndarray, lane_len: np.ndarray, all_cum: np.ndarray,
-                all_pts: np.ndarray):  # pragma: no cover - numba
+def lane_points(
+    lane_id: np.ndarray,
+    s: np.ndarray,
+    lane_off: np.ndarray,
+    lane_len: np.ndarray,
+    all_cum: np.ndarray,
+    all_pts: np.ndarray,
+):  # pragma: no cover - numba
     """Centres [n, 2] of vehicles at arc length `s` on their lanes (all lanes laid end to end in `all_pts` at
     `all_cum`), and the direction [n, 2] of the segment each is on."""
     n = s.size
@@ -159,8 +216,12 @@ def in_boxes(xy: np.ndarray, bounds: np.ndarray):  # pragma: no cover - numba
     box, pt = [], []
     for b in range(bounds.shape[0]):
         for i in range(xy.shape[0]):
-            if (xy[i, 0] >= bounds[b, 0] and xy[i, 1] >= bounds[b, 1] and xy[i, 0] <= bounds[b, 2]
-                    and xy[i, 1] <= bounds[b, 3]):
+            if (
+                xy[i, 0] >= bounds[b, 0]
+                and xy[i, 1] >= bounds[b, 1]
+                and xy[i, 0] <= bounds[b, 2]
+                and xy[i, 1] <= bounds[b, 3]
+            ):
                 box.append(b)
                 pt.append(i)
     return np.array(box, dtype=np.int64), np.array(pt, dtype=np.int64)

@@ -10,8 +10,9 @@ from sim.agents.lanes import conflicts
 class JunctionControl:
     """VehicleManager's right-of-way part: junction connector grants and lane crossings held by one axis."""
 
-    def _grant(self, dt: float, ids: np.ndarray, nxt: np.ndarray, to_end: np.ndarray, v: np.ndarray,
-               rear_s: np.ndarray) -> None:
+    def _grant(
+        self, dt: float, ids: np.ndarray, nxt: np.ndarray, to_end: np.ndarray, v: np.ndarray, rear_s: np.ndarray
+    ) -> None:
         """Grant junction connectors to front vehicles nearing them: longest-waiting first, compatible paths only."""
         c = self.config
         nx = np.maximum(nxt, 0)
@@ -36,8 +37,9 @@ class JunctionControl:
                 self.waited[i] += dt
                 reserved.append(conn)
 
-    def _crossing_leaders(self, dt: float, ls: np.ndarray, ss: np.ndarray, v: np.ndarray, gap: np.ndarray,
-                          dv: np.ndarray) -> None:
+    def _crossing_leaders(
+        self, dt: float, ls: np.ndarray, ss: np.ndarray, v: np.ndarray, gap: np.ndarray, dv: np.ndarray
+    ) -> None:
         """Let one axis hold each lane crossing; vehicles of other axes about to enter it stop before it."""
         c, z = self.config, self.zones
         half = c["length"] / 2.0

@@ -23,19 +23,23 @@ class LaneRouting:
         self.lane_len = lengths
         self.lane_off = np.concatenate([[0.0], np.cumsum(lengths + 1.0)])[:-1]
         self.all_pts = np.concatenate([ln.points for ln in self.lanes]) if self.lanes else np.zeros((0, 2))
-        self.all_cum = np.concatenate([ln.s + o for ln, o in zip(self.lanes, self.lane_off)]) if self.lanes else np.zeros(0)
+        self.all_cum = (
+            np.concatenate([ln.s + o for ln, o in zip(self.lanes, self.lane_off)]) if self.lanes else np.zeros(0)
+        )
         self.crossings = [(li, ci, s_in) for li, ln in enumerate(self.lanes) for ci, s_in, _ in ln.crossings]
         # The same as arrays (lane, crosswalk, arc length of its near edge) for the numba car-following kernels.
-        self._cross_arrays = (np.array([x[0] for x in self.crossings], dtype=np.int64),
-                              np.array([x[1] for x in self.crossings], dtype=np.int64),
-                              np.array([x[2] for x in self.crossings], dtype=np.float64))
+        self._cross_arrays = (
+            np.array([x[0] for x in self.crossings], dtype=np.int64),
+            np.array([x[1] for x in self.crossings], dtype=np.int64),
+            np.array([x[2] for x in self.crossings], dtype=np.float64),
+        )
         # The lane continuing each road lane (starts within 1 m of its end, heading within 30 degrees), or -1;
         # a connector continues onto its target lane.
         self.next_lane = np.full(len(self.lanes), -1, dtype=np.int64)
         self.successors: list[list[int]] = [[] for _ in self.lanes]
         if not self.lanes:
             return
-        road = self.lanes[:self.n_road]
+        road = self.lanes[: self.n_road]
         starts = np.array([ln.points[0] for ln in road])
         head0 = np.array([np.arctan2(*(ln.points[1] - ln.points[0])[::-1]) for ln in road])
         for li, ln in enumerate(road):

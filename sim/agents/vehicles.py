@@ -45,8 +45,9 @@ from sim.scene.scene import Scene, as_scene
 
 __all__ = ["VEHICLE_DEFAULTS", "VEHICLE_DTYPE", "Lane", "VehicleManager", "build_lanes"]
 
-VEHICLE_DTYPE = np.dtype([("x", "f8"), ("y", "f8"), ("vx", "f8"), ("vy", "f8"), ("yaw", "f8"),
-                          ("length", "f8"), ("width", "f8")])
+VEHICLE_DTYPE = np.dtype(
+    [("x", "f8"), ("y", "f8"), ("vx", "f8"), ("vy", "f8"), ("yaw", "f8"), ("length", "f8"), ("width", "f8")]
+)
 
 VEHICLE_DEFAULTS: dict[str, Any] = {
     "traffic_density": 1.0,  # vehicles per 100 m of lane (stochastic rounding per lane, so short lanes get some)
@@ -98,7 +99,7 @@ class VehicleManager(LaneRouting, JunctionControl):
             self._scene = scene
         lane_id, s = [], []
         spacing = c["length"] + c["min_gap"] + 2.0
-        for li, lane in enumerate(self.lanes[:self.n_road]):  # nobody starts inside a junction box
+        for li, lane in enumerate(self.lanes[: self.n_road]):  # nobody starts inside a junction box
             slots = np.arange(int(lane.length // spacing)) * spacing + 0.5 * c["length"]
             # No vehicle starts inside a lane crossing: two axes could otherwise begin inside one.
             z = self.zones.lane == li
@@ -148,21 +149,74 @@ class VehicleManager(LaneRouting, JunctionControl):
             order = np.lexsort((self.s, self.lane_id))
             cl, cc, cs = self._cross_arrays
             ls, ss, v, _, gap, dv, rear_s, rear_v, front, to_end, want = leaders(
-                order, self.lane_id, self.s, self.v, self.next, self.lane_len, self.is_connector, self.granted,
-                self.occupied, cl, cc, cs, float(c["length"]), float(c["stop_gap"]), float(dt),
-                float(c["comfort_decel"]), float(c["junction_stop"]), len(self.lanes))
+                order,
+                self.lane_id,
+                self.s,
+                self.v,
+                self.next,
+                self.lane_len,
+                self.is_connector,
+                self.granted,
+                self.occupied,
+                cl,
+                cc,
+                cs,
+                float(c["length"]),
+                float(c["stop_gap"]),
+                float(dt),
+                float(c["comfort_decel"]),
+                float(c["junction_stop"]),
+                len(self.lanes),
+            )
             if self.zones.n_zones:
                 self._crossing_leaders(dt, ls, ss, v, gap, dv)
             if want:  # a front vehicle nears a junction connector without a grant
                 ids = order[front]
                 self._grant(dt, ids, self.next[ids], to_end, v[front], rear_s)
-            ratio = follow(order, ls, v, gap, dv, front, to_end, rear_s, rear_v, self.lane_id, self.s, self.v, self.v0,
-                           self.next, self.prev_lane, self.lane_len, self.vlim, self.is_connector, self.granted,
-                           self.occupied, cl, cc, cs, float(c["length"]), float(c["stop_gap"]),
-                           float(c["junction_stop"]), float(c["comfort_decel"]))
-            self.v, self.s = idm(order, v, gap, dv, ratio ** c["delta"], self.v, self.s, float(c["min_gap"]),
-                                 float(c["time_headway"]), float(c["max_accel"]), float(c["comfort_decel"]),
-                                 float(c["max_decel"]), float(dt))
+            ratio = follow(
+                order,
+                ls,
+                v,
+                gap,
+                dv,
+                front,
+                to_end,
+                rear_s,
+                rear_v,
+                self.lane_id,
+                self.s,
+                self.v,
+                self.v0,
+                self.next,
+                self.prev_lane,
+                self.lane_len,
+                self.vlim,
+                self.is_connector,
+                self.granted,
+                self.occupied,
+                cl,
+                cc,
+                cs,
+                float(c["length"]),
+                float(c["stop_gap"]),
+                float(c["junction_stop"]),
+                float(c["comfort_decel"]),
+            )
+            self.v, self.s = idm(
+                order,
+                v,
+                gap,
+                dv,
+                ratio ** c["delta"],
+                self.v,
+                self.s,
+                float(c["min_gap"]),
+                float(c["time_headway"]),
+                float(c["max_accel"]),
+                float(c["comfort_decel"]),
+                float(c["max_decel"]),
+                float(dt),
+            )
             self.jumped = np.zeros(self.n, dtype=bool)  # respawned this step (the only discontinuous moves)
             for i in np.flatnonzero(self.s >= self.lane_len[self.lane_id]).tolist():
                 self._leave_lane(i)
@@ -173,7 +227,9 @@ class VehicleManager(LaneRouting, JunctionControl):
         if not 0 <= lane < len(self.lanes):
             raise ValueError(f"lane {lane} does not exist; this scene has lanes 0..{len(self.lanes) - 1}")
         if next_lane is not None and next_lane not in self.successors[lane]:
-            raise ValueError(f"lane {next_lane} does not follow lane {lane}; its successors are {self.successors[lane]}")
+            raise ValueError(
+                f"lane {next_lane} does not follow lane {lane}; its successors are {self.successors[lane]}"
+            )
         lo, hi = self.config["desired_speed"]
         self.lane_id = np.append(self.lane_id, lane)
         self.s = np.append(self.s, float(s))

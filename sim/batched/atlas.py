@@ -35,8 +35,9 @@ class Atlas:
         """A slot for one scene's grids (a freed slot first); the grids are copied into `flat`."""
         if grids.resolution != self.resolution:
             raise ValueError(f"grids at {grids.resolution} m in an atlas of {self.resolution} m cells")
-        tables = [(level, j, table) for level, level_tables in enumerate(grids.tables)
-                  for j, table in enumerate(level_tables)] + [(0, KINDS, grids.kinds)]
+        tables = [
+            (level, j, table) for level, level_tables in enumerate(grids.tables) for j, table in enumerate(level_tables)
+        ] + [(0, KINDS, grids.kinds)]
         cells = sum(t.size for _, _, t in tables)
         start = self._place(cells)
         free = [k for k, r in enumerate(self.regions) if r is None]
@@ -44,7 +45,7 @@ class Atlas:
         self.regions[slot] = (start, cells)
         at = start
         for level, j, table in tables:
-            self.flat[at: at + table.size] = table.ravel()
+            self.flat[at : at + table.size] = table.ravel()
             self.offset[slot, level, j] = at
             at += table.size
         self.offset[slot, 1, KINDS] = self.offset[slot, 0, KINDS]  # one kind grid for both levels
@@ -73,8 +74,10 @@ class Atlas:
                 return at
             at = max(at, start + n)
         if at + cells >= 2**31:
-            raise MemoryError(f"the scenes' grids hold {at + cells} cells, past the 2**31 the tracer indexes; use "
-                              "fewer scenes (scene_cache) or a coarser lidar.resolution")
+            raise MemoryError(
+                f"the scenes' grids hold {at + cells} cells, past the 2**31 the tracer indexes; use "
+                "fewer scenes (scene_cache) or a coarser lidar.resolution"
+            )
         if at + cells > self.flat.size:
             grown = np.zeros(min(max(at + cells, self.flat.size * 3 // 2), 2**31 - 1), dtype=np.uint8)
             grown[: self.used] = self.flat[: self.used]
@@ -85,21 +88,43 @@ class Atlas:
     def frames(self, slots: np.ndarray, level: np.ndarray, what: str) -> dict[str, np.ndarray]:
         """Per-env frames of grid `what` (a WHAT name or "kinds") at each env's slot and level."""
         k = KINDS if what == "kinds" else WHAT.index(what)
-        return {"offset": self.offset[slots, level, k], "x0": self.x0[slots], "y0": self.y0[slots],
-                "cols": self.cols[slots], "rows": self.rows[slots]}
+        return {
+            "offset": self.offset[slots, level, k],
+            "x0": self.x0[slots],
+            "y0": self.y0[slots],
+            "cols": self.cols[slots],
+            "rows": self.rows[slots],
+        }
 
     def lookup(self, frame: dict[str, np.ndarray], x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Grid values at world points x, y [n, k] of n envs (clamped onto each grid: its ring outside)."""
         if x.shape != y.shape:
             x, y = np.broadcast_arrays(x, y)
-        return _gather(self.flat, frame["offset"], frame["x0"], frame["y0"], frame["cols"], frame["rows"],
-                       1.0 / self.resolution, np.ascontiguousarray(x, dtype=np.float64),
-                       np.ascontiguousarray(y, dtype=np.float64))
+        return _gather(
+            self.flat,
+            frame["offset"],
+            frame["x0"],
+            frame["y0"],
+            frame["cols"],
+            frame["rows"],
+            1.0 / self.resolution,
+            np.ascontiguousarray(x, dtype=np.float64),
+            np.ascontiguousarray(y, dtype=np.float64),
+        )
 
 
 @njit(cache=True)
-def _gather(flat: np.ndarray, offset: np.ndarray, x0: np.ndarray, y0: np.ndarray, cols: np.ndarray, rows: np.ndarray,
-            inv: float, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def _gather(
+    flat: np.ndarray,
+    offset: np.ndarray,
+    x0: np.ndarray,
+    y0: np.ndarray,
+    cols: np.ndarray,
+    rows: np.ndarray,
+    inv: float,
+    x: np.ndarray,
+    y: np.ndarray,
+) -> np.ndarray:
     """`Atlas.lookup` in one pass (numpy's clip and fancy indexing cost ~20 us a call on the collision test's sizes):
     cells truncated toward zero as numpy's astype, clamped onto the grid."""
     n, k = x.shape

@@ -43,33 +43,36 @@ from sim.tasks.sensors import check_lidar_reach
 
 BATCHED_DEFAULTS: dict[str, Any] = {
     **DEFAULT_CONFIG,
-    "route_pool": 0,           # routes kept per scene and drawn from once full (0: plan every reset, as PointNav)
-    "scene_steps": 0,          # an env keeps its scene until it has stepped this many steps there (0: a draw every reset)
+    "route_pool": 0,  # routes kept per scene and drawn from once full (0: plan every reset, as PointNav)
+    "scene_steps": 0,  # an env keeps its scene until it has stepped this many steps there (0: a draw every reset)
 }
 BATCHED_TABLE: dict[str, Any] = {**CONFIG_TABLE, "route_pool": Int(0, 1_000_000), "scene_steps": Int(0, 10**9)}
 # PointNav keys the batched env cannot honour: (key, the value it needs, why).
-PYBULLET_ONLY = (("gui", False, "there is no PyBullet world to show"),
-                 ("collision", "box", "objects are their spec boxes; convex hulls need the PyBullet env"))
+PYBULLET_ONLY = (
+    ("gui", False, "there is no PyBullet world to show"),
+    ("collision", "box", "objects are their spec boxes; convex hulls need the PyBullet env"),
+)
 
 
 class BatchedPointNav(VectorEnv):
     """`num_envs` PointNav episodes in one numpy pass; `config` as PointNavEnv's plus `route_pool` and `scene_steps`
-    (scene builds cost seconds at paper scale: an env that keeps its scene for many steps amortises them).
+        (scene builds cost seconds at paper scale: an env that keeps its scene for many steps amortises them).
 
-    The LiDARs and the collision test read the scene's distance grids at `lidar.resolution` (sim.raycast.grids).
+        The LiDARs and the collision test read the scene's distance grids at `lidar.resolution` (sim.raycast.grids).
 
-    Autoreset is SAME_STEP (as curbside.train.sharded): a finished env is reset within `step`; its last observation is
-    `info["final_obs"][i]` and its last info (with the episode's metrics) is `info["final_info"]` under mask
-    `info["_final_info"]`. Envs whose `autoreset[i]` is False are not reset when they finish (an evaluation that has
-all its episodes of env i sets it: a reset there would build a scene no one uses); they keep stepping their finished
-episode until the next `reset()`, which sets every flag back. Per-step info: `cost`, `route_completion`, `out_of_route`, `stuck`, `cost_exceeded`, and `collisions`
-    (bit mask of the kinds touched: `sim.batched.episodes.KIND_BITS`).
+        Autoreset is SAME_STEP (as curbside.train.sharded): a finished env is reset within `step`; its last observation is
+        `info["final_obs"][i]` and its last info (with the episode's metrics) is `info["final_info"]` under mask
+        `info["_final_info"]`. Envs whose `autoreset[i]` is False are not reset when they finish (an evaluation that has
+    all its episodes of env i sets it: a reset there would build a scene no one uses); they keep stepping their finished
+    episode until the next `reset()`, which sets every flag back. Per-step info: `cost`, `route_completion`, `out_of_route`, `stuck`, `cost_exceeded`, and `collisions`
+        (bit mask of the kinds touched: `sim.batched.episodes.KIND_BITS`).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
 
-    def __init__(self, num_envs: int = 1, config: Mapping[str, Any] | None = None, render_mode: str | None = None,
-                 **kwargs: Any) -> None:
+    def __init__(
+        self, num_envs: int = 1, config: Mapping[str, Any] | None = None, render_mode: str | None = None, **kwargs: Any
+    ) -> None:
         if kwargs:
             raise ConfigError(f"unknown BatchedPointNav argument(s) {sorted(kwargs)}; valid: num_envs, config")
         if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
@@ -82,8 +85,10 @@ episode until the next `reset()`, which sets every flag back. Per-step info: `co
             if cfg[key] != need:
                 raise ConfigError(f"config.{key} must be {need!r} in the batched env: {why}")
         if cfg["camera"]["modalities"] or cfg["observation"] == "dict" or cfg["visual_meshes"] is True:
-            raise ConfigError("config.camera.modalities must be [], observation flat and visual_meshes not true in the "
-                              "batched env: there is nothing to render; use the PyBullet env (curbside/PointNav-v0)")
+            raise ConfigError(
+                "config.camera.modalities must be [], observation flat and visual_meshes not true in the "
+                "batched env: there is nothing to render; use the PyBullet env (curbside/PointNav-v0)"
+            )
         self.num_envs = n = num_envs
         self.render_mode = None
         self.spec_machine = machine_spec(cfg["machine"])
@@ -99,8 +104,10 @@ episode until the next `reset()`, which sets every flag back. Per-step info: `co
         self.action_space = batch_space(self.single_action_space, n)
         self.sources = SceneSource(cfg)
         if cfg["lidar"]["static"] == "bullet":
-            raise ConfigError("config.lidar.static must be 'grid' (or 'auto') in the batched env: there is no Bullet "
-                              "world to ray-test")
+            raise ConfigError(
+                "config.lidar.static must be 'grid' (or 'auto') in the batched env: there is no Bullet "
+                "world to ray-test"
+            )
         self.atlas = Atlas(float(cfg["lidar"]["resolution"]))
         self.store = SceneStore(cfg, self.spec_machine, self.atlas)
         self.drive = Drive(self.spec_machine, n)
@@ -118,18 +125,24 @@ episode until the next `reset()`, which sets every flag back. Per-step info: `co
         self.autoreset = np.ones(n, dtype=bool)
         hl, hw = 0.5 * self.spec_machine.length, 0.5 * self.spec_machine.width
         res = self.atlas.resolution
-        u, w = np.meshgrid(np.linspace(-hl, hl, int(math.ceil(2 * hl / res)) + 1),
-                           np.linspace(-hw, hw, int(math.ceil(2 * hw / res)) + 1))
+        u, w = np.meshgrid(
+            np.linspace(-hl, hl, int(math.ceil(2 * hl / res)) + 1),
+            np.linspace(-hw, hw, int(math.ceil(2 * hw / res)) + 1),
+        )
         self._body_u, self._body_w = u.ravel(), w.ravel()  # points covering the footprint, a cell apart at most
 
     # -- resets --------------------------------------------------------------------------------------
-    def reset(self, *, seed: int | Sequence[int | None] | None = None,
-              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every env: `seed` an int gives env i seed + i (the draws of PointNavEnv.reset(seed=seed + i));
         options {"start": [x, y], "goal": [x, y]} (or one pair per env) plan that route in every env."""
         points = check_reset_options(options, self.num_envs)
-        seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, int) else (
-            list(seed) if seed is not None else [None] * self.num_envs)
+        seeds = (
+            [seed + i for i in range(self.num_envs)]
+            if isinstance(seed, int)
+            else (list(seed) if seed is not None else [None] * self.num_envs)
+        )
         if len(seeds) != self.num_envs:
             raise ValueError(f"reset got {len(seeds)} seeds for {self.num_envs} envs")
         for i, s in enumerate(seeds):
@@ -137,7 +150,9 @@ episode until the next `reset()`, which sets every flag back. Per-step info: `co
                 self.rngs[i] = np.random.default_rng(s)
         self._started = True
         self.autoreset[:] = True
-        info = self._reset_envs(np.arange(self.num_envs), None if points is None else dict(zip(("start", "goal"), points)))
+        info = self._reset_envs(
+            np.arange(self.num_envs), None if points is None else dict(zip(("start", "goal"), points))
+        )
         return self._observe(), info
 
     def _reset_envs(self, envs: np.ndarray, options: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -201,8 +216,10 @@ episode until the next `reset()`, which sets every flag back. Per-step info: `co
             raise ValueError(f"actions must have shape ({self.num_envs}, 2) [steering, throttle_brake], got {a.shape}")
         bad = ~np.isfinite(a).all(axis=1)
         if bad.any():
-            raise ValueError(f"actions of env(s) {np.nonzero(bad)[0].tolist()} hold NaN or inf; policies must output "
-                             "finite values in [-1, 1]")
+            raise ValueError(
+                f"actions of env(s) {np.nonzero(bad)[0].tolist()} hold NaN or inf; policies must output "
+                "finite values in [-1, 1]"
+            )
         a = np.clip(a, -1.0, 1.0)
         steer, throttle = a[:, 0], a[:, 1]
         d, ep = self.drive, self.episodes
@@ -222,8 +239,9 @@ episode until the next `reset()`, which sets every flag back. Per-step info: `co
         progress, new_progress, collided = ep.advance(d.x - x0, d.y - y0, s, lat, hits)
         self._locate_level()
         succeeded, out, stuck, over = ep.end(self.routes.length, self.labels != 0, hits != 0)
-        reward = self.reward_fn.batch(progress, new_progress, lat, steer - ep.last_action[:, 0], d.speed, collided,
-                                      succeeded, out, stuck | over).astype(np.float64)
+        reward = self.reward_fn.batch(
+            progress, new_progress, lat, steer - ep.last_action[:, 0], d.speed, collided, succeeded, out, stuck | over
+        ).astype(np.float64)
         ep.last_action = a
         self.scene_steps_left -= 1
         terminated = succeeded | out | stuck | over
@@ -231,8 +249,13 @@ episode until the next `reset()`, which sets every flag back. Per-step info: `co
         obs = self._observe()
         on = np.ones(self.num_envs, dtype=bool)
         info: dict[str, Any] = {
-            "cost": collided.astype(np.float64), "route_completion": np.minimum(ep.max_progress / self.routes.length, 1.0),
-            "out_of_route": out, "stuck": stuck, "cost_exceeded": over, "collisions": hits}
+            "cost": collided.astype(np.float64),
+            "route_completion": np.minimum(ep.max_progress / self.routes.length, 1.0),
+            "out_of_route": out,
+            "stuck": stuck,
+            "cost_exceeded": over,
+            "collisions": hits,
+        }
         info.update({f"_{k}": on for k in list(info)})
         done = terminated | truncated
         if done.any():
@@ -252,14 +275,24 @@ episode until the next `reset()`, which sets every flag back. Per-step info: `co
         ep = self.episodes
         out = {k: v.copy() for k, v in info.items() if not k.startswith("_")}
         spl = np.where(succeeded, self.reference / np.maximum(np.maximum(ep.path_length, self.reference), 1e-9), 0.0)
-        out.update({"is_success": succeeded.copy(), "success": succeeded.astype(np.float64), "spl": spl,
-                    "episode_cost": ep.cost_total.astype(np.float64), "path_length": ep.path_length.copy(),
-                    "time": ep.steps * self.dt, "steps": ep.steps.copy()})
+        out.update(
+            {
+                "is_success": succeeded.copy(),
+                "success": succeeded.astype(np.float64),
+                "spl": spl,
+                "episode_cost": ep.cost_total.astype(np.float64),
+                "path_length": ep.path_length.copy(),
+                "time": ep.steps * self.dt,
+                "steps": ep.steps.copy(),
+            }
+        )
         out.update({f"collisions_{k}": c.copy() for k, c in ep.collision_counts.items()})
         out.update({f"_{k}": done for k in list(out)})
         return out
 
-    def _collide(self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _collide(
+        self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(blocked, kind bits) of envs `envs` with footprints at (x, y, yaw) (arrays over `envs`): blocked when a
         point of the footprint lies on an occupied cell of the body grid; the bits say what those cells hold."""
         blocked = np.zeros(envs.size, dtype=bool)
@@ -275,7 +308,9 @@ episode until the next `reset()`, which sets every flag back. Per-step info: `co
         occupied = self.atlas.lookup({key: v[near] for key, v in frame.items()}, px, py) == 0
         hit = occupied.any(axis=1)
         if hit.any():
-            kinds = self.atlas.lookup(self.atlas.frames(self.slots[envs[near]], self.level[envs[near]], "kinds"), px, py)
+            kinds = self.atlas.lookup(
+                self.atlas.frames(self.slots[envs[near]], self.level[envs[near]], "kinds"), px, py
+            )
             for code, name in KIND_NAMES.items():
                 bits[near] |= np.where((occupied & (kinds == code)).any(axis=1), KIND_BITS[name], 0)
             blocked[near] = hit
@@ -307,11 +342,22 @@ episode until the next `reset()`, which sets every flag back. Per-step info: `co
         c, s = np.cos(d.yaw)[:, None], np.sin(d.yaw)[:, None]
         wp = r.point_at(ep.progress[:, None] + o._wp_offsets[None])
         dx, dy = wp[..., 0] - d.x[:, None], wp[..., 1] - d.y[:, None]
-        ego = np.stack([(c * dx + s * dy) * o._wp_scale, (-s * dx + c * dy) * o._wp_scale], -1).reshape(self.num_envs, -1)
+        ego = np.stack([(c * dx + s * dy) * o._wp_scale, (-s * dx + c * dy) * o._wp_scale], -1).reshape(
+            self.num_envs, -1
+        )
         gx, gy = r.goal[:, 0] - d.x, r.goal[:, 1] - d.y
         bearing = np.arctan2(gy, gx) - d.yaw
-        state = np.stack([d.speed / o.speed_scale, d.yaw_rate / 2.0, heading_err / np.pi, ep.lateral / o.lateral_scale,
-                          ep.last_action[:, 0], ep.last_action[:, 1]], 1)
+        state = np.stack(
+            [
+                d.speed / o.speed_scale,
+                d.yaw_rate / 2.0,
+                heading_err / np.pi,
+                ep.lateral / o.lateral_scale,
+                ep.last_action[:, 0],
+                ep.last_action[:, 1],
+            ],
+            1,
+        )
         tail = np.stack([np.log1p(np.hypot(gx, gy)) / GOAL_LOG_SCALE, np.sin(bearing), np.cos(bearing)], 1)
         obs = np.concatenate([*parts, state.astype(np.float32), ego.astype(np.float32), tail.astype(np.float32)], 1)
         np.clip(obs, -1.0, 1.0, out=obs)

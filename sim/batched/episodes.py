@@ -40,8 +40,9 @@ class Episodes:
         self.horizon[k] = horizon
         self.last_action[k] = 0.0
 
-    def advance(self, dx: np.ndarray, dy: np.ndarray, s: np.ndarray, lateral: np.ndarray,
-                hits: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def advance(
+        self, dx: np.ndarray, dy: np.ndarray, s: np.ndarray, lateral: np.ndarray, hits: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Record a step that moved every machine by (dx, dy) to arc length `s`, offset `lateral`, touching the
         kinds in bit mask `hits`; returns (progress, new progress, collided)."""
         self.path_length += np.hypot(dx, dy)
@@ -55,11 +56,21 @@ class Episodes:
         self.cost_total += collided
         return progress, new_progress, collided
 
-    def end(self, length: np.ndarray, on_walkable: np.ndarray, in_contact: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def end(
+        self, length: np.ndarray, on_walkable: np.ndarray, in_contact: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(succeeded, out of route, stuck, cost exceeded) of every env after its step (`end_of_step`; a wheeled
         machine on the distance grids never topples)."""
-        succeeded, out, stuck, _, over = end_of_step(self.rules, self.marks, self.steps, self.max_progress, length,
-                                                     self.lateral, on_walkable, in_contact, np.zeros(self.n),
-                                                     self.cost_total)
+        succeeded, out, stuck, _, over = end_of_step(
+            self.rules,
+            self.marks,
+            self.steps,
+            self.max_progress,
+            length,
+            self.lateral,
+            on_walkable,
+            in_contact,
+            np.zeros(self.n),
+            self.cost_total,
+        )
         return succeeded, out, stuck, over

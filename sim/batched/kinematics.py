@@ -70,8 +70,16 @@ class Drive:
         yaw = (yaw + np.pi) % (2.0 * np.pi) - np.pi  # Bullet reports yaw in (-pi, pi]
         return self.x + v * c * dt, self.y + v * sn * dt, yaw
 
-    def store(self, x: np.ndarray, y: np.ndarray, yaw: np.ndarray, v: np.ndarray, yaw_rate: np.ndarray,
-              dt: float, blocked: np.ndarray | None) -> None:
+    def store(
+        self,
+        x: np.ndarray,
+        y: np.ndarray,
+        yaw: np.ndarray,
+        v: np.ndarray,
+        yaw_rate: np.ndarray,
+        dt: float,
+        blocked: np.ndarray | None,
+    ) -> None:
         """Accept the substep's pose; where `blocked` (the pose is then where the machine met the obstacle) the
         machine also stops.
 
@@ -89,9 +97,16 @@ class Drive:
         hl, hw = 0.5 * s.length, 0.5 * s.width
         nl = max(int(np.ceil(s.length / spacing)), 1)
         nw = max(int(np.ceil(s.width / spacing)), 1)
-        u = np.concatenate([np.linspace(-hl, hl, nl + 1), np.linspace(-hl, hl, nl + 1),
-                            np.full(nw - 1, -hl), np.full(nw - 1, hl)])
-        w = np.concatenate([np.full(nl + 1, -hw), np.full(nl + 1, hw),
-                            np.linspace(-hw, hw, nw + 1)[1:-1], np.linspace(-hw, hw, nw + 1)[1:-1]])
+        u = np.concatenate(
+            [np.linspace(-hl, hl, nl + 1), np.linspace(-hl, hl, nl + 1), np.full(nw - 1, -hl), np.full(nw - 1, hl)]
+        )
+        w = np.concatenate(
+            [
+                np.full(nl + 1, -hw),
+                np.full(nl + 1, hw),
+                np.linspace(-hw, hw, nw + 1)[1:-1],
+                np.linspace(-hw, hw, nw + 1)[1:-1],
+            ]
+        )
         c, sn = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
         return x[:, None] + c * u - sn * w, y[:, None] + sn * u + c * w

@@ -24,12 +24,14 @@ class BatchLidar:
         self.encoding = encoding
         self.angles = np.linspace(0.0, 2.0 * math.pi, beams, endpoint=False)
 
-    def scan(self, atlas: Atlas, scene_ids: np.ndarray, level: np.ndarray, x: np.ndarray, y: np.ndarray,
-             yaw: np.ndarray) -> np.ndarray:
+    def scan(
+        self, atlas: Atlas, scene_ids: np.ndarray, level: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray
+    ) -> np.ndarray:
         """Normalised distances [n, beams] (1 = no hit), encoded as the PyBullet env observes them."""
         frame = atlas.frames(scene_ids, level, self.what)
-        d = trace(atlas.flat, frame, x, y, yaw[:, None] + self.angles[None], self.start_radius, self.range_m,
-                  atlas.resolution)
+        d = trace(
+            atlas.flat, frame, x, y, yaw[:, None] + self.angles[None], self.start_radius, self.range_m, atlas.resolution
+        )
         return encode(d, self.range_m, self.encoding)
 
 
@@ -38,6 +40,9 @@ def lidar_pair(cfg: dict[str, Any], bounding_radius: float) -> tuple[BatchLidar,
     lid = cfg["lidar"]
     r0 = bounding_radius + 0.05
     high = BatchLidar(int(lid["beams"]), float(lid["range"]), r0, "high", lid["encoding"])
-    low = (BatchLidar(int(lid["low_beams"]), max(float(lid["low_range"]), r0 + 0.1), r0, "low")
-           if int(lid["low_beams"]) else None)
+    low = (
+        BatchLidar(int(lid["low_beams"]), max(float(lid["low_range"]), r0 + 0.1), r0, "low")
+        if int(lid["low_beams"])
+        else None
+    )
     return high, low

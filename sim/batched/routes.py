@@ -38,7 +38,7 @@ class RouteBatch:
         if old is not None:
             k = self.cap
             self.points[:, :k], self.s[:, :k] = old[0], old[1]
-            self.seg[:, :k - 1], self.seg_len[:, :k - 1], self.seg_heading[:, :k - 1] = old[2], old[3], old[4]
+            self.seg[:, : k - 1], self.seg_len[:, : k - 1], self.seg_heading[:, : k - 1] = old[2], old[3], old[4]
             for i in range(self.n):  # pad the new columns with the last vertex
                 c = max(int(self.count[i]), 1)
                 self.points[i, k:], self.s[i, k:] = self.points[i, c - 1], self.s[i, c - 1]
@@ -60,14 +60,14 @@ class RouteBatch:
         self.goal[i] = route.goal
         self.points[i, :c], self.points[i, c:] = route.points, route.points[-1]
         self.s[i, :c], self.s[i, c:] = route.s, route.s[-1]
-        self.seg[i, :c - 1], self.seg[i, c - 1:] = route.seg, 0.0
-        self.seg_len[i, :c - 1], self.seg_len[i, c - 1:] = route.seg_len, 1.0
-        self.seg_heading[i, :c - 1] = np.arctan2(route.seg[:, 1], route.seg[:, 0])
-        self.seg_heading[i, c - 1:] = self.seg_heading[i, c - 2]
+        self.seg[i, : c - 1], self.seg[i, c - 1 :] = route.seg, 0.0
+        self.seg_len[i, : c - 1], self.seg_len[i, c - 1 :] = route.seg_len, 1.0
+        self.seg_heading[i, : c - 1] = np.arctan2(route.seg[:, 1], route.seg[:, 0])
+        self.seg_heading[i, c - 1 :] = self.seg_heading[i, c - 2]
         if route.length + 2.0 * (WINDOW[1] + 1.0) > self.span:
             self._flat()
         else:
-            self.flat_s[i * self.cap:(i + 1) * self.cap] = self.s[i] + self.span * i
+            self.flat_s[i * self.cap : (i + 1) * self.cap] = self.s[i] + self.span * i
 
     def _search(self, s: np.ndarray, side: str) -> np.ndarray:
         """np.searchsorted(route.s, s[i], side) of every env's own route."""
@@ -90,7 +90,7 @@ class RouteBatch:
         d = self.seg[rows, ks]
         ln = self.seg_len[rows, ks]
         qx, qy = x[:, None] - a[..., 0], y[:, None] - a[..., 1]
-        t = np.clip((qx * d[..., 0] + qy * d[..., 1]) / (ln ** 2), 0.0, 1.0)
+        t = np.clip((qx * d[..., 0] + qy * d[..., 1]) / (ln**2), 0.0, 1.0)
         ex, ey = qx - t * d[..., 0], qy - t * d[..., 1]
         dist2 = np.where(valid, ex * ex + ey * ey, np.inf)
         j = np.argmin(dist2, axis=1)

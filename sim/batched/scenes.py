@@ -53,8 +53,12 @@ class SceneStore:
         if b is None:
             self._evict()
             scene = load()
-            grids = build_grids(scene, resolution=float(self.cfg["lidar"]["resolution"]), lidar=self.cfg["lidar"],
-                                body_height=self.spec.height)
+            grids = build_grids(
+                scene,
+                resolution=float(self.cfg["lidar"]["resolution"]),
+                lidar=self.cfg["lidar"],
+                body_height=self.spec.height,
+            )
             planner = RoutePlanner(scene, self.spec.half_width, margin=float(self.cfg["route_margin"]))
             b = BuiltScene(key=key, scene=scene, slot=self.atlas.add(grids), planner=planner)
             self.built[key] = b

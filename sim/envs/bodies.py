@@ -63,8 +63,13 @@ class CohabitantBodies:
         self._yaw[:] = 0.0  # an episode's pictures must not depend on where the last one left the figures
         self._vehicle_cols, self._vehicle_ids = _NO_BOXES, np.zeros(0, dtype=np.int64)
 
-    def sync(self, kind_idx: np.ndarray, pos: np.ndarray, base_heights: np.ndarray,
-             vehicles: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+    def sync(
+        self,
+        kind_idx: np.ndarray,
+        pos: np.ndarray,
+        base_heights: np.ndarray,
+        vehicles: tuple[np.ndarray, np.ndarray, np.ndarray],
+    ) -> None:
         """Place the agent bodies at `pos` (on `base_heights`) and the vehicle bodies at `vehicles`' (x, y, yaw)."""
         c = self.client
         self._ensure(kind_idx, len(vehicles[0]))
@@ -82,12 +87,13 @@ class CohabitantBodies:
             self._xyz = xyz
         # The ray test's inputs: the shown vehicles' x, y and yaw (contiguous) and their body ids.
         vx, vy, vyaw = self._vehicle_cols = tuple(np.ascontiguousarray(v, dtype=np.float64) for v in vehicles)
-        self._vehicle_ids = np.asarray(self.vehicles[:len(vx)], dtype=np.int64)
+        self._vehicle_ids = np.asarray(self.vehicles[: len(vx)], dtype=np.int64)
         if len(vx):
             half_yaw = (0.5 * vyaw).tolist()
             for body, x, y, h in zip(self.vehicles, vx.tolist(), vy.tolist(), half_yaw):
-                p.resetBasePositionAndOrientation(body, [x, y, VEHICLE_HEIGHT / 2], [0, 0, math.sin(h), math.cos(h)],
-                                                  physicsClientId=c)
+                p.resetBasePositionAndOrientation(
+                    body, [x, y, VEHICLE_HEIGHT / 2], [0, 0, math.sin(h), math.cos(h)], physicsClientId=c
+                )
 
     def _shape(self, key: Any, make: Any) -> tuple[int, int]:
         if key not in self._shapes:
@@ -117,9 +123,13 @@ class CohabitantBodies:
                 # Capsules, not cylinders: Bullet ray-tests a cylinder about four times slower than a capsule, and
                 # the LiDAR's rays made cylinders the costliest part of a SocialNav step. Cameras see a figure.
                 shaft = max(kind.height - 2.0 * kind.radius, 0.0)
-                col, vis = self._shape(k, lambda kind=kind, shaft=shaft, k=k: (
-                    p.createCollisionShape(p.GEOM_CAPSULE, radius=kind.radius, height=shaft, physicsClientId=c),
-                    figure_shape(c, k, max(kind.height, 2.0 * kind.radius), kind.radius, kind.color)))
+                col, vis = self._shape(
+                    k,
+                    lambda kind=kind, shaft=shaft, k=k: (
+                        p.createCollisionShape(p.GEOM_CAPSULE, radius=kind.radius, height=shaft, physicsClientId=c),
+                        figure_shape(c, k, max(kind.height, 2.0 * kind.radius), kind.radius, kind.color),
+                    ),
+                )
                 body = p.createMultiBody(0.0, col, vis, PARKED, physicsClientId=c)
                 self.agents.append(body)
                 self.collision_kinds[body] = "agent"
@@ -132,9 +142,15 @@ class CohabitantBodies:
             self._yaw = np.zeros(len(kinds))
         while len(self.vehicles) < n_vehicles:
             half = [self.vehicle_size[0] / 2, self.vehicle_size[1] / 2, VEHICLE_HEIGHT / 2]
-            col, vis = self._shape("vehicle", lambda half=half: (
-                p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c),
-                p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[0.25, 0.25, 0.65, 1.0], physicsClientId=c)))
+            col, vis = self._shape(
+                "vehicle",
+                lambda half=half: (
+                    p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c),
+                    p.createVisualShape(
+                        p.GEOM_BOX, halfExtents=half, rgbaColor=[0.25, 0.25, 0.65, 1.0], physicsClientId=c
+                    ),
+                ),
+            )
             body = p.createMultiBody(0.0, col, vis, PARKED, physicsClientId=c)
             self.vehicles.append(body)
             self.collision_kinds[body] = "vehicle"
@@ -143,8 +159,9 @@ class CohabitantBodies:
                 p.resetBasePositionAndOrientation(body, PARKED, [0, 0, 0, 1], physicsClientId=c)
             self._vehicles_shown = n_vehicles
 
-    def ray_hits(self, x: float, y: float, h: float, cos: np.ndarray, sin: np.ndarray, start: float,
-                 range_m: float) -> tuple[np.ndarray, np.ndarray]:
+    def ray_hits(
+        self, x: float, y: float, h: float, cos: np.ndarray, sin: np.ndarray, start: float, range_m: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(distance in m, body id) per horizontal ray from (x, y) at height `h` along (cos, sin), starting `start` m
         out: the first agent capsule or vehicle box it meets within `range_m` (inf and -1 for none).
 
@@ -156,7 +173,23 @@ class CohabitantBodies:
         which = np.full(cos.shape, -1, dtype=np.int64)
         xyz = self._xyz if self._xyz is not None else _NO_XYZ
         boxes = self._vehicle_cols if 0.0 <= h <= VEHICLE_HEIGHT else _NO_BOXES
-        capsule_box_hits(float(x), float(y), float(h), cos, sin, float(start), float(range_m), xyz, self._shaft,
-                         self._radii, self._agent_ids, *boxes, 0.5 * self.vehicle_size[0], 0.5 * self.vehicle_size[1],
-                         self._vehicle_ids, dist, which)
+        capsule_box_hits(
+            float(x),
+            float(y),
+            float(h),
+            cos,
+            sin,
+            float(start),
+            float(range_m),
+            xyz,
+            self._shaft,
+            self._radii,
+            self._agent_ids,
+            *boxes,
+            0.5 * self.vehicle_size[0],
+            0.5 * self.vehicle_size[1],
+            self._vehicle_ids,
+            dist,
+            which,
+        )
         return dist, which

@@ -31,15 +31,40 @@ class Episode:
 
     def step_info(self, collided: bool, hits: set[str], route_length: float) -> dict[str, object]:
         """The per-step `info`: cost, route completion, kinds touched, and why the episode ended (if it did)."""
-        reason = next((name for name, hit in (("success", self.succeeded), ("toppled", self.toppled),
-                                               ("out_of_route", self.out_of_route), ("stuck", self.stuck),
-                                               ("cost_exceeded", self.cost_exceeded)) if hit), None)
-        return {"cost": float(collided), "route_completion": min(self.max_progress / route_length, 1.0),
-                "collision_kinds": sorted(hits), "out_of_route": self.out_of_route, "stuck": self.stuck,
-                "toppled": self.toppled, "cost_exceeded": self.cost_exceeded, "end_reason": reason}
+        reason = next(
+            (
+                name
+                for name, hit in (
+                    ("success", self.succeeded),
+                    ("toppled", self.toppled),
+                    ("out_of_route", self.out_of_route),
+                    ("stuck", self.stuck),
+                    ("cost_exceeded", self.cost_exceeded),
+                )
+                if hit
+            ),
+            None,
+        )
+        return {
+            "cost": float(collided),
+            "route_completion": min(self.max_progress / route_length, 1.0),
+            "collision_kinds": sorted(hits),
+            "out_of_route": self.out_of_route,
+            "stuck": self.stuck,
+            "toppled": self.toppled,
+            "cost_exceeded": self.cost_exceeded,
+            "end_reason": reason,
+        }
 
-    def advance(self, start: tuple[float, float], end: tuple[float, float], s: float, lateral: float, hits: set[str],
-                collided: bool) -> tuple[float, float]:
+    def advance(
+        self,
+        start: tuple[float, float],
+        end: tuple[float, float],
+        s: float,
+        lateral: float,
+        hits: set[str],
+        collided: bool,
+    ) -> tuple[float, float]:
         """Record a step from `start` to `end` (x, y), projected at arc length `s`; returns (progress, new progress)."""
         (x0, y0), (x, y) = start, end
         self.path_length += math.hypot(x - x0, y - y0)

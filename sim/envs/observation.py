@@ -21,11 +21,13 @@ def _wrap(a: float) -> float:
 
 
 def observation_mode(cfg: Mapping[str, Any]) -> str:
-    """"flat" or "dict": config.observation, "auto" resolved by whether the camera has modalities."""
+    """ "flat" or "dict": config.observation, "auto" resolved by whether the camera has modalities."""
     mode, camera = cfg["observation"], bool(cfg["camera"]["modalities"])
     if mode == "flat" and camera:
-        raise ConfigError("config.observation 'flat' cannot hold camera images; use observation 'dict' (or 'auto'), "
-                          "or camera.modalities []")
+        raise ConfigError(
+            "config.observation 'flat' cannot hold camera images; use observation 'dict' (or 'auto'), "
+            "or camera.modalities []"
+        )
     return ("dict" if camera else "flat") if mode == "auto" else mode
 
 
@@ -38,7 +40,8 @@ class EgoObservation:
         self.num_low_beams = int(lid["low_beams"])
         self.num_waypoints = w = int(cfg["num_waypoints"])
         self.names = (
-            [f"lidar_{k}" for k in range(self.num_beams)] + [f"low_{k}" for k in range(self.num_low_beams)]
+            [f"lidar_{k}" for k in range(self.num_beams)]
+            + [f"low_{k}" for k in range(self.num_low_beams)]
             + ["speed", "yaw_rate", "heading_error", "lateral_offset", "last_steering", "last_throttle"]
             + [f"wp{i}_{a}" for i in range(w) for a in "xy"]
             + ["goal_distance", "goal_heading_sin", "goal_heading_cos"]
@@ -52,16 +55,29 @@ class EgoObservation:
         b = self.num_beams + self.num_low_beams
         self._parts = {"lidar": slice(0, b), "state": slice(b, b + 6), "nav": slice(b + 6, n)}
         if self.mode == "dict":
-            self.space = gym.spaces.Dict({**{k: gym.spaces.Box(low[sl], 1.0, dtype=np.float32)
-                                             for k, sl in self._parts.items()}, **camera_spaces(cfg["camera"])})
+            self.space = gym.spaces.Dict(
+                {
+                    **{k: gym.spaces.Box(low[sl], 1.0, dtype=np.float32) for k, sl in self._parts.items()},
+                    **camera_spaces(cfg["camera"]),
+                }
+            )
         self._wp_offsets = np.arange(1, w + 1, dtype=np.float64) * float(cfg["waypoint_spacing"])
         self._wp_scale = 1.0 / (self._wp_offsets[-1])
         self.speed_scale = float(cfg["speed_scale"])
         self.lateral_scale = float(cfg["out_of_route_distance"])
 
-    def __call__(self, machine: Any, route: Any, progress: float, lateral: float, last_action: np.ndarray,
-                 lidar: Any, low_lidar: Any | None, camera: Any = None,
-                 extra_kinds: Mapping[int, str] | None = None) -> np.ndarray | dict[str, np.ndarray]:
+    def __call__(
+        self,
+        machine: Any,
+        route: Any,
+        progress: float,
+        lateral: float,
+        last_action: np.ndarray,
+        lidar: Any,
+        low_lidar: Any | None,
+        camera: Any = None,
+        extra_kinds: Mapping[int, str] | None = None,
+    ) -> np.ndarray | dict[str, np.ndarray]:
         """The observation of `machine` at arc length `progress` and offset `lateral` on `route` (scans now; the
         camera renders when the observation is a Dict, `extra_kinds` naming the bodies the world does not hold)."""
         m = machine
@@ -80,8 +96,12 @@ class EgoObservation:
         gx, gy = route.goal[0] - x, route.goal[1] - y
         bearing = math.atan2(gy, gx) - yaw
         state = [
-            m.speed / self.speed_scale, m.yaw_rate / 2.0, heading_err / math.pi,
-            lateral / self.lateral_scale, last_action[0], last_action[1],
+            m.speed / self.speed_scale,
+            m.yaw_rate / 2.0,
+            heading_err / math.pi,
+            lateral / self.lateral_scale,
+            last_action[0],
+            last_action[1],
         ]
         tail = [math.log1p(math.hypot(gx, gy)) / GOAL_LOG_SCALE, math.sin(bearing), math.cos(bearing)]
         obs = np.concatenate([*parts, np.asarray(state), ego, np.asarray(tail)]).astype(np.float32)

@@ -33,7 +33,11 @@ from sim.tasks.termination import StepContext, Termination
 from sim.viewer import close_window, render_frame, served_render_modes
 from sim.world import World, touching
 
-STATIC_COLLISION_KINDS = ("object", "building", "curb")  # with "agent" and "vehicle": sim.tasks.pointnav.COLLISION_KINDS
+STATIC_COLLISION_KINDS = (
+    "object",
+    "building",
+    "curb",
+)  # with "agent" and "vehicle": sim.tasks.pointnav.COLLISION_KINDS
 
 
 class PointNavEnv(gym.Env):
@@ -108,8 +112,10 @@ class PointNavEnv(gym.Env):
         self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         if cfg["gui"] and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
             # PyBullet's GUI connect waits forever for a display that is not there.
-            raise ConfigError("config.gui needs a display, and DISPLAY is not set; use gui: false (render() draws "
-                              "images without one) or run under a desktop or xvfb-run")
+            raise ConfigError(
+                "config.gui needs a display, and DISPLAY is not set; use gui: false (render() draws "
+                "images without one) or run under a desktop or xvfb-run"
+            )
         self.client = p.connect(p.GUI if cfg["gui"] else p.DIRECT)
         self.cache = SceneCache(cfg["scene_cache"], self.client, bool(cfg["gui"]))
         self.slot: SceneSlot | None = None
@@ -194,9 +200,14 @@ class PointNavEnv(gym.Env):
 
     def _measure_view(self) -> EpisodeView:
         """What the measures read of the episode just reset (SocialNav adds the agents' distance)."""
-        return EpisodeView(episode=self.episode, route_length=float(self.route.length), dt=self.dt,
-                           cruise_speed=min(float(self.config["stl_cruise_speed"]), self.machine.spec.v_max),
-                           collision_kinds=tuple(self.collision_kinds_all), reference_length=self.reference_length)
+        return EpisodeView(
+            episode=self.episode,
+            route_length=float(self.route.length),
+            dt=self.dt,
+            cruise_speed=min(float(self.config["stl_cruise_speed"]), self.machine.spec.v_max),
+            collision_kinds=tuple(self.collision_kinds_all),
+            reference_length=self.reference_length,
+        )
 
     def reference_length(self) -> float:
         """l of SPL and STL: the geodesic from the start to the route point where success is reached (cached)."""
@@ -277,9 +288,21 @@ class PointNavEnv(gym.Env):
         s, lat = self.route.locate(x, y, ep.progress)
         collided = bool(hits & self.cost_kinds)
         progress, new_progress = ep.advance((x0, y0), (x, y), s, lat, hits, collided)
-        step = StepContext(ep.steps, progress, new_progress, ep.max_progress, self.route.length, lat,
-                           steer - ep.last_action[0], m.speed, max(abs(m.roll), abs(m.pitch)), collided, bool(hits),
-                           ep.cost_total, lambda: self.planner.grid.label_at(x, y) != 0)
+        step = StepContext(
+            ep.steps,
+            progress,
+            new_progress,
+            ep.max_progress,
+            self.route.length,
+            lat,
+            steer - ep.last_action[0],
+            m.speed,
+            max(abs(m.roll), abs(m.pitch)),
+            collided,
+            bool(hits),
+            ep.cost_total,
+            lambda: self.planner.grid.label_at(x, y) != 0,
+        )
         end = self.termination(step)
         ep.succeeded, ep.out_of_route, ep.stuck = end.succeeded, end.out_of_route, end.stuck
         ep.toppled, ep.cost_exceeded = end.toppled, end.cost_exceeded
@@ -306,8 +329,17 @@ class PointNavEnv(gym.Env):
 
     def _observe(self) -> np.ndarray:
         ep = self.episode
-        obs = self.observation(self.machine, self.route, ep.progress, ep.lateral, ep.last_action, self.lidar,
-                               self.low_lidar, self.camera, self._collision_kinds)
+        obs = self.observation(
+            self.machine,
+            self.route,
+            ep.progress,
+            ep.lateral,
+            ep.last_action,
+            self.lidar,
+            self.low_lidar,
+            self.camera,
+            self._collision_kinds,
+        )
         if self.render_mode == "human":
             self.render()
         return obs

@@ -53,8 +53,10 @@ def check_has_sidewalks(scene: Scene, source: str) -> None:
     """A ConfigError unless `scene` lists a sidewalk and its walkable raster holds sidewalk cells: routes start and
     end on sidewalks, so a scene without them fails every reset."""
     if not scene.sidewalks or not (scene.walkable.mask == SIDEWALK).any():
-        raise ConfigError(f"{source} has no sidewalk (its `sidewalks` list or its walkable raster is empty of them); "
-                          "routes run on sidewalks: generate a scene with `curbside scenes generate` or add them")
+        raise ConfigError(
+            f"{source} has no sidewalk (its `sidewalks` list or its walkable raster is empty of them); "
+            "routes run on sidewalks: generate a scene with `curbside scenes generate` or add them"
+        )
 
 
 class SceneSource:
@@ -76,21 +78,29 @@ class SceneSource:
         if config["scene_spec"] is not None or config["scene_path"] is not None:
             self.kind = "fixed"
             self.fixed = load_scene(config, 0)
-            check_has_sidewalks(self.fixed, "config.scene_spec" if config["scene_spec"] is not None
-                                else f"config.scene_path {config['scene_path']}")
+            check_has_sidewalks(
+                self.fixed,
+                "config.scene_spec"
+                if config["scene_spec"] is not None
+                else f"config.scene_path {config['scene_path']}",
+            )
         elif config["scene_dir"] is not None:
             self.kind = "dir"
             self.files = dataset_scenes(config["scene_dir"], config["split"])
             if n is not None:
-                self.files = self.files[seed: seed + n]
+                self.files = self.files[seed : seed + n]
                 if not self.files:
                     raise ConfigError(f"config.scene_seed {seed} is past the {config['scene_dir']} split's scenes")
         else:
             self.kind = "generated"
             if n is None:
-                raise ConfigError("config.num_scenes must be an integer for generated scenes (None means all of scene_dir)")
+                raise ConfigError(
+                    "config.num_scenes must be an integer for generated scenes (None means all of scene_dir)"
+                )
             if seed + n > MAX_SEED:
-                raise ConfigError(f"config.scene_seed + num_scenes must stay <= {MAX_SEED} so splits never share a scene")
+                raise ConfigError(
+                    f"config.scene_seed + num_scenes must stay <= {MAX_SEED} so splits never share a scene"
+                )
             self.offset = split_seed_offset(config["split"])
             resolve_config(generator_config(config))
 
@@ -170,20 +180,40 @@ def build_slot(slot: SceneSlot, scene: Scene, cfg: Mapping[str, Any], machine: A
     meshes = cfg["visual_meshes"] is True or (cfg["visual_meshes"] == "auto" and bool(cfg["camera"]["modalities"]))
     if cfg["catalog"] is not None and (cfg["collision"] == "convex" or meshes):
         from catalogs.reader import CatalogReader
+
         catalog = CatalogReader(cfg["catalog"])
     dt = float(cfg["dt"])
     slot.scene = scene
-    slot.world = World(scene, client=slot.client, collision=cfg["collision"], catalog=catalog,
-                       visual_meshes=meshes, physics_dt=dt / int(cfg["physics_substeps"]))
+    slot.world = World(
+        scene,
+        client=slot.client,
+        collision=cfg["collision"],
+        catalog=catalog,
+        visual_meshes=meshes,
+        physics_dt=dt / int(cfg["physics_substeps"]),
+    )
     slot.machine = Machine(slot.client, machine)
     if scene.terrain:
         slot.machine.ground = slot.world.friction_at  # the patch under the machine limits its traction
     lid = cfg["lidar"]
     r0 = slot.machine.bounding_radius + 0.05
-    high = {"beams": int(lid["beams"]), "range_m": float(lid["range"]), "height": float(lid["height"]),
-            "start_radius": r0, "encoding": lid["encoding"]}
-    low = ({"beams": int(lid["low_beams"]), "range_m": max(float(lid["low_range"]), r0 + 0.1),
-            "height": float(lid["low_height"]), "start_radius": r0} if int(lid["low_beams"]) else None)
+    high = {
+        "beams": int(lid["beams"]),
+        "range_m": float(lid["range"]),
+        "height": float(lid["height"]),
+        "start_radius": r0,
+        "encoding": lid["encoding"],
+    }
+    low = (
+        {
+            "beams": int(lid["low_beams"]),
+            "range_m": max(float(lid["low_range"]), r0 + 0.1),
+            "height": float(lid["low_height"]),
+            "start_radius": r0,
+        }
+        if int(lid["low_beams"])
+        else None
+    )
     if static_lidar(cfg) == "grid":
         grids = build_grids(scene, resolution=float(lid["resolution"]), lidar=lid, body_height=None)
         slot.lidar = GridLidar(grids, "high", **high)

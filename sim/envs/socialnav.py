@@ -88,9 +88,13 @@ class SocialNavEnv(PointNavEnv):
         scene = self.scene
         start = self.route.start
         goal = self.route.goal
-        self.crowd.reset(scene, rng, ego=self._ego_state(), keep_clear=[(float(goal[0]), float(goal[1]), 1.0),
-                                                                   (float(start[0]), float(start[1]), 2.0)],
-                        route=self.route.points)
+        self.crowd.reset(
+            scene,
+            rng,
+            ego=self._ego_state(),
+            keep_clear=[(float(goal[0]), float(goal[1]), 1.0), (float(start[0]), float(start[1]), 2.0)],
+            route=self.route.points,
+        )
         if self.config["traffic"]:
             self.traffic.reset(scene, rng)
         else:
@@ -99,8 +103,11 @@ class SocialNavEnv(PointNavEnv):
         self._min_agent_distance = self._nearest_agent()
 
     def _measure_view(self) -> EpisodeView:
-        return replace(super()._measure_view(), min_agent_distance=lambda: self._min_agent_distance,
-                       personal_space=float(self.config["personal_space"]))
+        return replace(
+            super()._measure_view(),
+            min_agent_distance=lambda: self._min_agent_distance,
+            personal_space=float(self.config["personal_space"]),
+        )
 
     def _on_step(self) -> None:
         ego = self._ego_state()
@@ -131,8 +138,13 @@ class SocialNavEnv(PointNavEnv):
         m = self.machine
         x, y, _ = m.position
         s = m.spec
-        return EgoState(float(x), float(y), m.speed * math.cos(m.yaw), m.speed * math.sin(m.yaw),
-                        0.5 * math.hypot(s.length, s.width))
+        return EgoState(
+            float(x),
+            float(y),
+            m.speed * math.cos(m.yaw),
+            m.speed * math.sin(m.yaw),
+            0.5 * math.hypot(s.length, s.width),
+        )
 
     def _nearest_agent(self) -> float:
         """Smallest gap (m) between the ego's footprint rectangle and any agent's body circle."""

@@ -54,16 +54,21 @@ class SceneGrids:
     curb_height: float
 
 
-def _footprints(scene: Scene) -> tuple[list[Polygon], list[tuple[float, float]], list[Polygon], list[Polygon],
-                                      list[tuple[np.ndarray, np.ndarray]]]:
+def _footprints(
+    scene: Scene,
+) -> tuple[list[Polygon], list[tuple[float, float]], list[Polygon], list[Polygon], list[tuple[np.ndarray, np.ndarray]]]:
     """(object footprints, their (base, top) heights, building footprints, raised sidewalk slabs, ramp wedges)."""
     objects = [Polygon(o["footprint"]) for o in scene.objects]
     spans = []
     for o in scene.objects:
         z = float(o["position"][2])
         spans.append((z, z + max(float(o["size"][2]), 0.02)))
-    buildings = [Polygon(z["polygon"]).buffer(0) for sw in scene.sidewalks for z in sw.get("zones", [])
-                 if z.get("kind") == "building"]
+    buildings = [
+        Polygon(z["polygon"]).buffer(0)
+        for sw in scene.sidewalks
+        for z in sw.get("zones", [])
+        if z.get("kind") == "building"
+    ]
     slabs, wedges = sidewalk_solids(scene, float(scene.curb_height))
     return objects, spans, buildings, [poly for polys in slabs for poly in polys], wedges
 
@@ -193,10 +198,15 @@ def build_grids(scene: Scene, *, resolution: float, lidar: dict[str, Any], body_
         tables.append(level)
     objects_mask = obstacle_mask(grid, objects) if objects else np.zeros(shape, dtype=bool)
     kinds[objects_mask] = OBJECT
-    return SceneGrids(origin=(x0 - RING * resolution, y0 - RING * resolution),
-                      shape=(shape[0] + 2 * RING, shape[1] + 2 * RING),
-                      resolution=resolution, kinds=np.pad(kinds, RING), tables=tables, walkable=scene.walkable,
-                      curb_height=curb)
+    return SceneGrids(
+        origin=(x0 - RING * resolution, y0 - RING * resolution),
+        shape=(shape[0] + 2 * RING, shape[1] + 2 * RING),
+        resolution=resolution,
+        kinds=np.pad(kinds, RING),
+        tables=tables,
+        walkable=scene.walkable,
+        curb_height=curb,
+    )
 
 
 def levels(grids: SceneGrids, x: np.ndarray, y: np.ndarray) -> np.ndarray:

@@ -28,8 +28,16 @@ PARALLEL_RAYS = 4096  # rays per call from which the march runs on every core (n
 NUDGE = 1e-6  # cells past a grid line, so that a walk step lands inside the next cell
 
 
-def trace(flat: np.ndarray, frame: dict[str, np.ndarray], x: np.ndarray, y: np.ndarray, angles: np.ndarray,
-          start: float, range_m: float, resolution: float) -> np.ndarray:
+def trace(
+    flat: np.ndarray,
+    frame: dict[str, np.ndarray],
+    x: np.ndarray,
+    y: np.ndarray,
+    angles: np.ndarray,
+    start: float,
+    range_m: float,
+    resolution: float,
+) -> np.ndarray:
     """Distances [n, beams] from each env's (x, y) along `angles` [n, beams] (world frame) to the first occupied
     cell, exactly `range_m` when none; rays start `start` metres out. Every scene's grid has the same `resolution`.
     """
@@ -41,16 +49,36 @@ def trace(flat: np.ndarray, frame: dict[str, np.ndarray], x: np.ndarray, y: np.n
     out = np.empty(n * beams, dtype=np.float64)
     kernel = _trace_parallel if n * beams >= PARALLEL_RAYS else _trace_serial
     reach = range_m * inv
-    kernel(flat, np.repeat((x - frame["x0"]) * inv, beams), np.repeat((y - frame["y0"]) * inv, beams),
-           np.cos(a), np.sin(a), np.repeat(frame["cols"].astype(np.int64), beams),
-           np.repeat(frame["offset"].astype(np.int64), beams), start * inv, reach, out)
+    kernel(
+        flat,
+        np.repeat((x - frame["x0"]) * inv, beams),
+        np.repeat((y - frame["y0"]) * inv, beams),
+        np.cos(a),
+        np.sin(a),
+        np.repeat(frame["cols"].astype(np.int64), beams),
+        np.repeat(frame["offset"].astype(np.int64), beams),
+        start * inv,
+        reach,
+        out,
+    )
     d = out.reshape(n, beams) * resolution
     d[out.reshape(n, beams) >= reach] = range_m  # no hit: the range itself, not its float round trip
     return d
 
 
-def trace_fan(flat: np.ndarray, x0: float, y0: float, cols: int, x: float, y: float, cos: np.ndarray, sin: np.ndarray,
-              start: float, range_m: float, resolution: float) -> np.ndarray:
+def trace_fan(
+    flat: np.ndarray,
+    x0: float,
+    y0: float,
+    cols: int,
+    x: float,
+    y: float,
+    cos: np.ndarray,
+    sin: np.ndarray,
+    start: float,
+    range_m: float,
+    resolution: float,
+) -> np.ndarray:
     """`trace` of one origin (x, y) with the beams' direction cosines given: distances [beams] through the grid of
     origin (x0, y0) and `cols` columns at the start of `flat` (the PyBullet env's LiDAR, which also needs cos and
     sin for its moving bodies)."""
@@ -82,8 +110,9 @@ def _next_line(g: float, d: float, t: float) -> float:
 
 
 @njit(cache=True, nogil=True)
-def _trace_one(flat: np.ndarray, gx: float, gy: float, dx: float, dy: float, cols: int, offset: int, start: float,
-               reach: float) -> float:
+def _trace_one(
+    flat: np.ndarray, gx: float, gy: float, dx: float, dy: float, cols: int, offset: int, start: float, reach: float
+) -> float:
     """March one ray (in cells): the distance at which it enters its first occupied cell, `reach` for none."""
     t = start
     last = start
@@ -120,24 +149,53 @@ def _trace_one(flat: np.ndarray, gx: float, gy: float, dx: float, dy: float, col
 
 
 @njit(cache=True, nogil=True)
-def _trace_serial(flat: np.ndarray, gx: np.ndarray, gy: np.ndarray, dx: np.ndarray, dy: np.ndarray,
-                  cols: np.ndarray, offset: np.ndarray, start: float, reach: float, out: np.ndarray) -> None:
+def _trace_serial(
+    flat: np.ndarray,
+    gx: np.ndarray,
+    gy: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+    cols: np.ndarray,
+    offset: np.ndarray,
+    start: float,
+    reach: float,
+    out: np.ndarray,
+) -> None:
     """`_trace_one` of every ray (arrays over rays) into `out`, on this thread."""
     for r in range(out.size):
         out[r] = _trace_one(flat, gx[r], gy[r], dx[r], dy[r], cols[r], offset[r], start, reach)
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _trace_parallel(flat: np.ndarray, gx: np.ndarray, gy: np.ndarray, dx: np.ndarray, dy: np.ndarray,
-                    cols: np.ndarray, offset: np.ndarray, start: float, reach: float, out: np.ndarray) -> None:
+def _trace_parallel(
+    flat: np.ndarray,
+    gx: np.ndarray,
+    gy: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+    cols: np.ndarray,
+    offset: np.ndarray,
+    start: float,
+    reach: float,
+    out: np.ndarray,
+) -> None:
     """`_trace_one` of every ray into `out`, the rays shared among numba's threads."""
     for r in prange(out.size):
         out[r] = _trace_one(flat, gx[r], gy[r], dx[r], dy[r], cols[r], offset[r], start, reach)
 
 
 @njit(cache=True, nogil=True)
-def _trace_origin(flat: np.ndarray, gx: float, gy: float, dx: np.ndarray, dy: np.ndarray, cols: int, start: float,
-                  reach: float, out: np.ndarray) -> None:
+def _trace_origin(
+    flat: np.ndarray,
+    gx: float,
+    gy: float,
+    dx: np.ndarray,
+    dy: np.ndarray,
+    cols: int,
+    start: float,
+    reach: float,
+    out: np.ndarray,
+) -> None:
     """`_trace_one` of every ray from one origin (grid coordinates) into `out`, on this thread."""
     for r in range(out.size):
         out[r] = _trace_one(flat, gx, gy, dx[r], dy[r], cols, 0, start, reach)

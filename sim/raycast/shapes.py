@@ -12,8 +12,20 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def _circle(x: float, y: float, cos: np.ndarray, sin: np.ndarray, cx: float, cy: float, radius: float, start: float,
-            range_m: float, dist: np.ndarray, which: np.ndarray, tag: int) -> None:
+def _circle(
+    x: float,
+    y: float,
+    cos: np.ndarray,
+    sin: np.ndarray,
+    cx: float,
+    cy: float,
+    radius: float,
+    start: float,
+    range_m: float,
+    dist: np.ndarray,
+    which: np.ndarray,
+    tag: int,
+) -> None:
     """One circle of `circle_hits`: lower dist[beam] to its entry distance and set which[beam] to `tag`."""
     ox, oy, r2 = cx - x, cy - y, radius * radius
     q = ox * ox + oy * oy - r2
@@ -33,8 +45,22 @@ def _circle(x: float, y: float, cos: np.ndarray, sin: np.ndarray, cx: float, cy:
 
 
 @njit(cache=True, nogil=True)
-def _box(x: float, y: float, cos: np.ndarray, sin: np.ndarray, bx: float, by: float, yaw: float, half_l: float,
-         half_w: float, start: float, range_m: float, dist: np.ndarray, which: np.ndarray, tag: int) -> None:
+def _box(
+    x: float,
+    y: float,
+    cos: np.ndarray,
+    sin: np.ndarray,
+    bx: float,
+    by: float,
+    yaw: float,
+    half_l: float,
+    half_w: float,
+    start: float,
+    range_m: float,
+    dist: np.ndarray,
+    which: np.ndarray,
+    tag: int,
+) -> None:
     """One rectangle of `box_hits`: lower dist[beam] to its entry distance and set which[beam] to `tag`."""
     c, s = math.cos(yaw), math.sin(yaw)
     px, py = c * (x - bx) + s * (y - by), -s * (x - bx) + c * (y - by)
@@ -58,8 +84,19 @@ def _box(x: float, y: float, cos: np.ndarray, sin: np.ndarray, bx: float, by: fl
 
 
 @njit(cache=True, nogil=True)
-def circle_hits(x: float, y: float, cos: np.ndarray, sin: np.ndarray, cx: np.ndarray, cy: np.ndarray,
-                radius: np.ndarray, start: float, range_m: float, dist: np.ndarray, which: np.ndarray) -> None:
+def circle_hits(
+    x: float,
+    y: float,
+    cos: np.ndarray,
+    sin: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    radius: np.ndarray,
+    start: float,
+    range_m: float,
+    dist: np.ndarray,
+    which: np.ndarray,
+) -> None:
     """For rays from (x, y) along (cos, sin), starting `start` m out and `range_m` long: lower dist[beam] to the
     entry distance of the nearest circle (cx, cy, radius) met, and set which[beam] to its index (in place).
     A ray that starts inside a circle meets it at `start`."""
@@ -68,8 +105,21 @@ def circle_hits(x: float, y: float, cos: np.ndarray, sin: np.ndarray, cx: np.nda
 
 
 @njit(cache=True, nogil=True)
-def box_hits(x: float, y: float, cos: np.ndarray, sin: np.ndarray, bx: np.ndarray, by: np.ndarray, yaw: np.ndarray,
-             half_l: float, half_w: float, start: float, range_m: float, dist: np.ndarray, which: np.ndarray) -> None:
+def box_hits(
+    x: float,
+    y: float,
+    cos: np.ndarray,
+    sin: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    yaw: np.ndarray,
+    half_l: float,
+    half_w: float,
+    start: float,
+    range_m: float,
+    dist: np.ndarray,
+    which: np.ndarray,
+) -> None:
     """As `circle_hits` for rectangles of half sizes (half_l, half_w) centred at (bx, by), turned by `yaw` (the
     slab test in each rectangle's frame)."""
     for k in range(bx.size):
@@ -77,10 +127,27 @@ def box_hits(x: float, y: float, cos: np.ndarray, sin: np.ndarray, bx: np.ndarra
 
 
 @njit(cache=True, nogil=True)
-def capsule_box_hits(x: float, y: float, h: float, cos: np.ndarray, sin: np.ndarray, start: float, range_m: float,
-                     xyz: np.ndarray, shaft: np.ndarray, radius: np.ndarray, capsule_ids: np.ndarray, bx: np.ndarray,
-                     by: np.ndarray, yaw: np.ndarray, half_l: float, half_w: float, box_ids: np.ndarray,
-                     dist: np.ndarray, which: np.ndarray) -> None:
+def capsule_box_hits(
+    x: float,
+    y: float,
+    h: float,
+    cos: np.ndarray,
+    sin: np.ndarray,
+    start: float,
+    range_m: float,
+    xyz: np.ndarray,
+    shaft: np.ndarray,
+    radius: np.ndarray,
+    capsule_ids: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    yaw: np.ndarray,
+    half_l: float,
+    half_w: float,
+    box_ids: np.ndarray,
+    dist: np.ndarray,
+    which: np.ndarray,
+) -> None:
     """Upright capsules (centres `xyz`, half straight parts `shaft`, radii; NaN z: not in the world) cut at height
     `h` into circles, then rectangles (as `box_hits`; pass none above the boxes): the nearest hit per beam into
     `dist`, its body id (`capsule_ids`, `box_ids`) into `which`, in one call."""

@@ -12,6 +12,17 @@ from sim.scene.scene import SPEC_VERSION, Scene, SceneError
 from sim.scene.spec import dumps, load, save
 
 __all__ = [
-    "BLOCK_CODES", "DEFAULT_CONFIG", "SPEC_VERSION", "TEMPLATES", "Scene", "SceneError", "WalkableGrid",
-    "decode_walkable", "dumps", "generate_scene", "load", "obstacle_mask", "save",
+    "BLOCK_CODES",
+    "DEFAULT_CONFIG",
+    "SPEC_VERSION",
+    "TEMPLATES",
+    "Scene",
+    "SceneError",
+    "WalkableGrid",
+    "decode_walkable",
+    "dumps",
+    "generate_scene",
+    "load",
+    "obstacle_mask",
+    "save",
 ]

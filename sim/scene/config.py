@@ -22,47 +22,52 @@ TEMPLATES: dict[str, tuple[tuple[str, float, float], ...]] = {
     "g": (("furnishing", 1.5, 1.8), ("clear", 3.0, 3.3), ("frontage_buffer", 0.3, 0.5), ("frontage", 3.0, 3.3)),
 }
 TEMPLATE_NAMES = {
-    "a": "narrow", "b": "narrow with trees", "c": "ribbon", "d": "neighborhood 1",
-    "e": "neighborhood 2", "f": "medium commercial", "g": "wide commercial",
+    "a": "narrow",
+    "b": "narrow with trees",
+    "c": "ribbon",
+    "d": "neighborhood 1",
+    "e": "neighborhood 2",
+    "f": "medium commercial",
+    "g": "wide commercial",
 }
 
 DEFAULT_CONFIG: dict[str, Any] = {
-    "preset": None,                   # a name from PRESETS: its values replace the defaults (explicit keys still win)
-    "blocks": 3,                      # a count, or a string of block codes such as "SXCT"
-    "block_types": "SCXTO",           # codes drawn from when `blocks` is a count
-    "templates": "abcdef",            # sidewalk templates drawn uniformly per sidewalk
-    "lanes": [1, 2],                  # lanes per direction, inclusive range, drawn per block
-    "lane_width": [3.0, 3.6],         # metres, drawn per block
+    "preset": None,  # a name from PRESETS: its values replace the defaults (explicit keys still win)
+    "blocks": 3,  # a count, or a string of block codes such as "SXCT"
+    "block_types": "SCXTO",  # codes drawn from when `blocks` is a count
+    "templates": "abcdef",  # sidewalk templates drawn uniformly per sidewalk
+    "lanes": [1, 2],  # lanes per direction, inclusive range, drawn per block
+    "lane_width": [3.0, 3.6],  # metres, drawn per block
     "straight_length": [30.0, 60.0],
-    "curve_radius": [40.0, 70.0],     # centerline radius; large enough for inner sidewalks and buildings
-    "curve_angle": [45.0, 90.0],      # degrees, either direction
-    "arm_length": [20.0, 35.0],       # junction and roundabout arms
-    "roundabout_radius": [8.0, 14.0], # central island radius
-    "building_depth": [8.0, 12.0],    # depth of the building zone beyond the sidewalk
+    "curve_radius": [40.0, 70.0],  # centerline radius; large enough for inner sidewalks and buildings
+    "curve_angle": [45.0, 90.0],  # degrees, either direction
+    "arm_length": [20.0, 35.0],  # junction and roundabout arms
+    "roundabout_radius": [8.0, 14.0],  # central island radius
+    "building_depth": [8.0, 12.0],  # depth of the building zone beyond the sidewalk
     "buildings": True,
     "curb_height": 0.15,
-    "crosswalk_density": 0.5,         # probability that each crosswalk candidate is built
-    "crosswalks": None,               # or an explicit list of candidate ids, e.g. ["r0.0:start", "r1.2:end"]
-    "connect_crosswalks": True,       # also build the fewest extra candidates that join every sidewalk group
+    "crosswalk_density": 0.5,  # probability that each crosswalk candidate is built
+    "crosswalks": None,  # or an explicit list of candidate ids, e.g. ["r0.0:start", "r1.2:end"]
+    "connect_crosswalks": True,  # also build the fewest extra candidates that join every sidewalk group
     "crosswalk_width": 3.0,
     "ramp_depth": 1.5,
-    "object_density": 1.0,            # rho_s: scales standard spacing (1/rho) and zoned/clutter counts (rho)
-    "standard_spacing": 12.0,         # metres between standard infrastructure at density 1
+    "object_density": 1.0,  # rho_s: scales standard spacing (1/rho) and zoned/clutter counts (rho)
+    "standard_spacing": 12.0,  # metres between standard infrastructure at density 1
     "non_standard_per_100m": 8.0,
     "clutter_per_100m": 5.0,
-    "density_model": "sparse",        # "sparse": counts per 100 m; "paper": rows along every furniture zone (MetaUrban-12K)
-    "fill_gap": 0.9,                  # mean gap (m) between neighbours in a row at object_density 1 ("paper" model)
-    "fill_clutter": 0.15,             # share of clutter items in the rows ("paper" model)
-    "fill_row_width": 1.4,            # a zone holds floor(width / this) rows of objects ("paper" model)
-    "min_objects": 0,                 # "paper" model: refill the gaps (smaller each round) until a scene holds this many
-    "placement_tries": 4,             # positions tried per object before it counts as refused
-    "min_clear_width": 1.2,           # free corridor kept along every clear path (wheelchair)
-    "country": None,                  # None: uniform categories; else ISO alpha-2 row of the distribution table
+    "density_model": "sparse",  # "sparse": counts per 100 m; "paper": rows along every furniture zone (MetaUrban-12K)
+    "fill_gap": 0.9,  # mean gap (m) between neighbours in a row at object_density 1 ("paper" model)
+    "fill_clutter": 0.15,  # share of clutter items in the rows ("paper" model)
+    "fill_row_width": 1.4,  # a zone holds floor(width / this) rows of objects ("paper" model)
+    "min_objects": 0,  # "paper" model: refill the gaps (smaller each round) until a scene holds this many
+    "placement_tries": 4,  # positions tried per object before it counts as refused
+    "min_clear_width": 1.2,  # free corridor kept along every clear path (wheelchair)
+    "country": None,  # None: uniform categories; else ISO alpha-2 row of the distribution table
     "distribution_path": "data/distribution/distribution.parquet",
-    "exclude_categories": [],         # held-out categories (dataset splits)
-    "assets": "all",                  # catalog assets drawn: all, seen (train, test) or held_out (unseen, finetune)
+    "exclude_categories": [],  # held-out categories (dataset splits)
+    "assets": "all",  # catalog assets drawn: all, seen (train, test) or held_out (unseen, finetune)
     "grid_resolution": 0.25,
-    "block_tries": 30,                # shapes/parameters tried per block before giving up
+    "block_tries": 30,  # shapes/parameters tried per block before giving up
     # Terrain patches on the sidewalks (sim.scene.terrain, docs/terrain.md): density 1 is a city's typical share,
     # 0 none; kinds any of roots (tree-root heave), rough (uneven pavers), steps (entrances), slick (wet, gravel).
     "terrain": {"density": 1.0, "kinds": list(TERRAIN_KINDS)},
@@ -72,8 +77,14 @@ DEFAULT_CONFIG: dict[str, Any] = {
 # Named bundles of settings. "metaurban12k": the paper's density (docs/scenes.md: each statistic of MetaUrban-12K
 # within 25 % on 200 train scenes, measured by `curbside scenes stats --vs-paper`).
 PRESETS: dict[str, dict[str, Any]] = {
-    "metaurban12k": {"density_model": "paper", "building_depth": [18.0, 26.0], "fill_gap": 1.6, "fill_row_width": 1.0,
-                     "crosswalk_density": 1.0, "min_objects": 300},
+    "metaurban12k": {
+        "density_model": "paper",
+        "building_depth": [18.0, 26.0],
+        "fill_gap": 1.6,
+        "fill_row_width": 1.0,
+        "crosswalk_density": 1.0,
+        "min_objects": 300,
+    },
 }
 
 
@@ -121,8 +132,10 @@ CONFIG_TABLE: dict[str, Rule] = {
     "assets": Choice("all", "seen", "held_out"),
     "grid_resolution": Float(0.05, 2.0, hint="metres per walkable cell"),
     "block_tries": Int(1, 1000),
-    "terrain": {"density": Float(0.0, 10.0, hint="1 is a city's typical share of terrain patches, 0 none"),
-                "kinds": Rule("list", choices=TERRAIN_KINDS)},
+    "terrain": {
+        "density": Float(0.0, 10.0, hint="1 is a city's typical share of terrain patches, 0 none"),
+        "kinds": Rule("list", choices=TERRAIN_KINDS),
+    },
 }
 
 
@@ -152,21 +165,27 @@ def resolve_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
         check_codes(blocks, BLOCK_CODES, what="block code(s)")
     # A count or code string past MAX_BLOCKS would run for minutes (50 blocks take ~6 s).
     if (blocks if isinstance(blocks, int) else len(blocks)) > MAX_BLOCKS or blocks in (0, ""):
-        raise ConfigError(f"scene config.blocks must be 1 to {MAX_BLOCKS} blocks, got {blocks!r}; "
-                          "generate several scenes (`curbside scenes dataset`) for more street")
+        raise ConfigError(
+            f"scene config.blocks must be 1 to {MAX_BLOCKS} blocks, got {blocks!r}; "
+            "generate several scenes (`curbside scenes dataset`) for more street"
+        )
     if isinstance(blocks, int) and blocks < 1:
         raise ConfigError(f"scene config.blocks must be at least 1, got {blocks}")
     # Work grows with blocks x density (64 blocks at density 50 took 3 minutes): keep a scene within about a minute.
     n = blocks if isinstance(blocks, int) else len(blocks)
     if n * max(float(cfg["object_density"]), 1.0) > MAX_BLOCK_DENSITY:
-        raise ConfigError(f"scene config.blocks x object_density must be <= {MAX_BLOCK_DENSITY:g}, got {n} x "
-                          f"{cfg['object_density']:g}; use fewer blocks or a lower object_density")
+        raise ConfigError(
+            f"scene config.blocks x object_density must be <= {MAX_BLOCK_DENSITY:g}, got {n} x "
+            f"{cfg['object_density']:g}; use fewer blocks or a lower object_density"
+        )
     cfg["block_types"] = str(cfg["block_types"]).upper()
     check_codes(cfg["block_types"], BLOCK_CODES, what="block code(s) in block_types")
     cfg["templates"] = "".join(sorted(set(str(cfg["templates"]).lower())))
     check_codes(cfg["templates"], TEMPLATE_NAMES, what="sidewalk template(s)")
     if cfg["density_model"] == "paper" and cfg["fill_gap"] < MIN_FILL_GAP:
-        raise ConfigError(f"scene config.fill_gap must be >= {MIN_FILL_GAP} m with density_model 'paper', got {cfg['fill_gap']!r}")
+        raise ConfigError(
+            f"scene config.fill_gap must be >= {MIN_FILL_GAP} m with density_model 'paper', got {cfg['fill_gap']!r}"
+        )
     bad = [c for c in cfg["exclude_categories"] if c not in NAMES]
     if bad:
         raise ConfigError(f"unknown categories {bad} in exclude_categories; valid: {', '.join(NAMES)}")

@@ -63,8 +63,10 @@ def check_custom(data: Mapping[str, Any], where: str = "custom scene") -> dict[s
         raise ConfigError(f"{where}: generator must be a mapping of scene generator keys, got {c['generator']!r}")
     taken = sorted(set(c["generator"]) & {"blocks", "templates", "object_density", "country"})
     if taken:
-        raise ConfigError(f"{where}: set {', '.join(taken)} at the top level (blocks, templates) or under objects "
-                          "(density, country), not under generator")
+        raise ConfigError(
+            f"{where}: set {', '.join(taken)} at the top level (blocks, templates) or under objects "
+            "(density, country), not under generator"
+        )
     c["objects"] = merge_strict(OBJECT_KEYS, c["objects"] or {}, name=f"{where}: objects")
     pool = c["objects"]["pool"]
     if pool is not None:
@@ -105,11 +107,14 @@ def _check_place(item: Any, where: str) -> dict[str, Any]:
         along = p["at"]["along"]
         if not isinstance(along, (int, float)) or isinstance(along, bool) or not 0.0 <= float(along) <= 1.0:
             raise ConfigError(f"{where}.at.along must be a fraction of the sidewalk's length in [0, 1]")
-    elif not (isinstance(at, list) and len(at) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in at)):
+    elif not (
+        isinstance(at, list) and len(at) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in at)
+    ):
         raise ConfigError(f"{where}.at must be [x, y] in metres or {{sidewalk: ID, along: 0..1, zone: KIND}}")
     size = p["size"]
-    if size is not None and not (isinstance(size, list) and len(size) == 3 and all(
-            isinstance(v, (int, float)) and 0 < v < 100 for v in size)):
+    if size is not None and not (
+        isinstance(size, list) and len(size) == 3 and all(isinstance(v, (int, float)) and 0 < v < 100 for v in size)
+    ):
         raise ConfigError(f"{where}.size must be [depth, width, height] in metres (0-100)")
     if not (isinstance(p["yaw"], (int, float)) and math.isfinite(p["yaw"])):
         raise ConfigError(f"{where}.yaw must be a finite number of degrees")
@@ -119,8 +124,13 @@ def _check_place(item: Any, where: str) -> dict[str, Any]:
 def generator_config(c: Mapping[str, Any]) -> dict[str, Any]:
     """The scene generator config a checked custom scene asks for."""
     blocks = c["blocks"]
-    cfg = {**c["generator"], "blocks": int(blocks) if str(blocks).strip().isdigit() else blocks,
-           "templates": c["templates"], "object_density": c["objects"]["density"], "country": c["objects"]["country"]}
+    cfg = {
+        **c["generator"],
+        "blocks": int(blocks) if str(blocks).strip().isdigit() else blocks,
+        "templates": c["templates"],
+        "object_density": c["objects"]["density"],
+        "country": c["objects"]["country"],
+    }
     pool = c["objects"]["pool"]
     if pool is not None:
         cfg["exclude_categories"] = sorted(set(cfg.get("exclude_categories", [])) | (set(NAMES) - set(pool)))
@@ -147,11 +157,21 @@ def generate_custom(c: Mapping[str, Any], catalog: Any = None) -> dict[str, Any]
             raise ConfigError(f"named objects {hit[0]!r} and {item['name']!r} overlap; move one of them")
         objects = [o for o in objects if o.get("name") or not Polygon(o["footprint"]).intersects(box)]  # named win
         terrain = [t for t in terrain if not Polygon(t["footprint"]).intersects(box)]  # over terrain patches too
-        objects.append({"id": "", "name": item["name"], "asset_id": item["asset_id"], "category": cat.name,
-                        "object_class": cat.object_class, "zone": item["at"]["zone"] if isinstance(item["at"], Mapping)
-                        else None, "sidewalk_id": sidewalk, "position": [round_value(x), round_value(y), curb if sidewalk else 0.0],
-                        "yaw": round_value(math.atan2(math.sin(yaw), math.cos(yaw))),
-                        "size": [round_value(float(v)) for v in (d, w, h)], "footprint": round_points(corners)})
+        objects.append(
+            {
+                "id": "",
+                "name": item["name"],
+                "asset_id": item["asset_id"],
+                "category": cat.name,
+                "object_class": cat.object_class,
+                "zone": item["at"]["zone"] if isinstance(item["at"], Mapping) else None,
+                "sidewalk_id": sidewalk,
+                "position": [round_value(x), round_value(y), curb if sidewalk else 0.0],
+                "yaw": round_value(math.atan2(math.sin(yaw), math.cos(yaw))),
+                "size": [round_value(float(v)) for v in (d, w, h)],
+                "footprint": round_points(corners),
+            }
+        )
     for k, o in enumerate(objects):
         o["id"] = f"o{k}"
     for k, t in enumerate(terrain):
@@ -172,18 +192,23 @@ def _locate(spec: Mapping[str, Any], item: Mapping[str, Any]) -> tuple[float, fl
         x, y = (float(v) for v in at)
         x0, y0, x1, y1 = spec["bounds"]
         if not (x0 <= x <= x1 and y0 <= y <= y1):
-            raise ConfigError(f"named object {item['name']!r} at [{x}, {y}] lies outside the scene's bounds "
-                              f"[{x0}, {y0}, {x1}, {y1}]; render the scene (`curbside scenes render`) to pick a place")
+            raise ConfigError(
+                f"named object {item['name']!r} at [{x}, {y}] lies outside the scene's bounds "
+                f"[{x0}, {y0}, {x1}, {y1}]; render the scene (`curbside scenes render`) to pick a place"
+            )
         on = next((sid for sid, s in sidewalks.items() if Polygon(s["polygon"]).covers(Point(x, y))), None)
         return x, y, on
     sw = sidewalks.get(at["sidewalk"])
     if sw is None:
-        raise ConfigError(f"named object {item['name']!r}: no sidewalk {at['sidewalk']!r}; this scene has "
-                          f"{', '.join(sidewalks)}")
+        raise ConfigError(
+            f"named object {item['name']!r}: no sidewalk {at['sidewalk']!r}; this scene has {', '.join(sidewalks)}"
+        )
     zone = next((z for z in sw["zones"] if z["kind"] == at["zone"]), None)
     if zone is None:
-        raise ConfigError(f"named object {item['name']!r}: sidewalk {sw['id']} has no {at['zone']!r} zone; its zones: "
-                          f"{', '.join(z['kind'] for z in sw['zones'])}")
+        raise ConfigError(
+            f"named object {item['name']!r}: sidewalk {sw['id']} has no {at['zone']!r} zone; its zones: "
+            f"{', '.join(z['kind'] for z in sw['zones'])}"
+        )
     edge = LineString(sw["edge"])
     p = edge.interpolate(float(at["along"]), normalized=True)
     q = edge.interpolate(min(float(at["along"]) + 0.01, 1.0), normalized=True)
@@ -194,8 +219,10 @@ def _locate(spec: Mapping[str, Any], item: Mapping[str, Any]) -> tuple[float, fl
     across = LineString([(p.x - normal[0], p.y - normal[1]), (p.x + normal[0], p.y + normal[1])])
     cut = across.intersection(Polygon(zone["polygon"]))
     if cut.is_empty:
-        raise ConfigError(f"named object {item['name']!r}: no {at['zone']} zone across sidewalk {sw['id']} at "
-                          f"along={at['along']}; try another fraction")
+        raise ConfigError(
+            f"named object {item['name']!r}: no {at['zone']} zone across sidewalk {sw['id']} at "
+            f"along={at['along']}; try another fraction"
+        )
     # The nearest piece of the zone across the curb at that point, and its middle.
     pieces = list(getattr(cut, "geoms", [cut]))
     piece = min(pieces, key=lambda g: g.distance(p))

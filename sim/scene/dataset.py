@@ -13,17 +13,38 @@ from kernel.config import check_choice
 
 # Categories held out of train/test and seen only in unseen/finetune (with template g); within the other categories a
 # fifth of the catalog's assets is held out the same way (catalogs.reader.CatalogReader.asset_split).
-HELD_OUT_CATEGORIES = ["drinking_fountain", "e_scooter", "food_cart", "kiosk", "phone_booth", "shopping_bag", "vending_machine"]
+HELD_OUT_CATEGORIES = [
+    "drinking_fountain",
+    "e_scooter",
+    "food_cart",
+    "kiosk",
+    "phone_booth",
+    "shopping_bag",
+    "vending_machine",
+]
 SPLITS: dict[str, dict[str, Any]] = {
     "train": {"templates": "abcdef", "exclude_categories": HELD_OUT_CATEGORIES, "assets": "seen", "seed_offset": 0},
-    "test": {"templates": "abcdef", "exclude_categories": HELD_OUT_CATEGORIES, "assets": "seen",
-             "seed_offset": 1_000_000},
+    "test": {
+        "templates": "abcdef",
+        "exclude_categories": HELD_OUT_CATEGORIES,
+        "assets": "seen",
+        "seed_offset": 1_000_000,
+    },
     "unseen": {"templates": "g", "exclude_categories": [], "assets": "held_out", "seed_offset": 2_000_000},
     "finetune": {"templates": "g", "exclude_categories": [], "assets": "held_out", "seed_offset": 3_000_000},
 }
 SUMMARY_KEYS = (
-    "objects", "buildings", "refused_total", "street_length_m", "clear_path_length_m",
-    "walkable_area_m2", "object_area_m2", "object_area_fraction", "sidewalks", "crosswalks", "blocks",
+    "objects",
+    "buildings",
+    "refused_total",
+    "street_length_m",
+    "clear_path_length_m",
+    "walkable_area_m2",
+    "object_area_m2",
+    "object_area_fraction",
+    "sidewalks",
+    "crosswalks",
+    "blocks",
 )
 
 
@@ -107,9 +128,17 @@ MAX_COUNT = 1_000_000  # splits start 1,000,000 seeds apart
 
 
 def build_dataset(
-    split: str, count: int, out: str | Path, *, base: dict[str, Any] | None = None, catalog: str | None = None,
-    workers: int | None = None, progress: Callable[[int], None] | None = None, executor: str | None = None,
-    address: str | None = None, nodes: dict[str, int] | None = None,
+    split: str,
+    count: int,
+    out: str | Path,
+    *,
+    base: dict[str, Any] | None = None,
+    catalog: str | None = None,
+    workers: int | None = None,
+    progress: Callable[[int], None] | None = None,
+    executor: str | None = None,
+    address: str | None = None,
+    nodes: dict[str, int] | None = None,
 ) -> list[dict[str, Any]]:
     """Generate `count` scenes of `split` into `out` (one JSON each) plus index.jsonl and index.parquet.
 
@@ -141,8 +170,16 @@ def build_dataset(
     job = {"cfg": cfg, "catalog": catalog, "out": str(out.resolve()), "split": split, "resolved": resolved}
     rows: list[dict[str, Any]] = []
     seeds = (offset + i for i in range(count))
-    for row, text in run_map(scene_item, seeds, executor=executor, workers=workers, address=address, args=(job,),
-                             progress=progress, nodes=nodes):
+    for row, text in run_map(
+        scene_item,
+        seeds,
+        executor=executor,
+        workers=workers,
+        address=address,
+        args=(job,),
+        progress=progress,
+        nodes=nodes,
+    ):
         if text is not None:
             # Atomic: a kill leaves the old file or none, never half a scene. No fsync: after a power loss a file
             # that came back empty or torn fails `verified_scene` on the next run and is generated again.
@@ -171,12 +208,20 @@ def read_index(directory: str | Path) -> list[dict[str, Any]]:
     """Rows of a dataset's index.jsonl (clear error when the folder is not a dataset)."""
     p = Path(directory) / "index.jsonl"
     if not p.exists():
-        raise FileNotFoundError(f"no index.jsonl in {directory}; create the dataset with `curbside scenes dataset --out {directory}`")
+        raise FileNotFoundError(
+            f"no index.jsonl in {directory}; create the dataset with `curbside scenes dataset --out {directory}`"
+        )
     return [json.loads(line) for line in p.read_text(encoding="utf-8").splitlines() if line.strip()]
 
 
 def _describe(x: np.ndarray) -> dict[str, float]:
-    return {"mean": float(x.mean()), "std": float(x.std()), "min": float(x.min()), "p50": float(np.median(x)), "max": float(x.max())}
+    return {
+        "mean": float(x.mean()),
+        "std": float(x.std()),
+        "min": float(x.min()),
+        "p50": float(np.median(x)),
+        "max": float(x.max()),
+    }
 
 
 def dataset_stats(directory: str | Path) -> tuple[dict[str, Any], Path, Path]:
@@ -190,8 +235,17 @@ def dataset_stats(directory: str | Path) -> tuple[dict[str, Any], Path, Path]:
     rows = read_index(d)
     if not rows:
         raise ValueError(f"{d}/index.jsonl lists no scenes; regenerate the dataset")
-    cols = {k: np.array([r[k] for r in rows], dtype=np.float64) for k in (
-        "objects", "object_area_m2", "object_area_fraction", "street_length_m", "walkable_area_m2", "refused_total")}
+    cols = {
+        k: np.array([r[k] for r in rows], dtype=np.float64)
+        for k in (
+            "objects",
+            "object_area_m2",
+            "object_area_fraction",
+            "street_length_m",
+            "walkable_area_m2",
+            "refused_total",
+        )
+    }
     stats: dict[str, Any] = {"scenes": len(rows), "splits": sorted({r["split"] for r in rows})}
     stats.update({k: _describe(v) for k, v in cols.items()})
     blocks: dict[str, int] = {}
@@ -200,8 +254,11 @@ def dataset_stats(directory: str | Path) -> tuple[dict[str, Any], Path, Path]:
             blocks[c] = blocks.get(c, 0) + 1
     stats["block_types"] = dict(sorted(blocks.items()))
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
-    for ax, key, label in zip(axes, ("objects", "object_area_m2", "street_length_m"),
-                              ("objects per scene", "area occupied by objects (m²)", "street length along the blocks (m)")):
+    for ax, key, label in zip(
+        axes,
+        ("objects", "object_area_m2", "street_length_m"),
+        ("objects per scene", "area occupied by objects (m²)", "street length along the blocks (m)"),
+    ):
         ax.hist(cols[key], bins=min(30, max(5, len(rows) // 3)), color="#1565c0", alpha=0.85)
         ax.axvline(cols[key].mean(), color="#e65100", lw=1.2, label=f"mean {cols[key].mean():.1f}")
         ax.set_xlabel(label)

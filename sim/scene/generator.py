@@ -110,7 +110,8 @@ def _generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any) -> d
     pad = 2 * res
     mask, origin = rasterize(
         [(SIDEWALK, walk_polys), (CROSSWALK, cw_polys), (RAMP, ramp_polys)],
-        (wb[0] - pad, wb[1] - pad, wb[2] + pad, wb[3] + pad), res,
+        (wb[0] - pad, wb[1] - pad, wb[2] + pad, wb[3] + pad),
+        res,
     )
     everything = [b.polygon for b in blocks] + walk_polys + [sw.building.polygon for sw in sidewalks if sw.building]
     bounds = list(_bounds(everything))
@@ -148,10 +149,13 @@ def _generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any) -> d
         "curb_height": float(cfg["curb_height"]),
         "roads": [
             {
-                "id": b.id, "block": b.code, "polygon": ring_coords(b.polygon),
+                "id": b.id,
+                "block": b.code,
+                "polygon": ring_coords(b.polygon),
                 "centerlines": [w.centerline.points.tolist() for w in b.roadways if w.sides != (1,)],
                 "roadway_ids": [w.id for w in b.roadways if w.sides != (1,)],
-                "lanes": b.lanes, "lane_width": b.lane_width,
+                "lanes": b.lanes,
+                "lane_width": b.lane_width,
                 "lane_lines": [ln for w in b.roadways for ln in lane_lines(w, b.lanes, b.lane_width)],
                 "island": ring_coords(b.island) if b.island is not None else None,
             }
@@ -159,18 +163,29 @@ def _generate_scene(config: dict[str, Any] | None, seed: int, catalog: Any) -> d
         ],
         "sidewalks": [
             {
-                "id": sw.id, "road_id": sw.road_id, "roadway_id": sw.roadway.id, "side": sw.side_name,
-                "template": sw.template, "polygon": ring_coords(sw.polygon), "edge": _line(sw.edge),
-                "zones": [{"kind": z.kind, "polygon": ring_coords(z.polygon), "width": z.width}
-                          for z in sw.zones + ([sw.building] if sw.building else [])],
+                "id": sw.id,
+                "road_id": sw.road_id,
+                "roadway_id": sw.roadway.id,
+                "side": sw.side_name,
+                "template": sw.template,
+                "polygon": ring_coords(sw.polygon),
+                "edge": _line(sw.edge),
+                "zones": [
+                    {"kind": z.kind, "polygon": ring_coords(z.polygon), "width": z.width}
+                    for z in sw.zones + ([sw.building] if sw.building else [])
+                ],
                 "clear_path": _line(sw.clear_path),
             }
             for sw in sidewalks
         ],
         "crosswalks": [
             {
-                "id": c.id, "road_id": c.road_id, "polygon": ring_coords(c.polygon), "width": c.width,
-                "ends": [e.tolist() for e in c.ends], "sidewalks": [s.id for s in c.sidewalks],
+                "id": c.id,
+                "road_id": c.road_id,
+                "polygon": ring_coords(c.polygon),
+                "width": c.width,
+                "ends": [e.tolist() for e in c.ends],
+                "sidewalks": [s.id for s in c.sidewalks],
                 "ramps": [{"sidewalk_id": sid, "polygon": ring_coords(p)} for sid, p in c.ramps],
             }
             for c in crosswalks

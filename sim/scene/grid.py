@@ -110,7 +110,9 @@ def _polygons(polys: Iterable[Any]) -> list[Polygon]:
     return out
 
 
-def paint_many(mask: np.ndarray, origin: tuple[float, float], resolution: float, polys: Iterable[Any], value: int | bool) -> None:
+def paint_many(
+    mask: np.ndarray, origin: tuple[float, float], resolution: float, polys: Iterable[Any], value: int | bool
+) -> None:
     """`paint` of every polygon of `polys` with one `value`, in one vectorised pass.
 
     Row k's centre is y_k = y0 + (k + 0.5) * res; an edge crosses row k when min(y) <= y_k < max(y) (the
@@ -158,7 +160,9 @@ def paint_many(mask: np.ndarray, origin: tuple[float, float], resolution: float,
         mask[np.unravel_index(idx, mask.shape)] = value
 
 
-def paint_reference(mask: np.ndarray, origin: tuple[float, float], resolution: float, poly: Polygon, value: int | bool) -> None:
+def paint_reference(
+    mask: np.ndarray, origin: tuple[float, float], resolution: float, poly: Polygon, value: int | bool
+) -> None:
     """Slow reference of `paint`: `shapely.contains_xy` on every cell centre of the polygon's bounding box."""
     if poly.is_empty:
         return
@@ -215,7 +219,9 @@ def decode_walkable(spec: dict[str, Any]) -> WalkableGrid:
     if len(raw) != rows * cols:
         raise ValueError(f"walkable grid holds {len(raw)} cells but its shape says {rows}x{cols}; regenerate the scene")
     mask = np.frombuffer(raw, dtype=np.uint8).reshape(rows, cols).copy()
-    return WalkableGrid(mask=mask, origin=(float(w["origin"][0]), float(w["origin"][1])), resolution=float(w["resolution"]))
+    return WalkableGrid(
+        mask=mask, origin=(float(w["origin"][0]), float(w["origin"][1])), resolution=float(w["resolution"])
+    )
 
 
 def _footprint(obj: Any) -> Polygon:
@@ -226,8 +232,14 @@ def _footprint(obj: Any) -> Polygon:
     return Polygon(obj)
 
 
-def obstacle_mask(grid: WalkableGrid, objects: Iterable[Any], inflate: float = 0.0, *, cover_thin: bool = True,
-                  join_style: str | None = None) -> np.ndarray:
+def obstacle_mask(
+    grid: WalkableGrid,
+    objects: Iterable[Any],
+    inflate: float = 0.0,
+    *,
+    cover_thin: bool = True,
+    join_style: str | None = None,
+) -> np.ndarray:
     """Boolean mask of cells covered by object footprints grown by `inflate` metres (an agent's radius).
 
     `objects` are spec objects (dicts with `footprint`), lists of [x, y] points, or shapely polygons. With
@@ -248,8 +260,10 @@ def obstacle_mask(grid: WalkableGrid, objects: Iterable[Any], inflate: float = 0
             continue
         # Painting sets only cells whose centres lie in the polygon, all inside its bounds: count there, not grid-wide.
         bx0, by0, bx1, by1 = poly.bounds
-        win = (slice(max(int(math.floor((by0 - y0) / res)), 0), min(int(math.ceil((by1 - y0) / res)) + 1, h)),
-               slice(max(int(math.floor((bx0 - x0) / res)), 0), min(int(math.ceil((bx1 - x0) / res)) + 1, w)))
+        win = (
+            slice(max(int(math.floor((by0 - y0) / res)), 0), min(int(math.ceil((by1 - y0) / res)) + 1, h)),
+            slice(max(int(math.floor((bx0 - x0) / res)), 0), min(int(math.ceil((bx1 - x0) / res)) + 1, w)),
+        )
         before = int(out[win].sum())
         paint(out, grid.origin, res, poly, True)
         if int(out[win].sum()) == before:
@@ -259,8 +273,9 @@ def obstacle_mask(grid: WalkableGrid, objects: Iterable[Any], inflate: float = 0
     return out
 
 
-def grid_graph(free: np.ndarray, resolution: float, *, cost: np.ndarray | None = None,
-               corner_cutting: bool = True) -> Any:
+def grid_graph(
+    free: np.ndarray, resolution: float, *, cost: np.ndarray | None = None, corner_cutting: bool = True
+) -> Any:
     """8-connected graph over the True cells of `free`, nodes numbered row-major (as np.nonzero lists them).
 
     An edge costs its length (resolution, or resolution * sqrt 2 on diagonals) times the mean of `cost` at
@@ -275,19 +290,20 @@ def grid_graph(free: np.ndarray, resolution: float, *, cost: np.ndarray | None =
     src, dst, w = [], [], []
     for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
         j0, j1 = max(0, -dj), cols - max(0, dj)
-        a = node[0:rows - di, j0:j1]
-        b = node[di:rows, j0 + dj:j1 + dj]
+        a = node[0 : rows - di, j0:j1]
+        b = node[di:rows, j0 + dj : j1 + dj]
         ok = (a >= 0) & (b >= 0)
         if di and dj and not corner_cutting:
-            ok &= (node[di:rows, j0:j1] >= 0) & (node[0:rows - di, j0 + dj:j1 + dj] >= 0)
+            ok &= (node[di:rows, j0:j1] >= 0) & (node[0 : rows - di, j0 + dj : j1 + dj] >= 0)
         src.append(a[ok])
         dst.append(b[ok])
         length = resolution * math.hypot(di, dj)
         if cost is None:
             w.append(np.full(int(ok.sum()), length))
         else:
-            w.append(length * (0.5 * (cost[0:rows - di, j0:j1][ok] + cost[di:rows, j0 + dj:j1 + dj][ok])))
+            w.append(length * (0.5 * (cost[0 : rows - di, j0:j1][ok] + cost[di:rows, j0 + dj : j1 + dj][ok])))
     src_a, dst_a, w_a = np.concatenate(src), np.concatenate(dst), np.concatenate(w)
     n = int(free.sum())
-    return coo_matrix((np.concatenate([w_a, w_a]), (np.concatenate([src_a, dst_a]), np.concatenate([dst_a, src_a]))),
-                      shape=(n, n)).tocsr()
+    return coo_matrix(
+        (np.concatenate([w_a, w_a]), (np.concatenate([src_a, dst_a]), np.concatenate([dst_a, src_a]))), shape=(n, n)
+    ).tocsr()

@@ -12,8 +12,9 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def locate_on_segments(points: np.ndarray, seg: np.ndarray, seg_len: np.ndarray, s: np.ndarray, k0: int, k1: int,
-                       x: float, y: float) -> tuple[float, float]:  # pragma: no cover - numba
+def locate_on_segments(
+    points: np.ndarray, seg: np.ndarray, seg_len: np.ndarray, s: np.ndarray, k0: int, k1: int, x: float, y: float
+) -> tuple[float, float]:  # pragma: no cover - numba
     """Polyline.locate on segments k0..k1: each segment's closest point, the nearest one's (arc length, offset)
     (the numpy version's float operations in its order; a NaN distance wins, as np.argmin picks it)."""
     best, k = np.inf, -1

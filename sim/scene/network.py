@@ -65,7 +65,9 @@ def join_seams(blocks: list[Block], sidewalks: list[Sidewalk], roads: list[Polyg
             for piece in getattr(patch, "geoms", [patch]):
                 if not isinstance(piece, Polygon) or piece.area < 0.05:
                     continue
-                owner = swc if piece.distance(swc.polygon) < 1e-6 else swp if piece.distance(swp.polygon) < 1e-6 else None
+                owner = (
+                    swc if piece.distance(swc.polygon) < 1e-6 else swp if piece.distance(swp.polygon) < 1e-6 else None
+                )
                 if owner is None:
                     continue
                 owner.polygon = _merge(owner.polygon, piece)
@@ -93,12 +95,15 @@ def sidewalk_groups(sidewalks: list[Sidewalk]) -> list[int]:
     return [int(groups[i]) for i in range(len(sidewalks))]
 
 
-def connecting_picks(pairs: list[tuple[int, int]], chosen: list[bool], groups: list[int], order: np.ndarray) -> list[bool]:
+def connecting_picks(
+    pairs: list[tuple[int, int]], chosen: list[bool], groups: list[int], order: np.ndarray
+) -> list[bool]:
     """`chosen` plus the fewest candidates (tried in `order`) that join sidewalk groups not yet joined.
 
     `pairs` holds, per crosswalk candidate, the indices of the two sidewalks it would join.
     """
     from scipy.cluster.hierarchy import DisjointSet
+
     joined = DisjointSet(groups)
     out = list(chosen)
     for k, (i, j) in enumerate(pairs):

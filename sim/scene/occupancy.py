@@ -42,12 +42,15 @@ def rect(x: float, y: float, c: float, s: float, depth: float, width: float) -> 
     qx, qy = x + ax - bx, y + ay - by
     rx, ry = x + ax + bx, y + ay + by
     tx, ty = x - ax + bx, y - ay + by
-    return ([[px, py], [qx, qy], [rx, ry], [tx, ty]],
-            (min(px, qx, rx, tx), min(py, qy, ry, ty), max(px, qx, rx, tx), max(py, qy, ry, ty)))
+    return (
+        [[px, py], [qx, qy], [rx, ry], [tx, ty]],
+        (min(px, qx, rx, tx), min(py, qy, ry, ty), max(px, qx, rx, tx), max(py, qy, ry, ty)),
+    )
 
 
-def rects(x: np.ndarray, y: np.ndarray, c: np.ndarray, s: np.ndarray, depth: np.ndarray,
-          width: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def rects(
+    x: np.ndarray, y: np.ndarray, c: np.ndarray, s: np.ndarray, depth: np.ndarray, width: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """`rect` for n rectangles at once: corners [n, 4, 2] in the same order and doubles, and bounds [n, 4]."""
     ax, ay = c * depth / 2, s * depth / 2
     bx, by = -s * width / 2, c * width / 2
@@ -68,7 +71,9 @@ def corridor(sw: Sidewalk, width: float, extend: float = 4.0) -> Polygon:
 
 def _cells(b: Bounds) -> list[tuple[int, int]]:
     x0, y0, x1, y1 = b
-    return [(i, j) for i in range(int(x0 // CELL), int(x1 // CELL) + 1) for j in range(int(y0 // CELL), int(y1 // CELL) + 1)]
+    return [
+        (i, j) for i in range(int(x0 // CELL), int(x1 // CELL) + 1) for j in range(int(y0 // CELL), int(y1 // CELL) + 1)
+    ]
 
 
 class Occupancy:
@@ -90,7 +95,9 @@ class Occupancy:
         self.keep_polys = polys
         if polys:
             shapely.prepare(polys)
-        self.keep_bounds = [tuple(map(float, b)) for b in shapely.bounds(np.asarray(polys, dtype=object))] if polys else []
+        self.keep_bounds = (
+            [tuple(map(float, b)) for b in shapely.bounds(np.asarray(polys, dtype=object))] if polys else []
+        )
         self.keep_cells = {}
         self.keep_tree = shapely.STRtree(polys) if polys else None
         for k, b in enumerate(self.keep_bounds):

@@ -35,17 +35,25 @@ PAPER_STATS: dict[str, tuple[float, str]] = {
     "episodes_over_800_steps": (0.20, "> 20 %"),
 }
 LABELS = {
-    "objects_per_scene": "objects per scene", "objects_per_m2": "static objects per m²",
-    "nearest_object_m": "mean nearest-object distance (m)", "occupied_area_m2": "area occupied by objects (m²)",
-    "scene_area_m2": "area per scene (m²)", "agents_per_block": "dynamic agents per block",
-    "route_length_m": "mean PointNav route length (m)", "episodes_over_800_steps": "episodes over 800 steps",
+    "objects_per_scene": "objects per scene",
+    "objects_per_m2": "static objects per m²",
+    "nearest_object_m": "mean nearest-object distance (m)",
+    "occupied_area_m2": "area occupied by objects (m²)",
+    "scene_area_m2": "area per scene (m²)",
+    "agents_per_block": "dynamic agents per block",
+    "route_length_m": "mean PointNav route length (m)",
+    "episodes_over_800_steps": "episodes over 800 steps",
 }
 LOWER_BOUNDS = ("objects_per_scene", "episodes_over_800_steps")  # ">= 300 per scene", "> 20 %"; the rest: within 25 %
 EXPERT_SPEED = 2.5  # m/s: the built-in expert's cruise speed (sim.expert.PurePursuitExpert)
 
 
-def scene_figures(spec: Scene | Mapping[str, Any], rng: np.random.Generator, route_length: tuple[float, float],
-                  agents: dict[str, Any] | None = None) -> dict[str, float]:
+def scene_figures(
+    spec: Scene | Mapping[str, Any],
+    rng: np.random.Generator,
+    route_length: tuple[float, float],
+    agents: dict[str, Any] | None = None,
+) -> dict[str, float]:
     """The per-scene figures of the table above for one scene (a dict is parsed)."""
     import shapely
     from shapely.geometry import Polygon
@@ -87,8 +95,14 @@ def scene_figures(spec: Scene | Mapping[str, Any], rng: np.random.Generator, rou
     return out
 
 
-def dataset_vs_paper(directory: str | Path, *, route_length: tuple[float, float] | None = None, seed: int = 0,
-                     agent_density: float | None = None, progress: Callable[[int], None] | None = None) -> dict[str, Any]:
+def dataset_vs_paper(
+    directory: str | Path,
+    *,
+    route_length: tuple[float, float] | None = None,
+    seed: int = 0,
+    agent_density: float | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> dict[str, Any]:
     """Mean of every figure over a dataset's scenes beside the paper's, with the ratio; also the per-scene values."""
     from sim.scene.dataset import read_index
     from sim.tasks.pointnav import DEFAULT_CONFIG
@@ -102,8 +116,9 @@ def dataset_vs_paper(directory: str | Path, *, route_length: tuple[float, float]
     rng = np.random.default_rng(seed)
     per_scene: dict[str, list[float]] = {k: [] for k in PAPER_STATS}
     for r in rows:
-        figs = scene_figures(read_scene(d / r["file"]), rng, rl,
-                             None if agent_density is None else {"dynamic_density": agent_density})
+        figs = scene_figures(
+            read_scene(d / r["file"]), rng, rl, None if agent_density is None else {"dynamic_density": agent_density}
+        )
         for k, v in figs.items():
             per_scene[k].append(v)
         if progress:
@@ -116,10 +131,22 @@ def dataset_vs_paper(directory: str | Path, *, route_length: tuple[float, float]
             meets = bool(value >= paper)
         else:
             meets = bool(abs(ours / paper - 1.0) <= 0.25)
-        table[k] = {"ours": ours, "paper": paper, "paper_text": paper_text, "ratio": ours / paper, "meets": meets,
-                    "min": float(np.nanmin(per_scene[k])), "max": float(np.nanmax(per_scene[k]))}
-    return {"scenes": len(rows), "route_length": list(rl), "agent_density": agent_density, "table": table,
-            "per_scene": per_scene}
+        table[k] = {
+            "ours": ours,
+            "paper": paper,
+            "paper_text": paper_text,
+            "ratio": ours / paper,
+            "meets": meets,
+            "min": float(np.nanmin(per_scene[k])),
+            "max": float(np.nanmax(per_scene[k])),
+        }
+    return {
+        "scenes": len(rows),
+        "route_length": list(rl),
+        "agent_density": agent_density,
+        "table": table,
+        "per_scene": per_scene,
+    }
 
 
 def plot_vs_paper(result: dict[str, Any], png: Path) -> Path:
@@ -131,14 +158,20 @@ def plot_vs_paper(result: dict[str, Any], png: Path) -> Path:
 
     ps = result["per_scene"]
     steps = np.asarray(ps["route_length_m"], dtype=float) / (EXPERT_SPEED * 0.1)
-    panels = (("objects_per_scene", np.asarray(ps["objects_per_scene"]), "objects per scene", 300.0),
-              ("occupied_area_m2", np.asarray(ps["occupied_area_m2"]), "area occupied by objects (m²)", 5250.0),
-              ("episode_steps", steps[np.isfinite(steps)], "episode length (expert steps)", 410.0 / (EXPERT_SPEED * 0.1)))
+    panels = (
+        ("objects_per_scene", np.asarray(ps["objects_per_scene"]), "objects per scene", 300.0),
+        ("occupied_area_m2", np.asarray(ps["occupied_area_m2"]), "area occupied by objects (m²)", 5250.0),
+        ("episode_steps", steps[np.isfinite(steps)], "episode length (expert steps)", 410.0 / (EXPERT_SPEED * 0.1)),
+    )
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for ax, (_, values, label, paper) in zip(axes, panels):
         ax.hist(values, bins=min(30, max(5, len(values) // 3)), color="#1565c0", alpha=0.85)
-        ax.axvline(float(np.mean(values)) if len(values) else 0.0, color="#e65100", lw=1.2,
-                   label=f"curbside mean {np.mean(values) if len(values) else float('nan'):.0f}")
+        ax.axvline(
+            float(np.mean(values)) if len(values) else 0.0,
+            color="#e65100",
+            lw=1.2,
+            label=f"curbside mean {np.mean(values) if len(values) else float('nan'):.0f}",
+        )
         ax.axvline(paper, color="#424242", lw=1.2, ls="--", label=f"MetaUrban-12K {paper:.0f}")
         ax.set_xlabel(label)
         ax.set_ylabel("scenes")

@@ -51,7 +51,9 @@ class Placer:
         """Areas no object may touch (clear-path corridors, ramp approaches)."""
         self.occupied.set_keep_out(polys)
 
-    def asset(self, category: str, zone: str, max_depth: float, max_width: float | None = None) -> tuple[str | None, list[float]] | None:
+    def asset(
+        self, category: str, zone: str, max_depth: float, max_width: float | None = None
+    ) -> tuple[str | None, list[float]] | None:
         """(asset_id, size) of an asset of `category` that fits, a fallback box, or None when nothing fits."""
         if self.in_catalog(category):
             rec = self.catalog.sample(self.rng, category, zone=zone, max_depth=max_depth, max_width=max_width)
@@ -65,7 +67,11 @@ class Placer:
     def _note_fallback(self, category: str) -> None:
         if category not in self.fallback:
             self.fallback.append(category)
-            src = "no catalog was given" if self.catalog is None else f"catalog {self.catalog.path} has no {category!r} asset"
+            src = (
+                "no catalog was given"
+                if self.catalog is None
+                else f"catalog {self.catalog.path} has no {category!r} asset"
+            )
             warnings.warn(f"{src}; placing default-size boxes for category {category!r}", stacklevel=5)
 
     def note_fallback(self, categories: np.ndarray) -> None:
@@ -84,8 +90,15 @@ class Placer:
         return ent
 
     def try_place(
-        self, sw: Sidewalk, zone: Zone, category: str, asset: tuple[str | None, list[float]],
-        center: np.ndarray | tuple[float, float], yaw: float, *, keep_out: bool = True,
+        self,
+        sw: Sidewalk,
+        zone: Zone,
+        category: str,
+        asset: tuple[str | None, list[float]],
+        center: np.ndarray | tuple[float, float],
+        yaw: float,
+        *,
+        keep_out: bool = True,
     ) -> bool:
         """Place one object if its footprint lies in `zone`, overlaps nothing and (optionally) avoids keep-outs."""
         depth, width, height = asset[1]
@@ -111,18 +124,20 @@ class Placer:
             self.object_area += depth * width
         # Objects are stored as the spec holds them (sim.scene.spec.canonical: 0.1 mm), so the generator need not
         # walk hundreds of them again; placement itself used the exact corners above.
-        self.objects.append({
-            "id": f"o{len(self.objects)}",
-            "asset_id": asset[0],
-            "category": category,
-            "object_class": CATEGORIES[category].object_class,
-            "zone": zone.kind,
-            "sidewalk_id": sw.id,
-            "position": [round_value(x), round_value(y), self.z],
-            "yaw": round_value(math.atan2(math.sin(yaw), math.cos(yaw))),  # wrapped to (-pi, pi]
-            "size": [round_value(float(depth)), round_value(float(width)), round_value(float(height))],
-            "footprint": round_points(corners),
-        })
+        self.objects.append(
+            {
+                "id": f"o{len(self.objects)}",
+                "asset_id": asset[0],
+                "category": category,
+                "object_class": CATEGORIES[category].object_class,
+                "zone": zone.kind,
+                "sidewalk_id": sw.id,
+                "position": [round_value(x), round_value(y), self.z],
+                "yaw": round_value(math.atan2(math.sin(yaw), math.cos(yaw))),  # wrapped to (-pi, pi]
+                "size": [round_value(float(depth)), round_value(float(width)), round_value(float(height))],
+                "footprint": round_points(corners),
+            }
+        )
         return True
 
     def _count(self, per_100m: float, length: float) -> int:
@@ -155,7 +170,9 @@ class Placer:
             if not ok:
                 self.refused[cat] += 1
 
-    def _random_in(self, sw: Sidewalk, zone: Zone, category: str, asset: tuple[str | None, list[float]], yaw_mode: str) -> bool:
+    def _random_in(
+        self, sw: Sidewalk, zone: Zone, category: str, asset: tuple[str | None, list[float]], yaw_mode: str
+    ) -> bool:
         depth, width, _ = asset[1]
         half = max(depth, width) / 2 if yaw_mode == "random" else depth / 2
         lo, hi = zone.d0 + half, zone.d1 - half
@@ -180,12 +197,17 @@ class Placer:
         present = {z.kind: z for z in sw.zones}
         length = sw.s_range[1] - sw.s_range[0]
         for _ in range(self._count(float(self.cfg["non_standard_per_100m"]), length)):
-            allowed = [c for c in of_class("non_standard") if any(
-                z in present and self.min_depth[c] <= present[z].width for z in CATEGORIES[c].zones)]
+            allowed = [
+                c
+                for c in of_class("non_standard")
+                if any(z in present and self.min_depth[c] <= present[z].width for z in CATEGORIES[c].zones)
+            ]
             cat = self.sampler.draw(self.rng, "non_standard", allowed)
             if cat is None:
                 return
-            zones = [present[z] for z in CATEGORIES[cat].zones if z in present and self.min_depth[cat] <= present[z].width]
+            zones = [
+                present[z] for z in CATEGORIES[cat].zones if z in present and self.min_depth[cat] <= present[z].width
+            ]
             zone = zones[int(self.rng.integers(len(zones)))]
             a = self.asset(cat, zone.kind, zone.width)
             if a is None or not self._random_in(sw, zone, cat, a, "aligned"):
@@ -225,8 +247,10 @@ class Placer:
                 # Parked scooters, bicycles and bags along the edges of the walkway, outside the kept corridor.
                 margin = 0.5 * (zone.width - float(self.cfg["min_clear_width"]))
                 if margin >= 0.45:
-                    rows += [Row(zone, zone.d0, zone.d0 + margin, 2.0 * gap_mean, 1.0),
-                             Row(zone, zone.d1 - margin, zone.d1, 2.0 * gap_mean, 1.0)]
+                    rows += [
+                        Row(zone, zone.d0, zone.d0 + margin, 2.0 * gap_mean, 1.0),
+                        Row(zone, zone.d1 - margin, zone.d1, 2.0 * gap_mean, 1.0),
+                    ]
                 continue
             if zone.kind not in FILL_ZONES:
                 continue
@@ -252,7 +276,11 @@ class Placer:
         fill = self.cfg["density_model"] == "paper"
         while s < s_end - 4.0:
             want = float(self.rng.uniform(8.0, 20.0))
-            a = None if fill and not self.in_catalog("building_facade") else self.asset("building_facade", "building", zone.width, want)
+            a = (
+                None
+                if fill and not self.in_catalog("building_facade")
+                else self.asset("building_facade", "building", zone.width, want)
+            )
             if a is None and not fill:
                 skipped += 1
                 s += 3.0
@@ -271,7 +299,9 @@ class Placer:
                 size = [a[1][0] * deep, max(a[1][1] * shrink, 3.0), a[1][2]]
                 sc = s + size[1] / 2 + 0.1
                 x, y, h = cl.point_xy(sc, side * (zone.d0 + size[0] / 2))
-                if self.try_place(sw, zone, "building_facade", (a[0], size), (x, y), h - side * math.pi / 2, keep_out=False):
+                if self.try_place(
+                    sw, zone, "building_facade", (a[0], size), (x, y), h - side * math.pi / 2, keep_out=False
+                ):
                     s = sc + size[1] / 2 + 0.1
                     placed = True
                     break

@@ -116,8 +116,9 @@ class Polyline:
         """Arc length of the closest point of the line to each of the points `xy` [n, 2] (shapely, all at once)."""
         return shapely.line_locate_point(self.line, shapely.points(np.asarray(xy)))
 
-    def locate(self, x: float, y: float, s_hint: float | None = None,
-               window: tuple[float, float] = (3.0, 8.0)) -> tuple[float, float]:
+    def locate(
+        self, x: float, y: float, s_hint: float | None = None, window: tuple[float, float] = (3.0, 8.0)
+    ) -> tuple[float, float]:
         """(arc length, signed lateral offset; left positive) of the closest point to (x, y), searched only on
         the segments from `window[0]` before to `window[1]` after `s_hint` when given (a tracker's next step)."""
         if s_hint is None:
@@ -131,4 +132,3 @@ class Polyline:
         from sim.scene.locate import locate_on_segments
 
         return locate_on_segments(self.points, self.seg, self.seg_len, self.s, k0, k1, float(x), float(y))
-

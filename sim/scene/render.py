@@ -51,12 +51,24 @@ class PlotCanvas:
             return
         paths = [i[0] for i in self._items]
         if self._kind == "polygon":
-            self.ax.add_collection(PolyCollection(
-                paths, facecolors=[_rgba(i[1]) for i in self._items], edgecolors=[_rgba(i[2]) for i in self._items],
-                linewidths=[0.0 if i[2] is None else i[3] * self.pt_per_px for i in self._items], zorder=self._z))
+            self.ax.add_collection(
+                PolyCollection(
+                    paths,
+                    facecolors=[_rgba(i[1]) for i in self._items],
+                    edgecolors=[_rgba(i[2]) for i in self._items],
+                    linewidths=[0.0 if i[2] is None else i[3] * self.pt_per_px for i in self._items],
+                    zorder=self._z,
+                )
+            )
         else:
-            self.ax.add_collection(LineCollection(paths, colors=[_rgba(i[1]) for i in self._items],
-                                                  linewidths=[i[3] * self.pt_per_px for i in self._items], zorder=self._z))
+            self.ax.add_collection(
+                LineCollection(
+                    paths,
+                    colors=[_rgba(i[1]) for i in self._items],
+                    linewidths=[i[3] * self.pt_per_px for i in self._items],
+                    zorder=self._z,
+                )
+            )
         self._items, self._z = [], self._z + 0.001
 
     def _add(self, kind: str, item: tuple) -> None:
@@ -91,13 +103,19 @@ def render_scene(spec: Scene | Mapping[str, Any], out: str | Path, *, dpi: int =
     x0, y0 = xmin + 0.03 * w, ymin + 0.03 * h
     ax.add_patch(Rectangle((x0, y0), bar, max(h, w) * 0.006, color="black"))
     ax.text(x0 + bar / 2, y0 + max(h, w) * 0.015, f"{bar:.0f} m", ha="center", va="bottom", fontsize=8)
-    handles = [Patch(color=SURFACE["road"][:3], label="road")] + [Patch(color=c, label=k.replace("_", " ")) for k, c in ZONE.items()]
-    handles += [Patch(facecolor=SURFACE["crosswalk"][:3], edgecolor=EDGE, hatch="||||", label="crosswalk"),
-                Patch(color=SURFACE["ramp"][:3], label="curb ramp")]
+    handles = [Patch(color=SURFACE["road"][:3], label="road")] + [
+        Patch(color=c, label=k.replace("_", " ")) for k, c in ZONE.items()
+    ]
+    handles += [
+        Patch(facecolor=SURFACE["crosswalk"][:3], edgecolor=EDGE, hatch="||||", label="crosswalk"),
+        Patch(color=SURFACE["ramp"][:3], label="curb ramp"),
+    ]
     kinds = sorted({(t["kind"], t["surface"]) for t in scene.terrain})  # only the terrain this scene holds
     handles += [Patch(facecolor=terrain_colour(k, s)[:3], edgecolor=EDGE, label=f"{k} ({s})") for k, s in kinds]
-    handles += [Patch(color=c, label=f"{k.replace('_', '-')} object" if k != "building" else "building facade")
-                for k, c in OBJECT_CLASS.items()]
+    handles += [
+        Patch(color=c, label=f"{k.replace('_', '-')} object" if k != "building" else "building facade")
+        for k, c in OBJECT_CLASS.items()
+    ]
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
     ax.set_xlim(xmin - 2, xmax + 2)
     ax.set_ylim(ymin - 2, ymax + 2)
@@ -105,7 +123,9 @@ def render_scene(spec: Scene | Mapping[str, Any], out: str | Path, *, dpi: int =
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     st = scene.stats
-    ax.set_title(title or f"seed {scene.seed} · blocks {st.get('blocks', '')} · {st.get('objects', 0)} objects", fontsize=9)
+    ax.set_title(
+        title or f"seed {scene.seed} · blocks {st.get('blocks', '')} · {st.get('objects', 0)} objects", fontsize=9
+    )
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()

@@ -138,7 +138,9 @@ def _overlaps(new: Block, blocks: list[Block], socket: np.ndarray, margin: float
             if inter > 2.0:
                 return True
             # Near the shared socket the claims overlap by construction; elsewhere they must not.
-            keep_out = Point(socket).buffer(2 * margin + 2 * max(b.lanes * b.lane_width, new.lanes * new.lane_width), quad_segs=4)
+            keep_out = Point(socket).buffer(
+                2 * margin + 2 * max(b.lanes * b.lane_width, new.lanes * new.lane_width), quad_segs=4
+            )
             if claim.difference(keep_out).intersects(b.claim.difference(keep_out)):
                 return True
         elif claim.intersects(b.claim):

@@ -86,8 +86,10 @@ def fits_for(catalog: CatalogReader | None, zone: str) -> Fits:
 
 def _pad(index: np.ndarray, size: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     extra = m - index.shape[1]
-    return (np.pad(index, ((0, 0), (0, extra)), constant_values=-1),
-            np.pad(size, ((0, 0), (0, extra), (0, 0)), constant_values=np.inf))
+    return (
+        np.pad(index, ((0, 0), (0, extra)), constant_values=-1),
+        np.pad(size, ((0, 0), (0, extra), (0, 0)), constant_values=np.inf),
+    )
 
 
 def _cdf(placer: Placer, object_class: str, allowed: tuple[str, ...] | None) -> tuple[np.ndarray, np.ndarray] | None:
@@ -127,14 +129,22 @@ def fill_rows(placer: Placer, sw: Sidewalk, rows: list[Row]) -> None:
     for k, r in enumerate(rows):
         zkind = "furnishing" if r.zone.kind == "near_road_buffer" else r.zone.kind
         faces[k] = side * math.pi / 2 * (1 if zkind == "furnishing" else -1)  # furnishing faces the walkway
-        allowed = tuple(c for c, row in CATEGORIES.items() if row.object_class != "clutter" and zkind in row.zones
-                        and c != "building_facade" and placer.min_depth[c] <= max_depth[k])
+        allowed = tuple(
+            c
+            for c, row in CATEGORIES.items()
+            if row.object_class != "clutter"
+            and zkind in row.zones
+            and c != "building_facade"
+            and placer.min_depth[c] <= max_depth[k]
+        )
         ns = tuple(c for c in allowed if CATEGORIES[c].object_class == "non_standard")
         if allowed:
             main_of[k] = mains.setdefault(ns or allowed, len(mains))
     p_clutter[main_of < 0] = 1.0
-    main_cdfs = [_cdf(placer, "non_standard" if CATEGORIES[key[0]].object_class == "non_standard" else "standard", key)
-                 for key in mains]
+    main_cdfs = [
+        _cdf(placer, "non_standard" if CATEGORIES[key[0]].object_class == "non_standard" else "standard", key)
+        for key in mains
+    ]
     clutter_cdf = _cdf(placer, "clutter", None)
     s0, s1 = sw.s_range
     at = s0 + gap * rng.random(n_rows)
@@ -173,8 +183,9 @@ def fill_rows(placer: Placer, sw: Sidewalk, rows: list[Row]) -> None:
         place_many(placer, sw, [r.zone for r in rows], row[ok], cat[ok], index[ok], size[ok], x, y, yaw)
 
 
-def _pick(placer: Placer, kinds: list[str], row: np.ndarray, cat: np.ndarray, u: np.ndarray,
-          max_depth: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _pick(
+    placer: Placer, kinds: list[str], row: np.ndarray, cat: np.ndarray, u: np.ndarray, max_depth: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`Fits.pick` for steps of rows in several zones: each zone kind's steps from its own table."""
     found = np.zeros(len(row), dtype=bool)
     index = np.full(len(row), -1, dtype=np.int64)
@@ -186,8 +197,13 @@ def _pick(placer: Placer, kinds: list[str], row: np.ndarray, cat: np.ndarray, u:
     return found, index, size
 
 
-def _draw(clutter: np.ndarray, u: np.ndarray, main_of: np.ndarray, mains: list[tuple[np.ndarray, np.ndarray] | None],
-          clutter_cdf: tuple[np.ndarray, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray]:
+def _draw(
+    clutter: np.ndarray,
+    u: np.ndarray,
+    main_of: np.ndarray,
+    mains: list[tuple[np.ndarray, np.ndarray] | None],
+    clutter_cdf: tuple[np.ndarray, np.ndarray] | None,
+) -> tuple[np.ndarray, np.ndarray]:
     """(category index, drawn) per step: clutter steps from the clutter CDF, the others from their row's CDF."""
     cat = np.zeros(len(u), dtype=np.int64)
     drawn = np.zeros(len(u), dtype=bool)
@@ -198,8 +214,18 @@ def _draw(clutter: np.ndarray, u: np.ndarray, main_of: np.ndarray, mains: list[t
     return cat, drawn
 
 
-def place_many(placer: Placer, sw: Sidewalk, zones: list[Zone], zone_of: np.ndarray, cat: np.ndarray,
-               index: np.ndarray, size: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray) -> None:
+def place_many(
+    placer: Placer,
+    sw: Sidewalk,
+    zones: list[Zone],
+    zone_of: np.ndarray,
+    cat: np.ndarray,
+    index: np.ndarray,
+    size: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    yaw: np.ndarray,
+) -> None:
     """`Placer.try_place` for a batch in order (object k in zones[zone_of[k]]): the zone and keep-out tests run on
     all at once, the overlap test against the objects placed so far (earlier ones of the batch too) one by one."""
     yl = yaw.tolist()
@@ -209,7 +235,9 @@ def place_many(placer: Placer, sw: Sidewalk, zones: list[Zone], zone_of: np.ndar
     corners, pb = rects(x, y, c, sn, depth, width)
     shapes = [placer.zone_shape(z) for z in zones]
     zb = np.array([b for _, b in shapes])[zone_of]
-    cand = np.flatnonzero((pb[:, 0] >= zb[:, 0]) & (pb[:, 1] >= zb[:, 1]) & (pb[:, 2] <= zb[:, 2]) & (pb[:, 3] <= zb[:, 3]))
+    cand = np.flatnonzero(
+        (pb[:, 0] >= zb[:, 0]) & (pb[:, 1] >= zb[:, 1]) & (pb[:, 2] <= zb[:, 2]) & (pb[:, 3] <= zb[:, 3])
+    )
     ok = np.zeros(len(x), dtype=bool)
     if len(cand):
         polys = shapely.polygons(corners[cand])
@@ -240,8 +268,17 @@ def place_many(placer: Placer, sw: Sidewalk, zones: list[Zone], zone_of: np.ndar
     ids = placer.catalog.table.asset_id if placer.catalog is not None else None
     objects, z, sid = placer.objects, placer.z, sw.id
     for k, (i, ci, zi) in enumerate(zip(index[p].tolist(), cat[p].tolist(), zone_of[p].tolist())):
-        objects.append({
-            "id": f"o{len(objects)}", "asset_id": ids[i] if i >= 0 else None, "category": NAMES[ci],
-            "object_class": _CLASS[ci], "zone": zones[zi].kind, "sidewalk_id": sid, "position": [*pos[k], z],
-            "yaw": yw[k], "size": sz[k], "footprint": fp[k],
-        })
+        objects.append(
+            {
+                "id": f"o{len(objects)}",
+                "asset_id": ids[i] if i >= 0 else None,
+                "category": NAMES[ci],
+                "object_class": _CLASS[ci],
+                "zone": zones[zi].kind,
+                "sidewalk_id": sid,
+                "position": [*pos[k], z],
+                "yaw": yw[k],
+                "size": sz[k],
+                "footprint": fp[k],
+            }
+        )

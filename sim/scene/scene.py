@@ -60,13 +60,22 @@ class Scene:
         if isinstance(spec, Scene):
             return spec
         check_spec(spec, source)
-        return cls(spec=spec, version=str(spec["version"]), seed=int(spec.get("seed", 0)),
-                   bounds=tuple(float(v) for v in spec["bounds"]),  # type: ignore[arg-type]
-                   curb_height=float(spec.get("curb_height", DEFAULT_CURB_HEIGHT)),
-                   roads=tuple(spec["roads"]), sidewalks=tuple(spec["sidewalks"]),
-                   crosswalks=tuple(spec["crosswalks"]), objects=tuple(spec["objects"]),
-                   config=spec.get("config") or {}, stats=spec.get("stats") or {}, catalog=spec.get("catalog"),
-                   source=source, terrain=tuple(spec.get("terrain") or ()))
+        return cls(
+            spec=spec,
+            version=str(spec["version"]),
+            seed=int(spec.get("seed", 0)),
+            bounds=tuple(float(v) for v in spec["bounds"]),  # type: ignore[arg-type]
+            curb_height=float(spec.get("curb_height", DEFAULT_CURB_HEIGHT)),
+            roads=tuple(spec["roads"]),
+            sidewalks=tuple(spec["sidewalks"]),
+            crosswalks=tuple(spec["crosswalks"]),
+            objects=tuple(spec["objects"]),
+            config=spec.get("config") or {},
+            stats=spec.get("stats") or {},
+            catalog=spec.get("catalog"),
+            source=source,
+            terrain=tuple(spec.get("terrain") or ()),
+        )
 
     @classmethod
     def load(cls, path: str | Path) -> Scene:
@@ -121,7 +130,9 @@ def check_spec(spec: Any, source: str = "scene spec") -> None:
     if not isinstance(spec, Mapping):
         raise SceneError(f"{source} must be a JSON object, got {type(spec).__name__}; {_REGENERATE}")
     if spec.get("version") != SPEC_VERSION:
-        raise SceneError(f"{source} has version {spec.get('version')!r}; this curbside reads {SPEC_VERSION!r}: {_REGENERATE}")
+        raise SceneError(
+            f"{source} has version {spec.get('version')!r}; this curbside reads {SPEC_VERSION!r}: {_REGENERATE}"
+        )
     missing = [k for k in SPEC_FIELDS if k not in spec]
     if missing:
         raise SceneError(f"{source} lacks {', '.join(missing)}; {_REGENERATE}")
@@ -227,9 +238,15 @@ def _check_terrain(records: Any, source: str) -> None:
 def _check_walkable(w: Any, source: str) -> None:
     """Raise SceneError unless `w` is a walkable object with a finite origin, a resolution, a shape and cells."""
     shape = w.get("shape") if isinstance(w, Mapping) else None
-    if (not isinstance(w, Mapping) or not _finite(w.get("origin"), 2) or not _finite([w.get("resolution")], 1)
-            or not w["resolution"] > 0 or not (isinstance(shape, list) and len(shape) == 2
-                                               and all(isinstance(v, int) and v > 0 for v in shape))
-            or not isinstance(w.get("cells"), str)):
-        raise SceneError(f"{source} walkable must hold a finite origin, a resolution > 0, a [rows, cols] shape "
-                         f"and encoded cells; {_REGENERATE}")
+    if (
+        not isinstance(w, Mapping)
+        or not _finite(w.get("origin"), 2)
+        or not _finite([w.get("resolution")], 1)
+        or not w["resolution"] > 0
+        or not (isinstance(shape, list) and len(shape) == 2 and all(isinstance(v, int) and v > 0 for v in shape))
+        or not isinstance(w.get("cells"), str)
+    ):
+        raise SceneError(
+            f"{source} walkable must hold a finite origin, a resolution > 0, a [rows, cols] shape "
+            f"and encoded cells; {_REGENERATE}"
+        )

@@ -149,8 +149,18 @@ def build_sidewalks(blocks: list[Block], cfg: dict[str, Any], rng: np.random.Gen
                     continue
                 ends = cl.project(np.asarray(edge.coords)[[0, -1]])
                 sw = Sidewalk(
-                    f"{b.id}-s{k}", b.id, w, wi, side, t, poly, zones, edge, cpath,
-                    (float(min(ends)), float(max(ends))), outer=d,
+                    f"{b.id}-s{k}",
+                    b.id,
+                    w,
+                    wi,
+                    side,
+                    t,
+                    poly,
+                    zones,
+                    edge,
+                    cpath,
+                    (float(min(ends)), float(max(ends))),
+                    outer=d,
                 )
                 k += 1
                 out.append(sw)
@@ -169,7 +179,9 @@ def build_sidewalks(blocks: list[Block], cfg: dict[str, Any], rng: np.random.Gen
     return out
 
 
-def build_crosswalks(blocks: list[Block], sidewalks: list[Sidewalk], cfg: dict[str, Any], rng: np.random.Generator) -> list[Crosswalk]:
+def build_crosswalks(
+    blocks: list[Block], sidewalks: list[Sidewalk], cfg: dict[str, Any], rng: np.random.Generator
+) -> list[Crosswalk]:
     """Crosswalk candidates at both ends of every two-sided roadway; density or the explicit list picks them."""
     by_way: dict[str, dict[int, Sidewalk]] = {}
     for sw in sidewalks:
@@ -213,7 +225,11 @@ def build_crosswalks(blocks: list[Block], sidewalks: list[Sidewalk], cfg: dict[s
         ends_xy, _ = cl.to_world(np.array([s, s]), np.array([hw, -hw]))
         ramps = []
         for sw in (left, right):
-            rp = largest(strip(cl, sw.side * hw, sw.side * (hw + ramp_depth), s - cw_w / 2, s + cw_w / 2).intersection(sw.polygon))
+            rp = largest(
+                strip(cl, sw.side * hw, sw.side * (hw + ramp_depth), s - cw_w / 2, s + cw_w / 2).intersection(
+                    sw.polygon
+                )
+            )
             if rp is not None:
                 ramps.append((sw.id, rp))
                 sw.ramps.append(rp)

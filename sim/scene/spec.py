@@ -11,7 +11,7 @@ import numpy as np
 import orjson
 
 DECIMALS = 4
-_SCALE = 10.0 ** DECIMALS
+_SCALE = 10.0**DECIMALS
 assert _SCALE == 10000.0  # the scale the plain-float rounding paths below multiply by (literal there for speed)
 
 

@@ -35,14 +35,32 @@ MIN_LANDING = 0.15
 RAMP_CLEAR = 0.6  # metres kept around a curb ramp beyond its depth: its flares are cut from the slab there
 
 
-def patch_record(pid: str, kind: str, surface: str, sidewalk_id: str, zone: str, x: float, y: float, z: float,
-                 yaw: float, size: tuple[float, float, float], **extra: Any) -> dict[str, Any]:
+def patch_record(
+    pid: str,
+    kind: str,
+    surface: str,
+    sidewalk_id: str,
+    zone: str,
+    x: float,
+    y: float,
+    z: float,
+    yaw: float,
+    size: tuple[float, float, float],
+    **extra: Any,
+) -> dict[str, Any]:
     """One terrain record as the spec stores it (0.1 mm), its footprint the rectangle of `size` at (x, y), `yaw`."""
     corners, _ = rect(x, y, math.cos(yaw), math.sin(yaw), size[0], size[1])
-    rec = {"id": pid, "kind": kind, "surface": surface, "sidewalk_id": sidewalk_id, "zone": zone,
-           "position": [round_value(x), round_value(y), round_value(z)],
-           "yaw": round_value(math.atan2(math.sin(yaw), math.cos(yaw))),
-           "size": [round_value(float(v)) for v in size], "footprint": round_points(corners)}
+    rec = {
+        "id": pid,
+        "kind": kind,
+        "surface": surface,
+        "sidewalk_id": sidewalk_id,
+        "zone": zone,
+        "position": [round_value(x), round_value(y), round_value(z)],
+        "yaw": round_value(math.atan2(math.sin(yaw), math.cos(yaw))),
+        "size": [round_value(float(v)) for v in size],
+        "footprint": round_points(corners),
+    }
     rec.update({k: round_value(v) if isinstance(v, float) else v for k, v in extra.items()})
     return rec
 
@@ -56,13 +74,25 @@ class _Terrain:
         self.records: list[dict[str, Any]] = []
         self.own = Occupancy()  # placed patches, and keep-outs: the ramps with their flares and their approaches
         ramp = float(cfg["ramp_depth"]) + RAMP_CLEAR
-        self.own.set_keep_out([r.buffer(ramp) for sw in sidewalks for r in sw.ramps]
-                              + [k for sw in sidewalks for k in sw.keep_out])
+        self.own.set_keep_out(
+            [r.buffer(ramp) for sw in sidewalks for r in sw.ramps] + [k for sw in sidewalks for k in sw.keep_out]
+        )
         for sw in sidewalks:
             shapely.prepare(sw.polygon)
 
-    def place(self, sw: Sidewalk, kind: str, surface: str, s: float, d: float, size: tuple[float, float, float],
-              area: Any, *, corridor: bool, **extra: Any) -> bool:
+    def place(
+        self,
+        sw: Sidewalk,
+        kind: str,
+        surface: str,
+        s: float,
+        d: float,
+        size: tuple[float, float, float],
+        area: Any,
+        *,
+        corridor: bool,
+        **extra: Any,
+    ) -> bool:
         """Add a patch at road coordinates (s, d), local x pointing away from the road, if its footprint lies in
         `area`, meets no object, patch or ramp, and (with `corridor`) stays out of the kept clear-path corridor."""
         x, y, h = sw.roadway.centerline.point_xy(s, d)
@@ -77,8 +107,9 @@ class _Terrain:
             return False
         self.own.add(check, cb)
         zone = next((z.kind for z in sw.zones if z.d0 <= abs(d) <= z.d1), "sidewalk")
-        self.records.append(patch_record(f"t{len(self.records)}", kind, surface, sw.id, zone, x, y, self.z, yaw,
-                                         size, **extra))
+        self.records.append(
+            patch_record(f"t{len(self.records)}", kind, surface, sw.id, zone, x, y, self.z, yaw, size, **extra)
+        )
         return True
 
 
@@ -108,8 +139,17 @@ def _roots(t: _Terrain, sw: Sidewalk, rng: np.random.Generator, rho: float, tree
         for k in range(t.tries):  # smaller each try, until it fits beside the tree's neighbours
             f = 1.0 - 0.25 * min(k, 2)
             sz = (size[0] * f, size[1] * f, size[2])
-            if t.place(sw, "roots", "concrete", s + float(rng.uniform(-0.3, 0.3)),
-                       sw.side * (d + half + 0.05 + 0.5 * sz[0]), sz, sw.polygon, corridor=False, seed=seed):
+            if t.place(
+                sw,
+                "roots",
+                "concrete",
+                s + float(rng.uniform(-0.3, 0.3)),
+                sw.side * (d + half + 0.05 + 0.5 * sz[0]),
+                sz,
+                sw.polygon,
+                corridor=False,
+                seed=seed,
+            ):
                 break
 
 
@@ -152,8 +192,18 @@ def _steps(t: _Terrain, sw: Sidewalk, rng: np.random.Generator, rho: float) -> N
             x, y, _ = sw.roadway.centerline.point_xy(s, sw.side * (zone.d1 + 0.3))
             if not sw.building.polygon.contains(Point(x, y)):
                 continue  # no building beyond this spot: a stair would lead nowhere
-            if t.place(sw, "steps", "concrete", s, sw.side * d, (depth, width, n * rise), area, corridor=True,
-                       steps=n, tread=TREAD):
+            if t.place(
+                sw,
+                "steps",
+                "concrete",
+                s,
+                sw.side * d,
+                (depth, width, n * rise),
+                area,
+                corridor=True,
+                steps=n,
+                tread=TREAD,
+            ):
                 break
 
 

@@ -26,50 +26,58 @@ from sim.tasks.sensors import LIDAR_TABLE, RENDER_TABLE
 from sim.tasks.termination import StepContext, StepEnd
 
 DEFAULT_CONFIG: dict[str, Any] = {
-    "preset": None,                   # a TASK_PRESETS name (e.g. "metaurban12k"): its values replace these defaults
-    "machine": "delivery_bot",        # a name from sim.machines.MACHINES or a dict of MachineSpec fields
-    "scene": {},                      # generator config passed to sim.scene.generate_scene (partial is fine)
-    "split": "train",                 # train | test | unseen | finetune (sim.scene.dataset.SPLITS), or None
-    "scene_dir": None,                # a `curbside scenes dataset` folder: episodes draw its scenes of `split`
-    "scene_seed": 0,                  # first generated scene (within the split's seed range)
-    "num_scenes": 1,                  # episodes draw scene k in [0, num_scenes) (generated or from scene_dir)
-    "scene_cache": 8,                 # built worlds kept (LRU), each in its own Bullet client: a repeat costs no build
-    "scene_spec": None,               # an explicit scene spec (dict) instead of the generator
-    "scene_path": None,               # or a path to a scene spec JSON file
-    "catalog": None,                  # catalog path for the generator and for mesh collision/visuals
-    "collision": "box",               # static objects: "box" from `size`, or "convex" hull of the catalog mesh
-    "visual_meshes": "auto",          # catalog meshes (textured) as visual shapes; auto: with camera modalities
-    "gui": False,                     # PyBullet GUI instead of DIRECT
-    "dt": 0.1,                        # seconds per env step
-    "physics_substeps": 5,            # Bullet substeps per env step (0.02 s each by default)
-    "horizon": 1000,                  # truncation after at most this many steps
-    "horizon_min_speed": 0.5,         # m/s: the horizon is also cut to route_length / this (None: fixed horizon)
-    "stl_cruise_speed": 2.5,          # m/s: STL's t_ref = geodesic / min(this, v_max); the expert's cruise speed
-    "route_length": [10.0, 60.0],     # reference route length range in metres (>= 5 m)
-    "route_margin": 0.25,             # extra clearance beyond the machine's half-width when planning
-    "success_completion": 0.95,       # route fraction that counts as success
-    "out_of_route_distance": 3.0,     # lateral offset (m) that ends the episode as out of route
-    "terminate_off_walkable": True,   # leaving the walkable area (road, buildings) is out of route too
-    "stuck_steps": 100,               # end the episode when the route progress grew < stuck_distance in this many steps (0: never)
-    "stuck_distance": 0.5,            # metres of new progress that count as moving on
-    "collision_steps": 30,            # end the episode after this many consecutive steps in contact (0: never)
-    "max_episode_cost": None,         # end the episode, failed, once its cost exceeds this (PPO-ET's rule; None: never)
-    "topple_angle": 60.0,             # degrees of roll or pitch that end the episode as toppled
+    "preset": None,  # a TASK_PRESETS name (e.g. "metaurban12k"): its values replace these defaults
+    "machine": "delivery_bot",  # a name from sim.machines.MACHINES or a dict of MachineSpec fields
+    "scene": {},  # generator config passed to sim.scene.generate_scene (partial is fine)
+    "split": "train",  # train | test | unseen | finetune (sim.scene.dataset.SPLITS), or None
+    "scene_dir": None,  # a `curbside scenes dataset` folder: episodes draw its scenes of `split`
+    "scene_seed": 0,  # first generated scene (within the split's seed range)
+    "num_scenes": 1,  # episodes draw scene k in [0, num_scenes) (generated or from scene_dir)
+    "scene_cache": 8,  # built worlds kept (LRU), each in its own Bullet client: a repeat costs no build
+    "scene_spec": None,  # an explicit scene spec (dict) instead of the generator
+    "scene_path": None,  # or a path to a scene spec JSON file
+    "catalog": None,  # catalog path for the generator and for mesh collision/visuals
+    "collision": "box",  # static objects: "box" from `size`, or "convex" hull of the catalog mesh
+    "visual_meshes": "auto",  # catalog meshes (textured) as visual shapes; auto: with camera modalities
+    "gui": False,  # PyBullet GUI instead of DIRECT
+    "dt": 0.1,  # seconds per env step
+    "physics_substeps": 5,  # Bullet substeps per env step (0.02 s each by default)
+    "horizon": 1000,  # truncation after at most this many steps
+    "horizon_min_speed": 0.5,  # m/s: the horizon is also cut to route_length / this (None: fixed horizon)
+    "stl_cruise_speed": 2.5,  # m/s: STL's t_ref = geodesic / min(this, v_max); the expert's cruise speed
+    "route_length": [10.0, 60.0],  # reference route length range in metres (>= 5 m)
+    "route_margin": 0.25,  # extra clearance beyond the machine's half-width when planning
+    "success_completion": 0.95,  # route fraction that counts as success
+    "out_of_route_distance": 3.0,  # lateral offset (m) that ends the episode as out of route
+    "terminate_off_walkable": True,  # leaving the walkable area (road, buildings) is out of route too
+    "stuck_steps": 100,  # end the episode when the route progress grew < stuck_distance in this many steps (0: never)
+    "stuck_distance": 0.5,  # metres of new progress that count as moving on
+    "collision_steps": 30,  # end the episode after this many consecutive steps in contact (0: never)
+    "max_episode_cost": None,  # end the episode, failed, once its cost exceeds this (PPO-ET's rule; None: never)
+    "topple_angle": 60.0,  # degrees of roll or pitch that end the episode as toppled
     "cost_kinds": ["object", "building"],  # contacts that cost (the paper: objects and buildings, not curbs)
-    "lidar": {"beams": 240, "range": 50.0, "height": 0.4, "encoding": "log",
-              "low_beams": 60, "low_range": 5.0, "low_height": 0.08,
-              # Static geometry: "grid" traces distance grids of `resolution` m (sim.raycast; ~0.1 ms for 300 rays
-              # against Bullet's ~0.7 ms), "bullet" ray-tests the Bullet world; "auto" is grid with box collision, else bullet.
-              "static": "auto", "resolution": 0.05},
-    "speed_scale": 5.0,               # m/s that maps to 1 in the `speed` observation (clipped)
+    "lidar": {
+        "beams": 240,
+        "range": 50.0,
+        "height": 0.4,
+        "encoding": "log",
+        "low_beams": 60,
+        "low_range": 5.0,
+        "low_height": 0.08,
+        # Static geometry: "grid" traces distance grids of `resolution` m (sim.raycast; ~0.1 ms for 300 rays
+        # against Bullet's ~0.7 ms), "bullet" ray-tests the Bullet world; "auto" is grid with box collision, else bullet.
+        "static": "auto",
+        "resolution": 0.05,
+    },
+    "speed_scale": 5.0,  # m/s that maps to 1 in the `speed` observation (clipped)
     "num_waypoints": 10,
-    "waypoint_spacing": 1.0,          # metres between the observed route waypoints
-    "reward_preset": "learnable",     # "learnable" or "paper" (REWARD_PRESETS)
-    "reward": {},                     # overrides of the preset's terms (Reward fields)
+    "waypoint_spacing": 1.0,  # metres between the observed route waypoints
+    "reward_preset": "learnable",  # "learnable" or "paper" (REWARD_PRESETS)
+    "reward": {},  # overrides of the preset's terms (Reward fields)
     "measures": list(POINTNAV_MEASURES),
     "render": {"camera": "dashboard", "width": 768, "height": 384, "top_down_height": 25.0},
-    "camera": CAMERA_DEFAULTS,        # the ego camera (sim.camera): modalities rgb / depth / semantic, size, fov
-    "observation": "auto",            # "flat" Box, or "dict" {lidar, state, nav, camera images}; auto: dict with a camera
+    "camera": CAMERA_DEFAULTS,  # the ego camera (sim.camera): modalities rgb / depth / semantic, size, fov
+    "observation": "auto",  # "flat" Box, or "dict" {lidar, state, nav, camera images}; auto: dict with a camera
 }
 
 
@@ -79,13 +87,20 @@ ROUTE_LENGTHS: dict[str, list[float]] = {"short": [10.0, 60.0], "metaurban12k": 
 # Task presets: values that replace the defaults (explicit config keys still win). "metaurban12k": the paper's
 # scenes (scene preset), routes and a horizon that fits them (route length / 1 m/s; the expert needs 4 s per 10 m).
 TASK_PRESETS: dict[str, dict[str, Any]] = {
-    "metaurban12k": {"scene": {"preset": "metaurban12k"}, "route_length": ROUTE_LENGTHS["metaurban12k"],
-                     "horizon": 6500, "horizon_min_speed": 1.0},
+    "metaurban12k": {
+        "scene": {"preset": "metaurban12k"},
+        "route_length": ROUTE_LENGTHS["metaurban12k"],
+        "horizon": 6500,
+        "horizon_min_speed": 1.0,
+    },
 }
 
 
-def resolve_task_config(defaults: Mapping[str, Any], config: Mapping[str, Any] | None,
-                        presets: Mapping[str, Mapping[str, Any]] = TASK_PRESETS) -> dict[str, Any]:
+def resolve_task_config(
+    defaults: Mapping[str, Any],
+    config: Mapping[str, Any] | None,
+    presets: Mapping[str, Mapping[str, Any]] = TASK_PRESETS,
+) -> dict[str, Any]:
     """`config` merged strictly over `defaults`, after the values of the preset it names (config["preset"]).
 
     `scene` is a partial generator config (validated by the generator): a preset's scene keys and the caller's
@@ -150,14 +165,27 @@ class Reward:
             r = r + (self.success if end.succeeded else self.out_of_route if end.out_of_route else self.stuck)
         return float(r)
 
-    def batch(self, progress: Any, new_progress: Any, lateral: Any, d_steer: Any, speed: Any, collided: Any,
-              succeeded: Any, out_of_route: Any, stuck: Any) -> np.ndarray:
+    def batch(
+        self,
+        progress: Any,
+        new_progress: Any,
+        lateral: Any,
+        d_steer: Any,
+        speed: Any,
+        collided: Any,
+        succeeded: Any,
+        out_of_route: Any,
+        stuck: Any,
+    ) -> np.ndarray:
         """The rewards of many steps at once (arrays or numbers; `sim.batched` steps many envs through it). Every
         branch is an np.where that picks what the scalar max/if would, so one step's double is the same either way."""
         disp = new_progress if self.progress == "max" else progress
         over = np.abs(lateral) - self.lateral_free
-        r = (self.disp * disp - self.lateral * np.where(over > 0.0, over, 0.0)
-             - self.steering * np.abs(d_steer) * np.abs(speed))
+        r = (
+            self.disp * disp
+            - self.lateral * np.where(over > 0.0, over, 0.0)
+            - self.steering * np.abs(d_steer) * np.abs(speed)
+        )
         r = np.where(collided, r - self.crash, r)
         if self.floor:
             r = np.where(0.0 > r, 0.0, r)
@@ -168,8 +196,18 @@ class Reward:
 REWARD_PRESETS: dict[str, dict[str, Any]] = {
     # The MetaUrban paper: progress along the route, full lateral penalty, no stuck ending (stuck_steps and
     # collision_steps still end such episodes unless set to 0; their penalty is then 0).
-    "paper": dict(success=5.0, out_of_route=-5.0, stuck=0.0, disp=0.5, progress="route", lateral=1.0,
-                  lateral_free=0.0, steering=0.1, crash=1.0, floor=False),
+    "paper": dict(
+        success=5.0,
+        out_of_route=-5.0,
+        stuck=0.0,
+        disp=0.5,
+        progress="route",
+        lateral=1.0,
+        lateral_free=0.0,
+        steering=0.1,
+        crash=1.0,
+        floor=False,
+    ),
     "learnable": asdict(Reward()),
 }
 
@@ -178,8 +216,10 @@ COLLISION_KINDS = ("object", "building", "curb", "agent", "vehicle")
 MAX_SEED = 1_000_000  # splits start 1,000,000 seeds apart: scene_seed + num_scenes stays below that
 # Overrides of a reward preset's terms (Reward fields); weights are bounded so one step cannot dwarf a return.
 REWARD_TABLE: dict[str, Rule] = {
-    **{k: Float(-1e6, 1e6) for k in ("success", "out_of_route", "stuck", "disp", "lateral", "lateral_free",
-                                     "steering", "crash")},
+    **{
+        k: Float(-1e6, 1e6)
+        for k in ("success", "out_of_route", "stuck", "disp", "lateral", "lateral_free", "steering", "crash")
+    },
     "progress": Choice("route", "max"),
     "floor": Bool(),
 }
@@ -187,7 +227,9 @@ REWARD_TABLE: dict[str, Rule] = {
 # Bounds are generous for research use but finite: a NaN, inf or absurd value fails here, at construction.
 CONFIG_TABLE: dict[str, Any] = {
     "preset": Choice(*TASK_PRESETS, none=True),
-    "machine": Rule("any"),  # a name or a dict of MachineSpec fields: checked by sim.machines.machine_spec + check_machine
+    "machine": Rule(
+        "any"
+    ),  # a name or a dict of MachineSpec fields: checked by sim.machines.machine_spec + check_machine
     "scene": Rule("mapping", hint="a partial scene generator config, see sim.scene.DEFAULT_CONFIG"),
     "split": Choice(*SPLITS, none=True),
     "scene_dir": Rule("path", none=True),
@@ -229,11 +271,22 @@ CONFIG_TABLE: dict[str, Any] = {
 }
 # Numeric MachineSpec fields of a custom machine (a dict): finite and within these bounds.
 MACHINE_TABLE: dict[str, Rule] = {
-    "v_max_kmh": Pos(200.0), "steer_max_deg": Float(0.0, 89.0), "friction": Float(0.0, 5.0),
-    "wheelbase": Pos(20.0), "wheel_radius": Pos(5.0), "wheel_width": Pos(5.0), "mass": Pos(100_000.0),
-    "length": Pos(20.0), "width": Pos(20.0), "height": Pos(20.0), "drag_area": Float(0.0, 100.0),
-    "rolling_resistance": Float(0.0, 1.0), "accel_max": Float(0.0, 100.0), "yaw_rate_max": Float(0.0, 100.0),
-    "engine_force": Pair(Float(0.0, 1e6)), "brake_force": Pair(Float(0.0, 1e6)),
+    "v_max_kmh": Pos(200.0),
+    "steer_max_deg": Float(0.0, 89.0),
+    "friction": Float(0.0, 5.0),
+    "wheelbase": Pos(20.0),
+    "wheel_radius": Pos(5.0),
+    "wheel_width": Pos(5.0),
+    "mass": Pos(100_000.0),
+    "length": Pos(20.0),
+    "width": Pos(20.0),
+    "height": Pos(20.0),
+    "drag_area": Float(0.0, 100.0),
+    "rolling_resistance": Float(0.0, 1.0),
+    "accel_max": Float(0.0, 100.0),
+    "yaw_rate_max": Float(0.0, 100.0),
+    "engine_force": Pair(Float(0.0, 1e6)),
+    "brake_force": Pair(Float(0.0, 1e6)),
 }
 
 
@@ -246,8 +299,9 @@ def check_machine(machine: Any, name: str = "config.machine") -> None:
         if key == "base" and isinstance(value, Mapping):
             check_machine(value, f"{name}.base")
             continue
-        if key == "color" and not (isinstance(value, (list, tuple)) and len(value) == 4
-                                   and all(_number(c) and 0.0 <= c <= 1.0 for c in value)):
+        if key == "color" and not (
+            isinstance(value, (list, tuple)) and len(value) == 4 and all(_number(c) and 0.0 <= c <= 1.0 for c in value)
+        ):
             raise ConfigError(f"{name}.color must be [r, g, b, a], each in [0, 1], got {excerpt(value)}")
         rule = MACHINE_TABLE.get(key)
         if rule is not None and rule.kind == "pair" and _number(value):
@@ -260,18 +314,26 @@ def _number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def check_config(cfg: Mapping[str, Any], table: Mapping[str, Any] | None = None,
-                 defaults: Mapping[str, Any] | None = None) -> None:
+def check_config(
+    cfg: Mapping[str, Any], table: Mapping[str, Any] | None = None, defaults: Mapping[str, Any] | None = None
+) -> None:
     """Validate every value of a task config (types, finiteness, ranges); ConfigError names the key and the range."""
-    check_table(cfg, CONFIG_TABLE if table is None else table, name="config",
-                defaults=DEFAULT_CONFIG if defaults is None else defaults)
+    check_table(
+        cfg,
+        CONFIG_TABLE if table is None else table,
+        name="config",
+        defaults=DEFAULT_CONFIG if defaults is None else defaults,
+    )
     check_machine(cfg["machine"])
     if cfg["camera"]["near"] >= cfg["camera"]["far"]:
-        raise ConfigError(f"config.camera.near ({cfg['camera']['near']}) must be below config.camera.far "
-                          f"({cfg['camera']['far']})")
+        raise ConfigError(
+            f"config.camera.near ({cfg['camera']['near']}) must be below config.camera.far ({cfg['camera']['far']})"
+        )
     if cfg["lidar"]["static"] == "grid" and cfg["collision"] != "box":
-        raise ConfigError("config.lidar.static 'grid' traces the objects' boxes, but config.collision is "
-                          f"{cfg['collision']!r}; use lidar.static 'bullet' (or 'auto') to ray-test the mesh hulls")
+        raise ConfigError(
+            "config.lidar.static 'grid' traces the objects' boxes, but config.collision is "
+            f"{cfg['collision']!r}; use lidar.static 'bullet' (or 'auto') to ray-test the mesh hulls"
+        )
 
 
 def static_lidar(cfg: Mapping[str, Any]) -> str:

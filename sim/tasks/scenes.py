@@ -35,6 +35,7 @@ def generator_config(config: Mapping[str, Any]) -> dict[str, Any]:
     scene_cfg = dict(config["scene"])
     if config.get("split") is not None:
         from sim.scene.dataset import split_config
+
         scene_cfg, _ = split_config(config["split"], scene_cfg)
     return scene_cfg
 
@@ -49,12 +50,14 @@ def split_seed_offset(split: str | None) -> int:
     if split is None:
         return 0
     from sim.scene.dataset import split_config
+
     return split_config(split)[1]
 
 
 def dataset_scenes(scene_dir: str | Path, split: str | None) -> list[Path]:
     """Scene files of `split` in a dataset folder (its index.jsonl), sorted; a clear error when there are none."""
     from sim.scene.dataset import read_index
+
     d = Path(scene_dir)
     if not d.is_dir():
         raise ConfigError(f"config.scene_dir {d} is not a folder; create it with `curbside scenes dataset --out {d}`")
@@ -62,6 +65,8 @@ def dataset_scenes(scene_dir: str | Path, split: str | None) -> list[Path]:
     files = sorted(d / r["file"] for r in rows if split is None or r.get("split") == split)
     if not files:
         have = sorted({str(r.get("split")) for r in rows}) or ["none"]
-        raise ConfigError(f"split {split!r} has no scenes in {d} (it holds: {', '.join(have)}); "
-                          f"create them with `curbside scenes dataset --split {split} --out {d}`")
+        raise ConfigError(
+            f"split {split!r} has no scenes in {d} (it holds: {', '.join(have)}); "
+            f"create them with `curbside scenes dataset --split {split} --out {d}`"
+        )
     return files

@@ -94,8 +94,20 @@ PRESETS: dict[str, dict[str, Any]] = {
 # more people run and fewer stand, lanes do not form (no keep-right offset), wheeled VRUs are twice as common,
 # and agents react later to each other. Keys the caller sets in `agents` still win.
 SPLIT_AGENT_BEHAVIOUR: dict[str, dict[str, Any]] = {
-    split: {"run_prob": 0.3, "idle_prob": 0.1, "keep_right": 0.0, "time_horizon": 1.0,
-            "mix": {"pedestrian": 0.40, "wheelchair_user": 0.08, "cyclist": 0.14, "skateboarder": 0.10,
-                    "scooter_rider": 0.14, "delivery_robot": 0.09, "robot_dog": 0.05}}
+    split: {
+        "run_prob": 0.3,
+        "idle_prob": 0.1,
+        "keep_right": 0.0,
+        "time_horizon": 1.0,
+        "mix": {
+            "pedestrian": 0.40,
+            "wheelchair_user": 0.08,
+            "cyclist": 0.14,
+            "skateboarder": 0.10,
+            "scooter_rider": 0.14,
+            "delivery_robot": 0.09,
+            "robot_dog": 0.05,
+        },
+    }
     for split in ("unseen", "finetune")
 }

@@ -68,10 +68,16 @@ class EndRules:
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any]) -> EndRules:
         """The rules of a task config."""
-        return cls(float(cfg["success_completion"]), float(cfg["out_of_route_distance"]), float(cfg["stuck_distance"]),
-                   int(cfg["stuck_steps"]), int(cfg["collision_steps"]), bool(cfg["terminate_off_walkable"]),
-                   float(np.radians(cfg["topple_angle"])),
-                   math.inf if cfg["max_episode_cost"] is None else float(cfg["max_episode_cost"]))
+        return cls(
+            float(cfg["success_completion"]),
+            float(cfg["out_of_route_distance"]),
+            float(cfg["stuck_distance"]),
+            int(cfg["stuck_steps"]),
+            int(cfg["collision_steps"]),
+            bool(cfg["terminate_off_walkable"]),
+            float(np.radians(cfg["topple_angle"])),
+            math.inf if cfg["max_episode_cost"] is None else float(cfg["max_episode_cost"]),
+        )
 
 
 @dataclass
@@ -93,8 +99,18 @@ class EndMarks:
         self.step[k], self.progress[k], self.contact_run[k] = 0, 0.0, 0
 
 
-def end_of_step(rules: EndRules, marks: EndMarks, steps: Any, max_progress: Any, route_length: Any, lateral: Any,
-                on_walkable: Any, in_contact: Any, tilt: Any, cost_total: Any) -> tuple[Any, ...]:
+def end_of_step(
+    rules: EndRules,
+    marks: EndMarks,
+    steps: Any,
+    max_progress: Any,
+    route_length: Any,
+    lateral: Any,
+    on_walkable: Any,
+    in_contact: Any,
+    tilt: Any,
+    cost_total: Any,
+) -> tuple[Any, ...]:
     """(succeeded, out_of_route, stuck, toppled, cost_exceeded) after a step, `marks` advanced: for one episode
     (numbers, bools) or n (arrays of n). Success excludes the rest; toppled may hold beside out of route or stuck;
     cost_exceeded only when nothing else ended the episode.
@@ -138,6 +154,16 @@ class Termination:
     def __call__(self, step: StepContext) -> StepEnd:
         """How `step` ends the episode; `step.on_walkable()` is asked only when the rules read it."""
         on_walkable = bool(step.on_walkable()) if self.rules.off_walkable_ends else True
-        ends = end_of_step(self.rules, self.marks, step.steps, step.max_progress, step.route_length, step.lateral,
-                           on_walkable, bool(step.in_contact), step.tilt, step.cost_total)
+        ends = end_of_step(
+            self.rules,
+            self.marks,
+            step.steps,
+            step.max_progress,
+            step.route_length,
+            step.lateral,
+            on_walkable,
+            bool(step.in_contact),
+            step.tilt,
+            step.cost_total,
+        )
         return StepEnd(*(bool(e) for e in ends))

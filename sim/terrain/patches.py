@@ -58,8 +58,12 @@ def pieces(rec: Record) -> list[Piece]:
 def _skirt(nx: int, ny: int, first: int) -> tuple[np.ndarray, list[int]]:
     """The border of an ny x nx grid (vertex j * nx + i), counter-clockwise seen from above, and the triangles of
     walls from it down to its feet (vertex `first` + k is the foot of the border's k-th vertex), facing outwards."""
-    ring = ([(0, i) for i in range(nx)] + [(j, nx - 1) for j in range(1, ny)]
-            + [(ny - 1, i) for i in range(nx - 2, -1, -1)] + [(j, 0) for j in range(ny - 2, 0, -1)])
+    ring = (
+        [(0, i) for i in range(nx)]
+        + [(j, nx - 1) for j in range(1, ny)]
+        + [(ny - 1, i) for i in range(nx - 2, -1, -1)]
+        + [(j, 0) for j in range(ny - 2, 0, -1)]
+    )
     border = np.array([j * nx + i for j, i in ring])
     tris: list[int] = []
     for k in range(len(ring)):  # outwards is to the right of a counter-clockwise border
@@ -148,8 +152,12 @@ def check(rec: Any) -> str | None:
         yaw = float(rec["yaw"])
     except (KeyError, TypeError, ValueError):
         return "needs position [x, y, z], yaw and size [depth, width, height] as numbers"
-    if pos.shape != (3,) or size.shape != (3,) or not (np.isfinite(pos).all() and np.isfinite(size).all()
-                                                       and math.isfinite(yaw)) or size.min() < 0:
+    if (
+        pos.shape != (3,)
+        or size.shape != (3,)
+        or not (np.isfinite(pos).all() and np.isfinite(size).all() and math.isfinite(yaw))
+        or size.min() < 0
+    ):
         return "needs finite position [x, y, z], yaw and size [depth, width, height] (size >= 0)"
     if max(size[0], size[1]) > MAX_SIDE:
         return f"size must be at most {MAX_SIDE:g} m deep and wide, got {size[0]:g} x {size[1]:g}"
@@ -158,10 +166,15 @@ def check(rec: Any) -> str | None:
         return f"seed (of the bumps) must be an integer >= 0, got {seed!r}"
     if rec["kind"] == "steps":
         n, tread = rec.get("steps"), rec.get("tread")
-        if (not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_STEPS
-                or not isinstance(tread, (int, float)) or not 0 < tread or n * tread > size[0] + 1e-3):
-            return (f"a stair needs steps (an integer 1 to {MAX_STEPS}) and a tread > 0 with steps x tread <= its "
-                    "depth")
+        if (
+            not isinstance(n, int)
+            or isinstance(n, bool)
+            or not 1 <= n <= MAX_STEPS
+            or not isinstance(tread, (int, float))
+            or not 0 < tread
+            or n * tread > size[0] + 1e-3
+        ):
+            return f"a stair needs steps (an integer 1 to {MAX_STEPS}) and a tread > 0 with steps x tread <= its depth"
     return None
 
 

@@ -28,10 +28,16 @@ from sim.terrain.wfc import SURFACES, Tile, collapse, tile_set
 # and 10 % grades over 2 m tiles); stairs are small steps of 6 cm (3 cm curb lips to 8 cm garden steps decide
 # whether a wheel climbs them); rough ground has 6 cm bumps (tree roots, broken pavement).
 RUNWAYS: dict[str, dict[str, Any]] = {
-    "slopes": {"shapes": ("flat", "slope_up", "slope_down", "ramp_up", "ramp_down"), "weights": {"flat": 0.5},
-               "geometry": TileGeometry(level_height=0.15)},
-    "stairs": {"shapes": ("flat", "step_up", "step_down", "stairs_up", "stairs_down"), "weights": {"flat": 0.5},
-               "geometry": TileGeometry(level_height=0.06)},
+    "slopes": {
+        "shapes": ("flat", "slope_up", "slope_down", "ramp_up", "ramp_down"),
+        "weights": {"flat": 0.5},
+        "geometry": TileGeometry(level_height=0.15),
+    },
+    "stairs": {
+        "shapes": ("flat", "step_up", "step_down", "stairs_up", "stairs_down"),
+        "weights": {"flat": 0.5},
+        "geometry": TileGeometry(level_height=0.06),
+    },
     "roughs": {"shapes": ("flat", "rough"), "weights": {"flat": 0.25}, "geometry": TileGeometry(bump_height=0.06)},
 }
 TOPPLE_DEG = 60.0  # roll or pitch past this is a fall
@@ -62,28 +68,38 @@ class Runway:
         return len(self.tiles) * self.geometry.size
 
 
-def build_runway(client: int, name: str, seed: int = 0, cols: int = 50, rows: int = 2,
-                 geometry: TileGeometry | None = None, surfaces: tuple[str, ...] = ("asphalt", "concrete", "pavers"),
-                 levels: int = 4) -> Runway:
+def build_runway(
+    client: int,
+    name: str,
+    seed: int = 0,
+    cols: int = 50,
+    rows: int = 2,
+    geometry: TileGeometry | None = None,
+    surfaces: tuple[str, ...] = ("asphalt", "concrete", "pavers"),
+    levels: int = 4,
+) -> Runway:
     """Collapse runway `name`'s terrain from `seed` and add its tiles to `client` (x from 0, y from 0)."""
     if name not in RUNWAYS:
         raise ConfigError(f"unknown runway {name!r}; valid: {', '.join(RUNWAYS)}")
     spec = RUNWAYS[name]
     geo = geometry or spec["geometry"]
     rng = np.random.default_rng(seed)
-    grid = collapse(rows, cols, rng, tile_set(levels, spec["shapes"], surfaces), spec["weights"], west_level=0,
-                    start_flat=True)
+    grid = collapse(
+        rows, cols, rng, tile_set(levels, spec["shapes"], surfaces), spec["weights"], west_level=0, start_flat=True
+    )
     runway = Runway(name, grid, geo, client)
     ground = p.createCollisionShape(p.GEOM_BOX, halfExtents=[runway.length, runway.width, 0.5], physicsClientId=client)
-    runway.bodies.append(p.createMultiBody(0, ground, -1, [runway.length / 2, runway.width / 2, -0.5],
-                                           physicsClientId=client))
+    runway.bodies.append(
+        p.createMultiBody(0, ground, -1, [runway.length / 2, runway.width / 2, -0.5], physicsClientId=client)
+    )
     for r, row in enumerate(grid):
         for c, tile in enumerate(row):
             u, v, z = tile_surface(tile, geo, rng)
             verts, tris = grid_mesh(c * geo.size + u * geo.size, r * geo.size + v * geo.size, z)
             col = mesh_shape(p.createCollisionShape, verts, tris, physicsClientId=client)
-            vis = mesh_shape(p.createVisualShape, verts, tris, rgbaColor=[*TERRAIN[tile.surface], 1.0],
-                             physicsClientId=client)
+            vis = mesh_shape(
+                p.createVisualShape, verts, tris, rgbaColor=[*TERRAIN[tile.surface], 1.0], physicsClientId=client
+            )
             body = p.createMultiBody(0, col, vis, [0, 0, 0], physicsClientId=client)
             p.changeDynamics(body, -1, lateralFriction=SURFACES[tile.surface], physicsClientId=client)
             runway.bodies.append(body)
@@ -104,9 +120,18 @@ def friction_at(runway: Runway, x: float, y: float) -> float:
     return SURFACES["asphalt"]
 
 
-def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int = 0, *, model: str = "force",
-                  speed: float | None = None, dt: float = 0.02, max_time: float = 200.0, stuck_time: float = 2.0,
-                  slow_fraction: float = 0.25) -> dict[str, Any]:
+def drive_forward(
+    machine: str | Mapping[str, Any],
+    runway_name: str,
+    seed: int = 0,
+    *,
+    model: str = "force",
+    speed: float | None = None,
+    dt: float = 0.02,
+    max_time: float = 200.0,
+    stuck_time: float = 2.0,
+    slow_fraction: float = 0.25,
+) -> dict[str, Any]:
     """Table 4's trial: straight ahead, no steering, on a fresh runway; returns the x-displacement (m), the time
     (s) until the trial ended, and why: `toppled`, `stuck` (less than 0.1 m in `stuck_time` s), `slow` (below
     `slow_fraction` of the top speed, or of `speed`, for `stuck_time` s once it had reached it), `end` or `time`.
@@ -129,8 +154,11 @@ def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int 
         if speed is not None:
             # An ideal drive holds the common speed wherever traction allows: top speed well above it and an
             # engine force of twice the traction limit, so the machines differ only in their bodies and wheels.
-            spec = replace(spec, v_max_kmh=max(spec.v_max, 2.0 * speed) * 3.6,
-                           engine_force=(2.0 * spec.mass * G * spec.friction,) * 2)
+            spec = replace(
+                spec,
+                v_max_kmh=max(spec.v_max, 2.0 * speed) * 3.6,
+                engine_force=(2.0 * spec.mass * G * spec.friction,) * 2,
+            )
         x0, y0 = 1.0, runway.width / 2
         if model == "wheels":
             m: Any = WheeledMachine(client, spec)
@@ -170,7 +198,14 @@ def drive_forward(machine: str | Mapping[str, Any], runway_name: str, seed: int 
             if slow_since is not None and t - slow_since > stuck_time:
                 reason = "slow"
                 break
-        return {"machine": spec.name, "runway": runway_name, "seed": seed, "model": model,
-                "x_displacement": m.position[0] - x0, "time": t, "reason": reason}
+        return {
+            "machine": spec.name,
+            "runway": runway_name,
+            "seed": seed,
+            "model": model,
+            "x_displacement": m.position[0] - x0,
+            "time": t,
+            "reason": reason,
+        }
     finally:
         p.disconnect(physicsClientId=client)

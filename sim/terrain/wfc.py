@@ -24,11 +24,27 @@ from kernel.config import ConfigError
 # Surfaces and their friction coefficients (rubber tyre on the surface; dry unless named):
 # asphalt 0.7-0.8, concrete 0.7-0.8, pavers 0.6-0.7, grass 0.35-0.45, gravel 0.5-0.6, wet asphalt 0.4-0.5
 # (road-engineering handbooks' tyre-road friction tables; Wong, Theory of Ground Vehicles).
-SURFACES: dict[str, float] = {"asphalt": 0.75, "concrete": 0.75, "pavers": 0.65, "grass": 0.4, "gravel": 0.55,
-                              "wet": 0.45}
+SURFACES: dict[str, float] = {
+    "asphalt": 0.75,
+    "concrete": 0.75,
+    "pavers": 0.65,
+    "grass": 0.4,
+    "gravel": 0.55,
+    "wet": 0.45,
+}
 # Tile shapes: how many levels a tile rises along +x, and how its height runs between its edges.
-SHAPES: dict[str, int] = {"flat": 0, "rough": 0, "slope_up": 1, "slope_down": -1, "ramp_up": 1, "ramp_down": -1,
-                          "step_up": 1, "step_down": -1, "stairs_up": 2, "stairs_down": -2}
+SHAPES: dict[str, int] = {
+    "flat": 0,
+    "rough": 0,
+    "slope_up": 1,
+    "slope_down": -1,
+    "ramp_up": 1,
+    "ramp_down": -1,
+    "step_up": 1,
+    "step_down": -1,
+    "stairs_up": 2,
+    "stairs_down": -2,
+}
 
 
 @dataclass(frozen=True)
@@ -57,14 +73,22 @@ class Tile:
         return ("flat" if kind == "rough" else kind, self.west, self.east)
 
 
-def tile_set(levels: int, shapes: Sequence[str] = tuple(SHAPES), surfaces: Sequence[str] = tuple(SURFACES)) -> list[Tile]:
+def tile_set(
+    levels: int, shapes: Sequence[str] = tuple(SHAPES), surfaces: Sequence[str] = tuple(SURFACES)
+) -> list[Tile]:
     """Every tile whose edges stay within levels 0 .. levels - 1."""
     bad = [s for s in shapes if s not in SHAPES] + [s for s in surfaces if s not in SURFACES]
     if bad:
-        raise ConfigError(f"unknown terrain shapes or surfaces {bad}; shapes: {', '.join(SHAPES)}; surfaces: "
-                          f"{', '.join(SURFACES)}")
-    return [Tile(shape, k, surf) for shape in shapes for k in range(levels) for surf in surfaces
-            if 0 <= k + SHAPES[shape] < levels]
+        raise ConfigError(
+            f"unknown terrain shapes or surfaces {bad}; shapes: {', '.join(SHAPES)}; surfaces: {', '.join(SURFACES)}"
+        )
+    return [
+        Tile(shape, k, surf)
+        for shape in shapes
+        for k in range(levels)
+        for surf in surfaces
+        if 0 <= k + SHAPES[shape] < levels
+    ]
 
 
 def allowed_east(a: Tile, b: Tile) -> bool:
@@ -81,9 +105,16 @@ class Contradiction(RuntimeError):
     """A cell ran out of tiles: the solver restarts."""
 
 
-def collapse(rows: int, cols: int, rng: np.random.Generator, tiles: Sequence[Tile],
-             weights: Mapping[str, float] | None = None, west_level: int | None = 0, start_flat: bool = False,
-             attempts: int = 20) -> list[list[Tile]]:
+def collapse(
+    rows: int,
+    cols: int,
+    rng: np.random.Generator,
+    tiles: Sequence[Tile],
+    weights: Mapping[str, float] | None = None,
+    west_level: int | None = 0,
+    start_flat: bool = False,
+    attempts: int = 20,
+) -> list[list[Tile]]:
     """A `rows` x `cols` grid of `tiles` in which every neighbouring pair is allowed; `weights` per shape
     (default 1), `west_level` the level of the first column's west edge (None: any), `start_flat` a flat first
     column (a runway's lead-in)."""
@@ -100,12 +131,23 @@ def collapse(rows: int, cols: int, rng: np.random.Generator, tiles: Sequence[Til
             return _attempt(rows, cols, rng, tiles, w, east, north, west_level, start_flat, n)
         except Contradiction:
             continue
-    raise ConfigError(f"no {rows} x {cols} terrain satisfies the tile rules after {attempts} attempts; "
-                      "allow more levels or shapes")
+    raise ConfigError(
+        f"no {rows} x {cols} terrain satisfies the tile rules after {attempts} attempts; allow more levels or shapes"
+    )
 
 
-def _attempt(rows: int, cols: int, rng: np.random.Generator, tiles: Sequence[Tile], w: np.ndarray,
-             east: np.ndarray, north: np.ndarray, west_level: int | None, start_flat: bool, n: int) -> list[list[Tile]]:
+def _attempt(
+    rows: int,
+    cols: int,
+    rng: np.random.Generator,
+    tiles: Sequence[Tile],
+    w: np.ndarray,
+    east: np.ndarray,
+    north: np.ndarray,
+    west_level: int | None,
+    start_flat: bool,
+    n: int,
+) -> list[list[Tile]]:
     """One run of the solver; raises Contradiction when a cell has no tile left."""
     dom = np.ones((rows, cols, n), dtype=bool)
     dom &= w > 0

@@ -33,26 +33,47 @@ class WheeledMachine:
         s, r = spec, spec.wheel_radius
         clear = 0.9 * r
         hz = max(0.5 * (s.height - clear), 0.05)
-        chassis = p.createCollisionShape(p.GEOM_BOX, halfExtents=[s.length / 2, s.width / 2, hz], physicsClientId=client)
-        look = p.createVisualShape(p.GEOM_BOX, halfExtents=[s.length / 2, s.width / 2, hz], rgbaColor=list(s.color),
-                                   physicsClientId=client)
+        chassis = p.createCollisionShape(
+            p.GEOM_BOX, halfExtents=[s.length / 2, s.width / 2, hz], physicsClientId=client
+        )
+        look = p.createVisualShape(
+            p.GEOM_BOX, halfExtents=[s.length / 2, s.width / 2, hz], rgbaColor=list(s.color), physicsClientId=client
+        )
         wheel = p.createCollisionShape(p.GEOM_SPHERE, radius=r, physicsClientId=client)
-        tyre = p.createVisualShape(p.GEOM_CYLINDER, radius=r, length=s.wheel_width, rgbaColor=[0.1, 0.1, 0.1, 1],
-                                   physicsClientId=client)
+        tyre = p.createVisualShape(
+            p.GEOM_CYLINDER, radius=r, length=s.wheel_width, rgbaColor=[0.1, 0.1, 0.1, 1], physicsClientId=client
+        )
         wx, wy = 0.5 * s.wheelbase, max(0.5 * s.width - 0.5 * s.wheel_width, r * 0.5)
         axle = p.getQuaternionFromEuler([math.pi / 2, 0, 0])  # cylinders along z, turned to lie along y
         # The chassis's frame is its centre, clear + hz above the ground; the wheels hang r above the ground.
         self.base_height = clear + hz
-        wheels = [[wx, wy, r - self.base_height], [wx, -wy, r - self.base_height], [-wx, wy, r - self.base_height],
-                  [-wx, -wy, r - self.base_height]]
+        wheels = [
+            [wx, wy, r - self.base_height],
+            [wx, -wy, r - self.base_height],
+            [-wx, wy, r - self.base_height],
+            [-wx, -wy, r - self.base_height],
+        ]
         wheel_mass = 0.05 * s.mass  # the four wheels: a fifth of the machine
         self.body = p.createMultiBody(
-            0.8 * s.mass, chassis, look, [0, 0, 1.0],
-            linkMasses=[wheel_mass] * 4, linkCollisionShapeIndices=[wheel] * 4, linkVisualShapeIndices=[tyre] * 4,
-            linkPositions=wheels, linkOrientations=[axle] * 4, linkInertialFramePositions=[[0, 0, 0]] * 4,
-            linkInertialFrameOrientations=[[0, 0, 0, 1]] * 4, linkParentIndices=[0] * 4,
-            linkJointTypes=[p.JOINT_REVOLUTE] * 4, linkJointAxis=[[0, 0, 1]] * 4, physicsClientId=client)
-        p.changeDynamics(self.body, -1, lateralFriction=0.3, linearDamping=0.0, angularDamping=0.0, physicsClientId=client)
+            0.8 * s.mass,
+            chassis,
+            look,
+            [0, 0, 1.0],
+            linkMasses=[wheel_mass] * 4,
+            linkCollisionShapeIndices=[wheel] * 4,
+            linkVisualShapeIndices=[tyre] * 4,
+            linkPositions=wheels,
+            linkOrientations=[axle] * 4,
+            linkInertialFramePositions=[[0, 0, 0]] * 4,
+            linkInertialFrameOrientations=[[0, 0, 0, 1]] * 4,
+            linkParentIndices=[0] * 4,
+            linkJointTypes=[p.JOINT_REVOLUTE] * 4,
+            linkJointAxis=[[0, 0, 1]] * 4,
+            physicsClientId=client,
+        )
+        p.changeDynamics(
+            self.body, -1, lateralFriction=0.3, linearDamping=0.0, angularDamping=0.0, physicsClientId=client
+        )
         for j in range(4):
             p.changeDynamics(self.body, j, lateralFriction=WHEEL_FRICTION, physicsClientId=client)
         self.position, self.yaw, self.pitch, self.roll, self.speed = (0.0, 0.0, 0.0), 0.0, 0.0, 0.0, 0.0
@@ -60,8 +81,12 @@ class WheeledMachine:
 
     def reset(self, x: float, y: float, z: float, yaw: float) -> None:
         """Place the machine at rest on the ground at (x, y, z) heading `yaw`."""
-        p.resetBasePositionAndOrientation(self.body, [x, y, z + self.base_height + 0.005],
-                                          p.getQuaternionFromEuler([0, 0, yaw]), physicsClientId=self.client)
+        p.resetBasePositionAndOrientation(
+            self.body,
+            [x, y, z + self.base_height + 0.005],
+            p.getQuaternionFromEuler([0, 0, yaw]),
+            physicsClientId=self.client,
+        )
         p.resetBaseVelocity(self.body, [0, 0, 0], [0, 0, 0], physicsClientId=self.client)
         for j in range(4):
             p.resetJointState(self.body, j, 0.0, 0.0, physicsClientId=self.client)
@@ -77,8 +102,14 @@ class WheeledMachine:
         target = -(max(throttle, 0.0) * top) / s.wheel_radius
         drive = max(throttle, 0.0) * self.engine_force / 2.0 * s.wheel_radius  # per rear wheel
         brake = 0.0 if throttle > 0 else float(np.mean(s.brake_force)) * s.wheel_radius
-        p.setJointMotorControlArray(self.body, [0, 1, 2, 3], p.VELOCITY_CONTROL, targetVelocities=[0.0, 0.0, target, target],
-                                    forces=[brake, brake, drive + brake, drive + brake], physicsClientId=self.client)
+        p.setJointMotorControlArray(
+            self.body,
+            [0, 1, 2, 3],
+            p.VELOCITY_CONTROL,
+            targetVelocities=[0.0, 0.0, target, target],
+            forces=[brake, brake, drive + brake, drive + brake],
+            physicsClientId=self.client,
+        )
 
     def sync(self) -> None:
         """Read pose and speed (along the heading) back from Bullet."""

@@ -17,8 +17,12 @@ TABLE = ROOT / "catalogs" / "categories.csv"
 
 
 def _tracked(pattern: str) -> list[Path]:
-    out = subprocess.run(["git", "-C", str(ROOT), "ls-files", "--cached", "--others", "--exclude-standard", pattern],
-                         check=True, capture_output=True, text=True).stdout.split()
+    out = subprocess.run(
+        ["git", "-C", str(ROOT), "ls-files", "--cached", "--others", "--exclude-standard", pattern],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.split()
     return [ROOT / f for f in sorted(set(out)) if (ROOT / f).is_file()]
 
 
@@ -35,12 +39,15 @@ def test_the_table_holds_every_category_once_with_valid_rows() -> None:
     assert CATEGORIES["building_facade"].zones == ("building",)
 
 
-@pytest.mark.parametrize(("old", "new", "message"), [
-    ("furnishing near_road_buffer", "furnishing kerb", "zones 'furnishing kerb' invalid"),
-    (",standard,", ",infrastructure,", "object_class 'infrastructure'"),
-    ("0.3,0.3,6.0,", "0.3,0.3,16.0,", "height needs 0 < height_min <= height <= height_max"),
-    ("\nbench,", "\nstreet_lamp,", "duplicate category"),
-])
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ("furnishing near_road_buffer", "furnishing kerb", "zones 'furnishing kerb' invalid"),
+        (",standard,", ",infrastructure,", "object_class 'infrastructure'"),
+        ("0.3,0.3,6.0,", "0.3,0.3,16.0,", "height needs 0 < height_min <= height <= height_max"),
+        ("\nbench,", "\nstreet_lamp,", "duplicate category"),
+    ],
+)
 def test_a_bad_row_is_refused_naming_its_row_and_the_fix(old: str, new: str, message: str) -> None:
     text = TABLE.read_text(encoding="utf-8")
     assert old in text
@@ -65,8 +72,9 @@ def defining_statements(source: str, at_least: int = 12) -> list[int]:
     """Lines of top-level or class-level statements that spell out `at_least` category names (a second table)."""
     tree = ast.parse(source)
     stmts = [s for s in tree.body] + [s for c in tree.body if isinstance(c, ast.ClassDef) for s in c.body]
-    return [s.lineno for s in stmts if not isinstance(s, (ast.FunctionDef, ast.ClassDef))
-            and len(_names_in(s)) >= at_least]
+    return [
+        s.lineno for s in stmts if not isinstance(s, (ast.FunctionDef, ast.ClassDef)) and len(_names_in(s)) >= at_least
+    ]
 
 
 def test_the_definition_check_sees_a_second_table() -> None:
@@ -77,8 +85,11 @@ def test_the_definition_check_sees_a_second_table() -> None:
 
 def test_nothing_else_defines_categories() -> None:
     # Code may name a few categories (a held-out split, a test's sample), never spell out the vocabulary again.
-    code = {str(f.relative_to(ROOT)): lines for f in _tracked("*.py") if f.parts[len(ROOT.parts)] != "tests"
-            and (lines := defining_statements(f.read_text(encoding="utf-8")))}
+    code = {
+        str(f.relative_to(ROOT)): lines
+        for f in _tracked("*.py")
+        if f.parts[len(ROOT.parts)] != "tests" and (lines := defining_statements(f.read_text(encoding="utf-8")))
+    }
     assert code == {}
     # A data table that gives categories a class or zones is a second category table.
     tables = []

@@ -25,10 +25,12 @@ def con(tmp_path: Path, make_asset, random_unit_vectors):
     path = tmp_path / "c.duckdb"
     vecs = random_unit_vectors(len(SPECS), seed=3)
     with build_catalog(path) as w:
-        w.upsert_assets([
-            make_asset(a, category=c, object_class=k, zones=z, height=h, source=s, license=lic)
-            for a, c, k, z, h, s, lic in SPECS
-        ])
+        w.upsert_assets(
+            [
+                make_asset(a, category=c, object_class=k, zones=z, height=h, source=s, license=lic)
+                for a, c, k, z, h, s, lic in SPECS
+            ]
+        )
         w.upsert_embeddings("asset_text", [s[0] for s in SPECS], vecs)
     c = open_catalog(path)
     yield c, vecs

@@ -18,10 +18,20 @@ REPO = Path(__file__).resolve().parents[2]
 @pytest.fixture()
 def reader(tmp_path: Path, make_asset) -> CatalogReader:
     path = tmp_path / "c.duckdb"
-    records = [make_asset(f"bench-{i}", height=0.5 + 0.1 * i, zones=["furnishing"] if i % 2 else ["frontage"],
-                          mesh_path=f"c_assets/bench/{i}/model.obj") for i in range(10)]
-    records.append(make_asset("hydrant-0", category="fire_hydrant", object_class="standard", height=0.8,
-                              mesh_path="/abs/hydrant.obj"))
+    records = [
+        make_asset(
+            f"bench-{i}",
+            height=0.5 + 0.1 * i,
+            zones=["furnishing"] if i % 2 else ["frontage"],
+            mesh_path=f"c_assets/bench/{i}/model.obj",
+        )
+        for i in range(10)
+    ]
+    records.append(
+        make_asset(
+            "hydrant-0", category="fire_hydrant", object_class="standard", height=0.8, mesh_path="/abs/hydrant.obj"
+        )
+    )
     with build_catalog(path) as w:
         w.upsert_assets(records)
     return CatalogReader(path)
@@ -78,9 +88,18 @@ def test_candidates_match_a_plain_filter_for_small_and_large_categories(tmp_path
     # 10 benches take the small-category (Python) filter, 100 bins the numpy one: both must equal a plain filter.
     rng = np.random.default_rng(3)
     zones = (["furnishing"], ["frontage"], ["furnishing", "frontage"])
-    records = [make_asset(f"{cat}-{i:03d}", category=cat, zones=list(zones[i % 3]), depth=float(rng.uniform(0.2, 1.2)),
-                          width=float(rng.uniform(0.2, 2.0)), height=float(rng.uniform(0.3, 2.5)))
-               for cat, n in (("bench", 10), ("trash_bin", 100)) for i in range(n)]
+    records = [
+        make_asset(
+            f"{cat}-{i:03d}",
+            category=cat,
+            zones=list(zones[i % 3]),
+            depth=float(rng.uniform(0.2, 1.2)),
+            width=float(rng.uniform(0.2, 2.0)),
+            height=float(rng.uniform(0.3, 2.5)),
+        )
+        for cat, n in (("bench", 10), ("trash_bin", 100))
+        for i in range(n)
+    ]
     with build_catalog(tmp_path / "c.duckdb") as w:
         w.upsert_assets(records)
     reader = CatalogReader(tmp_path / "c.duckdb")
@@ -88,11 +107,17 @@ def test_candidates_match_a_plain_filter_for_small_and_large_categories(tmp_path
         for zone in (None, "furnishing", "frontage", "clear"):
             for limits in ((None, None, None), (0.7, None, None), (0.9, 1.2, None), (None, None, 1.5), (1.0, 1.0, 1.0)):
                 got = reader.candidates(cat, zone=zone, max_depth=limits[0], max_width=limits[1], max_height=limits[2])
-                want = [i for i, r in enumerate(reader.table.asset_id) if reader.get(r).category == cat
-                        and (zone is None or zone in reader.get(r).zones)
-                        and all(lim is None or v <= lim for v, lim in zip(reader.table.size[i], limits))]
+                want = [
+                    i
+                    for i, r in enumerate(reader.table.asset_id)
+                    if reader.get(r).category == cat
+                    and (zone is None or zone in reader.get(r).zones)
+                    and all(lim is None or v <= lim for v, lim in zip(reader.table.size[i], limits))
+                ]
                 assert got.tolist() == want, (cat, zone, limits)
-                again = reader.candidates(cat, zone=zone, max_depth=limits[0], max_width=limits[1], max_height=limits[2])
+                again = reader.candidates(
+                    cat, zone=zone, max_depth=limits[0], max_width=limits[1], max_height=limits[2]
+                )
                 assert again is got and not got.flags.writeable  # the cached answer, shared read-only
 
 
@@ -100,8 +125,12 @@ def test_by_depth_lists_each_categorys_zone_assets_shallowest_first(tmp_path: Pa
     path = tmp_path / "d.duckdb"
     depths = [0.9, 0.4, 0.7, 0.4, 0.5]
     with build_catalog(path) as w:
-        w.upsert_assets([make_asset(f"bench-{i}", depth=d, zones=["furnishing"] if i != 2 else ["frontage"])
-                         for i, d in enumerate(depths)])
+        w.upsert_assets(
+            [
+                make_asset(f"bench-{i}", depth=d, zones=["furnishing"] if i != 2 else ["frontage"])
+                for i, d in enumerate(depths)
+            ]
+        )
     reader = CatalogReader(path)
     index, size = reader.by_depth(("bench", "tree"), "furnishing")
     assert [reader.table.asset_id[i] for i in index[0] if i >= 0] == ["bench-1", "bench-3", "bench-4", "bench-0"]

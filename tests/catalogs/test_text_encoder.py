@@ -133,8 +133,14 @@ def test_cli_query_does_not_load_torch(small_catalog: Path) -> None:
         "heavy = sorted(m for m in ('torch', 'sentence_transformers', 'transformers') if m in sys.modules)\n"
         "print('HEAVY=' + ','.join(heavy), file=sys.stderr)\n"
     )
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False,
-                          cwd=Path(__file__).resolve().parents[2])
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        cwd=Path(__file__).resolve().parents[2],
+    )
     assert "HEAVY=\n" in proc.stderr, proc.stderr[-2000:]
     doc = json.loads(proc.stdout)
     assert doc["results"][0]["category"] == "fire_hydrant"

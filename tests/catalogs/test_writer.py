@@ -38,8 +38,14 @@ def test_upserts_are_idempotent_and_replace_by_key(tmp_path: Path, make_asset, r
             w.upsert_matches([MatchRecord("a0", "d0", 0.5, "clip")])
             w.record_rejections([RejectionRecord("objaverse", "u1", "quality", "too few faces")])
         w.upsert_assets([make_asset("a1", height=2.5, zones=["frontage", "building"], params={"k": [1, 2]})])
-    for table, n in [("assets", 4), ("embeddings", 4), ("views", 1), ("descriptions", 1), ("matches", 1),
-                     ("rejections", 1)]:
+    for table, n in [
+        ("assets", 4),
+        ("embeddings", 4),
+        ("views", 1),
+        ("descriptions", 1),
+        ("matches", 1),
+        ("rejections", 1),
+    ]:
         assert _count(path, table) == n, table
     rec = CatalogReader(path).get("a1")
     assert rec.height == 2.5 and rec.zones == ["frontage", "building"] and rec.params == {"k": [1, 2]}
@@ -135,9 +141,14 @@ def test_an_asset_is_replaced_rejected_and_deleted_across_every_table(tmp_path: 
         w.upsert_embeddings("description", ["d0"], vec[:1])  # not the asset's: survives its deletion
         for aid, score in (("a", 0.9), ("b", 0.5)):
             w.record_rejections([RejectionRecord("procedural", aid, "render", "error", "old", "h1")])
-            w.replace_asset(make_asset(aid, content_hash=f"hash-{aid}"), [ViewRecord(aid, 0, 0.0, 15.0, f"{aid}.png")],
-                            [MatchRecord(aid, "d0", score, "s")], text_embedding=vec[1], image_embedding=vec[2],
-                            image_model="imagenet")
+            w.replace_asset(
+                make_asset(aid, content_hash=f"hash-{aid}"),
+                [ViewRecord(aid, 0, 0.0, 15.0, f"{aid}.png")],
+                [MatchRecord(aid, "d0", score, "s")],
+                text_embedding=vec[1],
+                image_embedding=vec[2],
+                image_model="imagenet",
+            )
         assert w.finished_hashes() == {("procedural", "a"): "hash-a", ("procedural", "b"): "hash-b"}
         assert w.rejection_details("h1") == {}  # a finished asset clears its item's rejection
         assert [(e.asset_id, e.content_hash) for e in w.embedded_assets()] == [("a", "hash-a"), ("b", "hash-b")]

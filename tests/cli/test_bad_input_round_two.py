@@ -71,13 +71,15 @@ def test_a_custom_scene_seed_must_be_an_integer_in_range(seed, tmp_path, capsys)
 def test_from_with_generator_options_is_refused(tmp_path, capsys) -> None:
     f = tmp_path / "custom.yaml"
     f.write_text("seed: 1\nblocks: 1\n")
-    line = one_error_line(*cli(["scenes", "generate", "--from", str(f), "--blocks", "5", "--out",
-                                str(tmp_path / "s.json")], capsys))
+    line = one_error_line(
+        *cli(["scenes", "generate", "--from", str(f), "--blocks", "5", "--out", str(tmp_path / "s.json")], capsys)
+    )
     assert "drop --blocks" in line
 
 
 def test_an_empty_local_source_is_refused(tmp_path, capsys, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)
-    line = one_error_line(*cli(["catalog", "ingest", "--source", "local:", "--catalog", str(tmp_path / "c.duckdb")],
-                               capsys))
+    line = one_error_line(
+        *cli(["catalog", "ingest", "--source", "local:", "--catalog", str(tmp_path / "c.duckdb")], capsys)
+    )
     assert "local: needs a folder" in line and not (tmp_path / "c.duckdb").exists()

@@ -15,8 +15,9 @@ runner = CliRunner()
 
 
 def build(catalog: Path, *extra: str):
-    return runner.invoke(app, ["catalog", "build", "--catalog", str(catalog), "--category", "bench",
-                               "--category", "bollard", *extra])
+    return runner.invoke(
+        app, ["catalog", "build", "--catalog", str(catalog), "--category", "bench", "--category", "bollard", *extra]
+    )
 
 
 def test_build_variants_seeds_and_determinism(tmp_path: Path) -> None:
@@ -27,8 +28,12 @@ def test_build_variants_seeds_and_determinism(tmp_path: Path) -> None:
     assert "4 assets" in res.stdout
     ra, rb = CatalogReader(a), CatalogReader(b)
     assert ra.categories() == {"bench": 2, "bollard": 2}
-    assert sorted(ra.table.asset_id) == ["procedural/bench/1000", "procedural/bench/1001",
-                                         "procedural/bollard/1000", "procedural/bollard/1001"]
+    assert sorted(ra.table.asset_id) == [
+        "procedural/bench/1000",
+        "procedural/bench/1001",
+        "procedural/bollard/1000",
+        "procedural/bollard/1001",
+    ]
     for asset_id in ra.table.asset_id:  # same seed, same bytes
         assert ra.get(asset_id).content_hash == rb.get(asset_id).content_hash
         assert ra.resolve(ra.get(asset_id).mesh_path).is_file()
@@ -66,15 +71,36 @@ def test_a_full_disk_fails_the_build_in_one_line_and_leaves_the_previous_catalog
     before = catalog.read_bytes()
     folders = sorted(p.relative_to(tmp_path) for p in (tmp_path / "c_assets").rglob("*") if p.is_dir())
 
-    for limit, words in ((200_000, f"error: cannot write catalog {catalog}: the disk is full"),
-                         (5_000, "could not write: the disk is full or a file passes a size limit")):
+    for limit, words in (
+        (200_000, f"error: cannot write catalog {catalog}: the disk is full"),
+        (5_000, "could not write: the disk is full or a file passes a size limit"),
+    ):
+
         def capped(limit: int = limit) -> None:
             signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG instead
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
-        res = subprocess.run([str(Path(sys.executable).with_name("curbside")), "catalog", "build", "--catalog", str(catalog),
-                              "--category", "bench", "--category", "bollard", "--variants", "2", "--seed", "1"],
-                             preexec_fn=capped, capture_output=True, text=True, timeout=300)
+        res = subprocess.run(
+            [
+                str(Path(sys.executable).with_name("curbside")),
+                "catalog",
+                "build",
+                "--catalog",
+                str(catalog),
+                "--category",
+                "bench",
+                "--category",
+                "bollard",
+                "--variants",
+                "2",
+                "--seed",
+                "1",
+            ],
+            preexec_fn=capped,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
         last = [ln for ln in res.stderr.splitlines() if ln.startswith("error:")]
         assert res.returncode == 1 and len(last) == 1 and words in last[0], res.stderr[-600:]
         assert "Traceback" not in res.stderr

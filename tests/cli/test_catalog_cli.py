@@ -41,9 +41,14 @@ def test_fire_hydrant_first(small_catalog: Path) -> None:
 
 @pytest.mark.parametrize(
     ("text", "expected"),
-    [("somewhere to sit", "bench"), ("garbage can", "trash_bin"), ("street light", "street_lamp"),
-     ("lamp post", "street_lamp"),
-     ("traffic cone", "traffic_cone"), ("postbox", "mailbox")],
+    [
+        ("somewhere to sit", "bench"),
+        ("garbage can", "trash_bin"),
+        ("street light", "street_lamp"),
+        ("lamp post", "street_lamp"),
+        ("traffic cone", "traffic_cone"),
+        ("postbox", "mailbox"),
+    ],
 )
 def test_paraphrases_find_the_right_category(small_catalog: Path, text: str, expected: str) -> None:
     assert query_json(small_catalog, text)["results"][0]["category"] == expected
@@ -159,9 +164,25 @@ def test_validate_reports_corrupt_and_missing_meshes(small_catalog: Path, copy_c
 def test_json_stdout_is_one_document_in_a_real_process(small_catalog: Path) -> None:
     env = {**os.environ, "HF_HUB_OFFLINE": "1", "COLUMNS": "80"}
     out = subprocess.run(
-        [sys.executable, "-m", "curbside.cli.main", "catalog", "query", "fire hydrant", "--json", "--limit", "5",
-         "--catalog", str(small_catalog)],
-        cwd=REPO, capture_output=True, text=True, env=env, timeout=120, check=False,
+        [
+            sys.executable,
+            "-m",
+            "curbside.cli.main",
+            "catalog",
+            "query",
+            "fire hydrant",
+            "--json",
+            "--limit",
+            "5",
+            "--catalog",
+            str(small_catalog),
+        ],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+        check=False,
     )
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)  # raises if anything else reached stdout

@@ -28,13 +28,28 @@ def synthetic_catalog(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from catalogs.writer import CatalogWriter
 
     path = tmp_path_factory.mktemp("syn") / "syn.duckdb"
-    recs = [AssetRecord(asset_id=f"a{i:03d}", source="procedural", source_id=f"a{i:03d}", category="bench",
-                        object_class="non_standard", zones=["furnishing"], depth=0.6, width=1.8, height=0.85,
-                        description=f"bench {i}", synonyms=["seat"], license="CC0-1.0") for i in range(200)]
+    recs = [
+        AssetRecord(
+            asset_id=f"a{i:03d}",
+            source="procedural",
+            source_id=f"a{i:03d}",
+            category="bench",
+            object_class="non_standard",
+            zones=["furnishing"],
+            depth=0.6,
+            width=1.8,
+            height=0.85,
+            description=f"bench {i}",
+            synonyms=["seat"],
+            license="CC0-1.0",
+        )
+        for i in range(200)
+    ]
     with CatalogWriter(path) as w:
         w.upsert_assets(recs)
-        w.upsert_embeddings("asset_text", [r.asset_id for r in recs],
-                            np.random.default_rng(0).normal(size=(len(recs), 384)))
+        w.upsert_embeddings(
+            "asset_text", [r.asset_id for r in recs], np.random.default_rng(0).normal(size=(len(recs), 384))
+        )
     return path
 
 
@@ -154,8 +169,10 @@ def locked(synthetic_catalog: Path, tmp_path: Path):
         holder.wait()
 
 
-@pytest.mark.parametrize("cmd", [["stats"], ["query", "bench"], ["validate"], ["export"], ["show", "a001"],
-                                 ["ingest", "--source", "local:{dir}"]])
+@pytest.mark.parametrize(
+    "cmd",
+    [["stats"], ["query", "bench"], ["validate"], ["export"], ["show", "a001"], ["ingest", "--source", "local:{dir}"]],
+)
 def test_locked_catalog_says_locked_not_rebuild(capsys, locked, tmp_path: Path, cmd: list[str]) -> None:
     path, pid = locked
     (tmp_path / "meshes").mkdir()
@@ -190,16 +207,25 @@ def mesh_dir(tmp_path: Path) -> Path:
     return d
 
 
-@pytest.mark.parametrize(("option", "value", "words"), [
-    ("--views", "0", "--views"), ("--views", "21", "--views"), ("--executor", "bogus", "'local', 'process', 'ray'"),
-    ("--scorer", "resnet", "'aligned', 'imagenet', 'clip', 'blip', 'blip2', 'none'"), ("--calibration", "max", "'softmax', 'zscore', 'none'"),
-    ("--limit", "0", "--limit"), ("--workers", "0", "--workers"),
-])
-def test_ingest_bad_option_is_refused_before_the_catalog(capsys, mesh_dir: Path, tmp_path: Path, option: str,
-                                                         value: str, words: str) -> None:
+@pytest.mark.parametrize(
+    ("option", "value", "words"),
+    [
+        ("--views", "0", "--views"),
+        ("--views", "21", "--views"),
+        ("--executor", "bogus", "'local', 'process', 'ray'"),
+        ("--scorer", "resnet", "'aligned', 'imagenet', 'clip', 'blip', 'blip2', 'none'"),
+        ("--calibration", "max", "'softmax', 'zscore', 'none'"),
+        ("--limit", "0", "--limit"),
+        ("--workers", "0", "--workers"),
+    ],
+)
+def test_ingest_bad_option_is_refused_before_the_catalog(
+    capsys, mesh_dir: Path, tmp_path: Path, option: str, value: str, words: str
+) -> None:
     cat = tmp_path / "c.duckdb"
-    code, _, err = cli(["catalog", "ingest", "--source", f"local:{mesh_dir}", "--catalog", str(cat),
-                        option, value], capsys)
+    code, _, err = cli(
+        ["catalog", "ingest", "--source", f"local:{mesh_dir}", "--catalog", str(cat), option, value], capsys
+    )
     assert code == 2 and words in err and "Traceback" not in err
     assert not cat.exists()  # the old code created it and recorded every asset as rejected (--views 0)
 
@@ -214,8 +240,21 @@ def test_cli_view_limit_is_the_renderer_limit() -> None:
 def test_ingest_objaverse_offline_is_one_line_and_leaves_no_catalog(capsys, tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setenv("CURBSIDE_OBJAVERSE_URL", "http://127.0.0.1:9")  # refuses connections, like no network
     cat = tmp_path / "c.duckdb"
-    code, out, err = cli(["catalog", "ingest", "--source", "objaverse", "--objaverse-cache",
-                          str(tmp_path / "cache"), "--catalog", str(cat), "--scorer", "none"], capsys)
+    code, out, err = cli(
+        [
+            "catalog",
+            "ingest",
+            "--source",
+            "objaverse",
+            "--objaverse-cache",
+            str(tmp_path / "cache"),
+            "--catalog",
+            str(cat),
+            "--scorer",
+            "none",
+        ],
+        capsys,
+    )
     line = one_error_line(code, out, err, exit_code=1)
     assert "objaverse needs network access" in line and "--source local:DIR" in line
     assert not cat.exists() and not list(tmp_path.glob("c.duckdb*")) and not (tmp_path / "c_assets").exists()
@@ -230,8 +269,21 @@ def test_ingest_truncated_objaverse_annotations_names_the_file(capsys, tmp_path:
     full = gzip.compress(json.dumps({"bench": [f"uid{i:05d}" for i in range(2000)]}).encode())
     lvis.write_bytes(full[: len(full) // 2])
     cat = tmp_path / "c.duckdb"
-    code, out, err = cli(["catalog", "ingest", "--source", "objaverse", "--objaverse-cache",
-                          str(tmp_path / "cache"), "--catalog", str(cat), "--scorer", "none"], capsys)
+    code, out, err = cli(
+        [
+            "catalog",
+            "ingest",
+            "--source",
+            "objaverse",
+            "--objaverse-cache",
+            str(tmp_path / "cache"),
+            "--catalog",
+            str(cat),
+            "--scorer",
+            "none",
+        ],
+        capsys,
+    )
     line = one_error_line(code, out, err, exit_code=1)
     assert str(lvis) in line and "delete it" in line and "aborted" not in line.lower()
     assert not cat.exists()

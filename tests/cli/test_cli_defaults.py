@@ -67,7 +67,11 @@ def test_sim_options_match_the_task_defaults() -> None:
     from sim.camera import CAMERA_DEFAULTS
 
     assert _default(sim.app, "bench", "size") == _kwdefault(run_camera_bench, "size") == CAMERA_DEFAULTS["width"]
-    assert _default(sim.app, "bench", "renderer") == _kwdefault(run_camera_bench, "renderer") == CAMERA_DEFAULTS["renderer"]
+    assert (
+        _default(sim.app, "bench", "renderer")
+        == _kwdefault(run_camera_bench, "renderer")
+        == CAMERA_DEFAULTS["renderer"]
+    )
 
 
 def test_train_options_match_the_trainer_defaults() -> None:

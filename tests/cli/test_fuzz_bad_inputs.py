@@ -35,8 +35,24 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """A small real catalog, a real scene, and the kinds of broken files users hand over."""
     root = tmp_path_factory.mktemp("fuzz")
     catalog = root / "good.duckdb"
-    assert run(COMMAND, ["catalog", "build", "--catalog", str(catalog), "--variants", "1",
-                         "--category", "bench", "--category", "trash_bin"]) == 0
+    assert (
+        run(
+            COMMAND,
+            [
+                "catalog",
+                "build",
+                "--catalog",
+                str(catalog),
+                "--variants",
+                "1",
+                "--category",
+                "bench",
+                "--category",
+                "trash_bin",
+            ],
+        )
+        == 0
+    )
     garbage = root / "garbage.bin"
     garbage.write_bytes(np.random.default_rng(0).bytes(4096))
     empty = root / "empty.duckdb"
@@ -59,8 +75,18 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     nan_scene.write_text(json.dumps(spec))
     empty_dir = root / "empty_dir"
     empty_dir.mkdir()
-    return {"root": root, "catalog": catalog, "garbage": garbage, "empty": empty, "truncated": truncated,
-            "list": listing, "obj": obj, "nan_scene": nan_scene, "dir": empty_dir, "missing": root / "missing.json"}
+    return {
+        "root": root,
+        "catalog": catalog,
+        "garbage": garbage,
+        "empty": empty,
+        "truncated": truncated,
+        "list": listing,
+        "obj": obj,
+        "nan_scene": nan_scene,
+        "dir": empty_dir,
+        "missing": root / "missing.json",
+    }
 
 
 def _cases(f: dict[str, Path]) -> list[list[str]]:
@@ -71,8 +97,12 @@ def _cases(f: dict[str, Path]) -> list[list[str]]:
     # Catalog commands on broken catalog files.
     for p in bad_paths:
         c = ["--catalog", str(p)]
-        cases += [["catalog", "query", "bench", *c], ["catalog", "stats", *c], ["catalog", "show", "x", *c],
-                  ["catalog", "export", *c, "--out", str(f["root"] / "export.parquet")]]
+        cases += [
+            ["catalog", "query", "bench", *c],
+            ["catalog", "stats", *c],
+            ["catalog", "show", "x", *c],
+            ["catalog", "export", *c, "--out", str(f["root"] / "export.parquet")],
+        ]
     cases += [["catalog", "validate", "--catalog", str(p)] for p in (f["missing"], f["dir"])]
     # Catalog commands with bad options on a good catalog.
     cases += [["catalog", "query", "bench", *cat, "--limit", v] for v in ("0", "-3", "abc", "1.5")]
@@ -82,15 +112,20 @@ def _cases(f: dict[str, Path]) -> list[list[str]]:
     cases += [["catalog", "show", "no-such-asset", *cat], ["catalog", "query", *cat]]
     cases += [["catalog", "export", *cat, "--format", v] for v in ("xml", "")]
     cases += [["catalog", "export", *cat, "--out", str(f["dir"])]]
-    cases += [["catalog", "build", "--catalog", str(f["root"] / "new.duckdb"), "--variants", v] for v in ("0", "-1", "x")]
+    cases += [
+        ["catalog", "build", "--catalog", str(f["root"] / "new.duckdb"), "--variants", v] for v in ("0", "-1", "x")
+    ]
     cases += [["catalog", "build", "--catalog", str(f["root"] / "new.duckdb"), "--category", "spaceship"]]
     ingest = ["catalog", "ingest", "--catalog", str(f["root"] / "ingested.duckdb")]
     cases += [[*ingest, "--views", v] for v in ("0", "21", "-1", "abc", "1000")]
     cases += [[*ingest, "--executor", v] for v in ("bogus", "")]
     cases += [[*ingest, "--source", v] for v in ("bogus", f"local:{f['missing']}", f"local:{f['garbage']}", "http://x")]
     cases += [[*ingest, opt, "0"] for opt in ("--limit", "--workers", "--per-category")]
-    cases += [[*ingest, "--scorer", "bogus"], [*ingest, "--calibration", "bogus"],
-              [*ingest, "--scorer", "clip", "--clip-model", str(f["missing"])]]
+    cases += [
+        [*ingest, "--scorer", "bogus"],
+        [*ingest, "--calibration", "bogus"],
+        [*ingest, "--scorer", "clip", "--clip-model", str(f["missing"])],
+    ]
     # Scenes.
     gen = ["scenes", "generate"]
     cases += [[*gen, "--blocks", v] for v in ("0", "-1", "100000", "abc", "SQX", "", "65", "1.5")]
@@ -99,25 +134,55 @@ def _cases(f: dict[str, Path]) -> list[list[str]]:
     cases += [[*gen, "--terrain-density", v] for v in ("nan", "-1", "11")]
     cases += [[*gen, "--seed", v] for v in ("-5", "abc", "1e99")]
     cases += [[*gen, "--templates", v] for v in ("z", "", "ab9")]
-    cases += [[*gen, "--out", str(f["dir"])], [*gen, "--catalog", str(f["garbage"])], [*gen, "--catalog", str(f["missing"])]]
+    cases += [
+        [*gen, "--out", str(f["dir"])],
+        [*gen, "--catalog", str(f["garbage"])],
+        [*gen, "--catalog", str(f["missing"])],
+    ]
     for p in (f["missing"], f["dir"], f["garbage"], f["list"], f["obj"], f["nan_scene"]):
         cases.append(["scenes", "render", str(p), "--out", str(f["root"] / "r.png")])
     cases += [["scenes", "render", str(f["nan_scene"]), "--dpi", v] for v in ("0", "-1", "abc", "5000")]
     ds = ["scenes", "dataset", "--out", str(f["root"] / "ds")]
     cases += [[*ds, "--count", v] for v in ("0", "-5", "abc")]
-    cases += [[*ds, "--split", "bogus"], [*ds, "--workers", "0"], [*ds, "--blocks", "0"],
-              [*ds, "--object-density", "nan"], [*ds, "--preset", "bogus"], [*ds, "--catalog", str(f["garbage"])]]
+    cases += [
+        [*ds, "--split", "bogus"],
+        [*ds, "--workers", "0"],
+        [*ds, "--blocks", "0"],
+        [*ds, "--object-density", "nan"],
+        [*ds, "--preset", "bogus"],
+        [*ds, "--catalog", str(f["garbage"])],
+    ]
     cases += [["scenes", "stats", str(p)] for p in (f["missing"], f["garbage"], f["dir"])]
     # Simulator.
-    configs = ['{"bogus": 1}', "{bad", "[1, 2]", '{"dt": NaN}', '{"dt": -1}', '{"horizon": "abc"}',
-               '{"num_waypoints": -3}', '{"lidar": {"range": NaN}}', '{"lidar": 5}', '"text"', "null",
-               '{"reward_preset": "x"}', '{"machine": "tank"}', '{"lidar": {"beams": 0}}', '{"dt": Infinity}']
+    configs = [
+        '{"bogus": 1}',
+        "{bad",
+        "[1, 2]",
+        '{"dt": NaN}',
+        '{"dt": -1}',
+        '{"horizon": "abc"}',
+        '{"num_waypoints": -3}',
+        '{"lidar": {"range": NaN}}',
+        '{"lidar": 5}',
+        '"text"',
+        "null",
+        '{"reward_preset": "x"}',
+        '{"machine": "tank"}',
+        '{"lidar": {"beams": 0}}',
+        '{"dt": Infinity}',
+    ]
     for cmd in (["sim", "eval", "--episodes", "1"], ["sim", "rollout", "--out", str(f["root"] / "r.gif")]):
         cases += [[*cmd, "--config", c] for c in configs]
-        cases += [[*cmd, "--machine", "tank"], [*cmd, "--seed", "-1"], [*cmd, "--task", "Fly"],
-                  [*cmd, "--policy", "magic"]]
-        cases += [[*cmd, "--scene-path", str(p)] for p in (f["missing"], f["dir"], f["garbage"], f["list"],
-                                                          f["obj"], f["nan_scene"])]
+        cases += [
+            [*cmd, "--machine", "tank"],
+            [*cmd, "--seed", "-1"],
+            [*cmd, "--task", "Fly"],
+            [*cmd, "--policy", "magic"],
+        ]
+        cases += [
+            [*cmd, "--scene-path", str(p)]
+            for p in (f["missing"], f["dir"], f["garbage"], f["list"], f["obj"], f["nan_scene"])
+        ]
     cases += [["sim", "eval", "--episodes", v] for v in ("0", "-1", "x")]
     cases += [["sim", "bench", "--machine", "tank"], ["sim", "bench", "--task", "Fly"]]
     # Pool.
@@ -127,17 +192,26 @@ def _cases(f: dict[str, Path]) -> list[list[str]]:
     out = str(f["root"] / "run")
     tr = ["train", "run", "--out", out, "--steps", "8"]
     cases += [[*tr, "--algo", v] for v in ("bogus", "")]
-    cases += [[*tr, "--task", "Fly"], [*tr, "--config", "{bad"], [*tr, "--config", '{"bogus": 1}'],
-              [*tr, "--algo", "iql"], [*tr, "--algo", "bc", "--demos", str(f["missing"])],
-              [*tr, "--envs", "0"], [*tr, "--scenes", "0"], ["train", "run", "--out", out, "--steps", "0"]]
+    cases += [
+        [*tr, "--task", "Fly"],
+        [*tr, "--config", "{bad"],
+        [*tr, "--config", '{"bogus": 1}'],
+        [*tr, "--algo", "iql"],
+        [*tr, "--algo", "bc", "--demos", str(f["missing"])],
+        [*tr, "--envs", "0"],
+        [*tr, "--scenes", "0"],
+        ["train", "run", "--out", out, "--steps", "0"],
+    ]
     cases += [["train", "eval", str(p)] for p in (f["missing"], f["garbage"], f["dir"])]
     cases += [["train", "eval", str(f["dir"]), "--split", "bogus"]]
     dm = ["demos", "collect", "--out", str(f["root"] / "demos")]
     cases += [[*dm, "--noise", v] for v in ("nan", "-1", "9")]
     cases += [[*dm, "--steps", "0"], [*dm, "--task", "Fly"], [*dm, "--config", "{bad"], [*dm, "--random-prob", "2"]]
-    cases += [["sim", "rollout", "--out", str(f["dir"])], ["sim", "rollout", "--out", str(f["root"] / "r.gif"),
-                                                         "--metrics-out", str(f["dir"])],
-              ["train", "eval", str(f["dir"]), "--episodes", "0"]]
+    cases += [
+        ["sim", "rollout", "--out", str(f["dir"])],
+        ["sim", "rollout", "--out", str(f["root"] / "r.gif"), "--metrics-out", str(f["dir"])],
+        ["train", "eval", str(f["dir"]), "--episodes", "0"],
+    ]
     cases += [["bogus"], ["catalog", "bogus"], ["sim", "eval", "--bogus"]]
     return cases
 
@@ -154,8 +228,14 @@ def test_hundreds_of_bad_cli_inputs_end_in_one_error_line(files: dict[str, Path]
         lines = [ln for ln in err.splitlines() if ln.strip()]
         # Bad input exits 2 with a message of its own: not the catch-all for unexpected errors (exit 1, "rerun
         # with --debug"), nor a bare exception text such as a KeyError's quoted key.
-        ok = (code == 2 and len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in out + err
-              and "rerun with --debug" not in lines[0] and not re.fullmatch(r"error: '[^']*'", lines[0]))
+        ok = (
+            code == 2
+            and len(lines) == 1
+            and lines[0].startswith("error: ")
+            and "Traceback" not in out + err
+            and "rerun with --debug" not in lines[0]
+            and not re.fullmatch(r"error: '[^']*'", lines[0])
+        )
         if not ok:
             bad.append(f"{' '.join(argv)!r}: exit {code}, stderr {lines[:3]}")
     # `validate` reports a damaged catalog as its finding (a table, exit 1) rather than an error line.

@@ -64,8 +64,18 @@ def test_nested_machine_configs_are_refused_naming_the_path() -> None:
 
 
 def option_cases(rng: np.random.Generator) -> list[object]:
-    points = [[math.nan, 1.0], [1.0, math.inf], "ab", [1.0], [1.0, 2.0, 3.0], [[1.0, 2.0], [3.0]], None, {"x": 1},
-              [True, "x"], b"xy"]
+    points = [
+        [math.nan, 1.0],
+        [1.0, math.inf],
+        "ab",
+        [1.0],
+        [1.0, 2.0, 3.0],
+        [[1.0, 2.0], [3.0]],
+        None,
+        {"x": 1},
+        [True, "x"],
+        b"xy",
+    ]
     cases: list[object] = [5, 1.5, "start", [1.0, 2.0], (1, 2), b"x", True, object()]
     cases += [{"start": p, "goal": [1.0, 1.0]} for p in points] + [{"start": [1.0, 1.0], "goal": p} for p in points]
     cases += [{"start": [1.0, 1.0]}, {"goal": [1.0, 1.0]}]
@@ -106,8 +116,9 @@ def test_lifecycle_orders_give_clear_errors(seed: int) -> None:
     """A random order of calls against a model: closed refuses everything; step and scene need a reset."""
     rng = np.random.default_rng(seed)
     ops = [OPS[int(i)] for i in rng.integers(len(OPS), size=6)]
-    env = gym.make("curbside/PointNav-v0", config={**CFG, "render": {"width": 64, "height": 48}},
-                   render_mode="rgb_array").unwrapped
+    env = gym.make(
+        "curbside/PointNav-v0", config={**CFG, "render": {"width": 64, "height": 48}}, render_mode="rgb_array"
+    ).unwrapped
     closed = reset = False
     for op in ops:
         try:
@@ -139,8 +150,18 @@ def yaml_cases(rng: np.random.Generator) -> list[str]:
         lines = [f"l0: &l0 [{', '.join(['x'] * n)}]"]
         lines += [f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * n)}]" for i in range(1, int(rng.integers(2, 9)))]
         docs.append("\n".join(lines))
-    docs += ["a: [1, 2", "a: {b: 1", "- x\ny: 1", "a: 'x", "\t- tab", "a: !!python/object:os.system x", "? [a]\n: 1",
-             "%YAML 9.9\n---\na: 1", "a: *undefined", "x: &x 1\ny: *x"]
+    docs += [
+        "a: [1, 2",
+        "a: {b: 1",
+        "- x\ny: 1",
+        "a: 'x",
+        "\t- tab",
+        "a: !!python/object:os.system x",
+        "? [a]\n: 1",
+        "%YAML 9.9\n---\na: 1",
+        "a: *undefined",
+        "x: &x 1\ny: *x",
+    ]
     for _ in range(24):
         docs.append("".join(rng.choice(list("[]{}:,'\"&*!|>-\n ab"), size=int(rng.integers(3, 40)))))
     return docs
@@ -170,13 +191,25 @@ def test_a_killed_demos_collect_leaves_the_previous_dataset_whole(tmp_path: Path
 
     env = {**os.environ, "MINARI_DATASETS_PATH": str(tmp_path)}
     cfg = json.dumps({"scene": {"blocks": 1}, "route_length": [5.0, 25.0]})
-    cmd = [sys.executable, "-m", "curbside.cli.main", "demos", "collect", "--steps", "60", "--scenes", "1",
-           "--config", cfg]
+    cmd = [
+        sys.executable,
+        "-m",
+        "curbside.cli.main",
+        "demos",
+        "collect",
+        "--steps",
+        "60",
+        "--scenes",
+        "1",
+        "--config",
+        cfg,
+    ]
     subprocess.run(cmd, env=env, check=True, capture_output=True, timeout=300)
     first = minari.MinariDataset(tmp_path / "curbside" / "pointnav-expert-v0" / "data").total_steps
     for delay in (1.0, 3.0, 5.0, 7.0, 9.0):
-        proc = subprocess.Popen([*cmd[:-4], "--steps", "400", *cmd[-4:]], env=env, stdout=subprocess.DEVNULL,
-                                stderr=subprocess.DEVNULL)
+        proc = subprocess.Popen(
+            [*cmd[:-4], "--steps", "400", *cmd[-4:]], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
         time.sleep(delay)
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=60)
@@ -217,13 +250,16 @@ def test_the_same_generators_through_the_cli_end_in_one_error_line(tmp_path: Pat
     assert not list(tmp_path.glob("scene_*.json"))
 
 
-@pytest.mark.parametrize("argv", [
-    ["scenes", "dataset", "--split", "test", "--count", "1", "--out", ""],
-    ["scenes", "generate", "--out="],
-    ["sim", "eval", "--episodes", "1", "--out", ""],
-    ["demos", "collect", "--task", "PointNav", "--steps", "50", "--out", ""],
-    ["train", "run", "--algo", "ppo", "--task", "PointNav", "--steps", "64", "--out", ""],
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["scenes", "dataset", "--split", "test", "--count", "1", "--out", ""],
+        ["scenes", "generate", "--out="],
+        ["sim", "eval", "--episodes", "1", "--out", ""],
+        ["demos", "collect", "--task", "PointNav", "--steps", "50", "--out", ""],
+        ["train", "run", "--algo", "ppo", "--task", "PointNav", "--steps", "64", "--out", ""],
+    ],
+)
 def test_an_empty_option_value_is_refused_before_anything_is_written(argv, tmp_path, monkeypatch, capfd) -> None:
     """`--out ''` would mean the working directory: refused in one line, exit 2, and the folder stays empty."""
     import typer
@@ -234,6 +270,7 @@ def test_an_empty_option_value_is_refused_before_anything_is_written(argv, tmp_p
     monkeypatch.chdir(tmp_path)
     code = run(typer.main.get_command(app), argv)
     err = capfd.readouterr().err.strip().splitlines()
-    assert code == 2 and err == [f"error: {argv[-1].rstrip('=') if argv[-1] else argv[-2]} is empty; give it a value "
-                                 "(see the command's --help)"]
+    assert code == 2 and err == [
+        f"error: {argv[-1].rstrip('=') if argv[-1] else argv[-2]} is empty; give it a value (see the command's --help)"
+    ]
     assert not list(tmp_path.iterdir())

@@ -10,8 +10,9 @@ from tests.helpers import cli, one_error_line
 def test_unreachable_cluster_is_one_line_exit_2(capsys) -> None:
     ray = pytest.importorskip("ray")
     assert not ray.is_initialized()
-    line = one_error_line(*cli(["sim", "eval", "--episodes", "1", "--executor", "ray", "--address", "127.0.0.1:1"],
-                               capsys))
+    line = one_error_line(
+        *cli(["sim", "eval", "--episodes", "1", "--executor", "ray", "--address", "127.0.0.1:1"], capsys)
+    )
     assert "cannot reach a Ray cluster" in line and "ray start --head" in line
 
 

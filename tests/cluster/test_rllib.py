@@ -43,8 +43,19 @@ def _train_resume_eval(tmp_path: Path, capsys) -> None:
 
     run = tmp_path / "run"
     h = dict(TINY)
-    policy = train("ppo", "PointNav", run, steps=256, env_config=CFG, n_envs=2, num_scenes=2, hparams=h,
-                   executor="ray", num_env_runners=2, progress=False)
+    policy = train(
+        "ppo",
+        "PointNav",
+        run,
+        steps=256,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams=h,
+        executor="ray",
+        num_env_runners=2,
+        progress=False,
+    )
     meta = json.loads((run / "run.json").read_text())
     assert (meta["engine"], meta["num_env_runners"], meta["envs_per_runner"]) == ("rllib", 2, 1)
     assert policy == run / "policy" and (policy / "rllib_checkpoint.json").is_file()
@@ -54,8 +65,20 @@ def _train_resume_eval(tmp_path: Path, capsys) -> None:
     assert list((run / "logs").glob("events.out.tfevents.*"))
     assert sorted(d.name for d in (run / "checkpoints").iterdir()) == ["policy_128_steps", "policy_256_steps"]
 
-    train("ppo", "PointNav", run, steps=384, env_config=CFG, n_envs=2, num_scenes=2, hparams=h, executor="ray",
-          num_env_runners=2, resume=True, progress=False)
+    train(
+        "ppo",
+        "PointNav",
+        run,
+        steps=384,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams=h,
+        executor="ray",
+        num_env_runners=2,
+        resume=True,
+        progress=False,
+    )
     assert int(_rows(run)[-1]["time/total_timesteps"]) == 384  # went on from 256, did not start over
 
     code, out, err = cli(["train", "eval", str(run), "--episodes", "2", "--json", "--config", json.dumps(CFG)], capsys)
@@ -65,8 +88,12 @@ def _train_resume_eval(tmp_path: Path, capsys) -> None:
 
 
 def test_ray_refuses_what_rllib_does_not_train(tmp_path: Path, capsys) -> None:
-    line = one_error_line(*cli(["train", "run", "--algo", "ppo_lag", "--executor", "ray", "--steps", "10",
-                                "--out", str(tmp_path / "r")], capsys))
+    line = one_error_line(
+        *cli(
+            ["train", "run", "--algo", "ppo_lag", "--executor", "ray", "--steps", "10", "--out", str(tmp_path / "r")],
+            capsys,
+        )
+    )
     assert "ppo_lag" in line and "--executor local" in line
     line = one_error_line(*cli(["train", "ppo", "--executor", "process", "--out", str(tmp_path / "r")], capsys))
     assert "--executor local" in line and "ray" in line

@@ -24,13 +24,22 @@ def local_dataset(tmp_path_factory: pytest.TempPathFactory, small_catalog: Path)
 
 
 @pytest.mark.parametrize("executor,workers", [("process", 2), ("ray", 2), ("ray", 1)])
-def test_dataset_is_byte_identical_on_every_executor(ray_local, local_dataset: Path, small_catalog: Path,
-                                                      tmp_path: Path, executor: str, workers: int) -> None:
+def test_dataset_is_byte_identical_on_every_executor(
+    ray_local, local_dataset: Path, small_catalog: Path, tmp_path: Path, executor: str, workers: int
+) -> None:
     from sim.scene.dataset import build_dataset
 
     seen: list[int] = []
-    rows = build_dataset("test", 5, tmp_path / "ds", base={"blocks": 1}, catalog=str(small_catalog),
-                         executor=executor, workers=workers, progress=seen.append)
+    rows = build_dataset(
+        "test",
+        5,
+        tmp_path / "ds",
+        base={"blocks": 1},
+        catalog=str(small_catalog),
+        executor=executor,
+        workers=workers,
+        progress=seen.append,
+    )
     assert [r["seed"] for r in rows] == [1_000_000 + k for k in range(5)]
     assert sum(seen) == 5  # progress reported per scene as workers finish them
     assert tree_bytes(tmp_path / "ds") == tree_bytes(local_dataset)
@@ -73,5 +82,6 @@ def test_demos_are_byte_identical_on_ray(ray_local, tmp_path: Path) -> None:
 
 
 def test_address_without_ray_is_one_line_exit_2(capsys) -> None:
-    assert "--executor ray" in one_error_line(*cli(["sim", "eval", "--episodes", "1", "--address", "10.0.0.1:6379"],
-                                                  capsys))
+    assert "--executor ray" in one_error_line(
+        *cli(["sim", "eval", "--episodes", "1", "--address", "10.0.0.1:6379"], capsys)
+    )

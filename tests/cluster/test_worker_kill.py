@@ -40,8 +40,15 @@ def test_a_killed_scene_worker_is_retried_and_nothing_is_lost_or_doubled(ray_loc
 
     local = build_dataset("train", 10, tmp_path / "local", base={"blocks": 1}, executor="local")
     killed: list[int] = []
-    rows = build_dataset("train", 10, tmp_path / "ray", base={"blocks": 1}, executor="ray", workers=2,
-                         progress=killer("scene_item", killed))
+    rows = build_dataset(
+        "train",
+        10,
+        tmp_path / "ray",
+        base={"blocks": 1},
+        executor="ray",
+        workers=2,
+        progress=killer("scene_item", killed),
+    )
     assert len(killed) == 1, "no busy worker was found to kill"
     assert not psutil.pid_exists(killed[0]) or psutil.Process(killed[0]).status() == psutil.STATUS_ZOMBIE
     assert [r["seed"] for r in rows] == list(range(10))  # each scene once, in order
@@ -60,8 +67,16 @@ def test_a_killed_eval_worker_is_retried_and_the_metrics_equal_a_local_run(ray_l
     from sim.eval import episode_metrics, summarize
 
     job = ("curbside/PointNav-v0", "expert", cfg)
-    rows = list(run_map(episode_metrics, range(8), executor="ray", workers=2, args=(job,),
-                        progress=killer("episode_metrics", killed)))
+    rows = list(
+        run_map(
+            episode_metrics,
+            range(8),
+            executor="ray",
+            workers=2,
+            args=(job,),
+            progress=killer("episode_metrics", killed),
+        )
+    )
     assert len(killed) == 1, "no busy worker was found to kill"
     assert len(rows) == 8 and rows == local["per_episode"]
     assert json.dumps(summarize(rows), sort_keys=True) == json.dumps(summarize(local["per_episode"]), sort_keys=True)

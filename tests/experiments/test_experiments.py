@@ -18,13 +18,28 @@ from kernel.config import ConfigError
 from tests.helpers import cli, one_error_line
 
 CFG = {"lidar": {"beams": 24, "low_beams": 8}, "route_length": [5.0, 25.0], "scene": {"blocks": 1}}
-TINY = {"online_steps": 128, "episodes": 1, "n_envs": 2, "scenes": 2, "backend": "pybullet",
-        "hparams": {"n_steps": 64, "batch_size": 64, "n_epochs": 1, "net_arch": [32, 32]}}
+TINY = {
+    "online_steps": 128,
+    "episodes": 1,
+    "n_envs": 2,
+    "scenes": 2,
+    "backend": "pybullet",
+    "hparams": {"n_steps": 64, "batch_size": 64, "n_epochs": 1, "net_arch": [32, 32]},
+}
 
 
 def test_every_shipped_experiment_loads_with_its_paper_numbers() -> None:
-    assert {"table1_paper", "table2", "table5_horizon", "table5_pedestrians", "ablation_generalisation",
-            "ablation_scaling", "ablation_static_density", "ablation_dynamic_density", "seed_robustness"} <= set(names())
+    assert {
+        "table1_paper",
+        "table2",
+        "table5_horizon",
+        "table5_pedestrians",
+        "ablation_generalisation",
+        "ablation_scaling",
+        "ablation_static_density",
+        "ablation_dynamic_density",
+        "seed_robustness",
+    } <= set(names())
     t1 = load_experiment("table1_paper")
     assert len(t1.runs) == 14 and sum(len(r.seeds) for r in t1.runs) == 18 and t1.protocol == "paper"
     cells = {(r.task, s, r.method) for r in t1.runs for s in r.evaluate}
@@ -36,11 +51,26 @@ def test_every_shipped_experiment_loads_with_its_paper_numbers() -> None:
 
 
 def _experiment(tmp_path: Path) -> Path:
-    spec = {"name": "tiny", "title": "tiny", "paper": "table1", "protocol": "curbside", "evaluate": ["test"],
-            "runs": [{"id": "a", "task": "PointNav", "method": "ppo", "seeds": [0, 1], "env": CFG},
-                     {"id": "b", "task": "PointNav", "method": "ppo", "seeds": [0, 1], "init": "a", "train": False,
-                      "evaluate": ["unseen"]}],
-            "budgets": {"smoke": TINY}}
+    spec = {
+        "name": "tiny",
+        "title": "tiny",
+        "paper": "table1",
+        "protocol": "curbside",
+        "evaluate": ["test"],
+        "runs": [
+            {"id": "a", "task": "PointNav", "method": "ppo", "seeds": [0, 1], "env": CFG},
+            {
+                "id": "b",
+                "task": "PointNav",
+                "method": "ppo",
+                "seeds": [0, 1],
+                "init": "a",
+                "train": False,
+                "evaluate": ["unseen"],
+            },
+        ],
+        "budgets": {"smoke": TINY},
+    }
     path = tmp_path / "tiny.yaml"
     path.write_text(yaml.safe_dump(spec))
     return path
@@ -67,8 +97,9 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     stamp = first.stat().st_mtime_ns
 
     calls.clear()
-    monkeypatch.setattr(run_module, "train", lambda *a, **kw: (calls.append((Path(a[2]).parent.name, kw["seed"])),
-                                                                real(*a, **kw))[1])
+    monkeypatch.setattr(
+        run_module, "train", lambda *a, **kw: (calls.append((Path(a[2]).parent.name, kw["seed"])), real(*a, **kw))[1]
+    )
     results = run_experiment(str(exp), "smoke", root=root, progress=False, log=lambda s: None)
     assert calls == [("a", 1)]  # only the killed run trains again; b evaluates a's policies without training
     assert first.stat().st_mtime_ns == stamp and len(results) == 4
@@ -86,8 +117,10 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     from curbside.train.evaluate import evaluate_run
 
     source = root / "tiny" / "smoke" / "a" / "seed_0"
-    one, two = (evaluate_run(source, "PointNav", CFG, split="test", episodes=3, num_scenes=2, workers=w,
-                             progress=False) for w in (1, 2))
+    one, two = (
+        evaluate_run(source, "PointNav", CFG, split="test", episodes=3, num_scenes=2, workers=w, progress=False)
+        for w in (1, 2)
+    )
     assert one == two and one["episodes"] == 3
 
     # The zoo: run a's seed-0 policy (b only evaluates it), loadable as it is, with a card and no Adam moments.
@@ -139,8 +172,21 @@ def _results(root: Path, name: str, rows: list[tuple[str, str, str, str, float, 
         writer = csv.DictWriter(f, fieldnames=list(COLUMNS))
         writer.writeheader()
         for task, method, split, setting, sr, cost in rows:
-            writer.writerow({"experiment": name, "task": task, "method": method, "split": split, "setting": setting,
-                             "seed": 0, "steps": 1, "sr": sr, "spl": sr, "sns": "", "cost": cost})
+            writer.writerow(
+                {
+                    "experiment": name,
+                    "task": task,
+                    "method": method,
+                    "split": split,
+                    "setting": setting,
+                    "seed": 0,
+                    "steps": 1,
+                    "sr": sr,
+                    "spl": sr,
+                    "sns": "",
+                    "cost": cost,
+                }
+            )
 
 
 def test_findings_follow_the_results_and_say_what_has_not_run(tmp_path) -> None:
@@ -150,11 +196,16 @@ def test_findings_follow_the_results_and_say_what_has_not_run(tmp_path) -> None:
     rows = []
     for k, m in enumerate(methods):
         for task, scale in (("PointNav", 1.0), ("SocialNav", 0.5)):
-            rows += [(task, m, "test", "", scale * (0.6 - 0.05 * k), 1.0 - 0.1 * k),
-                     (task, m, "unseen", "", scale * (0.5 - 0.05 * k), 1.0)]
+            rows += [
+                (task, m, "test", "", scale * (0.6 - 0.05 * k), 1.0 - 0.1 * k),
+                (task, m, "unseen", "", scale * (0.5 - 0.05 * k), 1.0),
+            ]
     _results(tmp_path, "table1_paper", rows)
-    _results(tmp_path, "ablation_scaling", [("PointNav", "ppo", "test", n, sr, 1.0)
-                                            for n, sr in (("5", 0.3), ("50", 0.2), ("1000", 0.1))])
+    _results(
+        tmp_path,
+        "ablation_scaling",
+        [("PointNav", "ppo", "test", n, sr, 1.0) for n, sr in (("5", 0.3), ("50", 0.2), ("1000", 0.1))],
+    )
     data = json.loads(write_findings(tmp_path).read_text())
     state = {f["finding"]: f["reproduced"] for f in data["findings"]}
     assert state[1] and state[2] and state[3] and state[4]  # below 0.8; unseen lower; SocialNav half; safe RL

@@ -22,7 +22,9 @@ def test_nms_keeps_best_of_overlapping_boxes():
 
 
 def test_polygon_overlap_uses_the_footprint():
-    sidewalk = [__import__("shapely.geometry", fromlist=["Polygon"]).Polygon([(0, 80), (100, 80), (100, 100), (0, 100)])]
+    sidewalk = [
+        __import__("shapely.geometry", fromlist=["Polygon"]).Polygon([(0, 80), (100, 80), (100, 100), (0, 100)])
+    ]
     boxes = np.array([[10, 20, 20, 100], [30, 10, 40, 50], [50, 60, 60, 90]])
     ov = polygon_overlap(boxes, sidewalk, bottom_fraction=0.25)
     # Box 0 stands on the sidewalk, box 1 floats above it, box 2's bottom strip (82.5-90) is inside.
@@ -59,13 +61,28 @@ def test_tiny_owlv2_end_to_end(tmp_path, tiny_detector):
     rng = np.random.default_rng(0)
     Image.fromarray((rng.random((60, 90, 3)) * 255).astype(np.uint8)).save(tmp_path / "a.png")
     (tmp_path / "b.jpg").write_bytes(b"not an image")
-    ann = {"imgHeight": 60, "imgWidth": 90, "objects": [{"label": "sidewalk", "polygon": [[0, 40], [90, 40], [90, 60], [0, 60]]}]}
+    ann = {
+        "imgHeight": 60,
+        "imgWidth": 90,
+        "objects": [{"label": "sidewalk", "polygon": [[0, 40], [90, 40], [90, 60], [0, 60]]}],
+    }
     (tmp_path / "a.json").write_text(json.dumps(ann))
-    (tmp_path / "m.csv").write_text("path,country,lat,lon,annotation\na.png,FI,60.17,24.94,a.json\nb.jpg,JP,35.6,139.7,\n")
+    (tmp_path / "m.csv").write_text(
+        "path,country,lat,lon,annotation\na.png,FI,60.17,24.94,a.json\nb.jpg,JP,35.6,139.7,\n"
+    )
     man = read_manifest(tmp_path / "m.csv")
     prompts, cats = ["a bench", "a fire hydrant", "a street lamp"], ["bench", "fire_hydrant", "street_lamp"]
-    dets, skipped, counts = detect_images(man, prompts, cats, tiny_detector, score_threshold=0.0, nms_iou=0.5,
-                                          sidewalk_filter="auto", min_overlap=0.3, sidewalk_labels=["sidewalk"])
+    dets, skipped, counts = detect_images(
+        man,
+        prompts,
+        cats,
+        tiny_detector,
+        score_threshold=0.0,
+        nms_iou=0.5,
+        sidewalk_filter="auto",
+        min_overlap=0.3,
+        sidewalk_labels=["sidewalk"],
+    )
     assert counts["images"] == 2 and counts["images_unreadable"] == 1 and skipped["image"].tolist() == ["b.jpg"]
     assert counts["boxes_raw"] >= counts["boxes_after_nms"] >= counts["detections"]
     assert counts["boxes_after_nms"] == counts["detections"] + counts["boxes_off_sidewalk"]

@@ -13,9 +13,12 @@ from pipelines.embed import embed_texts, load_embeddings, save_embeddings
 from tests.helpers import cli, one_error_line
 
 ROWS = [
-    ("a green trash bin", "trash_bin", "images", "JP", 3), ("a green rubbish bin", "trash_bin", "osm", "JP", 2),
-    ("a green trash can", "trash_bin", "osm", "FI", 1), ("a street lamp", "street_lamp", "osm", "FI", 5),
-    ("a street light", "street_lamp", "closed_set", None, 1), ("a red fire hydrant", "fire_hydrant", "osm", "FI", 2),
+    ("a green trash bin", "trash_bin", "images", "JP", 3),
+    ("a green rubbish bin", "trash_bin", "osm", "JP", 2),
+    ("a green trash can", "trash_bin", "osm", "FI", 1),
+    ("a street lamp", "street_lamp", "osm", "FI", 5),
+    ("a street light", "street_lamp", "closed_set", None, 1),
+    ("a red fire hydrant", "fire_hydrant", "osm", "FI", 2),
 ]
 
 
@@ -89,8 +92,11 @@ def test_pool_show_country_absent_from_the_pool(descriptions, embedded, tmp_path
     texts, vecs, _ = embedded
     build_pool(descriptions, texts, vecs, eps=0.3, min_samples=2).to_parquet(tmp_path / "p.parquet")
     argv = ["pool", "show", "--pool", str(tmp_path / "p.parquet")]
-    for bad, words in ((["--country", "US"], "countries present: FI, JP"), (["--country", "XX"], "ISO 3166-1"),
-                       (["--pool", str(tmp_path / "none.parquet")], "dvc repro")):
+    for bad, words in (
+        (["--country", "US"], "countries present: FI, JP"),
+        (["--country", "XX"], "ISO 3166-1"),
+        (["--pool", str(tmp_path / "none.parquet")], "dvc repro"),
+    ):
         assert words in one_error_line(*cli([*argv, *bad], capsys))
 
 

@@ -23,8 +23,9 @@ def _run(args: list[str], cwd: Path) -> str:
     """Run `python -m <args>` in `cwd` as dvc would; returns stdout + stderr, failing on a non-zero exit."""
     env = {k: v for k, v in os.environ.items() if k not in ("HF_HUB_DISABLE_PROGRESS_BARS", "TQDM_DISABLE")}
     env["PYTHONPATH"] = str(REPO_ROOT)
-    res = subprocess.run([sys.executable, "-m", *args], cwd=cwd, env=env, capture_output=True, text=True,
-                         timeout=300, check=False)
+    res = subprocess.run(
+        [sys.executable, "-m", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=300, check=False
+    )
     assert res.returncode == 0, res.stdout + res.stderr
     return res.stdout + res.stderr
 
@@ -37,8 +38,15 @@ def _assert_one_summary_line(out: str, stage: str) -> None:
 
 
 def test_embed_stage_prints_one_summary_line(tmp_path):
-    pd.DataFrame({"text": ["a green bench", "a street lamp", "a green bench"], "category": ["bench", "street_lamp", "bench"],
-                  "source": ["osm"] * 3, "country": ["FI"] * 3, "count": [1, 2, 3]}).to_parquet(tmp_path / "d.parquet")
+    pd.DataFrame(
+        {
+            "text": ["a green bench", "a street lamp", "a green bench"],
+            "category": ["bench", "street_lamp", "bench"],
+            "source": ["osm"] * 3,
+            "country": ["FI"] * 3,
+            "count": [1, 2, 3],
+        }
+    ).to_parquet(tmp_path / "d.parquet")
     (tmp_path / "params.yaml").write_text(yaml.safe_dump({"embed": {"descriptions": "d.parquet", "out_dir": "emb"}}))
     out = _run(["pipelines.embed", "--params", "params.yaml"], tmp_path)
     _assert_one_summary_line(out, "embed")
@@ -52,9 +60,17 @@ def test_retrieval_stages_print_one_summary_line_each(tmp_path):
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
     root = tmp_path / "root"
     for stage in ("normalise", "render", "score", "curate"):
-        out = _run(["retrieval.stages", stage, "--params", str(tmp_path / "params.yaml"), "--root", str(root)],
-                   REPO_ROOT)
+        out = _run(
+            ["retrieval.stages", stage, "--params", str(tmp_path / "params.yaml"), "--root", str(root)], REPO_ROOT
+        )
         _assert_one_summary_line(out, stage)
     assert "1 assets written, 0 rejected" in out
     assert sorted(p.stem for p in (root / "catalog_tables").glob("*.parquet")) == [
-        "assets", "descriptions", "embeddings", "matches", "meta", "rejections", "views"]
+        "assets",
+        "descriptions",
+        "embeddings",
+        "matches",
+        "meta",
+        "rejections",
+        "views",
+    ]

@@ -27,8 +27,13 @@ VENV_BIN = Path(sys.executable).parent
 
 def _env() -> dict[str, str]:
     """The stage environment: the venv first on PATH (dvc.yaml says `python`), offline hubs, no telemetry."""
-    env = dict(os.environ, PATH=f"{VENV_BIN}{os.pathsep}{os.environ['PATH']}", HF_HUB_OFFLINE="1",
-               TRANSFORMERS_OFFLINE="1", DVC_NO_ANALYTICS="1")
+    env = dict(
+        os.environ,
+        PATH=f"{VENV_BIN}{os.pathsep}{os.environ['PATH']}",
+        HF_HUB_OFFLINE="1",
+        TRANSFORMERS_OFFLINE="1",
+        DVC_NO_ANALYTICS="1",
+    )
     env.pop("DVC_ROOT", None)
     return env
 
@@ -40,8 +45,9 @@ def _git(repo: Path, *args: str) -> str:
 
 def _dvc(repo: Path, *args: str) -> subprocess.CompletedProcess:
     """Run the venv's dvc in `repo`; fails the test with dvc's output when it fails."""
-    res = subprocess.run([str(VENV_BIN / "dvc"), *args], cwd=repo, env=_env(), capture_output=True, text=True, check=False,
-                         timeout=900)
+    res = subprocess.run(
+        [str(VENV_BIN / "dvc"), *args], cwd=repo, env=_env(), capture_output=True, text=True, check=False, timeout=900
+    )
     assert res.returncode == 0, f"dvc {' '.join(args)} failed:\n{res.stdout}\n{res.stderr}"
     return res
 
@@ -72,8 +78,10 @@ def test_dvc_repro_in_a_fresh_copy_leaves_the_tree_clean(fresh_copy):
     repo, out = fresh_copy
     assert "Running stage 'embed'" in out and "Running stage 'retrieval/dvc.yaml:curate'" in out  # it did run
     dirty = _dirty(repo)
-    assert not dirty, ("dvc repro changed committed files: outputs differ from the run that wrote the lock, or the "
-                       f"lock is stale (run `dvc repro --all-pipelines` and commit the lock files):\n{dirty}")
+    assert not dirty, (
+        "dvc repro changed committed files: outputs differ from the run that wrote the lock, or the "
+        f"lock is stale (run `dvc repro --all-pipelines` and commit the lock files):\n{dirty}"
+    )
 
 
 def test_forced_rerun_gives_byte_identical_outputs(fresh_copy):
@@ -116,9 +124,11 @@ def test_stage_dies_when_its_parent_is_killed(tmp_path):
     # The stage's params file is a FIFO nobody writes: the stage blocks reading it, so it can only end if killed.
     fifo = tmp_path / "params.yaml"
     os.mkfifo(fifo)
-    launcher = ("import subprocess, sys, time; "
-                f"p = subprocess.Popen([sys.executable, '-m', 'pipelines.osm', '--params', {str(fifo)!r}], "
-                f"cwd={str(REPO_ROOT)!r}); print(p.pid, flush=True); time.sleep(600)")
+    launcher = (
+        "import subprocess, sys, time; "
+        f"p = subprocess.Popen([sys.executable, '-m', 'pipelines.osm', '--params', {str(fifo)!r}], "
+        f"cwd={str(REPO_ROOT)!r}); print(p.pid, flush=True); time.sleep(600)"
+    )
     parent = subprocess.Popen([sys.executable, "-c", launcher], stdout=subprocess.PIPE, text=True, env=_env())
     child = -1
     try:

@@ -13,7 +13,9 @@ from pipelines.common import CLOSED_SET_DIR, PipelineError
 
 
 def test_closed_set_covers_vocabulary_with_provenance():
-    df = closed_set.load_closed_set(CLOSED_SET_DIR / "segmentation_classes.csv", CLOSED_SET_DIR / "handbook_objects.csv")
+    df = closed_set.load_closed_set(
+        CLOSED_SET_DIR / "segmentation_classes.csv", CLOSED_SET_DIR / "handbook_objects.csv"
+    )
     assert set(df["category"]) == set(CATEGORIES)
     assert 45 <= (df["source"] == "handbook").sum() <= 60
     assert {"cityscapes", "mapillary_vistas"} <= set(df["source"])
@@ -30,8 +32,14 @@ def test_closed_set_rejects_unknown_category(tmp_path):
 @pytest.fixture(scope="module")
 def helsinki():
     rules = osm.load_tag_rules(CLOSED_SET_DIR / "osm_tags.csv")
-    return osm.extract_osm([{"path": "", "country": "auto", "region": "Helsinki"}], rules,
-                           street_highways=osm.DEFAULTS["street_highways"], snap_m=25.0, max_gap_m=300.0, tile_deg=0.25)
+    return osm.extract_osm(
+        [{"path": "", "country": "auto", "region": "Helsinki"}],
+        rules,
+        street_highways=osm.DEFAULTS["street_highways"],
+        snap_m=25.0,
+        max_gap_m=300.0,
+        tile_deg=0.25,
+    )
 
 
 def test_helsinki_counts_and_country(helsinki):
@@ -105,7 +113,10 @@ def test_helsinki_descriptions_name_signs_and_keep_open_vocabulary(helsinki):
 def test_sign_table_never_shows_a_raw_code():
     t = signs.sign_table()
     assert t.describe("FI:372") == "a no stopping sign"
-    assert t.describe("FI:361[40]") == "a 40 km/h speed limit sign" and t.describe("DE:274-30") == "a 30 km/h speed limit sign"
+    assert (
+        t.describe("FI:361[40]") == "a 40 km/h speed limit sign"
+        and t.describe("DE:274-30") == "a 30 km/h speed limit sign"
+    )
     assert t.describe("FI:373;FI:374") == "a no parking zone sign"  # the first sign of a post
     assert t.describe("FI:417") == "a mandatory sign"  # family of an unlisted code
     assert t.describe("DE:1020-30") == "an additional sign panel"  # four digits: the 10xx family, not 1xx

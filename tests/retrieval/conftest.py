@@ -47,8 +47,10 @@ def mesh_folder(tmp_path_factory) -> dict:
     nan = trimesh.creation.box([1, 1, 1])
     verts = nan.vertices.copy()
     verts[0] = np.nan
-    (root / "e_nan.obj").write_text("\n".join([f"v {x} {y} {z}" for x, y, z in verts]
-                                              + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in nan.faces]) + "\n")
+    (root / "e_nan.obj").write_text(
+        "\n".join([f"v {x} {y} {z}" for x, y, z in verts] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in nan.faces])
+        + "\n"
+    )
     trimesh.creation.icosphere(subdivisions=5).export(root / "f_many_faces.stl")  # 20480 faces > test limit
     (root / "g_missing_tex.obj").write_text("mtllib g.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 1\nf 1 2 3\n")
     (root / "g.mtl").write_text("newmtl m\nmap_Kd nowhere.png\n")
@@ -57,9 +59,14 @@ def mesh_folder(tmp_path_factory) -> dict:
     return {
         "root": root,
         "good": ["a_bench.ply", "b_cone.glb"],
-        "reasons": {"c_corrupt.glb": "corrupt_file", "d_empty.obj": "empty_mesh", "e_nan.obj": "nan_vertices",
-                    "f_many_faces.stl": "too_many_faces", "g_missing_tex.obj": "missing_texture",
-                    "h_thin.stl": "degenerate"},
+        "reasons": {
+            "c_corrupt.glb": "corrupt_file",
+            "d_empty.obj": "empty_mesh",
+            "e_nan.obj": "nan_vertices",
+            "f_many_faces.stl": "too_many_faces",
+            "g_missing_tex.obj": "missing_texture",
+            "h_thin.stl": "degenerate",
+        },
     }
 
 
@@ -69,6 +76,11 @@ def ingest_two_procedural(scoring, tmp_path):  # noqa: ANN001, ANN201 - (IngestR
     from retrieval.sources.procedural import ProceduralSource
 
     cat = tmp_path / "c.duckdb"
-    report = ingest(ProceduralSource(per_category=1, work_dir=tmp_path / "proc"), cat,
-                    IngestConfig(n_views=4, n_informative=2, scoring=scoring), limit=2, progress=False)
+    report = ingest(
+        ProceduralSource(per_category=1, work_dir=tmp_path / "proc"),
+        cat,
+        IngestConfig(n_views=4, n_informative=2, scoring=scoring),
+        limit=2,
+        progress=False,
+    )
     return report, cat

@@ -14,8 +14,15 @@ from retrieval.aligned.captions import Attributes, detail_phrases, positives, sa
 def _attrs(category: str, colour: str, material: str = "plastic", size: str = "medium", details=()) -> Attributes:
     from retrieval.aligned.captions import COLOUR_FAMILY
 
-    return Attributes(category, frozenset((colour, *COLOUR_FAMILY.get(colour, ()))), material, size,
-                      frozenset(details), (category.replace("_", " "),), f"a {colour} {category}")
+    return Attributes(
+        category,
+        frozenset((colour, *COLOUR_FAMILY.get(colour, ()))),
+        material,
+        size,
+        frozenset(details),
+        (category.replace("_", " "),),
+        f"a {colour} {category}",
+    )
 
 
 def test_captions_require_what_they_say_and_colour_families_count():
@@ -58,8 +65,18 @@ def tiny_run(tmp_path_factory):
     """Two trainings of the heads on 3 categories x 3 seeds x 4 views, same config: (metadata, paths)."""
     from retrieval.aligned.train import TrainConfig, train
 
-    cfg = TrainConfig(train_seeds=3, heldout_seeds=1, calibration_seeds=2, n_views=4, image_size=96, hidden=64, captions_per_asset=8,
-                      batch=24, steps=40, categories=("trash_bin", "bench", "traffic_cone"))
+    cfg = TrainConfig(
+        train_seeds=3,
+        heldout_seeds=1,
+        calibration_seeds=2,
+        n_views=4,
+        image_size=96,
+        hidden=64,
+        captions_per_asset=8,
+        batch=24,
+        steps=40,
+        categories=("trash_bin", "bench", "traffic_cone"),
+    )
     out = tmp_path_factory.mktemp("aligned")
     metas = [train(cfg, out / f"run{k}" / "aligned.npz", progress=False) for k in range(2)]
     return metas, [out / f"run{k}" / "aligned.npz" for k in range(2)]

@@ -15,10 +15,18 @@ def bins(tmp_path_factory):
     """Trash bins of seeds 0-5 (five blue, seed 5 gray) and two benches, ingested with the default scorer."""
     tmp = tmp_path_factory.mktemp("bins")
     cat = tmp / "c.duckdb"
-    ingest(ProceduralSource(per_category=6, categories=["trash_bin"], work_dir=tmp / "proc"), cat,
-           IngestConfig(n_views=8), progress=False)
-    ingest(ProceduralSource(per_category=2, categories=["bench"], work_dir=tmp / "proc2"), cat,
-           IngestConfig(n_views=8), progress=False)
+    ingest(
+        ProceduralSource(per_category=6, categories=["trash_bin"], work_dir=tmp / "proc"),
+        cat,
+        IngestConfig(n_views=8),
+        progress=False,
+    )
+    ingest(
+        ProceduralSource(per_category=2, categories=["bench"], work_dir=tmp / "proc2"),
+        cat,
+        IngestConfig(n_views=8),
+        progress=False,
+    )
     return cat
 
 
@@ -48,7 +56,9 @@ def test_gray_trash_bin_ranks_a_gray_bin_first(bins):
         view = load_heads().text(vec[None])[0]
         fused = search(con, vec, limit=3, view_vector=view)
         views_only = search(con, vec, limit=3, view_vector=view, view_weight=1.0)
-        blue = search(con, vec, limit=3, view_vector=load_heads().text(NumpyTextEncoder().encode(["blue trash bin"]))[0])
+        blue = search(
+            con, vec, limit=3, view_vector=load_heads().text(NumpyTextEncoder().encode(["blue trash bin"]))[0]
+        )
     finally:
         con.close()
     assert colours[fused[0]["asset_id"]] == "gray"

@@ -35,10 +35,15 @@ def tiny_blip(tmp_path_factory) -> str:
     out = tmp_path_factory.mktemp("tiny_blip")
     tok, n = _tokenizer(out)
     torch.manual_seed(0)
-    config = BlipConfig(text_config=dict(vocab_size=n, max_position_embeddings=64, pad_token_id=0, **LAYERS),
-                        vision_config=dict(image_size=32, patch_size=8, **LAYERS), image_text_hidden_size=16)
+    config = BlipConfig(
+        text_config=dict(vocab_size=n, max_position_embeddings=64, pad_token_id=0, **LAYERS),
+        vision_config=dict(image_size=32, patch_size=8, **LAYERS),
+        image_text_hidden_size=16,
+    )
     BlipForImageTextRetrieval(config).save_pretrained(out)
-    BlipProcessor(image_processor=BlipImageProcessor(size={"height": 32, "width": 32}), tokenizer=tok).save_pretrained(out)
+    BlipProcessor(image_processor=BlipImageProcessor(size={"height": 32, "width": 32}), tokenizer=tok).save_pretrained(
+        out
+    )
     return str(out)
 
 
@@ -51,15 +56,32 @@ def tiny_blip2(tmp_path_factory) -> str:
     out = tmp_path_factory.mktemp("tiny_blip2")
     tok, n = _tokenizer(out)
     torch.manual_seed(0)
-    config = Blip2Config(vision_config=dict(image_size=32, patch_size=8, **LAYERS),
-                         qformer_config=dict(vocab_size=n, max_position_embeddings=64, pad_token_id=0,
-                                             encoder_hidden_size=32, use_qformer_text_input=True, **LAYERS),
-                         text_config=dict(model_type="opt", vocab_size=n, hidden_size=32, ffn_dim=64, num_hidden_layers=1,
-                                          num_attention_heads=2, word_embed_proj_dim=32),
-                         num_query_tokens=4, image_text_hidden_size=16)
+    config = Blip2Config(
+        vision_config=dict(image_size=32, patch_size=8, **LAYERS),
+        qformer_config=dict(
+            vocab_size=n,
+            max_position_embeddings=64,
+            pad_token_id=0,
+            encoder_hidden_size=32,
+            use_qformer_text_input=True,
+            **LAYERS,
+        ),
+        text_config=dict(
+            model_type="opt",
+            vocab_size=n,
+            hidden_size=32,
+            ffn_dim=64,
+            num_hidden_layers=1,
+            num_attention_heads=2,
+            word_embed_proj_dim=32,
+        ),
+        num_query_tokens=4,
+        image_text_hidden_size=16,
+    )
     Blip2ForImageTextRetrieval(config).save_pretrained(out)
-    Blip2Processor(image_processor=BlipImageProcessor(size={"height": 32, "width": 32}), tokenizer=tok,
-                   num_query_tokens=None).save_pretrained(out)
+    Blip2Processor(
+        image_processor=BlipImageProcessor(size={"height": 32, "width": 32}), tokenizer=tok, num_query_tokens=None
+    ).save_pretrained(out)
     return str(out)
 
 

@@ -27,9 +27,12 @@ def tiny_clip(tmp_path_factory) -> str:
     torch.manual_seed(0)
     layers = dict(hidden_size=32, intermediate_size=64, num_hidden_layers=2, num_attention_heads=2)
     config = CLIPConfig(
-        text_config=dict(vocab_size=len(vocab), max_position_embeddings=64, bos_token_id=0, eos_token_id=1,
-                         pad_token_id=1, **layers),
-        vision_config=dict(image_size=32, patch_size=8, **layers), projection_dim=16)
+        text_config=dict(
+            vocab_size=len(vocab), max_position_embeddings=64, bos_token_id=0, eos_token_id=1, pad_token_id=1, **layers
+        ),
+        vision_config=dict(image_size=32, patch_size=8, **layers),
+        projection_dim=16,
+    )
     CLIPModel(config).save_pretrained(out)
     CLIPProcessor(image_processor=images, tokenizer=tokenizer).save_pretrained(out)
     return str(out)

@@ -13,7 +13,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 
-SCRIPT = '''
+SCRIPT = """
 import os, sys, time
 from kernel.executors import run_map
 
@@ -27,7 +27,7 @@ def slow(i, folder):
 if __name__ == "__main__":
     for _ in run_map(slow, range(4), executor="process", workers=2, args=(sys.argv[1],)):
         pass
-'''
+"""
 
 
 def _alive(pid: int) -> bool:

@@ -64,18 +64,30 @@ def _fake_objaverse_cache(root):
     base = root / "hf-objaverse-v1"
     (base / "glbs" / "000-000").mkdir(parents=True)
     (base / "metadata").mkdir()
-    objects = {"u_bench": ("bench", bench_mesh(), "by", 72), "u_cone": ("cone", cone_mesh(), "by-nc", 48),
-               "u_bench2": ("bench", bench_mesh(), "cc0", 5_000_000)}
+    objects = {
+        "u_bench": ("bench", bench_mesh(), "by", 72),
+        "u_cone": ("cone", cone_mesh(), "by-nc", 48),
+        "u_bench2": ("bench", bench_mesh(), "cc0", 5_000_000),
+    }
     paths, meta, lvis = {}, {}, {}
     for uid, (cat, mesh, lic, faces) in objects.items():
         paths[uid] = f"glbs/000-000/{uid}.glb"
         trimesh.Scene([mesh]).export(base / paths[uid])
-        meta[uid] = {"name": f"{cat} model", "license": lic, "faceCount": faces, "tags": [{"name": cat}],
-                     "user": {"displayName": "Tester"}, "viewerUrl": f"https://sketchfab.com/3d-models/{uid}",
-                     "archives": {"glb": {"size": 1000, "faceCount": faces}}}
+        meta[uid] = {
+            "name": f"{cat} model",
+            "license": lic,
+            "faceCount": faces,
+            "tags": [{"name": cat}],
+            "user": {"displayName": "Tester"},
+            "viewerUrl": f"https://sketchfab.com/3d-models/{uid}",
+            "archives": {"glb": {"size": 1000, "faceCount": faces}},
+        }
         lvis.setdefault(cat, []).append(uid)
-    for name, obj in (("object-paths.json.gz", paths), ("metadata/000-000.json.gz", meta),
-                      ("lvis-annotations.json.gz", lvis)):
+    for name, obj in (
+        ("object-paths.json.gz", paths),
+        ("metadata/000-000.json.gz", meta),
+        ("lvis-annotations.json.gz", lvis),
+    ):
         with gzip.open(base / name, "wt") as fh:
             json.dump(obj, fh)
     return root

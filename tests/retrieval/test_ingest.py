@@ -28,8 +28,13 @@ def test_local_folder_fills_catalog_and_rejects_bad_input(mesh_folder, tmp_path)
     assert report.written == 2 and report.rejected == 6
     rej = dict(_rows(cat, "SELECT source_id, reason FROM rejections"))
     assert rej == mesh_folder["reasons"]
-    assets = {r[0]: r for r in _rows(cat, "SELECT source_id, category, height, license, params->>'unit_guess', "
-                                          "mesh_path, collision_path FROM assets")}
+    assets = {
+        r[0]: r
+        for r in _rows(
+            cat,
+            "SELECT source_id, category, height, license, params->>'unit_guess', mesh_path, collision_path FROM assets",
+        )
+    }
     assert set(assets) == set(mesh_folder["good"])
     assert assets["a_bench.ply"][1] == "bench" and assets["a_bench.ply"][3] == "CC0-1.0"
     # The cone was modelled in centimetres: 70 units tall reads as 0.70 m in cm.

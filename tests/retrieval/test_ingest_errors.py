@@ -90,9 +90,16 @@ def test_rejections_recorded_before_config_hash_are_retried(two_meshes: Path, tm
     src = LocalSource(two_meshes)
     cat = tmp_path / "c.duckdb"
     with CatalogWriter(cat) as w:
-        w.record_rejections(RejectionRecord("local", i.source_id, "render", "error",
-                                            f"ValueError: n_views must be in 1..20, got 0 [sha256:{i.content_hash()[:16]}]")
-                            for i in src.items())
+        w.record_rejections(
+            RejectionRecord(
+                "local",
+                i.source_id,
+                "render",
+                "error",
+                f"ValueError: n_views must be in 1..20, got 0 [sha256:{i.content_hash()[:16]}]",
+            )
+            for i in src.items()
+        )
     report = ingest(src, cat, IngestConfig(**FAST), progress=False)
     assert (report.written, report.skipped) == (2, 0)
 
@@ -218,7 +225,9 @@ def test_a_bad_material_reference_rejects_that_asset_only(target: str, two_meshe
         ref = target
     bench_mesh().export(root / "lamp.obj")
     text = (root / "lamp.obj").read_text()
-    (root / "lamp.obj").write_text(f"mtllib {ref}\n" + "\n".join(ln for ln in text.splitlines() if not ln.startswith("mtllib")))
+    (root / "lamp.obj").write_text(
+        f"mtllib {ref}\n" + "\n".join(ln for ln in text.splitlines() if not ln.startswith("mtllib"))
+    )
     cat = tmp_path / "c.duckdb"
     report = ingest(LocalSource(root), cat, IngestConfig(**FAST), progress=False)
     assert report.written == 2 and report.rejected == 1  # the bench and the trash bin (no sidecar now) go in

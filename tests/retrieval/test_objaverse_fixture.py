@@ -48,18 +48,38 @@ def test_the_fixture_cache_is_reproducible(cache: Path, tmp_path: Path) -> None:
     assert all((cache / f).read_bytes() == (again / f).read_bytes() for f in files)
 
 
-def test_cli_ingests_scores_and_curates_the_fixture_with_licences(cache: Path, tmp_path: Path, capsys,
-                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+def test_cli_ingests_scores_and_curates_the_fixture_with_licences(
+    cache: Path, tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.setenv("CURBSIDE_OBJAVERSE_URL", "http://127.0.0.1:9")  # any download attempt would fail
     cat = tmp_path / "c.duckdb"
-    code, out, err = cli(["catalog", "ingest", "--source", "objaverse", "--objaverse-cache", str(cache),
-                          "--catalog", str(cat), "--views", "4", "--scorer", "imagenet"], capsys)
+    code, out, err = cli(
+        [
+            "catalog",
+            "ingest",
+            "--source",
+            "objaverse",
+            "--objaverse-cache",
+            str(cache),
+            "--catalog",
+            str(cat),
+            "--views",
+            "4",
+            "--scorer",
+            "imagenet",
+        ],
+        capsys,
+    )
     assert code == 0, err
     assert "rejected" in out and "Traceback" not in out + err
     con = duckdb.connect(str(cat), read_only=True)
     try:
-        assets = {r[0].split(":", 1)[1]: r[1:] for r in con.execute(
-            "SELECT asset_id, category, license, attribution, glb_path, params FROM assets").fetchall()}
+        assets = {
+            r[0].split(":", 1)[1]: r[1:]
+            for r in con.execute(
+                "SELECT asset_id, category, license, attribution, glb_path, params FROM assets"
+            ).fetchall()
+        }
         rejections = dict(con.execute("SELECT source_id, reason FROM rejections").fetchall())
         matched = {r[0].split(":", 1)[1] for r in con.execute("SELECT DISTINCT asset_id FROM matches").fetchall()}
     finally:
@@ -72,8 +92,13 @@ def test_cli_ingests_scores_and_curates_the_fixture_with_licences(cache: Path, t
     for key in ("bollard", "statue"):
         assert (UID[key] in assets and assets[UID[key]][0] in CATEGORIES) or rejections[UID[key]] == "no_match"
     assert set(assets) | set(rejections) == set(UID.values()) and matched == set(assets)
-    expected = {"bench": "CC-BY-4.0", "bin": "CC0-1.0", "lamp": "CC-BY-SA-4.0", "bollard": "CC-BY-4.0",
-                "statue": "CC-BY-4.0"}
+    expected = {
+        "bench": "CC-BY-4.0",
+        "bin": "CC0-1.0",
+        "lamp": "CC-BY-SA-4.0",
+        "bollard": "CC-BY-4.0",
+        "statue": "CC-BY-4.0",
+    }
     licences = {k: assets[UID[k]][1] for k in expected if UID[k] in assets}
     assert licences == {k: v for k, v in expected.items() if k in licences} and len(licences) >= 3
     for key, (_, _, attribution, glb, params) in ((k, assets[UID[k]]) for k in licences):
@@ -92,10 +117,14 @@ def test_open_vocabulary_description_keeps_an_asset_outside_the_categories(cache
 
     cat = tmp_path / "c.duckdb"
     with CatalogWriter(cat) as w:  # a pool as the cluster stage writes it: categorised and open entries
-        w.upsert_descriptions([DescriptionRecord("d-bench", "a wooden bench", "bench"),
-                               DescriptionRecord("d-bin", "a green trash bin", "trash_bin"),
-                               DescriptionRecord("d-lamp", "a street lamp", "street_lamp"),
-                               DescriptionRecord("d-statue", "a bronze statue", None)])
+        w.upsert_descriptions(
+            [
+                DescriptionRecord("d-bench", "a wooden bench", "bench"),
+                DescriptionRecord("d-bin", "a green trash bin", "trash_bin"),
+                DescriptionRecord("d-lamp", "a street lamp", "street_lamp"),
+                DescriptionRecord("d-statue", "a bronze statue", None),
+            ]
+        )
     src = ObjaverseSource(cache_dir=cache, lvis_categories=["bench", "statue_(sculpture)"])
     # Text signal only (MiniLM on the Sketchfab name, tags and LVIS label): this test is about what curation does
     # with an open-vocabulary best match, not about how well an image encoder sees a primitive statue.
@@ -104,9 +133,13 @@ def test_open_vocabulary_description_keeps_an_asset_outside_the_categories(cache
     assert report.written == 2
     con = duckdb.connect(str(cat), read_only=True)
     try:
-        rows = {r[0].split(":", 1)[1]: r[1:] for r in con.execute(
-            "SELECT a.asset_id, a.category, a.zones, a.params, m.description_id FROM assets a "
-            "JOIN matches m ON m.asset_id = a.asset_id AND m.rank = 1").fetchall()}
+        rows = {
+            r[0].split(":", 1)[1]: r[1:]
+            for r in con.execute(
+                "SELECT a.asset_id, a.category, a.zones, a.params, m.description_id FROM assets a "
+                "JOIN matches m ON m.asset_id = a.asset_id AND m.rank = 1"
+            ).fetchall()
+        }
     finally:
         con.close()
     category, zones, params, best = rows[UID["statue"]]
@@ -127,8 +160,12 @@ def test_objaverse_xl_sources_through_the_same_interface(cache: Path, tmp_path: 
     assert report.written == 2
     con = duckdb.connect(str(cat), read_only=True)
     try:
-        assets = {r[0]: r[1:] for r in con.execute(
-            "SELECT json_extract_string(params, '$.xl_source'), category, license, attribution FROM assets").fetchall()}
+        assets = {
+            r[0]: r[1:]
+            for r in con.execute(
+                "SELECT json_extract_string(params, '$.xl_source'), category, license, attribution FROM assets"
+            ).fetchall()
+        }
         rejections = sorted(r[0] for r in con.execute("SELECT reason FROM rejections").fetchall())
     finally:
         con.close()
@@ -150,7 +187,9 @@ def test_objaverse_xl_refuses_a_changed_object_and_github(cache: Path, tmp_path:
     stl = copy / "thingiverse" / "thing-1001-file-2001.stl"
     stl.write_bytes(stl.read_bytes() + b"\n")  # the bytes no longer match the annotation's sha256
     item = next(iter(ObjaverseXLSource(cache_dir=copy, sources=("thingiverse",)).items()))
-    assert item.metadata["rejected"][0] == "download_failed" and "differs from the Objaverse-XL" in \
-        item.metadata["rejected"][1]
+    assert (
+        item.metadata["rejected"][0] == "download_failed"
+        and "differs from the Objaverse-XL" in item.metadata["rejected"][1]
+    )
     with pytest.raises(ValueError, match="github is not supported.*--source local:DIR"):
         ObjaverseXLSource(cache_dir=copy, sources=("github",))

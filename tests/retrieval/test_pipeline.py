@@ -17,7 +17,9 @@ def _fail(exc: BaseException) -> None:
 def test_guard_turns_a_bad_asset_into_a_rejection_and_stops_on_a_bad_config() -> None:
     assert guard("render", lambda x: x + 1, 1) == (2, None)
     assert guard("render", _fail, AssetRejected("degenerate", "empty")) == (
-        None, Rejection("render", "degenerate", "empty"))
+        None,
+        Rejection("render", "degenerate", "empty"),
+    )
     value, rej = guard("score", _fail, ValueError("x" * 1000))
     assert value is None and rej.stage == "score" and rej.reason == "error"
     assert rej.detail.startswith("ValueError: xxx") and len(rej.detail) == 400
@@ -26,8 +28,13 @@ def test_guard_turns_a_bad_asset_into_a_rejection_and_stops_on_a_bad_config() ->
 
 
 def test_rejection_rows_carry_the_content_and_config_hashes() -> None:
-    item = SourceItem(source="local", source_id="a.ply", path="", license="CC0-1.0",
-                      metadata={"rejected": ("licence", "CC-BY-NC-4.0")})
+    item = SourceItem(
+        source="local",
+        source_id="a.ply",
+        path="",
+        license="CC0-1.0",
+        metadata={"rejected": ("licence", "CC-BY-NC-4.0")},
+    )
     rej = prefiltered(item)
     assert rej == Rejection("fetch", "licence", "CC-BY-NC-4.0")
     res = rejected(item, "0123456789abcdef0123", rej, "cfg")

@@ -19,8 +19,23 @@ N = 12
 
 
 def _cmd(cat: Path) -> list[str]:
-    return [sys.executable, "-m", "curbside.cli.main", "catalog", "ingest", "--source", "procedural",
-            "--per-category", "1", "--limit", str(N), "--views", "4", "--catalog", str(cat)]
+    return [
+        sys.executable,
+        "-m",
+        "curbside.cli.main",
+        "catalog",
+        "ingest",
+        "--source",
+        "procedural",
+        "--per-category",
+        "1",
+        "--limit",
+        str(N),
+        "--views",
+        "4",
+        "--catalog",
+        str(cat),
+    ]
 
 
 def _summary(cat: Path) -> dict:
@@ -29,7 +44,7 @@ def _summary(cat: Path) -> dict:
         q = {
             "assets": "SELECT asset_id, content_hash, category, depth, width, height FROM assets ORDER BY 1",
             "views": "SELECT asset_id, count(*), count(DISTINCT view_index), sum(informative::INT) FROM views "
-                     "GROUP BY 1 ORDER BY 1",
+            "GROUP BY 1 ORDER BY 1",
             "matches": "SELECT asset_id, description_id, rank FROM matches ORDER BY 1, 2",
             "embeddings": "SELECT owner_kind, owner_id FROM embeddings WHERE owner_kind LIKE 'asset%' ORDER BY 1, 2",
             "rejections": "SELECT source_id, reason FROM rejections ORDER BY 1",
@@ -65,8 +80,13 @@ def test_sigkill_midway_then_rerun_equals_uninterrupted(tmp_path):
     resumed = _summary(cat)
 
     ref = tmp_path / "ref" / "c.duckdb"
-    ingest(ProceduralSource(per_category=1, work_dir=ref.parent / ".procedural_source"), ref, IngestConfig(n_views=4),
-           limit=N, progress=False)
+    ingest(
+        ProceduralSource(per_category=1, work_dir=ref.parent / ".procedural_source"),
+        ref,
+        IngestConfig(n_views=4),
+        limit=N,
+        progress=False,
+    )
     expected = _summary(ref)
     assert len(expected["assets"]) == N and not expected["rejections"]
     assert [a[:2] for a in resumed["assets"]] == [a[:2] for a in expected["assets"]]  # ids and content hashes

@@ -12,11 +12,15 @@ from retrieval.ingest import ingest
 from retrieval.sources.procedural import ProceduralSource
 
 CATEGORIES = ["bench", "traffic_cone", "bollard", "street_lamp"]
-PARAMS = {"source": {"name": "procedural", "per_category": 1}, "render": {"n_views": 4},
-          "score": {"image_encoder": "imagenet"}, "curate": {"dedupe_threshold": 0.995}}
+PARAMS = {
+    "source": {"name": "procedural", "per_category": 1},
+    "render": {"n_views": 4},
+    "score": {"image_encoder": "imagenet"},
+    "curate": {"dedupe_threshold": 0.995},
+}
 QUERIES = {
     "assets": "SELECT asset_id, content_hash, category, depth, width, height, mesh_path, collision_path, "
-              "face_count, params FROM assets ORDER BY 1",
+    "face_count, params FROM assets ORDER BY 1",
     "matches": "SELECT asset_id, description_id, score, image_score, text_score, scorer, rank FROM matches ORDER BY 1, 2",
     "views": "SELECT * FROM views ORDER BY 1, 2",
     "embeddings": "SELECT owner_kind, owner_id, vector FROM embeddings ORDER BY 1, 2",
@@ -39,8 +43,13 @@ def test_staged_catalog_equals_ingest(tmp_path):
     ingest(source, fused, stages.config_for(PARAMS), progress=False)
 
     root = tmp_path / "staged"
-    norm, man, vdir, vt, sc = (root / "normalised", root / "manifest.parquet", root / "views",
-                               root / "views.parquet", root / "scores.parquet")
+    norm, man, vdir, vt, sc = (
+        root / "normalised",
+        root / "manifest.parquet",
+        root / "views",
+        root / "views.parquet",
+        root / "scores.parquet",
+    )
     assert stages.normalise(source, stages.config_for(PARAMS, "normalise"), norm, man) == 4
     assert stages.render(man, norm, stages.config_for(PARAMS, "render"), vdir, vt) == 4
     assert stages.score(man, vt, vdir, stages.config_for(PARAMS, "score"), sc) == 4

@@ -15,7 +15,7 @@ def _object(colour, box=(8, 24, 10, 22), size: int = 32) -> np.ndarray:
     im = np.full((size, size, 3), 255, dtype=np.uint8)
     y0, y1, x0, x1 = box
     im[y0:y1, x0:x1] = colour
-    im[y0 + 3:y1 - 3, x0 + 2:x1 - 2] = np.asarray(colour) // 2  # an inner panel: edges in both directions
+    im[y0 + 3 : y1 - 3, x0 + 2 : x1 - 2] = np.asarray(colour) // 2  # an inner panel: edges in both directions
     return im
 
 
@@ -47,8 +47,12 @@ def test_informativeness_is_the_documented_formula():
 
 
 def test_the_view_that_disagrees_with_the_others_has_the_least_consensus():
-    views = [_object((200, 40, 40)), _object((200, 40, 40), (6, 26, 9, 23)), _object((190, 50, 40), (9, 23, 8, 24)),
-             _object((40, 40, 200))]
+    views = [
+        _object((200, 40, 40)),
+        _object((200, 40, 40), (6, 26, 9, 23)),
+        _object((190, 50, 40), (9, 23, 8, 24)),
+        _object((40, 40, 200)),
+    ]
     agree = consensus(np.stack([view_statistics(v)[1] for v in views]))
     assert int(np.argmin(agree)) == 3
     assert consensus(np.ones((1, 4))).tolist() == [1.0]

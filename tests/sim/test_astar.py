@@ -25,8 +25,9 @@ def test_astar_cost_is_dijkstras(planner: RoutePlanner) -> None:
     for start in rng.integers(n, size=6):
         dist = dijkstra(g, indices=int(start))
         for goal in rng.integers(n, size=8):
-            cost, chain = astar_chain(g, planner.rows, planner.cols, planner.grid.resolution, int(start), int(goal),
-                                      np.inf)
+            cost, chain = astar_chain(
+                g, planner.rows, planner.cols, planner.grid.resolution, int(start), int(goal), np.inf
+            )
             assert cost == pytest.approx(dist[goal], rel=1e-12, abs=1e-12)
             # The chain is a path of graph edges whose weights add up to the cost.
             assert chain[0] == start and chain[-1] == goal

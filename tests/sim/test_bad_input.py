@@ -42,6 +42,7 @@ def usage_error(code: int, out: str, err: str, option: str) -> str:
 @contextmanager
 def within(seconds: int):
     """Fail (instead of hanging) when the block runs longer than `seconds`."""
+
     def _raise(*_: object) -> None:
         raise TimeoutError(f"still running after {seconds} s")
 
@@ -82,8 +83,13 @@ def test_sim_bad_config_is_one_line_exit_2(command: str, args: list[str], needle
 @pytest.mark.parametrize("command", ["eval", "rollout"])
 def test_sim_error_is_the_only_stderr_line_of_a_real_process(command: str, tmp_path: Path) -> None:
     extra = ["--episodes", "1"] if command == "eval" else ["--out", str(tmp_path / "r.gif")]
-    res = subprocess.run([str(CURBSIDE), "sim", command, *extra, "--config", '{"bogus": 1}'], capture_output=True,
-                         text=True, cwd=tmp_path, timeout=180)
+    res = subprocess.run(
+        [str(CURBSIDE), "sim", command, *extra, "--config", '{"bogus": 1}'],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=180,
+    )
     # pybullet's build-time banner no longer comes before the error line; nothing on stdout.
     assert "unknown key 'bogus'" in one_error_line(res.returncode, res.stdout, res.stderr)
     assert res.stdout == ""
@@ -100,7 +106,9 @@ def test_sim_bad_machine_seed_and_scene_path(capsys, tmp_path: Path) -> None:
     line = one_error_line(*cli(["sim", "eval", "--episodes", "1", "--scene-path", str(garbage)], capsys))
     assert "garbage.json is not a scene spec JSON file" in line and "curbside scenes generate" in line
     garbage.write_text('{"version": "curbside.scene/1", "objects": 3}')
-    line = one_error_line(*cli(["sim", "rollout", "--scene-path", str(garbage), "--out", str(tmp_path / "r.gif")], capsys))
+    line = one_error_line(
+        *cli(["sim", "rollout", "--scene-path", str(garbage), "--out", str(tmp_path / "r.gif")], capsys)
+    )
     assert "lacks" in line and "regenerate" in line
     line = one_error_line(*cli(["sim", "rollout", "--out", str(tmp_path)], capsys))
     assert "--out" in line and "is a directory" in line
@@ -123,14 +131,35 @@ def test_cli_and_table_choices_match_the_simulator() -> None:
 
 
 def test_json_on_stdout_is_clean_and_no_pybullet_banner(scene_file: Path, tmp_path: Path) -> None:
-    res = subprocess.run([str(CURBSIDE), "sim", "eval", "--episodes", "1", "--scene-path", str(scene_file), "--json",
-                          "--config", '{"horizon": 5}'], capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    res = subprocess.run(
+        [
+            str(CURBSIDE),
+            "sim",
+            "eval",
+            "--episodes",
+            "1",
+            "--scene-path",
+            str(scene_file),
+            "--json",
+            "--config",
+            '{"horizon": 5}',
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
     assert res.returncode == 0, res.stderr
     assert json.loads(res.stdout)["episodes"] == 1 and len(res.stdout.strip().splitlines()) == 1
     assert "pybullet build time" not in res.stdout + res.stderr
     # Any sim module imported first (not only the CLI) imports pybullet quietly.
-    res = subprocess.run([sys.executable, "-c", "import sim.world, sim.sensors; print('ok')"], capture_output=True,
-                         text=True, cwd=REPO, timeout=120)
+    res = subprocess.run(
+        [sys.executable, "-c", "import sim.world, sim.sensors; print('ok')"],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=120,
+    )
     assert (res.stdout, res.stderr) == ("ok\n", "")
 
 
@@ -157,14 +186,18 @@ def test_scenes_generate_huge_inputs_fail_fast_naming_the_bound(capsys, tmp_path
         assert "blocks must be 1 to 64" in line
         line = one_error_line(*cli(["scenes", "generate", "--blocks", "S" * 100, "--out", out], capsys))
         assert "blocks must be 1 to 64" in line
-        line = one_error_line(*cli(["scenes", "generate", "--blocks", "64", "--object-density", "50", "--out", out], capsys))
+        line = one_error_line(
+            *cli(["scenes", "generate", "--blocks", "64", "--object-density", "50", "--out", out], capsys)
+        )
         assert "blocks x object_density must be <= 640" in line
         line = one_error_line(*cli(["scenes", "generate", "--object-density", "1e6", "--out", out], capsys))
         assert "[0, 50]" in line
 
 
 def test_scenes_render_and_dataset_bad_numbers(capsys, tmp_path: Path, scene_file: Path) -> None:
-    usage_error(*cli(["scenes", "render", str(scene_file), "--dpi", "0", "--out", str(tmp_path / "x.png")], capsys), "--dpi")
+    usage_error(
+        *cli(["scenes", "render", str(scene_file), "--dpi", "0", "--out", str(tmp_path / "x.png")], capsys), "--dpi"
+    )
     usage_error(*cli(["scenes", "dataset", "--count", "-5", "--out", str(tmp_path / "ds")], capsys), "--count")
     usage_error(*cli(["scenes", "dataset", "--count", "0", "--out", str(tmp_path / "ds")], capsys), "--count")
     usage_error(*cli(["scenes", "dataset", "--split", "nope", "--out", str(tmp_path / "ds")], capsys), "--split")
@@ -233,11 +266,15 @@ def test_every_config_key_has_a_rule() -> None:
 
     assert set(CONFIG_TABLE["reward"]) == {f.name for f in fields(Reward)}
     for sub in ("lidar", "render"):
-        assert set(CONFIG_TABLE[sub]) == set(DEFAULT_CONFIG[sub]) and set(SOCIAL_TABLE[sub]) == set(SOCIAL_DEFAULTS[sub])
+        assert set(CONFIG_TABLE[sub]) == set(DEFAULT_CONFIG[sub]) and set(SOCIAL_TABLE[sub]) == set(
+            SOCIAL_DEFAULTS[sub]
+        )
     assert set(SCENE_TABLE) == set(SCENE_DEFAULTS)
 
 
-@pytest.mark.parametrize(("env_id", "table_path"), [(POINTNAV, "sim.tasks.pointnav"), (SOCIALNAV, "sim.tasks.socialnav")])
+@pytest.mark.parametrize(
+    ("env_id", "table_path"), [(POINTNAV, "sim.tasks.pointnav"), (SOCIALNAV, "sim.tasks.socialnav")]
+)
 def test_every_bad_number_fails_at_construction_naming_key_and_range(env_id: str, table_path: str) -> None:
     import importlib
 
@@ -256,24 +293,46 @@ def test_every_bad_number_fails_at_construction_naming_key_and_range(env_id: str
         assert rule.describe() in msg  # the valid range is in the message
 
 
-@pytest.mark.parametrize("cfg", [
-    {"lidar": {"range": math.nan}}, {"dt": math.nan}, {"horizon": "abc"}, {"num_waypoints": -3},
-    {"route_margin": math.nan}, {"success_completion": 2.0}, {"route_length": [60.0, 10.0]},
-    {"lidar": {"low_range": math.inf}}, {"render": {"width": 0}}, {"machine": {"v_max_kmh": math.nan}},
-    {"machine": {"base": "wheelchair", "engine_force": [100, math.inf]}}, {"terminate_off_walkable": "yes"},
-    {"cost_kinds": ["object", "lava"]}, {"scene_path": 3},
-])
+@pytest.mark.parametrize(
+    "cfg",
+    [
+        {"lidar": {"range": math.nan}},
+        {"dt": math.nan},
+        {"horizon": "abc"},
+        {"num_waypoints": -3},
+        {"route_margin": math.nan},
+        {"success_completion": 2.0},
+        {"route_length": [60.0, 10.0]},
+        {"lidar": {"low_range": math.inf}},
+        {"render": {"width": 0}},
+        {"machine": {"v_max_kmh": math.nan}},
+        {"machine": {"base": "wheelchair", "engine_force": [100, math.inf]}},
+        {"terminate_off_walkable": "yes"},
+        {"cost_kinds": ["object", "lava"]},
+        {"scene_path": 3},
+    ],
+)
 def test_pointnav_make_raises_at_construction(cfg: dict) -> None:
     with pytest.raises(ConfigError, match=r"must be|unknown"):
         gym.make(POINTNAV, config=cfg)
 
 
-@pytest.mark.parametrize("cfg", [
-    {"agents": {"idle_prob": 2.0}}, {"agents": {"dynamic_density": math.nan}}, {"agents": {"idle_time": [8.0, 2.0]}},
-    {"agents": {"counts": {"pedestrian": -1}}}, {"agents": {"mix": {"pedestrian": math.nan}}},
-    {"vehicles": {"desired_speed": [math.nan, 12.0]}}, {"vehicles": {"length": 0}}, {"traffic": 1},
-    {"personal_space": math.inf}, {"stl_cruise_speed": 0}, {"render": {"camera": "fisheye"}},
-])
+@pytest.mark.parametrize(
+    "cfg",
+    [
+        {"agents": {"idle_prob": 2.0}},
+        {"agents": {"dynamic_density": math.nan}},
+        {"agents": {"idle_time": [8.0, 2.0]}},
+        {"agents": {"counts": {"pedestrian": -1}}},
+        {"agents": {"mix": {"pedestrian": math.nan}}},
+        {"vehicles": {"desired_speed": [math.nan, 12.0]}},
+        {"vehicles": {"length": 0}},
+        {"traffic": 1},
+        {"personal_space": math.inf},
+        {"stl_cruise_speed": 0},
+        {"render": {"camera": "fisheye"}},
+    ],
+)
 def test_socialnav_make_raises_at_construction(cfg: dict) -> None:
     with pytest.raises(ConfigError, match=r"config\.\w+(\.\w+)? must be|unknown config\.render\.camera"):
         gym.make(SOCIALNAV, config=cfg)
@@ -286,8 +345,17 @@ def test_defaults_and_presets_pass() -> None:
         gym.make(env_id, config={"split": "unseen", "machine": {"base": "wheelchair", "engine_force": 150}}).close()
 
 
-@pytest.mark.parametrize("scene", [{"object_density": math.nan}, {"blokcs": 3}, {"blocks": 100_000},
-                                   {"grid_resolution": 0.0}, {"block_types": "QQ"}, {"lane_width": [4.0, 3.0]}])
+@pytest.mark.parametrize(
+    "scene",
+    [
+        {"object_density": math.nan},
+        {"blokcs": 3},
+        {"blocks": 100_000},
+        {"grid_resolution": 0.0},
+        {"block_types": "QQ"},
+        {"lane_width": [4.0, 3.0]},
+    ],
+)
 def test_scene_config_errors_surface_at_construction_not_reset(scene: dict) -> None:
     with pytest.raises(ConfigError):
         gym.make(POINTNAV, config={"scene": scene})
@@ -313,12 +381,26 @@ def test_scene_json_with_nan_positions_fails_at_construction(spec, tmp_path: Pat
         gym.make(POINTNAV, config={"scene_spec": bad})
 
 
-@pytest.mark.parametrize("cfg", [
-    {"object_density": math.nan}, {"object_density": math.inf}, {"curb_height": -0.1}, {"crosswalk_density": math.nan},
-    {"lanes": [1, 9]}, {"straight_length": [30.0, math.inf]}, {"grid_resolution": 1e-4}, {"standard_spacing": 0.01},
-    {"placement_tries": 0}, {"block_tries": 1.5}, {"buildings": "no"}, {"preset": "metaurban12k", "fill_gap": 0.0},
-    {"blocks": 0}, {"blocks": 65}, {"blocks": "S" * 65},
-])
+@pytest.mark.parametrize(
+    "cfg",
+    [
+        {"object_density": math.nan},
+        {"object_density": math.inf},
+        {"curb_height": -0.1},
+        {"crosswalk_density": math.nan},
+        {"lanes": [1, 9]},
+        {"straight_length": [30.0, math.inf]},
+        {"grid_resolution": 1e-4},
+        {"standard_spacing": 0.01},
+        {"placement_tries": 0},
+        {"block_tries": 1.5},
+        {"buildings": "no"},
+        {"preset": "metaurban12k", "fill_gap": 0.0},
+        {"blocks": 0},
+        {"blocks": 65},
+        {"blocks": "S" * 65},
+    ],
+)
 def test_scene_config_rejects_bad_numbers_naming_the_range(cfg: dict) -> None:
     from sim.scene import generate_scene
 
@@ -335,8 +417,21 @@ def test_dataset_resumes_after_a_kill_and_repairs_missing_or_corrupt_files(tmp_p
     from sim.scene.dataset import build_dataset
 
     ds, count = tmp_path / "ds", 10
-    args = [str(CURBSIDE), "scenes", "dataset", "--split", "test", "--count", str(count), "--blocks", "1",
-            "--preset", "none", "--out", str(ds)]
+    args = [
+        str(CURBSIDE),
+        "scenes",
+        "dataset",
+        "--split",
+        "test",
+        "--count",
+        str(count),
+        "--blocks",
+        "1",
+        "--preset",
+        "none",
+        "--out",
+        str(ds),
+    ]
     proc = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         with within(300):

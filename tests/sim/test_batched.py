@@ -26,13 +26,13 @@ STEPS = 100
 B, L = 240, 60  # high and low beams (PointNav defaults)
 # Tolerances (docs/batched.md): LiDAR in metres at PyBullet's own poses; the rest over the replay of 100 steps.
 TOL = {
-    "lidar_far_frac": 0.05,   # at most this fraction of beams more than 2 cells (0.1 m) off at the same pose
-    "lidar_median": 0.03,     # median beam error (m) at the same pose
-    "position": 0.15,         # m (Bullet's triangle-edge contacts on the sidewalk mesh slow it a little)
-    "yaw": 0.02,              # rad
-    "state": 0.02,            # speed, yaw rate, heading error, lateral offset (normalised observation values)
-    "nav": 0.03,              # waypoints and goal (normalised observation values)
-    "reward": 0.01,           # per step
+    "lidar_far_frac": 0.05,  # at most this fraction of beams more than 2 cells (0.1 m) off at the same pose
+    "lidar_median": 0.03,  # median beam error (m) at the same pose
+    "position": 0.15,  # m (Bullet's triangle-edge contacts on the sidewalk mesh slow it a little)
+    "yaw": 0.02,  # rad
+    "state": 0.02,  # speed, yaw rate, heading error, lateral offset (normalised observation values)
+    "nav": 0.03,  # waypoints and goal (normalised observation values)
+    "reward": 0.01,  # per step
     "replay_lidar_median": 0.05,  # median beam error (m) in the replay (its poses are up to `position` off)
 }
 
@@ -40,7 +40,7 @@ TOL = {
 def _decode(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """LiDAR distances (m) of an observation: the log-encoded 50 m scan and the linear 5 m low scan."""
     high = np.expm1(obs[:B].astype(np.float64) * math.log1p(50.0))
-    return high, obs[B:B + L].astype(np.float64) * 5.0
+    return high, obs[B : B + L].astype(np.float64) * 5.0
 
 
 @pytest.fixture(scope="module")
@@ -60,8 +60,12 @@ def reference():
         out["ends"].append((term, trunc))
         out["poses"].append((m.position[0], m.position[1], m.yaw))
         env.lidar.scan(*m.position, m.yaw)
-        out["scans"].append((env.lidar.distances.astype(np.float64) * env.lidar.range_m,
-                             env.low_lidar.scan(*m.position, m.yaw).astype(np.float64) * env.low_lidar.range_m))
+        out["scans"].append(
+            (
+                env.lidar.distances.astype(np.float64) * env.lidar.range_m,
+                env.low_lidar.scan(*m.position, m.yaw).astype(np.float64) * env.low_lidar.range_m,
+            )
+        )
         assert not (term or trunc), "the reference run must last STEPS steps"
     env.close()
     return out
@@ -83,13 +87,16 @@ def _replay(actions: list[np.ndarray]) -> dict[str, list]:
 def mismatches(ref: dict[str, list], run: dict[str, list]) -> list[str]:
     """Where a batched run leaves TOL of the PyBullet run (empty: it matches)."""
     bad = []
-    for k, (o_ref, o, r_ref, r, e_ref, e, p_ref, p) in enumerate(zip(
-            ref["obs"], run["obs"], ref["rewards"], run["rewards"], ref["ends"], run["ends"], ref["poses"], run["poses"])):
+    for k, (o_ref, o, r_ref, r, e_ref, e, p_ref, p) in enumerate(
+        zip(
+            ref["obs"], run["obs"], ref["rewards"], run["rewards"], ref["ends"], run["ends"], ref["poses"], run["poses"]
+        )
+    ):
         checks = {
             "position": math.hypot(p[0] - p_ref[0], p[1] - p_ref[1]),
             "yaw": abs((p[2] - p_ref[2] + math.pi) % (2 * math.pi) - math.pi),
-            "state": float(np.abs(o[B + L:B + L + 4] - o_ref[B + L:B + L + 4]).max()),
-            "nav": float(np.abs(o[B + L + 4:] - o_ref[B + L + 4:]).max()),
+            "state": float(np.abs(o[B + L : B + L + 4] - o_ref[B + L : B + L + 4]).max()),
+            "nav": float(np.abs(o[B + L + 4 :] - o_ref[B + L + 4 :]).max()),
             "reward": abs(r - r_ref),
             "replay_lidar_median": float(np.median(np.abs(_decode(o)[0] - _decode(o_ref)[0]))),
         }

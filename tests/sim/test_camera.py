@@ -118,19 +118,24 @@ def test_flat_observation_without_camera_is_unchanged() -> None:
     env.close()
 
 
-@pytest.mark.parametrize(("config", "message"), [
-    ({"camera": {"modalities": ["thermal"]}}, "thermal"),
-    ({"camera": {"modalities": ["rgb"]}, "observation": "flat"}, "observation 'flat' cannot hold camera images"),
-    ({"camera": {"modalities": ["rgb"], "fov": 0.0}}, "fov"),
-    ({"camera": {"modalities": ["rgb"], "zoom": 2}}, "unknown key 'zoom'"),
-])
+@pytest.mark.parametrize(
+    ("config", "message"),
+    [
+        ({"camera": {"modalities": ["thermal"]}}, "thermal"),
+        ({"camera": {"modalities": ["rgb"]}, "observation": "flat"}, "observation 'flat' cannot hold camera images"),
+        ({"camera": {"modalities": ["rgb"], "fov": 0.0}}, "fov"),
+        ({"camera": {"modalities": ["rgb"], "zoom": 2}}, "unknown key 'zoom'"),
+    ],
+)
 def test_bad_camera_configs_name_the_problem(config: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
         gym.make("curbside/PointNav-v0", config=config)
 
 
-@pytest.mark.skipif(any(os.path.exists(f"/dev/nvidia{k}") for k in range(8)) or os.path.exists("/dev/dri/renderD128"),
-                    reason="a GPU is present: EGL may load")
+@pytest.mark.skipif(
+    any(os.path.exists(f"/dev/nvidia{k}") for k in range(8)) or os.path.exists("/dev/dri/renderD128"),
+    reason="a GPU is present: EGL may load",
+)
 def test_egl_without_a_gpu_says_so() -> None:
     env = gym.make("curbside/PointNav-v0", config={"camera": {"modalities": ["rgb"], "renderer": "egl"}})
     with pytest.raises(ConfigError, match="needs a GPU with EGL"):
@@ -140,8 +145,7 @@ def test_egl_without_a_gpu_says_so() -> None:
 
 def test_the_batched_env_refuses_cameras() -> None:
     with pytest.raises(ConfigError, match="nothing to render"):
-        gym.make_vec("curbside/BatchedPointNav-v0", num_envs=2,
-                     config={"camera": {"modalities": ["rgb"]}})
+        gym.make_vec("curbside/BatchedPointNav-v0", num_envs=2, config={"camera": {"modalities": ["rgb"]}})
 
 
 def test_intrinsics_match_the_field_of_view() -> None:

@@ -44,8 +44,12 @@ def test_a_closed_env_refuses_every_call() -> None:
     env = gym.make("curbside/PointNav-v0", config=CFG)
     env.reset(seed=0)
     env.close()
-    for call in (lambda: env.step([0.0, 0.0]), lambda: env.reset(seed=0), lambda: env.unwrapped.render(),
-                 lambda: env.unwrapped.scene):
+    for call in (
+        lambda: env.step([0.0, 0.0]),
+        lambda: env.reset(seed=0),
+        lambda: env.unwrapped.render(),
+        lambda: env.unwrapped.scene,
+    ):
         with pytest.raises(RuntimeError, match="the env is closed"):
             call()
     env.close()  # closing twice is harmless

@@ -76,8 +76,13 @@ def test_task_preset_sets_routes_horizon_and_agents_and_the_expert_completes_a_l
 def test_agents_spawn_along_the_route_at_a_rate_per_100_m() -> None:
     from shapely.geometry import LineString, Point
 
-    env = SocialNavEnv({"traffic": False, "route_length": [40.0, 60.0],
-                        "agents": {"spawn_area": "route", "dynamic_density": 10.0, "route_band": 4.0}})
+    env = SocialNavEnv(
+        {
+            "traffic": False,
+            "route_length": [40.0, 60.0],
+            "agents": {"spawn_area": "route", "dynamic_density": 10.0, "route_band": 4.0},
+        }
+    )
     env.reset(seed=0)
     line = LineString(env.route.points)
     pos = env.crowd.pos
@@ -90,8 +95,13 @@ def test_agents_spawn_only_around_intersections() -> None:
     from shapely.geometry import Point, Polygon
     from shapely.ops import unary_union
 
-    env = SocialNavEnv({"traffic": False, "scene": {"blocks": "SXS"},
-                        "agents": {"spawn_area": "intersections", "dynamic_density": 8.0}})
+    env = SocialNavEnv(
+        {
+            "traffic": False,
+            "scene": {"blocks": "SXS"},
+            "agents": {"spawn_area": "intersections", "dynamic_density": 8.0},
+        }
+    )
     env.reset(seed=1)
     spec = env.scene_spec
     area = unary_union([Polygon(r["polygon"]) for r in spec["roads"] if r["block"] == "X"]).buffer(10.0)

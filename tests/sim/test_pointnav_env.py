@@ -94,14 +94,22 @@ def test_expert_succeeds_and_metrics_are_consistent(spec):
             assert total > 0.0  # progress plus the success bonus outweigh the lateral penalty
         assert info["path_length"] > 0 and info["time"] == pytest.approx(u.episode.steps * 0.1)
         # A step can hit several kinds at once, so the cost (collision steps) is at most the per-kind sum.
-        assert info["cost"] <= info["collisions"] == sum(info[f"collisions_{k}"] for k in ("object", "building", "curb"))
+        assert (
+            info["cost"] <= info["collisions"] == sum(info[f"collisions_{k}"] for k in ("object", "building", "curb"))
+        )
     assert np.mean([i["success"] for i in results]) >= 0.75
 
 
 def test_collision_costs_and_stops_the_machine(spec):
     # Full throttle straight east along the left clear path hits the trash bin at x = 15.
-    env = PointNavEnv({"scene_spec": spec, "out_of_route_distance": 50.0, "terminate_off_walkable": False,
-                       "reward": {"lateral": 0.0, "disp": 0.0}})
+    env = PointNavEnv(
+        {
+            "scene_spec": spec,
+            "out_of_route_distance": 50.0,
+            "terminate_off_walkable": False,
+            "reward": {"lateral": 0.0, "disp": 0.0},
+        }
+    )
     env.reset(seed=0, options={"start": [10.0, 7.0], "goal": [25.0, 7.0]})
     m = env.machine
     assert abs(m.position[0] - 10.0) < 0.3 and abs(m.position[1] - 7.0) < 0.3
@@ -131,8 +139,12 @@ def test_curb_blocks_small_wheels(spec):
 
 
 def test_async_vector_env(spec):
-    envs = gym.make_vec("curbside/PointNav-v0", num_envs=2, vectorization_mode="async",
-                        config={"scene_spec": spec, "lidar": {"beams": 30}})
+    envs = gym.make_vec(
+        "curbside/PointNav-v0",
+        num_envs=2,
+        vectorization_mode="async",
+        config={"scene_spec": spec, "lidar": {"beams": 30}},
+    )
     obs, _ = envs.reset(seed=[1, 2])
     assert obs.shape == (2, 30 + 60 + 6 + 20 + 3)
     for _ in range(3):
@@ -142,8 +154,11 @@ def test_async_vector_env(spec):
 
 
 def test_render_rgb_array(spec):
-    env = gym.make("curbside/PointNav-v0", config={"scene_spec": spec, "render": {"width": 64, "height": 48}},
-                   render_mode="rgb_array")
+    env = gym.make(
+        "curbside/PointNav-v0",
+        config={"scene_spec": spec, "render": {"width": 64, "height": 48}},
+        render_mode="rgb_array",
+    )
     env.reset(seed=0)
     img = env.render()
     assert img.shape == (48, 64, 3) and img.dtype == np.uint8 and img.std() > 5

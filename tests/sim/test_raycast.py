@@ -60,7 +60,7 @@ def test_grid_scans_match_bullet_along_an_expert_run_and_on_the_road() -> None:
         env.step([0.0, 0.4])
     assert env.machine.position[2] < 0.5 * env.scene.curb_height, "the machine should be down on the crosswalk"
     _check(env, "crosswalk")
-    (_, _, low_ids, _), = [e for e in _errors(env) if e[0] == "low"]
+    ((_, _, low_ids, _),) = [e for e in _errors(env) if e[0] == "low"]
     assert (low_ids == GridLidar.STATIC_HIT).any(), "the low scan must see the curbs from the road"
     env.close()
 
@@ -79,8 +79,12 @@ def test_a_perturbed_pose_leaves_the_tolerance() -> None:
 
 
 def test_socialnav_grid_scans_see_agents_and_vehicles_as_bullet_does() -> None:
-    cfg = {"scene": {"blocks": 1}, "route_length": [15.0, 30.0],
-           "agents": {"counts": {"pedestrian": 12, "cyclist": 2, "wheelchair_user": 2}}, "traffic": True}
+    cfg = {
+        "scene": {"blocks": 1},
+        "route_length": [15.0, 30.0],
+        "agents": {"counts": {"pedestrian": 12, "cyclist": 2, "wheelchair_user": 2}},
+        "traffic": True,
+    }
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         env = SocialNavEnv(cfg)
@@ -126,20 +130,26 @@ def test_march_never_steps_over_a_thin_pole_beside_a_grazed_wall() -> None:
     from sim.raycast.march import trace
 
     res, rows, cols = 0.05, 200, 1400  # 10 x 70 m
-    frame = {"x0": np.array([-RING * res]), "y0": np.array([-RING * res]), "cols": np.array([cols + 2 * RING]),
-             "offset": np.zeros(1, dtype=np.int64)}
+    frame = {
+        "x0": np.array([-RING * res]),
+        "y0": np.array([-RING * res]),
+        "cols": np.array([cols + 2 * RING]),
+        "offset": np.zeros(1, dtype=np.int64),
+    }
     for gap in (0.1, 0.25, 0.5, 1.0):
         for pole_x in (15.0, 22.5, 30.0):
             occ = np.zeros((rows, cols), dtype=bool)
             occ[100, 100:1300] = True  # the wall: y in [5.0, 5.05), x from 5 to 65 m
             y = 5.0 - gap + 0.5 * res  # the beam runs along the middle of a row of cells
             occ[int(y / res), int(pole_x / res)] = True
-            d = trace(_distance(occ).ravel(), frame, np.array([2.0]), np.array([y]), np.zeros((1, 1)), 0.3, 50.0,
-                      res)[0, 0]
+            d = trace(_distance(occ).ravel(), frame, np.array([2.0]), np.array([y]), np.zeros((1, 1)), 0.3, 50.0, res)[
+                0, 0
+            ]
             assert abs(d - (pole_x - 2.0)) < 1e-6, (gap, pole_x, d)
             occ[int(y / res), int(pole_x / res)] = False
-            d = trace(_distance(occ).ravel(), frame, np.array([2.0]), np.array([y]), np.zeros((1, 1)), 0.3, 50.0,
-                      res)[0, 0]
+            d = trace(_distance(occ).ravel(), frame, np.array([2.0]), np.array([y]), np.zeros((1, 1)), 0.3, 50.0, res)[
+                0, 0
+            ]
             assert d == 50.0, (gap, pole_x, d)  # no pole: nothing in range, the range exactly
 
 
@@ -148,8 +158,9 @@ def test_rays_against_circles_and_boxes() -> None:
 
     cos, sin = np.array([1.0, 0.0, -1.0]), np.array([0.0, 1.0, 0.0])  # +x, +y, -x
     dist, which = np.full(3, np.inf), -np.ones(3, dtype=np.int64)
-    circle_hits(0.0, 0.0, cos, sin, np.array([5.0, 0.0]), np.array([0.0, 0.2]), np.array([1.0, 0.5]), 0.5, 50.0,
-                dist, which)
+    circle_hits(
+        0.0, 0.0, cos, sin, np.array([5.0, 0.0]), np.array([0.0, 0.2]), np.array([1.0, 0.5]), 0.5, 50.0, dist, which
+    )
     assert dist[0] == pytest.approx(4.0) and which[0] == 0  # the circle ahead, entered at 4 m
     assert dist[1] == 0.5 and which[1] == 1  # starts inside the second circle: met at the start radius
     assert np.isinf(dist[2]) and which[2] == -1  # behind (-x) the ray leaves that circle before its start
@@ -158,8 +169,9 @@ def test_rays_against_circles_and_boxes() -> None:
     assert np.isinf(dist).all() and (which == -1).all()  # beyond the range
     dist, which = np.full(3, np.inf), -np.ones(3, dtype=np.int64)
     # A 4 x 2 m box 10 m ahead turned by 90 degrees: its 2 m side faces the ray; the ray along +y runs beside it.
-    box_hits(0.0, 0.0, cos, sin, np.array([10.0]), np.array([0.0]), np.array([np.pi / 2]), 2.0, 1.0, 0.5, 50.0,
-             dist, which)
+    box_hits(
+        0.0, 0.0, cos, sin, np.array([10.0]), np.array([0.0]), np.array([np.pi / 2]), 2.0, 1.0, 0.5, 50.0, dist, which
+    )
     assert dist[0] == pytest.approx(9.0) and which[0] == 0
     assert np.isinf(dist[1:]).all()
 

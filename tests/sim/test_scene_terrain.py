@@ -45,8 +45,19 @@ def _street(*patches: dict[str, Any]) -> dict[str, Any]:
 
 def _rough(x: float, length: float = 3.0) -> dict[str, Any]:
     """Uneven pavers (3 cm bumps) across the left clear path from x to x + length."""
-    return patch_record("t0", "rough", "pavers", "r0-s1", "clear", x + length / 2, Y_CLEAR, CURB, math.pi / 2,
-                        (2.4, length, 0.03), seed=7)
+    return patch_record(
+        "t0",
+        "rough",
+        "pavers",
+        "r0-s1",
+        "clear",
+        x + length / 2,
+        Y_CLEAR,
+        CURB,
+        math.pi / 2,
+        (2.4, length, 0.03),
+        seed=7,
+    )
 
 
 def _slick(x: float) -> dict[str, Any]:
@@ -56,8 +67,20 @@ def _slick(x: float) -> dict[str, Any]:
 def _stair(x: float, n: int = 1) -> dict[str, Any]:
     """A stair of `n` 0.15 m steps in the left frontage zone, rising to the building line at y = 9 m."""
     depth = n * 0.3 + 0.2
-    return patch_record("t2", "steps", "concrete", "r0-s1", "frontage", x, 9.0 - 0.01 - depth / 2, CURB, math.pi / 2,
-                        (depth, 2.0, n * 0.15), steps=n, tread=0.3)
+    return patch_record(
+        "t2",
+        "steps",
+        "concrete",
+        "r0-s1",
+        "frontage",
+        x,
+        9.0 - 0.01 - depth / 2,
+        CURB,
+        math.pi / 2,
+        (depth, 2.0, n * 0.15),
+        steps=n,
+        tread=0.3,
+    )
 
 
 def test_same_seed_same_patches_density_zero_none_and_objects_untouched() -> None:
@@ -74,8 +97,10 @@ def test_same_seed_same_patches_density_zero_none_and_objects_untouched() -> Non
 
 
 def test_higher_density_places_more_patches() -> None:
-    counts = [sum(len(_scene({"blocks": 2, "terrain": {"density": rho}}, s)["terrain"]) for s in range(3))
-              for rho in (0.3, 1.0, 3.0)]
+    counts = [
+        sum(len(_scene({"blocks": 2, "terrain": {"density": rho}}, s)["terrain"]) for s in range(3))
+        for rho in (0.3, 1.0, 3.0)
+    ]
     assert counts[0] < counts[1] < counts[2], counts
 
 
@@ -86,8 +111,10 @@ def test_patches_keep_the_placement_rules() -> None:
         walks = {sw["id"]: sw for sw in spec["sidewalks"]}
         objects = [Polygon(o["footprint"]) for o in spec["objects"]]
         ramps = [Polygon(r["polygon"]) for c in spec["crosswalks"] for r in c["ramps"]]
-        corridors = [LineString(sw["clear_path"]).buffer(0.5 * spec["config"]["min_clear_width"], cap_style="flat")
-                     for sw in spec["sidewalks"]]
+        corridors = [
+            LineString(sw["clear_path"]).buffer(0.5 * spec["config"]["min_clear_width"], cap_style="flat")
+            for sw in spec["sidewalks"]
+        ]
         placed: list[Polygon] = []
         for t in spec["terrain"]:
             kinds.add(t["kind"])
@@ -206,7 +233,7 @@ def test_stairs_are_walls_to_bodies_and_routes_rough_ground_is_not() -> None:
     assert body[cell(9.5, Y_CLEAR)] > 0
     for spec, free in ((_street(), True), (_street(_rough(19.0)), True), (scene, False)):
         planner = RoutePlanner(spec, half_width=0.1, margin=0.0)
-        (r, c), = planner.grid.world_to_cell(np.array([[20.0, 8.625]]))  # a cell centre on the stair
+        ((r, c),) = planner.grid.world_to_cell(np.array([[20.0, 8.625]]))  # a cell centre on the stair
         assert bool(planner.free[r, c]) is free
     world = World(scene)
     assert world.surface_height(20.0, 8.9) == pytest.approx(CURB + LIFT + 0.15, abs=1e-3)
@@ -227,7 +254,7 @@ def test_top_down_draws_patches_and_risers() -> None:
 
     assert px(images[1], 11.5, Y_CLEAR) == rgb255(terrain_colour("slick", "wet"))
     assert px(images[0], 11.5, Y_CLEAR) != px(images[1], 11.5, Y_CLEAR)
-    (a, b), = riser_lines(_stair(20.0))
+    ((a, b),) = riser_lines(_stair(20.0))
     mid = (a + b) / 2
     assert px(images[1], 20.3, float(mid[1])) == rgb255(EDGE)
 

@@ -25,8 +25,16 @@ def _drive(env, policy, seed=0, options=None):
 
 def test_per_step_cost_is_0_or_1_on_every_step_including_the_last(spec):
     # Straight into the trash bin at x = 15 and stay there: many cost steps, the last one among them.
-    env = PointNavEnv({"scene_spec": spec, "out_of_route_distance": 50.0, "terminate_off_walkable": False,
-                       "stuck_steps": 0, "collision_steps": 0, "horizon": 60})
+    env = PointNavEnv(
+        {
+            "scene_spec": spec,
+            "out_of_route_distance": 50.0,
+            "terminate_off_walkable": False,
+            "stuck_steps": 0,
+            "collision_steps": 0,
+            "horizon": 60,
+        }
+    )
     infos = _drive(env, lambda e: [0.0, 1.0], options={"start": [10.0, 7.0], "goal": [25.0, 7.0]})
     costs = [i["cost"] for i in infos]
     assert set(costs) <= {0.0, 1.0} and costs[-1] == 1.0
@@ -35,8 +43,9 @@ def test_per_step_cost_is_0_or_1_on_every_step_including_the_last(spec):
 
 
 def test_curb_contact_is_not_a_cost_but_is_counted(spec):
-    env = PointNavEnv({"scene_spec": spec, "out_of_route_distance": 50.0, "terminate_off_walkable": False,
-                       "horizon": 30})
+    env = PointNavEnv(
+        {"scene_spec": spec, "out_of_route_distance": 50.0, "terminate_off_walkable": False, "horizon": 30}
+    )
     env.reset(seed=0, options={"start": [12.0, 7.0], "goal": [25.0, 7.0]})
     env.machine.reset(10.0, 2.0, 0.0, math.pi / 2, env.np_random)
     infos = [env.step([0.0, 0.6])[4] for _ in range(20)]
@@ -45,8 +54,15 @@ def test_curb_contact_is_not_a_cost_but_is_counted(spec):
 
 
 def test_a_machine_pinned_against_an_object_ends_its_episode_as_stuck(spec):
-    env = PointNavEnv({"scene_spec": spec, "out_of_route_distance": 50.0, "terminate_off_walkable": False,
-                       "collision_steps": 25, "stuck_steps": 0})
+    env = PointNavEnv(
+        {
+            "scene_spec": spec,
+            "out_of_route_distance": 50.0,
+            "terminate_off_walkable": False,
+            "collision_steps": 25,
+            "stuck_steps": 0,
+        }
+    )
     infos = _drive(env, lambda e: [0.0, 1.0], options={"start": [10.0, 7.0], "goal": [25.0, 7.0]})
     assert infos[-1]["stuck"] and not infos[-1]["is_success"] and len(infos) < 100
 
@@ -74,9 +90,21 @@ def test_going_back_and_forth_earns_nothing_with_the_learnable_reward(spec):
     s0 = env.episode.max_progress
     from sim.tasks.termination import StepContext, StepEnd
 
-    back_again = StepContext(steps=2, progress=1.0, new_progress=0.0, max_progress=1.0, route_length=20.0, lateral=0.0,
-                             d_steer=0.0, speed=1.0, tilt=0.0, collided=False, in_contact=False, cost_total=0.0,
-                             on_walkable=lambda: True)
+    back_again = StepContext(
+        steps=2,
+        progress=1.0,
+        new_progress=0.0,
+        max_progress=1.0,
+        route_length=20.0,
+        lateral=0.0,
+        d_steer=0.0,
+        speed=1.0,
+        tilt=0.0,
+        collided=False,
+        in_contact=False,
+        cost_total=0.0,
+        on_walkable=lambda: True,
+    )
     gain = env.reward_fn(back_again, StepEnd())
     assert gain == 0.0 and s0 == 0.0
     paper = PointNavEnv({"scene_spec": spec, "reward_preset": "paper"})
@@ -117,7 +145,10 @@ def test_psc_falls_below_one_when_an_agent_enters_the_personal_space(spec):
     m = env.machine
     x, y, _ = m.position
     # An agent 0.2 m in front of the ego's bumper: inside the 0.45 m personal space between body surfaces.
-    ax, ay = x + math.cos(m.yaw) * (0.5 * m.spec.length + 0.2 + 0.3), y + math.sin(m.yaw) * (0.5 * m.spec.length + 0.2 + 0.3)
+    ax, ay = (
+        x + math.cos(m.yaw) * (0.5 * m.spec.length + 0.2 + 0.3),
+        y + math.sin(m.yaw) * (0.5 * m.spec.length + 0.2 + 0.3),
+    )
     env.crowd.pos[0] = (ax, ay)
     env.crowd.sim.set_agent_position(0, (ax, ay))
     infos = [env.step([0.0, -1.0])[4] for _ in range(4)]
@@ -144,7 +175,7 @@ def test_split_configs_draw_disjoint_scenes():
         env.close()
     splits = list(seeds)
     for i, a in enumerate(splits):
-        for b in splits[i + 1:]:
+        for b in splits[i + 1 :]:
             assert not seeds[a] & seeds[b], (a, b)
     with pytest.raises(ConfigError, match="valid: train, test, unseen, finetune"):
         PointNavEnv({"split": "validation"})
@@ -259,10 +290,23 @@ def test_episode_end_rules_give_the_same_flags_for_one_env_and_for_many():
         cost += contact
         arrays = end_of_step(rules, many, steps, progress, np.full(n, 30.0), lateral, walkable, contact, tilt, cost)
         for k in range(n):
-            one = end_of_step(rules, ones[k], int(steps[k]), float(progress[k]), 30.0, float(lateral[k]),
-                              bool(walkable[k]), bool(contact[k]), float(tilt[k]), int(cost[k]))
+            one = end_of_step(
+                rules,
+                ones[k],
+                int(steps[k]),
+                float(progress[k]),
+                30.0,
+                float(lateral[k]),
+                bool(walkable[k]),
+                bool(contact[k]),
+                float(tilt[k]),
+                int(cost[k]),
+            )
             assert tuple(bool(a[k]) for a in arrays) == tuple(bool(o) for o in one)
             assert (ones[k].step, ones[k].progress, ones[k].contact_run) == (
-                many.step[k], many.progress[k], many.contact_run[k])
+                many.step[k],
+                many.progress[k],
+                many.contact_run[k],
+            )
         seen += np.array([a.sum() for a in arrays])
     assert (seen > 0).all()  # every rule fired somewhere

@@ -140,8 +140,9 @@ def test_a_slope_slows_a_machine_by_its_grade_once(grade: float) -> None:
     p.disconnect(c)
     g = 9.81
     drag = 0.5 * 1.2 * spec.drag_area * np.mean(speeds[-200:]) ** 2
-    expected = spec.v_max * (1 - (spec.mass * g * math.sin(th) + spec.rolling_resistance * spec.mass * g + drag)
-                             / m.engine_force)
+    expected = spec.v_max * (
+        1 - (spec.mass * g * math.sin(th) + spec.rolling_resistance * spec.mass * g + drag) / m.engine_force
+    )
     assert np.mean(speeds[-200:]) == pytest.approx(expected, rel=0.03)
 
 
@@ -152,8 +153,9 @@ def test_a_toppled_machine_ends_the_episode_with_its_reason() -> None:
     u = env.unwrapped
     x, y, z = u.machine.position
     # Knocked onto its side (as a fall from a step would leave it).
-    p.resetBasePositionAndOrientation(u.machine.body, [x, y, z + 0.3], p.getQuaternionFromEuler([math.radians(85), 0, 0]),
-                                      physicsClientId=u.client)
+    p.resetBasePositionAndOrientation(
+        u.machine.body, [x, y, z + 0.3], p.getQuaternionFromEuler([math.radians(85), 0, 0]), physicsClientId=u.client
+    )
     _, reward, terminated, truncated, info = env.step(np.array([0.0, 0.0], dtype=np.float32))
     assert terminated and info["toppled"] and info["end_reason"] == "toppled" and not info["is_success"]
     env.close()

@@ -19,7 +19,9 @@ SHORT = {"route_length": [10.0, 15.0]}
 def test_the_dashboard_shows_the_camera_panels_and_metrics() -> None:
     frames = []
     for mods in ([], ["rgb", "depth", "semantic"]):
-        env = gym.make("curbside/PointNav-v0", config={**SHORT, "camera": {"modalities": mods}}, render_mode="rgb_array")
+        env = gym.make(
+            "curbside/PointNav-v0", config={**SHORT, "camera": {"modalities": mods}}, render_mode="rgb_array"
+        )
         env.reset(seed=2)
         env.step(np.array([0.0, 0.5], dtype=np.float32))
         frames.append(env.render())
@@ -89,8 +91,11 @@ def test_rollout_video_command(tmp_path, capfd: pytest.CaptureFixture[str]) -> N
 
 
 def test_the_map_camera_fills_the_configured_frame() -> None:
-    env = gym.make("curbside/SocialNav-v0", config={**SHORT, "render": {"camera": "map", "width": 200, "height": 120}},
-                   render_mode="rgb_array")
+    env = gym.make(
+        "curbside/SocialNav-v0",
+        config={**SHORT, "render": {"camera": "map", "width": 200, "height": 120}},
+        render_mode="rgb_array",
+    )
     env.reset(seed=0)
     assert env.render().shape == (120, 200, 3)
     env.close()

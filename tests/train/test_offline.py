@@ -20,8 +20,14 @@ def linear_demos(n: int = 2_000, obs_dim: int = 6, seed: int = 0) -> tuple[Trans
     acts = np.tanh(obs @ w.T).astype(np.float32)
     ends = np.zeros(n, dtype=bool)
     ends[49::50] = True
-    tr = Transitions(obs=obs, actions=acts, rewards=np.ones(n, dtype=np.float32), next_obs=np.roll(obs, -1, 0),
-                     terminals=ends, timeouts=np.zeros(n, dtype=bool))
+    tr = Transitions(
+        obs=obs,
+        actions=acts,
+        rewards=np.ones(n, dtype=np.float32),
+        next_obs=np.roll(obs, -1, 0),
+        terminals=ends,
+        timeouts=np.zeros(n, dtype=bool),
+    )
     return tr, w
 
 
@@ -30,8 +36,9 @@ def test_offline_learners_recover_the_demonstrated_policy(algo, tmp_path) -> Non
     import torch
 
     tr, w = linear_demos()
-    path = train_offline(algo, tr, tmp_path, steps=1_500, hparams={"learning_rate": 1e-3, "net_arch": [64, 64]},
-                         progress=False)
+    path = train_offline(
+        algo, tr, tmp_path, steps=1_500, hparams={"learning_rate": 1e-3, "net_arch": [64, 64]}, progress=False
+    )
     actor = load_actor(path)
     test = np.random.default_rng(1).uniform(-1.0, 1.0, (200, tr.obs.shape[1])).astype(np.float32)
     with torch.no_grad():

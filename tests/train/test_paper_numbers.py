@@ -16,20 +16,31 @@ from curbside.train.paper import (
 )
 
 DOC = (Path(__file__).resolve().parents[2] / "docs" / "paper_numbers.md").read_text()
-MACHINE_ROWS = {"COCO base": "delivery_bot", "COCO mod-1": "delivery_bot_mod1", "COCO mod-2": "delivery_bot_mod2",
-                "wheelchair": "wheelchair", "mobility scooter": "mobility_scooter"}
+MACHINE_ROWS = {
+    "COCO base": "delivery_bot",
+    "COCO mod-1": "delivery_bot_mod1",
+    "COCO mod-2": "delivery_bot_mod2",
+    "wheelchair": "wheelchair",
+    "mobility scooter": "mobility_scooter",
+}
 
 
 def _rows(section: str) -> list[list[str]]:
     text = DOC.split(f"## {section}")[1].split("\n## ")[0]
-    return [[c.strip() for c in line.strip().strip("|").split("|")] for line in text.splitlines()
-            if line.startswith("|") and not line.startswith("|---") and not line.startswith("| method")
-            and not line.startswith("| machine")]
+    return [
+        [c.strip() for c in line.strip().strip("|").split("|")]
+        for line in text.splitlines()
+        if line.startswith("|")
+        and not line.startswith("|---")
+        and not line.startswith("| method")
+        and not line.startswith("| machine")
+    ]
 
 
 def _cell(text: str) -> tuple[float, ...]:
-    return tuple(float(v) / 100 if "%" in part else float(v)
-                 for part in text.split("/") for v in re.findall(r"[\d.]+", part))
+    return tuple(
+        float(v) / 100 if "%" in part else float(v) for part in text.split("/") for v in re.findall(r"[\d.]+", part)
+    )
 
 
 def test_all_84_table1_cells_equal_the_papers() -> None:
@@ -41,12 +52,20 @@ def test_all_84_table1_cells_equal_the_papers() -> None:
         for (task, split), text in zip(columns, row[1:]):
             sr, second, cost = _cell(text)
             ours = PAPER_TABLE1[(task, split, method)]
-            assert ours == {"sr": sr, "spl" if task == "PointNav" else "sns": second, "cost": cost}, (task, split, method)
+            assert ours == {"sr": sr, "spl" if task == "PointNav" else "sns": second, "cost": cost}, (
+                task,
+                split,
+                method,
+            )
             seen += 3
     assert seen == 84 and len(PAPER_TABLE1) == 28
     robust = re.search(r"SR ([\d.]+) \+/- ([\d.]+) on test, ([\d.]+) \+/- ([\d.]+)", DOC.replace("\n", " ")).groups()
-    assert (PAPER_SEED_ROBUSTNESS["test"]["sr"], PAPER_SEED_ROBUSTNESS["test"]["sr_std"],
-            PAPER_SEED_ROBUSTNESS["unseen"]["sr"], PAPER_SEED_ROBUSTNESS["unseen"]["sr_std"]) == tuple(map(float, robust))
+    assert (
+        PAPER_SEED_ROBUSTNESS["test"]["sr"],
+        PAPER_SEED_ROBUSTNESS["test"]["sr_std"],
+        PAPER_SEED_ROBUSTNESS["unseen"]["sr"],
+        PAPER_SEED_ROBUSTNESS["unseen"]["sr_std"],
+    ) == tuple(map(float, robust))
 
 
 def test_table2_and_table5_equal_the_papers() -> None:
@@ -58,10 +77,14 @@ def test_table2_and_table5_equal_the_papers() -> None:
     assert len(PAPER_TABLE2) == 5
     text = DOC.split("## Table 5")[1].replace("\n", " ")
     horizon = re.search(r"SR (\d+) % vs (\d+) %; SPL ([\d.]+) vs (\d+\.\d+)", text).groups()
-    assert (PAPER_TABLE5_HORIZON["10 m"]["sr"], PAPER_TABLE5_HORIZON["410 m"]["sr"]) == \
-        (float(horizon[0]) / 100, float(horizon[1]) / 100)
-    assert (PAPER_TABLE5_HORIZON["10 m"]["spl"], PAPER_TABLE5_HORIZON["410 m"]["spl"]) == \
-        (float(horizon[2]), float(horizon[3]))
+    assert (PAPER_TABLE5_HORIZON["10 m"]["sr"], PAPER_TABLE5_HORIZON["410 m"]["sr"]) == (
+        float(horizon[0]) / 100,
+        float(horizon[1]) / 100,
+    )
+    assert (PAPER_TABLE5_HORIZON["10 m"]["spl"], PAPER_TABLE5_HORIZON["410 m"]["spl"]) == (
+        float(horizon[2]),
+        float(horizon[3]),
+    )
     srs = [float(v) / 100 for v in re.search(r"SR (\d+) % / (\d+) % / (\d+) % / (\d+) %", text).groups()]
     costs = [float(v) for v in re.search(r"Cost (\d+\.\d+) / (\d+\.\d+) / (\d+\.\d+) / (\d+\.\d+)", text).groups()]
     assert [PAPER_TABLE5_PEDESTRIANS[s]["sr"] for s in "1234"] == srs

@@ -23,8 +23,16 @@ def test_paper_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
     # MetaUrban, ICLR 2025, appendix tables: the values a paper run trains with, down to the SB3 objects.
     ppo = resolve_run("ppo", "PointNav", protocol="paper")
     h = ppo["hparams"]
-    assert (h["learning_rate"], h["gamma"], h["gae_lambda"], h["clip_range"], h["batch_size"], h["vf_coef"],
-            h["ent_coef"], h["cost_limit"]) == (5e-5, 0.99, 0.95, 0.2, 256, 1.0, 0.0, 1.0)
+    assert (
+        h["learning_rate"],
+        h["gamma"],
+        h["gae_lambda"],
+        h["clip_range"],
+        h["batch_size"],
+        h["vf_coef"],
+        h["ent_coef"],
+        h["cost_limit"],
+    ) == (5e-5, 0.99, 0.95, 0.2, 256, 1.0, 0.0, 1.0)
     assert h["n_steps"] * ppo["n_envs"] == 25_600  # the paper's train batch
     assert ppo["env_config"]["preset"] == "metaurban12k" and ppo["num_scenes"] == 12_800
     assert [protocol("paper").scenes(s) for s in ("train", "test", "unseen", "finetune")] == [12_800, 1_000, 100, 1_000]
@@ -49,8 +57,12 @@ def test_paper_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
 
     vec = make_training_vec("PointNav", CFG, 2, 2, subprocess=False)
     try:
-        model = PPO("MlpPolicy", vec, device="cpu", **ppo_kwargs(resolve_run("ppo", "PointNav", protocol="paper",
-                                                                              n_envs=2)["hparams"]))
+        model = PPO(
+            "MlpPolicy",
+            vec,
+            device="cpu",
+            **ppo_kwargs(resolve_run("ppo", "PointNav", protocol="paper", n_envs=2)["hparams"]),
+        )
     finally:
         vec.close()
     assert (model.learning_rate, model.vf_coef, model.n_steps * 2, model.batch_size) == (5e-5, 1.0, 25_600, 256)
@@ -66,7 +78,9 @@ def test_protocol_envs_follow_the_backend_and_configs_merge_key_by_key() -> None
     pybullet = resolve_run("ppo", "PointNav", protocol="paper", backend="pybullet")
     assert (batched["n_envs"], batched["hparams"]["n_steps"]) == (64, 400)
     assert (pybullet["n_envs"], pybullet["hparams"]["n_steps"]) == (8, 3_200)
-    lidar = resolve_run("ppo", "PointNav", protocol="paper", env_config={"lidar": {"beams": 120}})["env_config"]["lidar"]
+    lidar = resolve_run("ppo", "PointNav", protocol="paper", env_config={"lidar": {"beams": 120}})["env_config"][
+        "lidar"
+    ]
     assert lidar == {"resolution": 0.1, "beams": 120}  # the protocol's grid resolution survives a partial override
 
 
@@ -84,16 +98,37 @@ def _curve(run: Path) -> list[dict[str, float]]:
 
 def test_batched_backend_trains_ppo_and_the_finetune_split_trains(tmp_path) -> None:
     src = tmp_path / "src"
-    train("ppo", "PointNav", src, steps=256, backend="batched", env_config=CFG, n_envs=4, num_scenes=2,
-          hparams=TINY, progress=False)
+    train(
+        "ppo",
+        "PointNav",
+        src,
+        steps=256,
+        backend="batched",
+        env_config=CFG,
+        n_envs=4,
+        num_scenes=2,
+        hparams=TINY,
+        progress=False,
+    )
     run = json.loads((src / "run.json").read_text())
     assert (run["backend"], run["split"], run["protocol"]) == ("batched", "train", "curbside")
     from stable_baselines3 import PPO
 
     assert PPO.load(src / "policy.zip").num_timesteps >= 256
     fine = tmp_path / "fine"
-    train("ppo", "PointNav", fine, steps=128, split="finetune", env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY,
-          progress=False, subprocess=False)
+    train(
+        "ppo",
+        "PointNav",
+        fine,
+        steps=128,
+        split="finetune",
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams=TINY,
+        progress=False,
+        subprocess=False,
+    )
     assert json.loads((fine / "run.json").read_text())["split"] == "finetune"
     assert PPO.load(fine / "policy.zip").num_timesteps >= 128
 
@@ -103,21 +138,58 @@ def test_init_from_reproduces_the_source_policys_evaluation_before_training(tmp_
     from curbside.train.policies import load_policy
 
     src = tmp_path / "src"
-    train("ppo", "PointNav", src, steps=128, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY, progress=False,
-          subprocess=False)
+    train(
+        "ppo",
+        "PointNav",
+        src,
+        steps=128,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams=TINY,
+        progress=False,
+        subprocess=False,
+    )
     act, _ = load_policy(src)
     source_eval = evaluate_policy(act, "PointNav", CFG, split="test", episodes=3, progress=False)
     fine = tmp_path / "fine"
-    train("ppo", "PointNav", fine, steps=128, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY, progress=False,
-          subprocess=False, init_from=src, eval_every=10_000, eval_episodes=3, split="finetune")
+    train(
+        "ppo",
+        "PointNav",
+        fine,
+        steps=128,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams=TINY,
+        progress=False,
+        subprocess=False,
+        init_from=src,
+        eval_every=10_000,
+        eval_episodes=3,
+        split="finetune",
+    )
     first = _curve(fine)[0]
     assert first["steps"] == 0
     for k in ("sr", "spl", "cost", "route_completion", "path_length"):
         assert first[k] == pytest.approx(source_eval[k])
     # and it is a real start: a run from scratch evaluates otherwise
     scratch = tmp_path / "scratch"
-    train("ppo", "PointNav", scratch, steps=128, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY, seed=5,
-          progress=False, subprocess=False, eval_every=10_000, eval_episodes=3)
+    train(
+        "ppo",
+        "PointNav",
+        scratch,
+        steps=128,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams=TINY,
+        seed=5,
+        progress=False,
+        subprocess=False,
+        eval_every=10_000,
+        eval_episodes=3,
+    )
     assert _curve(scratch)[0]["path_length"] != pytest.approx(source_eval["path_length"])
 
 
@@ -125,8 +197,21 @@ def test_seeds_are_aggregated_as_mean_and_std(tmp_path) -> None:
     from curbside.train.seeds import aggregate_seeds
 
     for s in (0, 1):  # what `train run --seeds 0,1` runs, one folder a seed
-        train("ppo", "PointNav", tmp_path / f"seed_{s}", steps=64, env_config=CFG, n_envs=2, num_scenes=2,
-              hparams=TINY, seed=s, eval_every=64, eval_episodes=2, progress=False, subprocess=False)
+        train(
+            "ppo",
+            "PointNav",
+            tmp_path / f"seed_{s}",
+            steps=64,
+            env_config=CFG,
+            n_envs=2,
+            num_scenes=2,
+            hparams=TINY,
+            seed=s,
+            eval_every=64,
+            eval_episodes=2,
+            progress=False,
+            subprocess=False,
+        )
     summary = aggregate_seeds(tmp_path, [0, 1])
     assert json.loads((tmp_path / "seeds.json").read_text()) == summary
     assert summary["evaluated"] == [0, 1] and summary["sr"]["n"] == 2
@@ -136,16 +221,22 @@ def test_seeds_are_aggregated_as_mean_and_std(tmp_path) -> None:
     assert summary["path_length"]["std"] == pytest.approx(np.std(finals))
 
 
-@pytest.mark.parametrize("args, expected", [
-    (["--protocol", "papr"], "unknown protocol 'papr'; valid: curbside, paper"),
-    (["--backend", "gpu"], "unknown backend 'gpu'; valid: pybullet, batched"),
-    (["--backend", "batched", "--task", "SocialNav"], "the batched backend steps PointNav only"),
-    (["--backend", "batched", "--algo", "gail", "--demos", "."], "the batched backend trains ppo, ppo_lag and ppo_et"),
-    (["--split", "test"], "--split test is held out for evaluation"),
-    (["--split", "validation"], "unknown split 'validation'"),
-    (["--seeds", "0,x"], "--seeds must be comma-separated integers"),
-    (["--config", '{"split": "test"}'], "config.split 'test' differs from --split 'train'"),
-])
+@pytest.mark.parametrize(
+    "args, expected",
+    [
+        (["--protocol", "papr"], "unknown protocol 'papr'; valid: curbside, paper"),
+        (["--backend", "gpu"], "unknown backend 'gpu'; valid: pybullet, batched"),
+        (["--backend", "batched", "--task", "SocialNav"], "the batched backend steps PointNav only"),
+        (
+            ["--backend", "batched", "--algo", "gail", "--demos", "."],
+            "the batched backend trains ppo, ppo_lag and ppo_et",
+        ),
+        (["--split", "test"], "--split test is held out for evaluation"),
+        (["--split", "validation"], "unknown split 'validation'"),
+        (["--seeds", "0,x"], "--seeds must be comma-separated integers"),
+        (["--config", '{"split": "test"}'], "config.split 'test' differs from --split 'train'"),
+    ],
+)
 def test_bad_protocol_backend_split_or_seeds_is_one_line_exit_2(tmp_path, capsys, args, expected) -> None:
     line = one_error_line(*cli(["train", "run", "--out", str(tmp_path / "run"), *args], capsys))
     assert expected in line
@@ -153,12 +244,24 @@ def test_bad_protocol_backend_split_or_seeds_is_one_line_exit_2(tmp_path, capsys
 
 def test_init_from_another_task_or_observation_space_is_one_line_exit_2(tmp_path, capsys) -> None:
     src = tmp_path / "src"
-    train("ppo", "PointNav", src, steps=64, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY, progress=False,
-          subprocess=False)
+    train(
+        "ppo",
+        "PointNav",
+        src,
+        steps=64,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams=TINY,
+        progress=False,
+        subprocess=False,
+    )
     base = ["train", "run", "--out", str(tmp_path / "run"), "--init-from", str(src)]
     line = one_error_line(*cli([*base, "--task", "SocialNav"], capsys))
     assert "was trained on PointNav, not SocialNav" in line
-    line = one_error_line(*cli([*base, "--config", json.dumps({**CFG, "lidar": {"beams": 48, "low_beams": 8}})], capsys))
+    line = one_error_line(
+        *cli([*base, "--config", json.dumps({**CFG, "lidar": {"beams": 48, "low_beams": 8}})], capsys)
+    )
     assert "observes (61,), this run (85,)" in line
     line = one_error_line(*cli([*base, "--config", json.dumps(CFG)], capsys))  # the curbside protocol's 256 x 256
     assert "has a [32, 32] network, this run [256, 256]" in line
@@ -172,18 +275,45 @@ def test_demonstrations_mix_a_trained_policy_with_the_noisy_expert(tmp_path, cap
     from curbside.train.demos import collect_demos
 
     src = tmp_path / "ppo"
-    train("ppo", "PointNav", src, steps=64, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY, progress=False,
-          subprocess=False)
-    mixed = collect_demos("PointNav", tmp_path / "mixed", steps=400, env_config=CFG, num_scenes=2, progress=False,
-                          policy=src, policy_fraction=0.5)
+    train(
+        "ppo",
+        "PointNav",
+        src,
+        steps=64,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams=TINY,
+        progress=False,
+        subprocess=False,
+    )
+    mixed = collect_demos(
+        "PointNav",
+        tmp_path / "mixed",
+        steps=400,
+        env_config=CFG,
+        num_scenes=2,
+        progress=False,
+        policy=src,
+        policy_fraction=0.5,
+    )
     assert 0 < mixed["policy_episodes"] < mixed["episodes"]  # both sources drove, per the episode's own draw
-    again = collect_demos("PointNav", tmp_path / "again", steps=400, env_config=CFG, num_scenes=2, progress=False,
-                          policy=src, policy_fraction=0.5)
+    again = collect_demos(
+        "PointNav",
+        tmp_path / "again",
+        steps=400,
+        env_config=CFG,
+        num_scenes=2,
+        progress=False,
+        policy=src,
+        policy_fraction=0.5,
+    )
     assert (again["policy_episodes"], again["steps"]) == (mixed["policy_episodes"], mixed["steps"])  # deterministic
     line = one_error_line(*cli(["demos", "collect", "--policy-fraction", "0.8", "--out", str(tmp_path / "x")], capsys))
     assert "--policy-fraction needs --policy RUN" in line
-    line = one_error_line(*cli(["demos", "collect", "--task", "SocialNav", "--policy", str(src), "--out",
-                                str(tmp_path / "x")], capsys))
+    line = one_error_line(
+        *cli(["demos", "collect", "--task", "SocialNav", "--policy", str(src), "--out", str(tmp_path / "x")], capsys)
+    )
     assert "was trained on PointNav, not SocialNav" in line
 
 

@@ -58,8 +58,16 @@ def test_sb3_trains_through_the_adapter_on_a_sharded_env() -> None:
 
     vec = VectorEnvAdapter(ShardedVectorEnv(env_fns("PointNav", CFG, 4, 4), workers=2), wrappers=(Monitor,))
     try:
-        model = PPO("MlpPolicy", vec, n_steps=32, batch_size=64, n_epochs=1, seed=0, device="cpu",
-                    policy_kwargs={"net_arch": [16, 16]})
+        model = PPO(
+            "MlpPolicy",
+            vec,
+            n_steps=32,
+            batch_size=64,
+            n_epochs=1,
+            seed=0,
+            device="cpu",
+            policy_kwargs={"net_arch": [16, 16]},
+        )
         model.learn(256)
         assert model.num_timesteps == 256 and len(model.ep_info_buffer) > 0  # episodes ended and were logged
         assert vec.get_attr("spec", indices=[1])[0].id == "curbside/PointNav-v0"
@@ -81,12 +89,29 @@ def test_a_failing_worker_raises_its_traceback_and_bad_shapes_are_refused() -> N
 
 def test_add_info_builds_gymnasiums_arrays() -> None:
     """ShardedVectorEnv's leaner _add_info gives Gymnasium's arrays: the same keys, dtypes, masks and values."""
-    infos = [{"cost": 0.5, "n": 3, "ok": True, "kinds": ["object"], "why": None, "v": np.float32(2.0),
-              "img": np.ones((2, 3), dtype=np.uint8), "final_obs": np.zeros(4),
-              "final_info": {"episode": {"r": 1.5, "l": 7}, "end_reason": "goal"}},
-             {},
-             {"cost": 1, "ok": False, "kinds": [], "why": "stuck", "v": np.float32(-1.0),
-              "img": np.zeros((2, 3), dtype=np.uint8), "extra": {"deep": {"x": 1.0}}}]
+    infos = [
+        {
+            "cost": 0.5,
+            "n": 3,
+            "ok": True,
+            "kinds": ["object"],
+            "why": None,
+            "v": np.float32(2.0),
+            "img": np.ones((2, 3), dtype=np.uint8),
+            "final_obs": np.zeros(4),
+            "final_info": {"episode": {"r": 1.5, "l": 7}, "end_reason": "goal"},
+        },
+        {},
+        {
+            "cost": 1,
+            "ok": False,
+            "kinds": [],
+            "why": "stuck",
+            "v": np.float32(-1.0),
+            "img": np.zeros((2, 3), dtype=np.uint8),
+            "extra": {"deep": {"x": 1.0}},
+        },
+    ]
 
     def batched(add: object, venv: object) -> dict:
         out: dict = {}
@@ -114,11 +139,14 @@ def test_add_info_builds_gymnasiums_arrays() -> None:
     same(ours, ref)
 
 
-@pytest.mark.parametrize("infos", [
-    [{"x": {"a": 1}}, {"x": 2}],  # a dict, then a plain value: Gymnasium keeps the dict (the value under key 1)
-    [{"x": 1}, {"_x": 5}],  # a key named like an earlier key's mask
-    [{"x": 1, "_x": 5}],
-])
+@pytest.mark.parametrize(
+    "infos",
+    [
+        [{"x": {"a": 1}}, {"x": 2}],  # a dict, then a plain value: Gymnasium keeps the dict (the value under key 1)
+        [{"x": 1}, {"_x": 5}],  # a key named like an earlier key's mask
+        [{"x": 1, "_x": 5}],
+    ],
+)
 def test_add_info_matches_gymnasium_on_odd_infos(infos: list[dict]) -> None:
     """Where envs' infos disagree in kind, or a key looks like a mask, _add_info still gives Gymnasium's dict."""
 

@@ -167,7 +167,8 @@ def _gone(pid: int) -> bool:
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads process states from /proc")
 def test_workers_exit_when_their_parent_is_killed(tmp_path: Path) -> None:
     script = tmp_path / "parent.py"
-    script.write_text(textwrap.dedent("""
+    script.write_text(
+        textwrap.dedent("""
         import time
         from curbside.train.sharded import ShardedVectorEnv
         from tests.train.toy_envs import counters
@@ -177,7 +178,8 @@ def test_workers_exit_when_their_parent_is_killed(tmp_path: Path) -> None:
             venv.reset(seed=0)
             print(" ".join(str(p.pid) for p in venv._procs), flush=True)
             time.sleep(120)
-    """))
+    """)
+    )
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     parent = subprocess.Popen([sys.executable, str(script)], cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
     try:

@@ -25,8 +25,13 @@ def _on_a_display(x_display: str) -> str:
 
 
 def test_keyboard_episodes_are_recorded_as_a_minari_dataset(tmp_path) -> None:
-    script = {0: (pg.KEYDOWN, pg.K_UP), 5: (pg.KEYDOWN, pg.K_LEFT), 8: (pg.KEYUP, pg.K_LEFT), 25: (pg.KEYDOWN, pg.K_r),
-              32: (pg.KEYDOWN, pg.K_ESCAPE)}
+    script = {
+        0: (pg.KEYDOWN, pg.K_UP),
+        5: (pg.KEYDOWN, pg.K_LEFT),
+        8: (pg.KEYUP, pg.K_LEFT),
+        25: (pg.KEYDOWN, pg.K_r),
+        32: (pg.KEYDOWN, pg.K_ESCAPE),
+    }
 
     def press(k: int) -> None:
         if k in script:
@@ -37,10 +42,14 @@ def test_keyboard_episodes_are_recorded_as_a_minari_dataset(tmp_path) -> None:
     # No terrain: the script's key presses were written for this seed's route in a scene without it (entrance steps
     # change the planner's routes, and on the new one the scripted turn drives into an obstacle and topples). Seed 0:
     # since routes are planned by A*, seed 3's route has the scripted turn end an episode early too.
-    loose = {"route_length": [30.0, 60.0], "out_of_route_distance": 100.0, "terminate_off_walkable": False,
-             "collision_steps": 0, "scene": {"terrain": {"density": 0.0}}}
-    summary = teleop("PointNav", tmp_path, env_config=loose, max_steps=100, seed=0,
-                     before_step=press)
+    loose = {
+        "route_length": [30.0, 60.0],
+        "out_of_route_distance": 100.0,
+        "terminate_off_walkable": False,
+        "collision_steps": 0,
+        "scene": {"terrain": {"density": 0.0}},
+    }
+    summary = teleop("PointNav", tmp_path, env_config=loose, max_steps=100, seed=0, before_step=press)
     assert summary["episodes"] == 2 and summary["steps"] == 34 and summary["device"] == "keyboard"
     data, meta = load_demos(tmp_path / "curbside" / "pointnav-teleop-v0")
     assert len(data) == 34 and meta["dataset_id"] == "curbside/pointnav-teleop-v0"
@@ -52,9 +61,19 @@ def test_keyboard_episodes_are_recorded_as_a_minari_dataset(tmp_path) -> None:
     ends = np.flatnonzero(data.timeouts)
     assert ends.tolist() == [26, 33] and not data.terminals.any()
     # Behaviour cloning from `curbside train` learns from it as from the expert's demonstrations.
-    path = train("bc", "PointNav", tmp_path / "bc", steps=20, env_config=loose, n_envs=1, num_scenes=1,
-                 demos=tmp_path / "curbside" / "pointnav-teleop-v0", hparams={"batch_size": 16}, progress=False,
-                 subprocess=False)
+    path = train(
+        "bc",
+        "PointNav",
+        tmp_path / "bc",
+        steps=20,
+        env_config=loose,
+        n_envs=1,
+        num_scenes=1,
+        demos=tmp_path / "curbside" / "pointnav-teleop-v0",
+        hparams={"batch_size": 16},
+        progress=False,
+        subprocess=False,
+    )
     act, run = load_policy(tmp_path / "bc")
     assert path.is_file() and run["algo"] == "bc" and np.asarray(act(data.obs[0])).shape == (2,)
 

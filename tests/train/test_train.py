@@ -22,8 +22,9 @@ TINY_PPO = {"n_steps": 64, "batch_size": 64, "n_epochs": 1, "net_arch": [32, 32]
 @pytest.fixture(scope="module")
 def demos(tmp_path_factory) -> dict:
     """A small demonstration set on the train split, written as a Minari dataset."""
-    return collect_demos("PointNav", tmp_path_factory.mktemp("demos"), steps=300, noise=0.3, env_config=CFG,
-                         num_scenes=2, progress=False)
+    return collect_demos(
+        "PointNav", tmp_path_factory.mktemp("demos"), steps=300, noise=0.3, env_config=CFG, num_scenes=2, progress=False
+    )
 
 
 def test_demos_collect_writes_where_minari_looks_and_says_how_to_load_it(monkeypatch, tmp_path, capsys) -> None:
@@ -65,8 +66,19 @@ def test_each_algorithm_trains_saves_reloads_and_evaluates(algo, demos, tmp_path
     steps = 128 if algo in ("ppo", "ppo_lag", "ppo_et", "gail") else 40
     out = tmp_path / algo
     hparams = TINY_PPO if algo in ("ppo", "ppo_lag", "ppo_et", "gail") else {"net_arch": [32, 32]}
-    path = train(algo, "PointNav", out, steps=steps, env_config=CFG, n_envs=2, num_scenes=2, demos=Path(demos["path"]),
-                 hparams=hparams, progress=False, subprocess=False)
+    path = train(
+        algo,
+        "PointNav",
+        out,
+        steps=steps,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        demos=Path(demos["path"]),
+        hparams=hparams,
+        progress=False,
+        subprocess=False,
+    )
     assert path.is_file() and (out / "run.json").is_file()
     act, run = load_policy(out)
     assert run["algo"] == algo
@@ -83,11 +95,25 @@ def test_each_algorithm_trains_saves_reloads_and_evaluates(algo, demos, tmp_path
 def test_ppo_lag_raises_lambda_when_cost_exceeds_the_limit(tmp_path) -> None:
     # cost_limit -1 can never be met: lambda must grow from its start after every rollout with an episode end.
     h = {**TINY_PPO, "cost_limit": -1.0, "lag_lr": 0.5, "lag_init": 0.0}
-    train("ppo_lag", "PointNav", tmp_path, steps=256, env_config=CFG, n_envs=2, num_scenes=2, hparams=h,
-          progress=False, subprocess=False)
+    train(
+        "ppo_lag",
+        "PointNav",
+        tmp_path,
+        steps=256,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams=h,
+        progress=False,
+        subprocess=False,
+    )
     rows = (tmp_path / "logs" / "progress.csv").read_text().splitlines()
     header = rows[0].split(",")
-    lam = [float(r.split(",")[header.index("lagrange/lambda")]) for r in rows[1:] if r.split(",")[header.index("lagrange/lambda")]]
+    lam = [
+        float(r.split(",")[header.index("lagrange/lambda")])
+        for r in rows[1:]
+        if r.split(",")[header.index("lagrange/lambda")]
+    ]
     assert lam[-1] > 0.0
 
 
@@ -129,13 +155,34 @@ def test_batched_env_ends_episodes_at_the_same_cost_as_the_pybullet_env(spec) ->
 
 
 def test_resume_continues_from_the_latest_checkpoint(tmp_path) -> None:
-    train("ppo", "PointNav", tmp_path, steps=128, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY_PPO,
-          progress=False, subprocess=False)
+    train(
+        "ppo",
+        "PointNav",
+        tmp_path,
+        steps=128,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams=TINY_PPO,
+        progress=False,
+        subprocess=False,
+    )
     ckpt = tmp_path / "checkpoints"
     ckpt.mkdir(exist_ok=True)
     (tmp_path / "policy.zip").rename(ckpt / "policy_128_steps.zip")
-    train("ppo", "PointNav", tmp_path, steps=256, env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY_PPO,
-          progress=False, subprocess=False, resume=True)
+    train(
+        "ppo",
+        "PointNav",
+        tmp_path,
+        steps=256,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams=TINY_PPO,
+        progress=False,
+        subprocess=False,
+        resume=True,
+    )
     from stable_baselines3 import PPO
 
     assert PPO.load(tmp_path / "policy.zip").num_timesteps == 256
@@ -147,8 +194,11 @@ def test_unknown_algorithm_is_one_line_exit_2(tmp_path, capsys) -> None:
 
 
 def test_missing_demo_file_is_one_line_exit_2(tmp_path, capsys) -> None:
-    line = one_error_line(*cli(["train", "run", "--algo", "bc", "--demos", str(tmp_path / "nope"),
-                                "--out", str(tmp_path / "run")], capsys))
+    line = one_error_line(
+        *cli(
+            ["train", "run", "--algo", "bc", "--demos", str(tmp_path / "nope"), "--out", str(tmp_path / "run")], capsys
+        )
+    )
     assert "no demonstration dataset" in line and "curbside demos collect" in line
     line = one_error_line(*cli(["train", "run", "--algo", "iql", "--out", str(tmp_path / "run")], capsys))
     assert "--demos" in line
@@ -183,14 +233,35 @@ def test_offline_trains_exactly_the_steps_asked(demos, tmp_path) -> None:
 
 def test_ppo_lag_keeps_lambda_across_resume(tmp_path) -> None:
     h = {**TINY_PPO, "cost_limit": -1.0, "lag_lr": 0.5, "lag_init": 0.0}
-    train("ppo_lag", "PointNav", tmp_path, steps=256, env_config=CFG, n_envs=2, num_scenes=2, hparams=h,
-          progress=False, subprocess=False)
+    train(
+        "ppo_lag",
+        "PointNav",
+        tmp_path,
+        steps=256,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams=h,
+        progress=False,
+        subprocess=False,
+    )
     lam = json.loads((tmp_path / "lagrange.json").read_text())["lambda"]
     ckpt = tmp_path / "checkpoints"
     ckpt.mkdir(exist_ok=True)
     (tmp_path / "policy.zip").rename(ckpt / "policy_256_steps.zip")
-    train("ppo_lag", "PointNav", tmp_path, steps=384, env_config=CFG, n_envs=2, num_scenes=2,
-          hparams={**h, "lag_lr": 0.0}, progress=False, subprocess=False, resume=True)
+    train(
+        "ppo_lag",
+        "PointNav",
+        tmp_path,
+        steps=384,
+        env_config=CFG,
+        n_envs=2,
+        num_scenes=2,
+        hparams={**h, "lag_lr": 0.0},
+        progress=False,
+        subprocess=False,
+        resume=True,
+    )
     assert lam > 0.0 and json.loads((tmp_path / "lagrange.json").read_text())["lambda"] == lam
 
 
@@ -222,8 +293,16 @@ def test_subprocess_workers_build_their_envs() -> None:
 
 def test_a_run_is_never_overwritten_and_resume_needs_the_same_run(demos, tmp_path, capsys) -> None:
     out = tmp_path / "bc"
-    train("bc", "PointNav", out, steps=5, env_config=CFG, demos=Path(demos["path"]), progress=False,
-          hparams={"net_arch": [16]})
+    train(
+        "bc",
+        "PointNav",
+        out,
+        steps=5,
+        env_config=CFG,
+        demos=Path(demos["path"]),
+        progress=False,
+        hparams={"net_arch": [16]},
+    )
     before = (out / "policy.zip").read_bytes()
     base = ["train", "run", "--steps", "64", "--envs", "2", "--scenes", "2", "--config", json.dumps(CFG)]
     line = one_error_line(*cli([*base, "--algo", "ppo", "--out", str(out)], capsys))

@@ -16,9 +16,12 @@ CFG = {"lidar": {"beams": 24, "low_beams": 8}, "route_length": [5.0, 12.0], "sce
 
 
 def test_unbatch_keeps_each_envs_values_where_its_mask_holds() -> None:
-    info = {"a": np.array([1, 2, 3]), "_a": np.array([True, False, True]),
-            "final_info": {"r": np.array([0.0, 5.0, 0.0]), "_r": np.array([False, True, False])},
-            "_final_info": np.array([False, True, False])}
+    info = {
+        "a": np.array([1, 2, 3]),
+        "_a": np.array([True, False, True]),
+        "final_info": {"r": np.array([0.0, 5.0, 0.0]), "_r": np.array([False, True, False])},
+        "_final_info": np.array([False, True, False]),
+    }
     assert unbatch(info, 3) == [{"a": 1}, {"final_info": {"r": 5.0}}, {"a": 3}]
 
 

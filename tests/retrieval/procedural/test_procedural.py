@@ -24,11 +24,36 @@ from retrieval.procedural import (
 from retrieval.procedural.spec import TABLE_PATH, load_recipes
 
 EXPECTED = {
-    "standard": {"street_lamp", "utility_pole", "traffic_sign", "traffic_light", "fire_hydrant", "bollard", "tree",
-                 "parking_meter"},
-    "non_standard": {"bench", "trash_bin", "recycling_bin", "planter", "mailbox", "bike_rack", "newspaper_box",
-                     "vending_machine", "phone_booth", "bus_shelter", "advertising_board", "kiosk", "cafe_table",
-                     "chair", "food_cart", "street_cabinet", "drinking_fountain", "building_facade"},
+    "standard": {
+        "street_lamp",
+        "utility_pole",
+        "traffic_sign",
+        "traffic_light",
+        "fire_hydrant",
+        "bollard",
+        "tree",
+        "parking_meter",
+    },
+    "non_standard": {
+        "bench",
+        "trash_bin",
+        "recycling_bin",
+        "planter",
+        "mailbox",
+        "bike_rack",
+        "newspaper_box",
+        "vending_machine",
+        "phone_booth",
+        "bus_shelter",
+        "advertising_board",
+        "kiosk",
+        "cafe_table",
+        "chair",
+        "food_cart",
+        "street_cabinet",
+        "drinking_fountain",
+        "building_facade",
+    },
     "clutter": {"traffic_cone", "barrier", "bicycle", "e_scooter", "shopping_bag", "cardboard_box", "drink_can"},
 }
 ALL = category_names()
@@ -171,7 +196,7 @@ def test_contact_sheet_writes_grid(tmp_path: Path):
     assert img.size == (3 * 64, 1 * (64 + 18))
     px = np.asarray(img.convert("RGB"))
     for i in range(3):
-        cell = px[:64, i * 64:(i + 1) * 64]
+        cell = px[:64, i * 64 : (i + 1) * 64]
         assert (cell != 255).any(axis=2).sum() > 50
     pairs = [(assets[0], export_asset(assets[0], tmp_path / "b"))]
     assert Image.open(contact_sheet(pairs, tmp_path / "one.png", size=48)).size == (2 * 48, 48 + 18)

@@ -25,22 +25,49 @@ def _rect(x0: float, y0: float, x1: float, y1: float) -> list[list[float]]:
 
 def corridor_spec(width: float, length: float, res: float) -> dict:
     """Two 4 x 4 m bays joined by a corridor `width` wide and `length` long (docs/scene_spec.md walkable grid)."""
-    polys = [_rect(0.0, -BAY / 2, BAY, BAY / 2), _rect(BAY, -width / 2, BAY + length, width / 2),
-             _rect(BAY + length, -BAY / 2, 2 * BAY + length, BAY / 2)]
+    polys = [
+        _rect(0.0, -BAY / 2, BAY, BAY / 2),
+        _rect(BAY, -width / 2, BAY + length, width / 2),
+        _rect(BAY + length, -BAY / 2, 2 * BAY + length, BAY / 2),
+    ]
     origin = np.array([-1.0, -BAY / 2 - 1.0])
     shape = (round((BAY + 2.0) / res), round((2 * BAY + length + 2.0) / res))
     cells = np.zeros(shape, dtype=np.uint8)
     for p in polys:
         paint(cells, tuple(origin), res, Polygon(p), 1)
-    sidewalks = [{"id": f"s{k}", "road_id": "r0", "side": "left", "template": "a", "polygon": p,
-                  "edge": [p[0], p[1]], "zones": [], "clear_path": [[p[0][0], 0.0], [p[1][0], 0.0]]}
-                 for k, p in enumerate(polys)]
-    return {"version": "curbside.scene/1", "seed": 0, "config": {"toy": True}, "catalog": None,
-            "bounds": [-1.0, -BAY / 2 - 1.0, 2 * BAY + length + 1.0, BAY / 2 + 1.0], "curb_height": 0.15,
-            "roads": [], "sidewalks": sidewalks, "crosswalks": [], "objects": [],
-            "walkable": {"origin": origin.tolist(), "resolution": res, "shape": list(shape),
-                         "encoding": "zlib+base64:uint8", "legend": {"0": "not walkable", "1": "sidewalk"},
-                         "cells": base64.b64encode(zlib.compress(cells.tobytes())).decode("ascii")}}
+    sidewalks = [
+        {
+            "id": f"s{k}",
+            "road_id": "r0",
+            "side": "left",
+            "template": "a",
+            "polygon": p,
+            "edge": [p[0], p[1]],
+            "zones": [],
+            "clear_path": [[p[0][0], 0.0], [p[1][0], 0.0]],
+        }
+        for k, p in enumerate(polys)
+    ]
+    return {
+        "version": "curbside.scene/1",
+        "seed": 0,
+        "config": {"toy": True},
+        "catalog": None,
+        "bounds": [-1.0, -BAY / 2 - 1.0, 2 * BAY + length + 1.0, BAY / 2 + 1.0],
+        "curb_height": 0.15,
+        "roads": [],
+        "sidewalks": sidewalks,
+        "crosswalks": [],
+        "objects": [],
+        "walkable": {
+            "origin": origin.tolist(),
+            "resolution": res,
+            "shape": list(shape),
+            "encoding": "zlib+base64:uint8",
+            "legend": {"0": "not walkable", "1": "sidewalk"},
+            "cells": base64.b64encode(zlib.compress(cells.tobytes())).decode("ascii"),
+        },
+    }
 
 
 # (width m, grid resolution m, plan_radius m): a 1.0 m corridor needs plan_radius < 0.5 to keep a planning cell.
@@ -48,13 +75,22 @@ CORRIDORS = [(1.0, 0.1, 0.45), (1.2, 0.2, 0.5)]
 SWAP_LIMIT = 40.0  # seconds; one agent alone walks the 14-18 m in 10-14 s
 
 
-def _swap(width: float, res: float, plan_radius: float, length: float, seed: int, kinds: tuple[str, str],
-          push: bool = True) -> dict:
+def _swap(
+    width: float, res: float, plan_radius: float, length: float, seed: int, kinds: tuple[str, str], push: bool = True
+) -> dict:
     """Two agents at the corridor's two ends, each sent to the other's end; run until both arrive or time is up."""
     spec = corridor_spec(width, length, res)
     counts = {k: kinds.count(k) for k in set(kinds)}
-    m = AgentManager({"counts": counts, "idle_prob": 0.0, "group_prob": 0.0, "cross_prob": 0.0,
-                      "plan_radius": plan_radius, "push_window": 12.0 if push else 0.0})
+    m = AgentManager(
+        {
+            "counts": counts,
+            "idle_prob": 0.0,
+            "group_prob": 0.0,
+            "cross_prob": 0.0,
+            "plan_radius": plan_radius,
+            "push_window": 12.0 if push else 0.0,
+        }
+    )
     m.reset(spec, np.random.default_rng(seed))
     ends = np.array([[BAY / 2, 0.0], [1.5 * BAY + length, 0.0]])
     for i in range(2):
@@ -77,8 +113,16 @@ def _swap(width: float, res: float, plan_radius: float, length: float, seed: int
         for i in range(2):
             if arrived[i] is None and not np.array_equal(m.goal[i], goal0[i]):
                 arrived[i] = m.time
-    return {"arrived": arrived, "stats": m.goal_stats(), "gap": gap, "off": off, "passed_inside": passed_inside,
-            "behaviour": m.behaviour_stats(), "states": m.states(), "goal0": goal0}
+    return {
+        "arrived": arrived,
+        "stats": m.goal_stats(),
+        "gap": gap,
+        "off": off,
+        "passed_inside": passed_inside,
+        "behaviour": m.behaviour_stats(),
+        "states": m.states(),
+        "goal0": goal0,
+    }
 
 
 @pytest.mark.parametrize("width,res,plan_radius", CORRIDORS)
@@ -215,7 +259,7 @@ def test_agent_counts_follow_dynamic_density_per_block() -> None:
         length = sidewalk_length(spec)
         # Each agent capacity builds its own ORCA simulator (seconds on these scenes): scaling on one scene.
         counts = {}
-        for rho in ((3.6, 7.2, 14.4) if seed == 0 else (7.2,)):
+        for rho in (3.6, 7.2, 14.4) if seed == 0 else (7.2,):
             m.config["dynamic_density"] = rho
             counts[rho] = m.reset(spec, np.random.default_rng(seed)).shape[0]
             assert counts[rho] == round(rho * length / 100.0)

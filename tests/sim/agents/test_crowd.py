@@ -29,8 +29,15 @@ def _run(spec: dict, seed: int, steps: int, config: dict | None = None, ego_path
         if ego is not None:
             de = np.hypot(s["x"] - ego.x, s["y"] - ego.y) / (s["radius"] + ego.radius)
             worst_ego = min(worst_ego, float(de.min()))
-    return {"gap": worst_gap, "off": off, "stats": m.goal_stats(), "overdue": m.overdue(), "n": m.n,
-            "ego": worst_ego, "final": m.states()}
+    return {
+        "gap": worst_gap,
+        "off": off,
+        "stats": m.goal_stats(),
+        "overdue": m.overdue(),
+        "n": m.n,
+        "ego": worst_ego,
+        "final": m.states(),
+    }
 
 
 @pytest.fixture(scope="module")
@@ -119,7 +126,15 @@ def test_bad_configs_name_the_fix(toy: dict) -> None:
 
 
 def test_kind_table_is_complete() -> None:
-    expected = {"pedestrian", "wheelchair_user", "cyclist", "skateboarder", "scooter_rider", "delivery_robot", "robot_dog"}
+    expected = {
+        "pedestrian",
+        "wheelchair_user",
+        "cyclist",
+        "skateboarder",
+        "scooter_rider",
+        "delivery_robot",
+        "robot_dog",
+    }
     assert set(AGENT_KINDS) == expected
     rng = np.random.default_rng(0)
     for k in AGENT_KINDS.values():

@@ -13,8 +13,11 @@ import sim  # noqa: F401 - registers the envs
 from sim.agents import AGENT_DTYPE
 from sim.expert import PurePursuitExpert
 
-CFG = {"agents": {"counts": {"pedestrian": 8, "cyclist": 1, "wheelchair_user": 1, "robot_dog": 1, "delivery_robot": 1}},
-       "route_length": [15.0, 30.0], "horizon": 400}
+CFG = {
+    "agents": {"counts": {"pedestrian": 8, "cyclist": 1, "wheelchair_user": 1, "robot_dog": 1, "delivery_robot": 1}},
+    "route_length": [15.0, 30.0],
+    "horizon": 400,
+}
 
 
 @pytest.fixture(scope="module")
@@ -47,6 +50,7 @@ def test_agent_states_and_bodies(env) -> None:
     assert np.hypot(after["x"] - before["x"], after["y"] - before["y"]).max() > 0.5, "agents should move"
     # Every agent is a PyBullet body at its state's position.
     import pybullet as p
+
     for body, a in zip(u.bodies.agents, after):
         pos, _ = p.getBasePositionAndOrientation(body, physicsClientId=u.client)
         assert abs(pos[0] - a["x"]) < 1e-6 and abs(pos[1] - a["y"]) < 1e-6
@@ -98,5 +102,6 @@ def test_deterministic_and_renders(env) -> None:
     frame = env.render()
     assert frame.shape == (384, 768, 3) and frame.dtype == np.uint8  # the dashboard: chase view and map
     from sim.agents.kinds import AGENT_KINDS
+
     colour = np.array([int(255 * c) for c in AGENT_KINDS[str(u.agent_states()["kind"][0])].color])
     assert (frame.reshape(-1, 3) == colour).all(1).sum() > 10, "the agent next to the ego is drawn in its kind colour"

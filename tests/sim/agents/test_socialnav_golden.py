@@ -26,10 +26,25 @@ import numpy as np
 # No AVX-512 hash is recorded: it awaits a machine of that kind.
 GOLDEN = {("x86_64", "AVX2"): "5bccd2f8fca043d9cdb534d5e451c0d3c7bab7e571df1f437d1117d659a22011"}
 
-ROUTE_CROWD = {"counts": {"pedestrian": 16, "cyclist": 3, "wheelchair_user": 3, "scooter_rider": 2, "robot_dog": 1,
-                          "delivery_robot": 1},
-               "group_prob": 0.4, "cross_prob": 0.4, "stuck_steps": 10, "regoal_steps": 40, "idle_prob": 0.3,
-               "idle_time": [0.5, 2.0], "group_time": [1.0, 4.0], "run_prob": 0.3, "spawn_area": "route"}
+ROUTE_CROWD = {
+    "counts": {
+        "pedestrian": 16,
+        "cyclist": 3,
+        "wheelchair_user": 3,
+        "scooter_rider": 2,
+        "robot_dog": 1,
+        "delivery_robot": 1,
+    },
+    "group_prob": 0.4,
+    "cross_prob": 0.4,
+    "stuck_steps": 10,
+    "regoal_steps": 40,
+    "idle_prob": 0.3,
+    "idle_time": [0.5, 2.0],
+    "group_time": [1.0, 4.0],
+    "run_prob": 0.3,
+    "spawn_area": "route",
+}
 
 
 def _numbers(info: dict[str, Any]) -> np.ndarray:
@@ -68,12 +83,22 @@ def golden_digest() -> tuple[str, int]:
                 action = expert.act(env) if seed % 2 == 0 else rng.uniform(-1.0, 1.0, 2)
                 obs, reward, term, trunc, info = env.step(action)
                 steps += 1
-                feed(obs, np.float64(reward), _numbers(info), env.agent_states()[["x", "y", "vx", "vy"]],
-                     env.vehicle_states()[["x", "y", "vx", "vy", "yaw"]])
+                feed(
+                    obs,
+                    np.float64(reward),
+                    _numbers(info),
+                    env.agent_states()[["x", "y", "vx", "vy"]],
+                    env.vehicle_states()[["x", "y", "vx", "vy", "yaw"]],
+                )
                 if term or trunc:
                     break
-            stats = {**env.crowd.behaviour_stats(), **env.crowd.goal_stats(), "respawns": env.traffic.respawns,
-                     "turns": env.traffic.turns, "continued": env.traffic.continued}
+            stats = {
+                **env.crowd.behaviour_stats(),
+                **env.crowd.goal_stats(),
+                "respawns": env.traffic.respawns,
+                "turns": env.traffic.turns,
+                "continued": env.traffic.continued,
+            }
             feed(np.array([float(stats[k]) for k in sorted(stats)]))
         env.close()
     return h.hexdigest(), steps
@@ -94,8 +119,10 @@ def test_golden_episodes() -> None:
 
     expected = GOLDEN.get(cpu_kind())
     if expected is None:
-        pytest.skip(f"no golden hash for CPU kind {cpu_kind()}: add one computed on a behaviour-preserving commit "
-                    "(python tests/sim/agents/test_socialnav_golden.py)")
+        pytest.skip(
+            f"no golden hash for CPU kind {cpu_kind()}: add one computed on a behaviour-preserving commit "
+            "(python tests/sim/agents/test_socialnav_golden.py)"
+        )
     digest, steps = golden_digest()
     assert steps > 500
     assert digest == expected, f"SocialNav episodes changed: {digest} != {expected} (a speed-up changed behaviour)"
@@ -119,9 +146,21 @@ def test_scalar_reward_matches_batch() -> None:
                 args[2] = float("nan")  # a NaN offset: neither the scalar nor the batch path penalises it
             flags = [bool(v) for v in rng.random(4) < 0.2]
             progress, new_progress, lateral, d_steer, speed = args
-            step = StepContext(steps=1, progress=progress, new_progress=new_progress, max_progress=0.0,
-                               route_length=1.0, lateral=lateral, d_steer=d_steer, speed=speed, tilt=0.0,
-                               collided=flags[0], in_contact=flags[0], cost_total=0.0, on_walkable=lambda: True)
+            step = StepContext(
+                steps=1,
+                progress=progress,
+                new_progress=new_progress,
+                max_progress=0.0,
+                route_length=1.0,
+                lateral=lateral,
+                d_steer=d_steer,
+                speed=speed,
+                tilt=0.0,
+                collided=flags[0],
+                in_contact=flags[0],
+                cost_total=0.0,
+                on_walkable=lambda: True,
+            )
             end = StepEnd(succeeded=flags[1], out_of_route=flags[2], stuck=flags[3])
             a, b = reward(step, end), float(reward.batch(*args, *flags))
             assert np.float64(a).tobytes() == np.float64(b).tobytes(), (preset, args, flags, a, b)
@@ -143,7 +182,9 @@ def _locate_numpy(line: Any, x: float, y: float, s_hint: float | None) -> tuple[
     dist2 = ex * ex + ey * ey
     k = int(np.argmin(dist2))
     cross = d[k, 0] * qy[k] - d[k, 1] * qx[k]
-    return float(line.s[k0 + k] + t[k] * line.seg_len[k0 + k]), math.sqrt(float(dist2[k])) * (1.0 if cross >= 0 else -1.0)
+    return float(line.s[k0 + k] + t[k] * line.seg_len[k0 + k]), math.sqrt(float(dist2[k])) * (
+        1.0 if cross >= 0 else -1.0
+    )
 
 
 def test_locate_kernel_matches_numpy() -> None:

@@ -58,21 +58,31 @@ def test_vehicles_yield_at_occupied_crosswalk(street: dict) -> None:
 
 def _cross_spec(arm: float = 60.0, split: bool = False) -> dict:
     """Two one-lane-per-direction roads crossing at the origin (no intersection box: the lanes run through)."""
+
     def road(rid: str, line: list) -> dict:
         (x0, y0), (x1, y1) = line[0], line[-1]
         pad = 3.5
-        poly = [[min(x0, x1) - pad * (x0 == x1), min(y0, y1) - pad * (y0 == y1)],
-                [max(x0, x1) + pad * (x0 == x1), min(y0, y1) - pad * (y0 == y1)],
-                [max(x0, x1) + pad * (x0 == x1), max(y0, y1) + pad * (y0 == y1)],
-                [min(x0, x1) - pad * (x0 == x1), max(y0, y1) + pad * (y0 == y1)]]
+        poly = [
+            [min(x0, x1) - pad * (x0 == x1), min(y0, y1) - pad * (y0 == y1)],
+            [max(x0, x1) + pad * (x0 == x1), min(y0, y1) - pad * (y0 == y1)],
+            [max(x0, x1) + pad * (x0 == x1), max(y0, y1) + pad * (y0 == y1)],
+            [min(x0, x1) - pad * (x0 == x1), max(y0, y1) + pad * (y0 == y1)],
+        ]
         return {"id": rid, "block": "X", "polygon": poly, "centerlines": [line], "lanes": 1, "lane_width": 3.5}
 
     xs = [[[-arm, 0.0], [0.0, 0.0]], [[0.0, 0.0], [arm, 0.0]]] if split else [[[-arm, 0.0], [arm, 0.0]]]
     roads = [road(f"h{k}", line) for k, line in enumerate(xs)] + [road("v", [[0.0, -arm], [0.0, arm]])]
     # A whole scene spec (VehicleManager parses it), with no sidewalk: only the roads matter here.
-    return {"version": "curbside.scene/1", "seed": 0, "bounds": [-arm - 4.0, -arm - 4.0, arm + 4.0, arm + 4.0],
-            "roads": roads, "sidewalks": [], "crosswalks": [], "objects": [],
-            "walkable": encode_walkable(np.zeros((1, 1), dtype=np.uint8), (-arm, -arm), 1.0)}
+    return {
+        "version": "curbside.scene/1",
+        "seed": 0,
+        "bounds": [-arm - 4.0, -arm - 4.0, arm + 4.0, arm + 4.0],
+        "roads": roads,
+        "sidewalks": [],
+        "crosswalks": [],
+        "objects": [],
+        "walkable": encode_walkable(np.zeros((1, 1), dtype=np.uint8), (-arm, -arm), 1.0),
+    }
 
 
 def _boxes(st: np.ndarray) -> list[Polygon]:
@@ -157,7 +167,9 @@ def test_a_vehicle_turns_at_an_intersection_and_stops_for_a_pedestrian_on_the_cr
     lanes = [t[0] for t in trace]
     assert conn in lanes and dst in lanes, "the vehicle should drive through the connector onto the target lane"
     turned = np.angle(np.exp(1j * (trace[-1][2] - trace[0][2])))
-    assert turned < -np.radians(60), f"a right turn should change the heading by about -90 degrees, got {np.degrees(turned):.0f}"
+    assert turned < -np.radians(60), (
+        f"a right turn should change the heading by about -90 degrees, got {np.degrees(turned):.0f}"
+    )
     assert vm.turns >= 1
 
     poly = vm.crosswalks[cw]

@@ -12,9 +12,18 @@ from catalogs.writer import build_catalog
 
 def _rec(category: str, object_class: str, zones: list[str], size: tuple[float, float, float], k: int) -> AssetRecord:
     return AssetRecord(
-        asset_id=f"test/{category}/{k:04d}", source="test", source_id=f"{category}-{k}", category=category,
-        object_class=object_class, zones=zones, depth=size[0], width=size[1], height=size[2],
-        description=f"test {category}", synonyms=[], license="CC0-1.0",
+        asset_id=f"test/{category}/{k:04d}",
+        source="test",
+        source_id=f"{category}-{k}",
+        category=category,
+        object_class=object_class,
+        zones=zones,
+        depth=size[0],
+        width=size[1],
+        height=size[2],
+        description=f"test {category}",
+        synonyms=[],
+        license="CC0-1.0",
     )
 
 

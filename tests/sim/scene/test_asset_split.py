@@ -12,18 +12,23 @@ from sim.scene import generate_scene
 from sim.scene.dataset import split_config
 from tests.sim.scene.conftest import _rec
 
-CATEGORIES = [("bench", "non_standard", ["furnishing", "frontage"], (0.6, 1.6, 0.8)),
-              ("street_lamp", "standard", ["furnishing"], (0.25, 0.25, 5.5)),
-              ("tree", "standard", ["furnishing"], (1.0, 1.0, 7.0)),
-              ("trash_bin", "non_standard", ["furnishing", "frontage"], (0.5, 0.5, 1.0)),
-              ("building_facade", "non_standard", ["building"], (7.5, 14.0, 15.0))]
+CATEGORIES = [
+    ("bench", "non_standard", ["furnishing", "frontage"], (0.6, 1.6, 0.8)),
+    ("street_lamp", "standard", ["furnishing"], (0.25, 0.25, 5.5)),
+    ("tree", "standard", ["furnishing"], (1.0, 1.0, 7.0)),
+    ("trash_bin", "non_standard", ["furnishing", "frontage"], (0.5, 0.5, 1.0)),
+    ("building_facade", "non_standard", ["building"], (7.5, 14.0, 15.0)),
+]
 
 
 @pytest.fixture(scope="module")
 def variant_catalog(tmp_path_factory) -> CatalogReader:
     path = tmp_path_factory.mktemp("catalog") / "variants.duckdb"
-    recs = [_rec(c, cls, zones, tuple(v * (1 + 0.01 * k) for v in size), k)
-            for c, cls, zones, size in CATEGORIES for k in range(12)]
+    recs = [
+        _rec(c, cls, zones, tuple(v * (1 + 0.01 * k) for v in size), k)
+        for c, cls, zones, size in CATEGORIES
+        for k in range(12)
+    ]
     with build_catalog(path) as w:
         w.upsert_assets(recs)
     return CatalogReader(path)
@@ -37,8 +42,10 @@ def test_the_split_holds_out_a_fifth_of_each_category_deterministically(variant_
     again = CatalogReader(variant_catalog.path).asset_split("held_out")
     assert sorted(again.table.asset_id) == sorted(held.table.asset_id)
     whole = variant_catalog.asset_split("held_out", ("bench",))
-    assert whole.categories()["bench"] == 12 and variant_catalog.asset_split("seen", ("bench",)).categories().get(
-        "bench", 0) == 0  # a held-out category is held out whole
+    assert (
+        whole.categories()["bench"] == 12
+        and variant_catalog.asset_split("seen", ("bench",)).categories().get("bench", 0) == 0
+    )  # a held-out category is held out whole
     assert variant_catalog.asset_split("held_out") is held  # views are kept
     with pytest.raises(ValueError, match="valid: seen, held_out"):
         variant_catalog.asset_split("train")
@@ -51,8 +58,9 @@ def test_unseen_split_scenes_use_no_asset_of_train_split_scenes(variant_catalog)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             for s in seeds:
-                out |= {o["asset_id"] for o in generate_scene(cfg, offset + s, variant_catalog)["objects"]
-                        if o["asset_id"]}
+                out |= {
+                    o["asset_id"] for o in generate_scene(cfg, offset + s, variant_catalog)["objects"] if o["asset_id"]
+                }
         return out
 
     train, test, unseen = assets("train", range(4)), assets("test", range(2)), assets("unseen", range(4))

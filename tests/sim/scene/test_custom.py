@@ -56,33 +56,47 @@ def test_socialnav_spawns_the_scenes_agent_groups(spec) -> None:
     assert sorted(kinds) == sorted(["pedestrian"] * 12 + ["wheelchair_user"] * 2 + ["delivery_robot"])
     env.close()
     # Explicit counts in the env config still win.
-    env = gym.make("curbside/SocialNav-v0", config={"scene_spec": spec, "traffic": False,
-                                                    "agents": {"counts": {"cyclist": 3}}})
+    env = gym.make(
+        "curbside/SocialNav-v0", config={"scene_spec": spec, "traffic": False, "agents": {"counts": {"cyclist": 3}}}
+    )
     env.reset(seed=0)
     assert env.unwrapped.agent_states()["kind"].tolist() == ["cyclist"] * 3
     env.close()
 
 
-@pytest.mark.parametrize(("change", "message"), [
-    ({"colour": "red"}, "unknown key 'colour'.*valid keys: agents, blocks"),
-    ({"objects": {"pool": ["bench", "hoverboard"]}}, "hoverboard.*not in the curbside vocabulary"),
-    ({"place": [{"name": "a", "category": "bench", "at": [1.0]}]}, r"at must be \[x, y\]"),
-    ({"place": [{"name": "a", "category": "bench", "at": [0, 0]}, {"name": "a", "category": "tree", "at": [1, 1]}]},
-     "distinct names"),
-    ({"agents": {"unicorn": 2}}, "unicorn"),
-    ({"agents": {"pedestrian": -1}}, r"agents.pedestrian must be a count"),
-])
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"colour": "red"}, "unknown key 'colour'.*valid keys: agents, blocks"),
+        ({"objects": {"pool": ["bench", "hoverboard"]}}, "hoverboard.*not in the curbside vocabulary"),
+        ({"place": [{"name": "a", "category": "bench", "at": [1.0]}]}, r"at must be \[x, y\]"),
+        (
+            {
+                "place": [
+                    {"name": "a", "category": "bench", "at": [0, 0]},
+                    {"name": "a", "category": "tree", "at": [1, 1]},
+                ]
+            },
+            "distinct names",
+        ),
+        ({"agents": {"unicorn": 2}}, "unicorn"),
+        ({"agents": {"pedestrian": -1}}, r"agents.pedestrian must be a count"),
+    ],
+)
 def test_bad_custom_scenes_name_the_problem(change: dict, message: str) -> None:
     base = yaml.safe_load(EXAMPLE.read_text())
     with pytest.raises(ConfigError, match=message):
         check_custom({**base, **change})
 
 
-@pytest.mark.parametrize(("at", "message"), [
-    ({"sidewalk": "r9-s9"}, "no sidewalk 'r9-s9'; this scene has r0-s0"),
-    ({"sidewalk": "r0-s0", "zone": "frontage"}, "no 'frontage' zone; its zones: furnishing, clear, building"),
-    ([5000.0, 0.0], "outside the scene's bounds"),
-])
+@pytest.mark.parametrize(
+    ("at", "message"),
+    [
+        ({"sidewalk": "r9-s9"}, "no sidewalk 'r9-s9'; this scene has r0-s0"),
+        ({"sidewalk": "r0-s0", "zone": "frontage"}, "no 'frontage' zone; its zones: furnishing, clear, building"),
+        ([5000.0, 0.0], "outside the scene's bounds"),
+    ],
+)
 def test_places_that_do_not_exist_are_refused(at, message: str) -> None:
     base = yaml.safe_load(EXAMPLE.read_text())
     base["place"] = [{"name": "x", "category": "bench", "at": at}]
@@ -97,16 +111,28 @@ def test_the_cli_generates_from_yaml_and_refuses_bad_files(tmp_path, capsys) -> 
     assert "2 named" in stdout and "15 agents" in stdout and out.is_file()
     bad = tmp_path / "bad.yaml"
     bad.write_text("blocks: [unclosed\n")
-    assert "not valid YAML" in one_error_line(*cli(["scenes", "generate", "--from", str(bad), "--out", str(out)], capsys))
+    assert "not valid YAML" in one_error_line(
+        *cli(["scenes", "generate", "--from", str(bad), "--out", str(out)], capsys)
+    )
 
 
-@pytest.mark.parametrize(("change", "message"), [
-    ({"place": [{"name": "a", "category": "bench", "at": [40.0, 8.0]}, {"name": "b", "category": "trash_bin",
-                                                                        "at": [40.5, 8.0]}]}, "'a' and 'b' overlap"),
-    ({"generator": {"object_density": 3.0}}, "not under generator"),
-    ({"place": [{"name": "a", "category": ["bench"], "at": [0, 0]}]}, "one category name"),
-    ({"place": [{"name": "a", "category": "bench", "at": {"sidewalk": "r0-s0", "along": "half"}}]}, "fraction"),
-])
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (
+            {
+                "place": [
+                    {"name": "a", "category": "bench", "at": [40.0, 8.0]},
+                    {"name": "b", "category": "trash_bin", "at": [40.5, 8.0]},
+                ]
+            },
+            "'a' and 'b' overlap",
+        ),
+        ({"generator": {"object_density": 3.0}}, "not under generator"),
+        ({"place": [{"name": "a", "category": ["bench"], "at": [0, 0]}]}, "one category name"),
+        ({"place": [{"name": "a", "category": "bench", "at": {"sidewalk": "r0-s0", "along": "half"}}]}, "fraction"),
+    ],
+)
 def test_conflicting_or_malformed_custom_scenes_say_so(change: dict, message: str) -> None:
     base = yaml.safe_load(EXAMPLE.read_text())
     with pytest.raises(ConfigError, match=message):

@@ -30,13 +30,20 @@ def test_figures_of_a_hand_built_scene_are_what_its_spec_says() -> None:
 
 def test_stats_vs_paper_prints_every_statistic_and_writes_the_histograms(tmp_path: Path) -> None:
     ds = tmp_path / "ds"
-    assert runner.invoke(app, ["dataset", "--split", "train", "--count", "3", "--blocks", "2", "--out", str(ds)]).exit_code == 0
+    assert (
+        runner.invoke(app, ["dataset", "--split", "train", "--count", "3", "--blocks", "2", "--out", str(ds)]).exit_code
+        == 0
+    )
     r = runner.invoke(app, ["stats", str(ds), "--vs-paper", "--route-preset", "short"])
     assert r.exit_code == 0, r.output
     for label in ("objects per scene", "static objects per m²", "PointNav route", "episodes over 800 steps"):
         assert label in r.output
     result = json.loads((ds / "stats_vs_paper.json").read_text())
-    assert set(result["table"]) == set(PAPER_STATS) and result["scenes"] == 3 and "meets" in result["table"]["objects_per_m2"]
+    assert (
+        set(result["table"]) == set(PAPER_STATS)
+        and result["scenes"] == 3
+        and "meets" in result["table"]["objects_per_m2"]
+    )
     row = result["table"]["objects_per_m2"]
     assert row["ratio"] == pytest.approx(row["ours"] / 0.03)
     assert (ds / "stats_vs_paper.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

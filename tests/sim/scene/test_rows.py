@@ -34,8 +34,9 @@ def _placer(seed: int, catalog: CatalogReader | None) -> tuple[Placer, list]:
     sidewalks = build_sidewalks(blocks, cfg, rng)
     build_crosswalks(blocks, sidewalks, cfg, rng)
     placer = Placer(cfg, rng, catalog, CategorySampler(cfg["exclude_categories"]))
-    placer.set_keep_out([corridor(sw, float(cfg["min_clear_width"])) for sw in sidewalks]
-                        + [k for sw in sidewalks for k in sw.keep_out])
+    placer.set_keep_out(
+        [corridor(sw, float(cfg["min_clear_width"])) for sw in sidewalks] + [k for sw in sidewalks for k in sw.keep_out]
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for sw in sidewalks:
@@ -77,8 +78,12 @@ def test_a_batch_places_exactly_what_one_by_one_placement_does(use_catalog: bool
 
 def test_array_rounding_equals_the_scalar_rounding() -> None:
     rng = np.random.default_rng(1)
-    v = np.concatenate([rng.uniform(-500, 500, 2000), np.array([0.00005, -0.00005, 1.00005, 2.5e-5, -0.0, 0.0,
-                                                                     0.12345, -7.65435, 1e9 + 0.00005])])
+    v = np.concatenate(
+        [
+            rng.uniform(-500, 500, 2000),
+            np.array([0.00005, -0.00005, 1.00005, 2.5e-5, -0.0, 0.0, 0.12345, -7.65435, 1e9 + 0.00005]),
+        ]
+    )
     assert round_array(v) == [round_value(float(a)) for a in v]
     rows = v[:2000].reshape(-1, 2)
     assert round_array(rows, rows=True) == round_points(rows.tolist())

@@ -90,7 +90,9 @@ def test_impossible_density_places_what_fits_and_reports_refusals() -> None:
     low = _quiet({"blocks": "S", "object_density": 1.0}, 5)
     high = _quiet({"blocks": "S", "object_density": 40.0}, 5)
     assert high["stats"]["objects"] > low["stats"]["objects"]
-    assert high["stats"]["refused_total"] > 50 and sum(high["stats"]["refused"].values()) == high["stats"]["refused_total"]
+    assert (
+        high["stats"]["refused_total"] > 50 and sum(high["stats"]["refused"].values()) == high["stats"]["refused_total"]
+    )
 
 
 def test_excluded_categories_never_appear() -> None:
@@ -114,7 +116,9 @@ def test_country_distribution(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="available: FI, GLOBAL"):
         _quiet({"country": "JP", "distribution_path": str(table)}, 0)
     spec = _quiet({"blocks": 2, "country": "fi", "distribution_path": str(table)}, 0)
-    cats = {o["category"] for o in spec["objects"] if o["object_class"] != "clutter" and o["category"] != "building_facade"}
+    cats = {
+        o["category"] for o in spec["objects"] if o["object_class"] != "clutter" and o["category"] != "building_facade"
+    }
     assert cats <= {"bench", "street_lamp"} and spec["stats"]["distribution"] == "FI"
 
 
@@ -140,7 +144,7 @@ def test_fast_writer_matches_the_standard_json_encoder_and_refuses_non_finite(tm
     # orjson (sim.scene.spec.encode) must write exactly what the standard library writes for the same spec.
     assert text == json.dumps(canonical(spec), sort_keys=True, separators=(",", ":"), allow_nan=False)
     # Non-ASCII text and integers past 64 bits go through json too: the same bytes as json.dumps.
-    odd = {**spec, "catalog": "catálogos/ñ.duckdb", "seed": 2 ** 70}
+    odd = {**spec, "catalog": "catálogos/ñ.duckdb", "seed": 2**70}
     assert dumps(odd) == json.dumps(canonical(odd), sort_keys=True, separators=(",", ":"), allow_nan=False)
     # The generator returns a canonical spec: saving it without re-rounding gives the same bytes.
     save(spec, tmp_path / "a.json")

@@ -15,9 +15,13 @@ from sim.scene import decode_walkable, generate_scene, obstacle_mask
 from sim.scene.grid import rasterize
 
 SEEDS = range(12)
-CONFIGS = [{"blocks": 3}, {"blocks": "SXT", "templates": "g"}, {"blocks": "OC", "templates": "ad", "object_density": 2.0},
-           # The densest: the MetaUrban-12K preset at twice its object density (rows of furniture 0.55 m apart).
-           {"blocks": 3, "preset": "metaurban12k", "object_density": 2.0}]
+CONFIGS = [
+    {"blocks": 3},
+    {"blocks": "SXT", "templates": "g"},
+    {"blocks": "OC", "templates": "ad", "object_density": 2.0},
+    # The densest: the MetaUrban-12K preset at twice its object density (rows of furniture 0.55 m apart).
+    {"blocks": 3, "preset": "metaurban12k", "object_density": 2.0},
+]
 
 
 @pytest.fixture(scope="module")
@@ -41,10 +45,14 @@ def test_no_two_footprints_overlap(scenes: list[dict]) -> None:
 
 def test_every_object_lies_inside_its_zone(scenes: list[dict]) -> None:
     for spec in scenes:
-        zones = {(s["id"], z["kind"]): Polygon(z["polygon"]).buffer(1e-3) for s in spec["sidewalks"] for z in s["zones"]}
+        zones = {
+            (s["id"], z["kind"]): Polygon(z["polygon"]).buffer(1e-3) for s in spec["sidewalks"] for z in s["zones"]
+        }
         for o in spec["objects"]:
             zone = zones[(o["sidewalk_id"], o["zone"])]
-            assert zone.covers(Polygon(o["footprint"])), f"seed {spec['seed']}: {o['id']} ({o['category']}) leaves {o['zone']}"
+            assert zone.covers(Polygon(o["footprint"])), (
+                f"seed {spec['seed']}: {o['id']} ({o['category']}) leaves {o['zone']}"
+            )
             assert (o["category"] == "building_facade") == (o["zone"] == "building")
 
 
@@ -96,7 +104,9 @@ def test_crosswalks_join_their_sidewalks(scenes: list[dict]) -> None:
                 assert walks[r["sidewalk_id"]].buffer(1e-3).covers(Polygon(r["polygon"]))
             a, b = (walks[s].representative_point().coords[0] for s in c["sidewalks"])
             ra, rb = grid.world_to_cell(np.array([a, b]))
-            assert labels[ra[0], ra[1]] == labels[rb[0], rb[1]] > 0, f"seed {spec['seed']}: {c['id']} joins nothing on the grid"
+            assert labels[ra[0], ra[1]] == labels[rb[0], rb[1]] > 0, (
+                f"seed {spec['seed']}: {c['id']} joins nothing on the grid"
+            )
         assert (grid.mask == 2).any() == bool(spec["crosswalks"])
     assert n > 10
 

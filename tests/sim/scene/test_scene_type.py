@@ -41,14 +41,17 @@ def test_walkable_is_decoded_once_and_read_only(spec: dict) -> None:
         grid.mask[0, 0] = 1
 
 
-@pytest.mark.parametrize("change, message", [
-    (lambda s: s.update(version="curbside.scene/0"), "curbside.scene/1"),
-    (lambda s: s.pop("walkable"), "lacks walkable"),
-    (lambda s: s.update(seed="zero"), "seed must be an integer"),
-    (lambda s: s["objects"][1].update(position=[math.nan, 0.0, 0.0]), r"objects\[1\] \(id 'o1'\) position"),
-    (lambda s: s["objects"][2].update(footprint=[[0.0, 1.0], [2.0]]), r"objects\[2\] \(id 'o2'\) footprint"),
-    (lambda s: s["crosswalks"][0].update(polygon=[[0.0, math.inf]]), r"crosswalks\[0\] needs a polygon"),
-])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda s: s.update(version="curbside.scene/0"), "curbside.scene/1"),
+        (lambda s: s.pop("walkable"), "lacks walkable"),
+        (lambda s: s.update(seed="zero"), "seed must be an integer"),
+        (lambda s: s["objects"][1].update(position=[math.nan, 0.0, 0.0]), r"objects\[1\] \(id 'o1'\) position"),
+        (lambda s: s["objects"][2].update(footprint=[[0.0, 1.0], [2.0]]), r"objects\[2\] \(id 'o2'\) footprint"),
+        (lambda s: s["crosswalks"][0].update(polygon=[[0.0, math.inf]]), r"crosswalks\[0\] needs a polygon"),
+    ],
+)
 def test_parse_names_the_bad_field(spec: dict, change, message: str) -> None:
     bad = copy.deepcopy(spec)
     change(bad)
