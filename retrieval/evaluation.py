@@ -50,15 +50,21 @@ class _Unlabelled:
     name = "eval"
 
     def __init__(self, source: Source, seed: int = 0) -> None:
-        self.source, self.labels, self.rng = source, {}, np.random.default_rng(seed)
+        self.source, self.rng = source, np.random.default_rng(seed)
+        self.labels: dict[str, str] = {}  # asset id -> the category the source gave
 
     def items(self, limit: int | None = None) -> Iterator[SourceItem]:
         """The source's items without their labels, under noisy names."""
-        for k, it in enumerate(self.source.items(limit)):
+        k = 0
+        for it in self.source.items(limit):
+            if it.category is None:
+                continue  # an unlabelled item has no truth to score against: left out of the evaluation
             self.labels[asset_id(it.source, it.source_id)] = it.category
             tmpl = _NOISE[int(self.rng.integers(len(_NOISE)))]
-            noisy = tmpl.format(c=it.category.replace("_", " ").title().replace(" ", "_"), k=k)
+            category = it.category.replace("_", " ")
+            noisy = tmpl.format(c=category.title().replace(" ", "_"), k=k)
             yield dataclasses.replace(it, category=None, name=noisy, description=None, tags=[])
+            k += 1
 
 
 def evaluate(
@@ -80,9 +86,9 @@ def evaluate(
             con.close()
     labels = wrapped.labels
     acc = float(np.mean([assets.get(a) == c for a, c in labels.items()])) if labels else 0.0
-    by_cat: dict[str, list[str]] = {}
-    for aid, cat, _ in matches:
-        by_cat.setdefault(cat, []).append(aid)
+    by_cat: dict[str | None, list[str]] = {}  # descriptions without a category share the None key
+    for aid, category, _ in matches:
+        by_cat.setdefault(category, []).append(aid)
     prec = {}
     for k in ks:
         vals = [np.mean([labels.get(a) == c for a in aids[:k]]) for c, aids in by_cat.items() if aids]

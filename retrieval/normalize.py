@@ -13,9 +13,14 @@ import re
 import stat
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import trimesh
+from trimesh.visual import ColorVisuals, TextureVisuals
+
+if TYPE_CHECKING:
+    from PIL import Image
 
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".stl", ".ply")
 
@@ -58,7 +63,7 @@ class CanonicalMesh:
     mesh: trimesh.Trimesh
     face_colors: np.ndarray
     up_axis: str
-    texture_image: object | None = None  # PIL image when the source carried a real UV texture
+    texture_image: Image.Image | None = None  # when the source carried a real UV texture
     uv: np.ndarray | None = None
     params: dict = field(default_factory=dict)
 
@@ -125,17 +130,24 @@ def missing_textures(path: Path) -> list[str]:
     return missing
 
 
+def _texture(geom: trimesh.Trimesh) -> TextureVisuals | None:
+    """The mesh's visuals when they are a texture, else None."""
+    visual = geom.visual
+    assert visual is not None  # the Trimesh constructor always sets one
+    return cast(TextureVisuals, visual) if visual.kind == "texture" else None  # the only visuals of that kind
+
+
 def _face_colors(geom: trimesh.Trimesh) -> np.ndarray:
     """Per-face RGBA, sampling textures at face centroids when the mesh is textured."""
-    visual = geom.visual
-    if visual.kind == "texture":
+    texture = _texture(geom)
+    if texture is not None:
         try:
-            return np.asarray(visual.to_color().face_colors, dtype=np.uint8)
+            return np.asarray(texture.to_color().face_colors, dtype=np.uint8)
         except Exception:  # noqa: BLE001 - a material without an image still has a main colour
-            main = getattr(getattr(visual, "material", None), "main_color", None)
+            main = getattr(getattr(texture, "material", None), "main_color", None)
             color = np.asarray(main if main is not None else [180, 180, 180, 255], dtype=np.uint8)
             return np.tile(color, (len(geom.faces), 1))
-    return np.asarray(visual.face_colors, dtype=np.uint8)
+    return np.asarray(cast(ColorVisuals, geom.visual).face_colors, dtype=np.uint8)  # a Trimesh's other visuals
 
 
 def load_canonical(
@@ -153,7 +165,8 @@ def load_canonical(
     if missing:
         raise AssetRejected("missing_texture", f"referenced but absent: {', '.join(sorted(missing))}")
     try:
-        loaded = trimesh.load(str(path), force="scene", process=False)
+        # force="scene" makes load return a Scene, though it is typed as any Geometry
+        loaded = cast(trimesh.Scene, trimesh.load(str(path), force="scene", process=False))
     except Exception as exc:  # noqa: BLE001 - any parser failure means the file is unusable
         raise AssetRejected("corrupt_file", f"{type(exc).__name__}: {exc}"[:300]) from None
     geoms = []
@@ -176,13 +189,17 @@ def load_canonical(
             )
 
     texture_image, uv = None, None
-    if len(geoms) == 1 and geoms[0].visual.kind == "texture":
-        mat = getattr(geoms[0].visual, "material", None)
+    texture = _texture(geoms[0]) if len(geoms) == 1 else None
+    if texture is not None:
+        mat = getattr(texture, "material", None)
         img = getattr(mat, "baseColorTexture", None) or getattr(mat, "image", None)
-        if img is not None and geoms[0].visual.uv is not None and len(geoms[0].visual.uv) == len(geoms[0].vertices):
-            texture_image, uv = img, np.asarray(geoms[0].visual.uv, dtype=np.float64)
+        if img is not None and texture.uv is not None and len(texture.uv) == len(geoms[0].vertices):
+            texture_image, uv = img, np.asarray(texture.uv, dtype=np.float64)
     colors = np.concatenate([_face_colors(g) for g in geoms])
-    mesh = trimesh.util.concatenate([trimesh.Trimesh(g.vertices, g.faces, process=False) for g in geoms])
+    # concatenate is typed as returning any Geometry; given Trimeshes it returns a Trimesh
+    mesh = cast(
+        trimesh.Trimesh, trimesh.util.concatenate([trimesh.Trimesh(g.vertices, g.faces, process=False) for g in geoms])
+    )
 
     up = up_axis or FORMAT_UP_AXIS.get(path.suffix.lower(), "+z")
     if up not in _UP_ROTATIONS:
@@ -234,6 +251,7 @@ def export_obj(canon: CanonicalMesh, out_dir: str | Path, stem: str = "mesh") ->
     obj_path, mtl_path, tex_path = out_dir / f"{stem}.obj", out_dir / f"{stem}.mtl", out_dir / f"{stem}.png"
     mesh = canon.mesh
     lines = [f"mtllib {mtl_path.name}", "usemtl baked"]
+    verts: np.ndarray
     if canon.texture_image is not None and canon.uv is not None:
         canon.texture_image.convert("RGB").save(tex_path)
         verts, uvs, faces = mesh.vertices, canon.uv, mesh.faces + 1

@@ -366,19 +366,23 @@ def process_item(
     norm, rej = timed("normalize", normalise_step, item, config, out)
     if rej is not None:
         return refuse(rej)
+    assert norm is not None  # guard returns a value exactly when it returns no rejection
     rendered_views, rej = timed("render", render, norm)
     if rej is not None:
         return refuse(rej)
+    assert rendered_views is not None
     rendered, views = rendered_views
     scored, rej = timed("score", score_step, item, [rendered.images[i] for i in rendered.selected], config, pool)
     if rej is not None:
         return refuse(rej)
+    assert scored is not None
     scores, top = scored
     curated, rej = timed(
         "curate", curate_step, item, h, norm.canon, scores, top, rendered.selected, config, pool, out, catalog_dir
     )
     if rej is not None:
         return refuse(rej)
+    assert curated is not None
     asset, matches = curated
     return ItemResult(
         item.source,
@@ -415,6 +419,7 @@ def write_result(writer: CatalogWriter, res: ItemResult, config: IngestConfig, c
     if res.rejection is not None:
         writer.reject_assets([(aid, res.rejection)])
         return
+    assert res.asset is not None  # an ItemResult holds either its rejection or its asset
     image = res.image_embedding
     if image is not None and image.shape[0] != writer.embedding_dim:
         # CLIP's space has another width than the catalog's FLOAT[n] column: kept next to the asset instead.

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import trimesh
@@ -155,7 +156,8 @@ def build_set(out: str | Path) -> list[Path]:
                 )
                 part.visual.face_colors = np.array([*rgb, 255], dtype=np.uint8)
             path = out / f"{cat}-{colour}-{k}.glb"
-            path.write_bytes(trimesh.util.concatenate(parts).export(file_type="glb"))
+            mesh = cast(trimesh.Trimesh, trimesh.util.concatenate(parts))  # Trimeshes concatenate to one
+            path.write_bytes(cast(bytes, mesh.export(file_type="glb")))  # GLB is binary
             (out / f"{cat}-{colour}-{k}.json").write_text(
                 json.dumps(
                     {"category": cat, "license": "CC0-1.0", "attribution": "curbside primitive set", "up_axis": "+z"}

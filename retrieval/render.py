@@ -148,7 +148,8 @@ def view_statistics(image: np.ndarray) -> tuple[float, np.ndarray]:
     gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)  # central differences (numpy.gradient's interior)
     gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=1, scale=0.5)
     sel = gx * gx + gy * gy > 16.0  # |grad| > 4: the edge pixels, a small part of the view
-    info, edges = 0.0, np.zeros(16)
+    info = 0.0
+    edges: np.ndarray = np.zeros(16)  # float64 weighted counts, though numpy types bincount's result as intp
     if sel.any():
         ex, ey = gx[sel], gy[sel]
         # numpy's arctan2, not cv2.cartToPolar: the latter puts an exactly horizontal edge at 2pi - eps, not 0.

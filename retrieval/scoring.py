@@ -18,11 +18,18 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from catalogs.schema import DEFAULT_TEXT_MODEL
 from kernel.config import check_choice
+
+if TYPE_CHECKING:  # the encoders load lazily, only the configured one
+    from retrieval.encoders.aligned import AlignedEncoder
+    from retrieval.encoders.blip import BlipEncoder
+    from retrieval.encoders.clip import ClipEncoder
+    from retrieval.encoders.imagenet import ImageNetEncoder
 
 IMAGE_ENCODERS = ("aligned", "imagenet", "clip", "blip", "blip2", "none")
 AGGREGATES = ("max", "mean")
@@ -144,7 +151,7 @@ class Scorer:
         self.config = config
         self.pool = pool
         self.text_encoder = TextEncoder(config.text_model)
-        self.image_encoder = None
+        self.image_encoder: ImageNetEncoder | AlignedEncoder | ClipEncoder | BlipEncoder | None = None
         if config.image_encoder == "imagenet":
             from retrieval.encoders.imagenet import ImageNetEncoder
 
@@ -156,15 +163,19 @@ class Scorer:
         elif config.image_encoder == "clip":
             from retrieval.encoders.clip import ClipEncoder
 
+            assert config.clip_model is not None  # ScoringConfig refuses clip without a model
             self.image_encoder = ClipEncoder(config.clip_model)
         elif config.image_encoder in ("blip", "blip2"):
             from retrieval.encoders.blip import BlipEncoder
 
+            assert config.clip_model is not None  # ScoringConfig refuses blip without a model
             self.image_encoder = BlipEncoder(config.clip_model, kind=config.image_encoder)
         self.pool_text = self.text_encoder.encode(list(pool.texts))
         self.pool_image = self.image_encoder.encode_texts(list(pool.texts)) if self.image_encoder else None
         self.description_thresholds = np.full(len(pool.ids), np.nan)
         if config.thresholds == "calibrated" and hasattr(self.image_encoder, "thresholds"):
+            # hasattr(None, ...) is False, and an image encoder has encoded the pool just above
+            assert self.image_encoder is not None and self.pool_image is not None
             self.description_thresholds = self.image_encoder.thresholds(self.pool_image, list(pool.categories))
 
     def score(self, images: list[np.ndarray], metadata_text: str) -> AssetScores:
@@ -172,6 +183,7 @@ class Scorer:
         c = self.config
         img_scores = img_emb = views = None
         if self.image_encoder is not None and images:
+            assert self.pool_image is not None  # __init__ encodes the pool whenever there is an image encoder
             if hasattr(self.image_encoder, "view_scores"):  # BLIP-2: a view's best query token per text
                 per_view, views = self.image_encoder.view_scores(images, self.pool_image)
             else:

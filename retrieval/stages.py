@@ -16,7 +16,7 @@ import shutil
 from collections.abc import Iterator
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 import pandas as pd
@@ -113,9 +113,22 @@ def _write(rows: list[dict[str, Any]], path: Path) -> None:
     write_frame(df, path)  # fixed writer settings: the same rows give the same bytes (dvc.lock stays put)
 
 
+class _CanonArrays(TypedDict, total=False):
+    """The arrays of canonical.npz; uv only when the mesh carries a UV texture."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    face_colors: np.ndarray
+    uv: np.ndarray
+
+
 def _save_canon(canon: CanonicalMesh, out: Path) -> None:
     """Keep the canonical mesh losslessly (the OBJ is rounded and unwelded), for curate to scale and export."""
-    arrays = {"vertices": canon.mesh.vertices, "faces": canon.mesh.faces, "face_colors": canon.face_colors}
+    arrays: _CanonArrays = {
+        "vertices": canon.mesh.vertices,
+        "faces": canon.mesh.faces,
+        "face_colors": canon.face_colors,
+    }
     if canon.uv is not None:
         arrays["uv"] = canon.uv
     np.savez(out / "canonical.npz", **arrays)
@@ -152,6 +165,7 @@ def normalise(source: Source, config: IngestConfig, out_dir: Path, manifest: Pat
         if rej is not None:
             rows.append({**row, **asdict(rej)})
             continue
+        assert norm is not None  # guard returns a value exactly when it returns no rejection
         _save_canon(norm.canon, out)
         rows.append(
             {
@@ -175,10 +189,12 @@ def render(manifest: Path, normalised_dir: Path, config: IngestConfig, views_dir
         bounds = np.asarray(row["bounds"], dtype=np.float64).reshape(2, 3)
         r, rej = guard("render", render_step, item, normalised_dir / row["obj"], bounds, config, out)
         base = {"asset_id": row["asset_id"]}
+        if rej:
+            rows.append({**base, **asdict(rej)})
+            continue
+        assert r is not None  # guard returns a value exactly when it returns no rejection
         rows.append(
-            {**base, **asdict(rej)}
-            if rej
-            else {
+            {
                 **base,
                 "files": [f.relative_to(views_dir).as_posix() for f in r.files],
                 "azimuths": r.azimuths,
@@ -214,6 +230,7 @@ def score(manifest: Path, views: Path, views_dir: Path, config: IngestConfig, sc
         if rej:
             rows.append({**base, **asdict(rej)})
             continue
+        assert res is not None  # guard returns a value exactly when it returns no rejection
         s, top = res
         rows.append(
             {
@@ -318,8 +335,10 @@ def _curate_one(
     )
     views = view_records(asset_id(item.source, item.source_id), rendered, catalog_path.parent)
     s = score_row
+    fused = _arr(s["fused"])
+    assert fused is not None  # the score stage writes fused scores for every asset it kept
     scores = AssetScores(
-        _arr(s["fused"]),
+        fused,
         _arr(s["image"]),
         _arr(s["text"]),
         _arr(s["image_embedding"], s["image_embedding_dtype"]),
@@ -335,6 +354,7 @@ def _curate_one(
     )
     if rej is not None:
         return rejected(item, h, rej, None)
+    assert res is not None  # guard returns a value exactly when it returns no rejection
     asset, matches = res
     return ItemResult(
         item.source,

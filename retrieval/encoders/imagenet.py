@@ -135,7 +135,9 @@ def image_batch(images: list[np.ndarray], size: int = 224):  # noqa: ANN201 - to
     from PIL import Image
 
     batch = [
-        im if im.shape[:2] == (size, size) else np.asarray(Image.fromarray(im).resize((size, size), Image.BILINEAR))
+        im
+        if im.shape[:2] == (size, size)
+        else np.asarray(Image.fromarray(im).resize((size, size), Image.Resampling.BILINEAR))
         for im in images
     ]
     x = torch.from_numpy(np.stack(batch)).permute(0, 3, 1, 2).float()

@@ -10,6 +10,7 @@ import hashlib
 import io
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import trimesh
@@ -78,7 +79,7 @@ def glb_bytes(asset: ProceduralAsset, colors: np.ndarray, face_palette_index: np
     scene = trimesh.Scene()
     for i, c in enumerate(colors):
         faces = np.flatnonzero(face_palette_index == i)
-        part = asset.mesh.submesh([faces], append=True)
+        part = cast(trimesh.Trimesh, asset.mesh.submesh([faces], append=True))  # append=True: one mesh, not a list
         material = trimesh.visual.material.PBRMaterial(
             name=f"color_{i:02d}",
             baseColorFactor=np.asarray(c, dtype=np.uint8),

@@ -6,10 +6,11 @@ import re
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import trimesh
+from trimesh.visual import ColorVisuals
 
 from retrieval.procedural import gen_clutter, gen_furniture, gen_nonstandard, gen_standard
 from retrieval.procedural.parts import Ctx, Parts
@@ -75,7 +76,8 @@ def _fit(mesh: trimesh.Trimesh, target: tuple[float, float, float]) -> tuple[flo
     mesh.apply_transform(np.diag([*scale, 1.0]))
     lo, hi = mesh.bounds
     mesh.apply_translation([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
-    return tuple(float(s) for s in scale)  # type: ignore[return-value]
+    sx, sy, sz = (float(s) for s in scale)
+    return sx, sy, sz
 
 
 def _mass(spec: CategorySpec, dims: tuple[float, float, float]) -> float:
@@ -99,12 +101,14 @@ def generate(category: str, seed: int) -> ProceduralAsset:
     detail = GENERATORS[category](ctx, parts)
     target = ctx.dims()
     mesh, colors = parts.build()
-    mesh.visual.face_colors = colors  # also on the mesh, for viewers and renderers that read trimesh visuals
+    visual = cast(ColorVisuals, mesh.visual)  # parts are trimesh.creation primitives, which carry colour visuals
+    visual.face_colors = colors  # also on the mesh, for viewers and renderers that read trimesh visuals
     # Parts are laid out to fill the target box; the fit absorbs small overhangs (lamp lenses, handles) so that
     # recorded dims equal the mesh bounds exactly. Its scale is recorded so a generator drifting off is visible.
     scale = _fit(mesh, target)
     lo, hi = mesh.bounds
-    dims = tuple(round(float(v), 6) for v in hi - lo)
+    depth, width, height = (round(float(v), 6) for v in hi - lo)
+    dims = (depth, width, height)
     params = dict(ctx.params)
     params.update(variant=f"{variant.color} {variant.material}", fit_scale=[round(s, 4) for s in scale])
     values = {
@@ -126,7 +130,7 @@ def generate(category: str, seed: int) -> ProceduralAsset:
         face_colors=colors,
         color=variant.color,
         material=variant.material,
-        dims=dims,  # type: ignore[arg-type]
+        dims=dims,
         mass=_mass(spec, dims),
         description=description,
         synonyms=list(spec.synonyms),

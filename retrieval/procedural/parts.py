@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from itertools import pairwise
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import trimesh
@@ -203,7 +203,7 @@ class Parts:
         """Concatenate the parts into one mesh and its per-face RGBA colours (uint8)."""
         if not self._meshes:
             raise ValueError("a generator produced no parts")
-        mesh = trimesh.util.concatenate(self._meshes)
+        mesh = cast(trimesh.Trimesh, trimesh.util.concatenate(self._meshes))  # Trimeshes concatenate to one
         colors = np.concatenate(
             [np.tile(np.asarray(c, dtype=np.uint8), (len(m.faces), 1)) for m, c in zip(self._meshes, self._colors)]
         )

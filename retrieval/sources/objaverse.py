@@ -247,6 +247,7 @@ class ObjaverseSource:
             paths, errors = self._download(ok)
             for uid, lvis_cat, cat in part:
                 a = ann.get(uid, {})
+                lic = a.get("license")
                 verdict = verdicts.get(uid) or (("download_failed", errors[uid]) if uid in errors else None)
                 tags = [t.get("name", "") for t in a.get("tags", [])][:20]
                 yield SourceItem(
@@ -258,7 +259,7 @@ class ObjaverseSource:
                     # The LVIS name is a human label too: it tells the text signal what an uncategorised item is.
                     tags=tags if cat else [*tags, lvis_label(lvis_cat)],
                     category=cat,
-                    license=LICENSE_NAMES.get(a.get("license"), a.get("license") or "unknown"),
+                    license=LICENSE_NAMES.get(lic, lic) if lic else "unknown",
                     attribution=attribution(a, uid),
                     metadata={
                         "lvis": lvis_cat,

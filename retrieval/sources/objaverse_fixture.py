@@ -24,9 +24,11 @@ import json
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import trimesh
+from trimesh.visual import ColorVisuals
 
 VERSIONED = "hf-objaverse-v1"
 
@@ -68,7 +70,8 @@ def fixture_uid(key: str) -> str:
 
 
 def _coloured(mesh: trimesh.Trimesh, rgb: tuple[int, int, int]) -> trimesh.Trimesh:
-    mesh.visual.face_colors = [*rgb, 255]
+    visual = cast(ColorVisuals, mesh.visual)  # the fixture's parts are trimesh.creation primitives, colour visuals
+    visual.face_colors = [*rgb, 255]
     return mesh
 
 
@@ -115,7 +118,7 @@ def fixture_mesh(key: str) -> trimesh.Trimesh:
         ]
     else:
         raise ValueError(f"unknown fixture object {key!r}; use one of {[o.key for o in OBJECTS]}")
-    return trimesh.util.concatenate(parts)
+    return cast(trimesh.Trimesh, trimesh.util.concatenate(parts))  # Trimeshes concatenate to one
 
 
 def _glb_bytes(mesh: trimesh.Trimesh) -> bytes:
@@ -259,7 +262,7 @@ def build_xl_sources(root: str | Path) -> Path:
         (1001, 2001, "bin", "Creative Commons - Attribution"),
         (1002, 2002, "lamp", "All Rights Reserved"),
     ):
-        data = fixture_mesh(key).export(file_type="stl")
+        data = cast(bytes, fixture_mesh(key).export(file_type="stl"))  # binary STL
         path = root / "thingiverse" / f"thing-{thing_id}-file-{file_id}.stl"
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(data)
