@@ -19,9 +19,10 @@ from curbside.cli.errors import UsageError, catalog_cli_errors
 from curbside.cli.extras import require
 
 # Option choices as Enums, so click refuses a bad value before any catalog is opened, listing the valid ones.
-ObjectClass = Enum("ObjectClass", {c: c for c in OBJECT_CLASSES}, type=str)
-Zone = Enum("Zone", {z: z for z in ZONES}, type=str)
-ExportFormat = Enum("ExportFormat", {f: f for f in ("parquet", "csv", "jsonl")}, type=str)
+# ObjectClass and Zone take their members from the schema: mypy reads members from literals only.
+ObjectClass = Enum("ObjectClass", {c: c for c in OBJECT_CLASSES}, type=str)  # type: ignore[misc]
+Zone = Enum("Zone", {z: z for z in ZONES}, type=str)  # type: ignore[misc]
+ExportFormat = Enum("ExportFormat", {"parquet": "parquet", "csv": "csv", "jsonl": "jsonl"}, type=str)
 
 app = typer.Typer(
     rich_markup_mode=None, help="Build, search, inspect and validate the DuckDB asset catalog.", no_args_is_help=True
@@ -263,14 +264,14 @@ def export(
     """Export the assets table as parquet, csv or jsonl."""
     from catalogs.inspect import export_assets
 
-    fmt = ExportFormat(fmt).value
-    out = out or catalog.with_suffix(f".{fmt}")
+    fmt_name = ExportFormat(fmt).value
+    out = out or catalog.with_suffix(f".{fmt_name}")
     if out.is_dir():
         # DuckDB's COPY would fail deep inside with an IO error; say what to pass instead.
-        raise UsageError(f"--out {out} is a directory; give a file path such as {out / ('assets.' + fmt)}")
+        raise UsageError(f"--out {out} is a directory; give a file path such as {out / ('assets.' + fmt_name)}")
     con = _open(catalog)
     with catalog_cli_errors(catalog), contextlib.closing(con):
-        n = export_assets(con, fmt, out)
+        n = export_assets(con, fmt_name, out)
     from rich.console import Console
 
     Console(stderr=True).print(f"[green]exported[/] {n} assets to {out}", highlight=False)

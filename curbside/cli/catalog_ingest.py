@@ -16,11 +16,15 @@ from curbside.cli.executor_options import Executor  # kernel.executors.EXECUTORS
 # Option choices as Enums and ranges, so click refuses a bad value before the catalog is touched: a bad value
 # reaching the per-asset steps would be recorded as every asset's rejection.
 Scorer = Enum(
-    "Scorer", {e: e for e in ("aligned", "imagenet", "clip", "blip", "blip2", "none")}, type=str
+    "Scorer",
+    {"aligned": "aligned", "imagenet": "imagenet", "clip": "clip", "blip": "blip", "blip2": "blip2", "none": "none"},
+    type=str,
 )  # retrieval.scoring.IMAGE_ENCODERS
-MeshSet = Enum("MeshSet", {e: e for e in ("procedural", "primitives")}, type=str)
-Calibration = Enum("Calibration", {e: e for e in ("softmax", "zscore", "none")}, type=str)  # scoring.CALIBRATIONS
-Thresholds = Enum("Thresholds", {e: e for e in ("global", "calibrated")}, type=str)  # scoring.THRESHOLDS
+MeshSet = Enum("MeshSet", {"procedural": "procedural", "primitives": "primitives"}, type=str)
+Calibration = Enum(
+    "Calibration", {"softmax": "softmax", "zscore": "zscore", "none": "none"}, type=str
+)  # scoring.CALIBRATIONS
+Thresholds = Enum("Thresholds", {"global": "global", "calibrated": "calibrated"}, type=str)  # scoring.THRESHOLDS
 MAX_VIEWS = 20  # retrieval.render.MAX_VIEWS, not imported so `--help` stays light (a test checks they agree)
 # --views, --scorer, --calibration and --per-category defaults equal IngestConfig / ScoringConfig / ProceduralSource's
 # (retrieval imports numpy and trimesh, so not imported here): tests/cli/test_cli_defaults.py keeps them equal.

@@ -15,9 +15,13 @@ import os
 import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 import typer
+
+if TYPE_CHECKING:  # typer >= 0.20 builds its commands on its vendored click
+    from typer._click.core import Command as _TyperCommand
 
 DEBUG_ENV = "CURBSIDE_DEBUG"
 MAX_LINE = 600  # characters of an error line
@@ -25,7 +29,10 @@ MAX_LINE = 600  # characters of an error line
 try:  # typer >= 0.20 parses with its own vendored copy of click: its BadParameter is not a click.ClickException
     from typer._click.exceptions import ClickException as _TyperClickException
 
-    _CLICK_ERRORS: tuple[type[Exception], ...] = (click.ClickException, _TyperClickException)
+    _CLICK_ERRORS: tuple[type[click.ClickException | _TyperClickException], ...] = (
+        click.ClickException,
+        _TyperClickException,
+    )
 except ImportError:
     _CLICK_ERRORS = (click.ClickException,)
 
@@ -128,7 +135,7 @@ def empty_option(args: Sequence[str]) -> str | None:
     return None
 
 
-def run(command: click.Command, argv: Sequence[str] | None = None, prog_name: str = "curbside") -> int:
+def run(command: click.Command | _TyperCommand, argv: Sequence[str] | None = None, prog_name: str = "curbside") -> int:
     """Run a click/typer command with the project's error style and return its exit code."""
     args = list(sys.argv[1:] if argv is None else argv)
     debug = debug_enabled(args)

@@ -10,7 +10,7 @@ import typer
 from curbside.cli.errors import UsageError
 
 # kernel.executors.EXECUTORS, as an Enum so `--help` lists them without importing the kernel's executors.
-Executor = Enum("Executor", {e: e for e in ("local", "process", "ray")}, type=str)  # type: ignore[misc]
+Executor = Enum("Executor", {"local": "local", "process": "process", "ray": "ray"}, type=str)
 EXECUTOR_HELP = (
     "Where the work runs: local (this process), process (a pool of --workers processes) or ray (a Ray "
     "cluster: --address, or one started here with --workers CPUs). Every executor writes the same bytes."

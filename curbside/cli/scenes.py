@@ -36,10 +36,10 @@ def _terrain_density_option() -> Any:
 
 
 # Choices as Enums so `--help` lists them and a typo fails before any work (names kept in sync by tests).
-Split = Enum("Split", {k: k for k in ("train", "test", "unseen", "finetune")}, type=str)  # type: ignore[misc]
+Split = Enum("Split", {"train": "train", "test": "test", "unseen": "unseen", "finetune": "finetune"}, type=str)
 # The scene presets (sim.scene.config.PRESETS, kept equal by a test) plus "none", the generator's plain defaults.
-Preset = Enum("Preset", {"metaurban12k": "metaurban12k", "none": "none"}, type=str)  # type: ignore[misc]
-RoutePreset = Enum("RoutePreset", {k: k for k in ("short", "metaurban12k")}, type=str)  # type: ignore[misc]
+Preset = Enum("Preset", {"metaurban12k": "metaurban12k", "none": "none"}, type=str)
+RoutePreset = Enum("RoutePreset", {"short": "short", "metaurban12k": "metaurban12k"}, type=str)
 MAX_SEED = 2**32 - 1
 MAX_COUNT = 1_000_000  # splits start 1,000,000 seeds apart (sim.scene.dataset.MAX_COUNT)
 # Option defaults (--blocks, --templates, --object-density, --crosswalk-density, --country, --workers) are literals
@@ -313,16 +313,21 @@ def stats(
     bar = iter(track(range(st["scenes"]), description="scenes vs paper", transient=True))
     from sim.tasks.pointnav import ROUTE_LENGTHS
 
-    route_preset = route_preset.value
+    preset_name = route_preset.value
     from sim.tasks.socialnav import PRESETS as SOCIALNAV_PRESETS
 
-    density = SOCIALNAV_PRESETS.get(route_preset, {}).get("agents", {}).get("dynamic_density")
+    density = SOCIALNAV_PRESETS.get(preset_name, {}).get("agents", {}).get("dynamic_density")
+    lo, hi = ROUTE_LENGTHS[preset_name]
+
+    def advance(n: int) -> None:
+        next(bar, None)
+
     result = dataset_vs_paper(
         directory,
         seed=seed,
-        route_length=tuple(ROUTE_LENGTHS[route_preset]),
+        route_length=(lo, hi),
         agent_density=density,
-        progress=lambda n: next(bar, None),
+        progress=advance,
     )
     table = Table(
         title=f"{result['scenes']} scenes vs MetaUrban-12K (routes drawn in {result['route_length']} m); "

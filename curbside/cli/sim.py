@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from enum import Enum
 from pathlib import Path
+from typing import TypedDict
 
 import typer
 
@@ -41,9 +42,18 @@ MAX_SEED = 2**31 - 1  # episode seeds seed..seed+N-1 must stay valid numpy seeds
 Task = Enum("Task", {k: k for k in TASKS}, type=str)  # type: ignore[misc]
 Policy = Enum("Policy", {k: k for k in POLICIES}, type=str)  # type: ignore[misc]
 MachineName = Enum("MachineName", {k: k for k in MACHINE_NAMES}, type=str)  # type: ignore[misc]
-Renderer = Enum("Renderer", {"tiny": "tiny", "egl": "egl"}, type=str)  # type: ignore[misc]  # sim.camera renderers
+Renderer = Enum("Renderer", {"tiny": "tiny", "egl": "egl"}, type=str)  # sim.camera renderers
 
-SCENE_PATH = dict(exists=True, dir_okay=False, readable=True)
+
+class _PathChecks(TypedDict):
+    """typer.Option's path checks, typed so mypy matches them to its keyword arguments."""
+
+    exists: bool
+    dir_okay: bool
+    readable: bool
+
+
+SCENE_PATH = _PathChecks(exists=True, dir_okay=False, readable=True)
 
 
 def _env_config(machine: MachineName | None, scene_path: Path | None, config_json: str | None) -> dict:

@@ -13,10 +13,10 @@ from __future__ import annotations
 import json
 import os
 import warnings
-from collections.abc import Mapping
+from collections.abc import Generator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, SupportsFloat, cast
 
 import numpy as np
 
@@ -101,8 +101,12 @@ def collect_demos(
         with progress_bar(f"demos {task}", steps, progress) as update:
             # Endless episode indices: run_map keeps a window of episodes in flight and cancels the rest once the
             # steps are reached (those extra episodes are dropped, as a local run never starts them).
-            episodes = run_map(
-                demo_episode, itertools.count(), executor=executor, workers=workers, address=address, args=(job,)
+            # run_map is a generator function (annotated as returning an Iterator): close() is what cancels.
+            episodes = cast(
+                Generator[Any, None, None],
+                run_map(
+                    demo_episode, itertools.count(), executor=executor, workers=workers, address=address, args=(job,)
+                ),
             )
             try:
                 for episode, success in episodes:
@@ -198,7 +202,7 @@ class EpisodeRecorder:
             "truncations": [],
         }
 
-    def add(self, action: np.ndarray, obs: Any, reward: float, terminated: bool, truncated: bool) -> None:
+    def add(self, action: np.ndarray, obs: Any, reward: SupportsFloat, terminated: bool, truncated: bool) -> None:
         """Record one step: the action taken and what followed."""
         for k, v in zip(
             ("actions", "observations", "rewards", "terminations", "truncations"),

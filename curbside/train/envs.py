@@ -85,13 +85,14 @@ def make_vec_env(
     import os
 
     from stable_baselines3.common.monitor import Monitor
-    from stable_baselines3.common.vec_env import DummyVecEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
     from curbside.train.sharded import ShardedVectorEnv
     from curbside.train.vec import VectorEnvAdapter, single_thread_worker
 
     fns = env_fns(task, config, n_envs, num_scenes, split, wrappers)
     workers = min(n_envs, workers or os.cpu_count() or 1)
+    vec: VecEnv
     if subprocess and n_envs > 1 and workers > 1:
         vec = VectorEnvAdapter(ShardedVectorEnv([single_thread_worker(f) for f in fns], workers), wrappers=(Monitor,))
     else:

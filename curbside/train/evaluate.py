@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 import numpy as np
@@ -56,7 +56,7 @@ def episode_rows(
     cfg["scene_cache"] = 1  # evaluation visits each scene about once: no point keeping worlds
     env = gym.make(env_id(task), config=cfg)
     rows = []
-    seeds = range(seed, seed + episodes)
+    seeds: Iterable[int] = range(seed, seed + episodes)
     if progress:
         from rich.progress import track
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -153,8 +153,10 @@ def train_gail(
     class DiscriminatorReward(VecEnvWrapper):
         """The venv with the discriminator's reward of (the observation acted on, the action taken)."""
 
+        # The venv's observations are Box arrays (the discriminator's input); SB3's VecEnvObs also covers Dict and
+        # Tuple spaces, hence the casts.
         def reset(self) -> np.ndarray:
-            self.last_obs = self.venv.reset()
+            self.last_obs = cast(np.ndarray, self.venv.reset())
             return self.last_obs
 
         def step_async(self, actions: np.ndarray) -> None:
@@ -166,7 +168,7 @@ def train_gail(
             reward = disc.reward(self.last_obs.reshape(len(obs), -1), self.actions.reshape(len(obs), -1))
             for info, r in zip(infos, env_reward):
                 info["env_reward"] = float(r)
-            self.last_obs = obs
+            self.last_obs = cast(np.ndarray, obs)
             return obs, reward, dones, infos
 
     expert = (
@@ -179,6 +181,8 @@ def train_gail(
 
     class TrainDiscriminator(BaseCallback):
         """After each rollout: the discriminator learns the new generated pairs against the demonstrations."""
+
+        model: PPO  # given to the PPO learner below only
 
         def _on_rollout_end(self) -> None:
             buf = self.model.rollout_buffer

@@ -198,7 +198,7 @@ class TD3BC:
         return {"q_loss": q_loss.detach(), "actor_loss": self.last_actor_loss}
 
 
-LEARNERS = {"iql": IQL, "td3bc": TD3BC}
+LEARNERS: dict[str, type[IQL] | type[TD3BC]] = {"iql": IQL, "td3bc": TD3BC}
 
 
 def train_offline(

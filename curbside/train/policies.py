@@ -40,7 +40,7 @@ def check_algo(algo: str) -> str:
     return algo
 
 
-def read_run(run_dir: Path) -> dict[str, Any]:
+def read_run(run_dir: str | Path) -> dict[str, Any]:
     """The run.json of a training output folder (clear errors when it is not one)."""
     f = Path(run_dir) / "run.json"
     if not f.is_file():
@@ -52,7 +52,7 @@ def read_run(run_dir: Path) -> dict[str, Any]:
     return run
 
 
-def load_policy(run_dir: Path) -> tuple[Callable[[np.ndarray], np.ndarray], dict[str, Any]]:
+def load_policy(run_dir: str | Path) -> tuple[Callable[[np.ndarray], np.ndarray], dict[str, Any]]:
     """(act, run) for a run folder: act(obs) returns the deterministic action of the saved policy."""
     run = read_run(run_dir)
     algo = run["algo"]

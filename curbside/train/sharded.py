@@ -32,7 +32,7 @@ import pickle
 import time
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -41,6 +41,9 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import CloudpickleWrapper, batch_space
 
 from curbside.train.handover import PIPE, SPIN_S, STEP, Shared, hand_over, run_command, serve, wait_for
+
+if TYPE_CHECKING:
+    from multiprocessing.context import ForkContext, ForkServerContext, SpawnContext
 
 
 class ShardedVectorEnv(VectorEnv):
@@ -78,7 +81,8 @@ class ShardedVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, n)
         self.action_space = batch_space(self.single_action_space, n)
         self.metadata = {**type(self).metadata, "render_modes": []}
-        ctx = mp.get_context(context)
+        # typeshed types get_context of a str as BaseContext; each start method's context has Process.
+        ctx = cast("ForkContext | ForkServerContext | SpawnContext", mp.get_context(context))
         self._shared = Shared(ctx, n, workers, self.single_observation_space, self.single_action_space)
         self._arrays = self._shared.views()
         self._obs = self._arrays["obs"]
@@ -177,14 +181,15 @@ class ShardedVectorEnv(VectorEnv):
 
     def _gather(self) -> list[Any]:
         """The replies owed, worker by worker; RuntimeError (the env closed) when a worker failed or died."""
-        out, errors = [], []
+        out: list[Any] = []
+        errors: list[Any] = []
         for w, ((_, done), pipe, proc) in enumerate(zip(self._sems, self._pipes, self._procs)):
             if not self._owed[w]:
                 continue
             try:
                 wait_for(done, self._spin, proc.is_alive)
                 size = int(self._arrays["reply"][w])
-                status, data = ("ok", pickle.loads(self._arrays["infos"][w, :size])) if size >= 0 else pipe.recv()
+                status, data = ("ok", pickle.loads(self._arrays["infos"][w, :size].data)) if size >= 0 else pipe.recv()
             except (EOFError, OSError):
                 status = "died"
             if status == "died":

@@ -12,13 +12,16 @@ from __future__ import annotations
 import json
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from curbside.train.demos import EpisodeRecorder, write_dataset
 from curbside.train.envs import env_id
 from kernel.config import ConfigError, merge_strict
+
+if TYPE_CHECKING:
+    from sim.envs.pointnav import PointNavEnv
 
 # Axis maps. Pedals rest at +1 and read -1 pressed on most wheels (`pedals`); stick y is -1 pushed forward.
 DEVICE_PRESETS: dict[str, dict[str, Any]] = {
@@ -174,14 +177,16 @@ def teleop(
         raise ConfigError(f"unknown device {device!r}; valid: {', '.join(DEVICES)}")
     register_envs()
     env = gym.make(env_id(task), config=dict(env_config or {}), render_mode="human")
-    u = env.unwrapped
-    recorded, successes, total = [], 0, 0
+    u = cast("PointNavEnv", env.unwrapped)  # every task's env is a PointNavEnv (SocialNavEnv extends it)
+    recorded: list[Any] = []
+    successes, total = 0, 0
     try:
         obs, _ = env.reset(seed=seed)  # opens the window: pygame is up for the devices
         controls = (
             KeyboardControls() if device == "keyboard" else JoystickControls(device_mapping(device, mapping_file))
         )
         window = window_of(u)
+        assert window is not None  # reset in "human" mode rendered, which opened it
         episode = EpisodeRecorder(obs, seed)
         while True:
             if before_step is not None:

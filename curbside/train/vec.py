@@ -11,12 +11,31 @@ against SB3's SubprocVecEnv on the same seeds).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, Protocol, cast
 
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
+
+
+class _WorkerVectorEnv(Protocol):
+    """What Gymnasium's AsyncVectorEnv and SyncVectorEnv (and ShardedVectorEnv) add to a VectorEnv and the adapter
+    calls: one seed per env, asynchronous steps, the sub-envs' attributes and methods."""
+
+    def reset(
+        self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]: ...
+
+    def step_async(self, actions: Any) -> None: ...
+
+    def step_wait(self) -> tuple[Any, Any, Any, Any, dict[str, Any]]: ...
+
+    def get_attr(self, name: str) -> tuple[Any, ...]: ...
+
+    def set_attr(self, name: str, values: Any) -> None: ...
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]: ...
 
 
 def unbatch(info: dict[str, Any], n: int) -> list[dict[str, Any]]:
@@ -75,7 +94,7 @@ class VectorEnvAdapter(VecEnv):
                 "the sub-envs were given different reset options; a Gymnasium vector env resets all "
                 "its envs with one options dict: pass one dict to set_options"
             )
-        obs, info = self.venv.reset(seed=seeds, options=self._options[0] or None)
+        obs, info = self._workers.reset(seed=seeds, options=self._options[0] or None)
         self.reset_infos = unbatch(info, self.num_envs)
         self._reset_seeds()
         self._reset_options()
@@ -84,14 +103,14 @@ class VectorEnvAdapter(VecEnv):
     def step_async(self, actions: np.ndarray) -> None:
         """Send the actions (the workers step while the caller goes on)."""
         if self._async:
-            self.venv.step_async(actions)
+            self._workers.step_async(actions)
         else:
             self._actions = actions
 
     def step_wait(self) -> VecEnvStepReturn:
         """Observations, rewards, dones and per-env infos; a finished env's info holds its last observation."""
         if self._async:
-            obs, rewards, terminated, truncated, info = self.venv.step_wait()
+            obs, rewards, terminated, truncated, info = self._workers.step_wait()
         else:
             obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
         dones = np.logical_or(terminated, truncated)
@@ -109,6 +128,11 @@ class VectorEnvAdapter(VecEnv):
         """Close the workers."""
         self.venv.close()
 
+    @property
+    def _workers(self) -> _WorkerVectorEnv:
+        # Gymnasium's VectorEnv declares none of these; the envs adapted here have the ones each call site uses.
+        return cast(_WorkerVectorEnv, self.venv)
+
     def _select(self, values: Sequence[Any], indices: VecEnvIndices) -> list[Any]:
         return [values[i] for i in self._get_indices(indices)]
 
@@ -123,18 +147,18 @@ class VectorEnvAdapter(VecEnv):
         """Set an attribute of the sub-envs `indices` (all by default)."""
         chosen = set(self._get_indices(indices))
         if len(chosen) == self.num_envs:
-            self.venv.set_attr(attr_name, value)
+            self._workers.set_attr(attr_name, value)
             return
-        current = self.venv.get_attr(attr_name)
-        self.venv.set_attr(attr_name, [value if i in chosen else current[i] for i in range(self.num_envs)])
+        current = self._workers.get_attr(attr_name)
+        self._workers.set_attr(attr_name, [value if i in chosen else current[i] for i in range(self.num_envs)])
 
     def env_method(
         self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
     ) -> list[Any]:
         """Call a method of the sub-envs (every worker runs it; the answers of `indices` are returned)."""
-        return self._select(self.venv.call(method_name, *method_args, **method_kwargs), indices)
+        return self._select(self._workers.call(method_name, *method_args, **method_kwargs), indices)
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
         """Whether the sub-envs carry `wrapper_class` (as declared when the adapter was built)."""
         wrapped = any(issubclass(w, wrapper_class) for w in self.wrappers)
-        return [wrapped] * len(self._get_indices(indices))
+        return [wrapped] * len(list(self._get_indices(indices)))
