@@ -16,8 +16,11 @@ free road lane (MetaDrive respawns traffic the same way), or waits when none is 
 polygon (grown by `crosswalk_margin`) holds an agent or the ego becomes a standing leader at its near edge.
 Where road lanes cross without a junction box, the crossing is a resource held by one axis at a time.
 
-This module holds VehicleManager's reset, step and public API; its parts live beside it: lane routing and trip
-ends (vehicle_routing), car following (vehicle_idm) and junction grants and lane crossings (vehicle_junctions).
+VehicleManager composes small parts that take their inputs explicitly: the scene's LaneNetwork and the episode's
+TrafficState (vehicle_state), lane routing and trip ends (vehicle_routing.LaneRouting), car following
+(vehicle_idm's numba kernels), and junction grants, lane crossings and crosswalk occupancy (vehicle_junctions).
+It builds the scene's parts once per scene, spawns the episode's vehicles into a new TrafficState at reset and
+runs the parts in order every step.
 """
 
 from __future__ import annotations
@@ -26,8 +29,6 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-import shapely
-from shapely.geometry import Polygon
 
 from kernel.config import merge_strict
 from sim.agents.lanes import (
@@ -38,12 +39,13 @@ from sim.agents.lanes import (
     build_lanes,
     connector_compatibility,
 )
-from sim.agents.vehicle_idm import follow, idm, in_boxes, lane_points, leaders
-from sim.agents.vehicle_junctions import JunctionControl
+from sim.agents.vehicle_idm import follow, idm, leaders
+from sim.agents.vehicle_junctions import CrosswalkOccupancy, JunctionGrants, LaneCrossings
 from sim.agents.vehicle_routing import LaneRouting
+from sim.agents.vehicle_state import LaneNetwork, TrafficState
 from sim.scene.scene import Scene, as_scene
 
-__all__ = ["VEHICLE_DEFAULTS", "VEHICLE_DTYPE", "Lane", "VehicleManager", "build_lanes"]
+__all__ = ["VEHICLE_DEFAULTS", "VEHICLE_DTYPE", "Lane", "TrafficState", "VehicleManager", "build_lanes"]
 
 VEHICLE_DTYPE = np.dtype(
     [("x", "f8"), ("y", "f8"), ("vx", "f8"), ("vy", "f8"), ("yaw", "f8"), ("length", "f8"), ("width", "f8")]
@@ -69,41 +71,78 @@ VEHICLE_DEFAULTS: dict[str, Any] = {
 }
 
 
-class VehicleManager(LaneRouting, JunctionControl):
-    """Vehicles driving the lanes of one scene with IDM, stopping for agents on crosswalks and at busy crossings."""
+class VehicleManager:
+    """Vehicles driving the lanes of one scene with IDM, stopping for agents on crosswalks and at busy crossings.
+
+    `state` is the episode's TrafficState; `network`, `zones`, `crosswalks`, `routing`, `junctions` and `crossings`
+    are the scene's lane network, lane crossings, crosswalks and parts, built by reset() for its scene.
+    """
+
+    network: LaneNetwork
+    zones: ConflictZones
+    crosswalks: CrosswalkOccupancy
+    routing: LaneRouting
+    junctions: JunctionGrants
+    crossings: LaneCrossings
+    _rng: np.random.Generator  # the episode's generator (next lanes, respawn lanes), passed to reset()
 
     def __init__(self, config: Mapping[str, Any] | None = None) -> None:
         self.config = merge_strict(VEHICLE_DEFAULTS, config, name="vehicles config")
-        self.n = 0
+        self.state = TrafficState.empty()
         self._scene: Scene | None = None
+
+    @property
+    def n(self) -> int:
+        """Number of vehicles."""
+        return self.state.n
+
+    @property
+    def respawns(self) -> int:
+        """Trips ended and started again at a free lane start this episode."""
+        return self.state.respawns
+
+    @property
+    def continued(self) -> int:
+        """Road lanes left onto the road lane continuing them this episode."""
+        return self.state.continued
+
+    @property
+    def turns(self) -> int:
+        """Junction connectors entered this episode that turn by more than 45 degrees."""
+        return self.state.turns
+
+    def _build_scene(self, scene: Scene) -> None:
+        """The scene's lanes, crossings, crosswalks and the parts that use them (pure functions of the scene)."""
+        c = self.config
+        road = build_lanes(scene)
+        lanes = road + (build_connectors(scene, road) if c["turning"] else [])
+        self.network = LaneNetwork.build(lanes, len(road), c["turn_accel"])
+        self.zones = build_conflict_zones(road, c["width"])
+        self.crosswalks = CrosswalkOccupancy(scene.crosswalks, c["crosswalk_margin"])
+        self.routing = LaneRouting(self.network, self.zones, c["length"], c["min_gap"], c["time_headway"])
+        compatible = connector_compatibility(lanes, c["width"])
+        self.junctions = JunctionGrants(
+            self.network, compatible, c["length"], c["min_gap"], c["comfort_decel"], c["junction_stop"]
+        )
+        self.crossings = LaneCrossings(self.zones, c["length"], c["stop_gap"], c["comfort_decel"], c["max_hold"])
+        self._scene = scene
 
     def reset(self, scene: Scene | Mapping[str, Any], rng: np.random.Generator) -> np.ndarray:
         """Spawn `traffic_density` vehicles per 100 m of lane on `scene` (a dict is parsed), at least one IDM jam
         gap apart."""
         c = self.config
-        self.rng = rng
+        self._rng = rng
         scene = as_scene(scene, self._scene)
         if scene is not self._scene:  # lanes, crossings and zones are pure functions of the scene: build once
-            road = build_lanes(scene)
-            self.n_road = len(road)
-            self.lanes = road + (build_connectors(scene, road) if c["turning"] else [])
-            self.is_connector = np.array([ln.is_connector for ln in self.lanes], dtype=bool)
-            self.compatible = connector_compatibility(self.lanes, c["width"])
-            self.crosswalks = [Polygon(cw["polygon"]).buffer(c["crosswalk_margin"]) for cw in scene.crosswalks]
-            for cw in self.crosswalks:
-                shapely.prepare(cw)
-            self._cw_bounds = np.array([cw.bounds for cw in self.crosswalks]).reshape(-1, 4)
-            self._cw_array = np.array(self.crosswalks, dtype=object)  # for one contains_xy call over all of them
-            self.zones: ConflictZones = build_conflict_zones(road, c["width"])
-            self._index_lanes()
-            self._scene = scene
+            self._build_scene(scene)
+        z = self.zones
         lane_id, s = [], []
         spacing = c["length"] + c["min_gap"] + 2.0
-        for li, lane in enumerate(self.lanes[: self.n_road]):  # nobody starts inside a junction box
+        for li, lane in enumerate(self.network.lanes[: self.network.n_road]):  # nobody starts inside a junction box
             slots = np.arange(int(lane.length // spacing)) * spacing + 0.5 * c["length"]
             # No vehicle starts inside a lane crossing: two axes could otherwise begin inside one.
-            z = self.zones.lane == li
-            for lo, hi in zip(self.zones.s_in[z], self.zones.s_out[z]):
+            on = z.lane == li
+            for lo, hi in zip(z.s_in[on], z.s_out[on]):
                 slots = slots[(slots + c["length"] < lo) | (slots - c["length"] > hi)]
             want = c["traffic_density"] * lane.length / 100.0
             n = min(int(want) + int(rng.random() < want - int(want)), len(slots))
@@ -111,22 +150,29 @@ class VehicleManager(LaneRouting, JunctionControl):
                 continue
             lane_id += [li] * n
             s += list(np.sort(rng.choice(slots, size=n, replace=False)) + rng.uniform(0.0, 1.0, n))
-        self.lane_id = np.asarray(lane_id, dtype=np.int64)
-        self.s = np.asarray(s, dtype=np.float64)
-        self.n = len(self.s)
+        n = len(s)
         lo, hi = c["desired_speed"]
-        self.v0 = rng.uniform(lo, hi, self.n)
-        self.v = self.v0 * rng.uniform(0.5, 1.0, self.n)
-        self.occupied = np.zeros(len(self.crosswalks), dtype=bool)
-        self.holder = np.full(self.zones.n_zones, np.nan)  # axis holding each crossing, nan when free
-        self.held_for = np.zeros(self.zones.n_zones)
-        self.respawns = self.continued = self.turns = 0
-        self.jumped = np.zeros(self.n, dtype=bool)
-        self.granted = np.zeros(self.n, dtype=bool)  # holds a grant for the junction connector it is heading to
-        self.waited = np.zeros(self.n)  # s spent claiming a connector without a grant
-        self.prev_lane = np.full(self.n, -1, dtype=np.int64)  # the lane a vehicle's rear may still be on
-        self.next = np.array([self._draw_next(int(li)) for li in self.lane_id], dtype=np.int64)
+        desired_speed = rng.uniform(lo, hi, n)
+        speed = desired_speed * rng.uniform(0.5, 1.0, n)
+        self.state = TrafficState(
+            lane_id=np.asarray(lane_id, dtype=np.int64),
+            s=np.asarray(s, dtype=np.float64),
+            speed=speed,
+            desired_speed=desired_speed,
+            next_lane=np.array([self.routing.draw_next(li, rng) for li in lane_id], dtype=np.int64),
+            prev_lane=np.full(n, -1, dtype=np.int64),
+            granted=np.zeros(n, dtype=bool),
+            waited=np.zeros(n),
+            jumped=np.zeros(n, dtype=bool),
+            occupied_crosswalks=np.zeros(len(self.crosswalks.polygons), dtype=bool),
+            crossing_holder=np.full(z.n_zones, np.nan),
+            crossing_held_for=np.zeros(z.n_zones),
+        )
         return self.states()
+
+    def clear(self) -> None:
+        """Remove every vehicle (an episode without traffic)."""
+        self.state = TrafficState.empty()
 
     def step(self, dt: float, people_xy: np.ndarray | None = None) -> np.ndarray:
         """Advance every vehicle by `dt` s; `people_xy` [n, 2] are agents and the ego (they make vehicles yield).
@@ -136,119 +182,102 @@ class VehicleManager(LaneRouting, JunctionControl):
 
     def advance(self, dt: float, people_xy: np.ndarray | None = None) -> None:
         """step() without building its states (the env reads `poses()`)."""
-        c = self.config
-        self.occupied = np.zeros(len(self.crosswalks), dtype=bool)
-        if self.n and people_xy is not None and len(people_xy) and self.crosswalks:
-            xy = np.ascontiguousarray(people_xy, dtype=np.float64)
-            # Bounding boxes first: most ticks nobody is near a crosswalk and no polygon test runs at all.
-            box, pt = in_boxes(xy, self._cw_bounds)
-            if len(box):
-                inside = shapely.contains_xy(self._cw_array[box], xy[pt, 0], xy[pt, 1])
-                self.occupied[box[inside]] = True
-        if self.n:
-            order = np.lexsort((self.s, self.lane_id))
-            cl, cc, cs = self._cross_arrays
-            ls, ss, v, _, gap, dv, rear_s, rear_v, front, to_end, want = leaders(
-                order,
-                self.lane_id,
-                self.s,
-                self.v,
-                self.next,
-                self.lane_len,
-                self.is_connector,
-                self.granted,
-                self.occupied,
-                cl,
-                cc,
-                cs,
-                float(c["length"]),
-                float(c["stop_gap"]),
-                float(dt),
-                float(c["comfort_decel"]),
-                float(c["junction_stop"]),
-                len(self.lanes),
-            )
-            if self.zones.n_zones:
-                self._crossing_leaders(dt, ls, ss, v, gap, dv)
-            if want:  # a front vehicle nears a junction connector without a grant
-                ids = order[front]
-                self._grant(dt, ids, self.next[ids], to_end, v[front], rear_s)
-            ratio = follow(
-                order,
-                ls,
-                v,
-                gap,
-                dv,
-                front,
-                to_end,
-                rear_s,
-                rear_v,
-                self.lane_id,
-                self.s,
-                self.v,
-                self.v0,
-                self.next,
-                self.prev_lane,
-                self.lane_len,
-                self.vlim,
-                self.is_connector,
-                self.granted,
-                self.occupied,
-                cl,
-                cc,
-                cs,
-                float(c["length"]),
-                float(c["stop_gap"]),
-                float(c["junction_stop"]),
-                float(c["comfort_decel"]),
-            )
-            self.v, self.s = idm(
-                order,
-                v,
-                gap,
-                dv,
-                ratio ** c["delta"],
-                self.v,
-                self.s,
-                float(c["min_gap"]),
-                float(c["time_headway"]),
-                float(c["max_accel"]),
-                float(c["comfort_decel"]),
-                float(c["max_decel"]),
-                float(dt),
-            )
-            self.jumped = np.zeros(self.n, dtype=bool)  # respawned this step (the only discontinuous moves)
-            for i in np.flatnonzero(self.s >= self.lane_len[self.lane_id]).tolist():
-                self._leave_lane(i)
-            self.prev_lane[self.s >= c["length"]] = -1  # its rear has left the lane behind it
+        c, st, net = self.config, self.state, self.network
+        st.occupied_crosswalks = self.crosswalks.occupied(people_xy if st.n else None)
+        if not st.n:
+            return
+        order = np.lexsort((st.s, st.lane_id))
+        cl, cc, cs = net.crosswalk_lane, net.crosswalk_index, net.crosswalk_s
+        ls, ss, v, _, gap, dv, rear_s, rear_v, front, to_end, want = leaders(
+            order,
+            st.lane_id,
+            st.s,
+            st.speed,
+            st.next_lane,
+            net.lane_len,
+            net.is_connector,
+            st.granted,
+            st.occupied_crosswalks,
+            cl,
+            cc,
+            cs,
+            float(c["length"]),
+            float(c["stop_gap"]),
+            float(dt),
+            float(c["comfort_decel"]),
+            float(c["junction_stop"]),
+            len(net.lanes),
+        )
+        self.crossings.take_turns(st, dt, ls, ss, v, gap, dv)
+        if want:  # a front vehicle nears a junction connector without a grant
+            ids = order[front]
+            self.junctions.grant(st, dt, ids, st.next_lane[ids], to_end, v[front], rear_s)
+        ratio = follow(
+            order,
+            ls,
+            v,
+            gap,
+            dv,
+            front,
+            to_end,
+            rear_s,
+            rear_v,
+            st.lane_id,
+            st.s,
+            st.speed,
+            st.desired_speed,
+            st.next_lane,
+            st.prev_lane,
+            net.lane_len,
+            net.speed_limit,
+            net.is_connector,
+            st.granted,
+            st.occupied_crosswalks,
+            cl,
+            cc,
+            cs,
+            float(c["length"]),
+            float(c["stop_gap"]),
+            float(c["junction_stop"]),
+            float(c["comfort_decel"]),
+        )
+        st.speed, st.s = idm(
+            order,
+            v,
+            gap,
+            dv,
+            ratio ** c["delta"],
+            st.speed,
+            st.s,
+            float(c["min_gap"]),
+            float(c["time_headway"]),
+            float(c["max_accel"]),
+            float(c["comfort_decel"]),
+            float(c["max_decel"]),
+            float(dt),
+        )
+        st.jumped = np.zeros(st.n, dtype=bool)
+        for i in np.flatnonzero(st.s >= net.lane_len[st.lane_id]).tolist():
+            self.routing.leave_lane(st, i, self._rng)
+        st.prev_lane[st.s >= c["length"]] = -1  # its rear has left the lane behind it
 
     def add(self, lane: int, s: float, speed: float = 0.0, next_lane: int | None = None) -> int:
         """Put one more vehicle on `lane` at arc length `s` (scripted scenarios); returns its index."""
-        if not 0 <= lane < len(self.lanes):
-            raise ValueError(f"lane {lane} does not exist; this scene has lanes 0..{len(self.lanes) - 1}")
-        if next_lane is not None and next_lane not in self.successors[lane]:
-            raise ValueError(
-                f"lane {next_lane} does not follow lane {lane}; its successors are {self.successors[lane]}"
-            )
+        n_lanes, successors = len(self.network.lanes), self.routing.successors
+        if not 0 <= lane < n_lanes:
+            raise ValueError(f"lane {lane} does not exist; this scene has lanes 0..{n_lanes - 1}")
+        if next_lane is not None and next_lane not in successors[lane]:
+            raise ValueError(f"lane {next_lane} does not follow lane {lane}; its successors are {successors[lane]}")
         lo, hi = self.config["desired_speed"]
-        self.lane_id = np.append(self.lane_id, lane)
-        self.s = np.append(self.s, float(s))
-        self.v0 = np.append(self.v0, 0.5 * (lo + hi))
-        self.v = np.append(self.v, float(speed))
-        self.jumped = np.append(self.jumped, False)
-        self.granted = np.append(self.granted, False)
-        self.waited = np.append(self.waited, 0.0)
-        self.prev_lane = np.append(self.prev_lane, -1)
-        self.next = np.append(self.next, self._draw_next(lane) if next_lane is None else next_lane)
-        self.n += 1
-        return self.n - 1
+        nxt = self.routing.draw_next(lane, self._rng) if next_lane is None else next_lane
+        return self.state.append(lane, s, speed, 0.5 * (lo + hi), nxt)
 
     def states(self) -> np.ndarray:
         """Every vehicle's centre, velocity, heading and size as a structured array of VEHICLE_DTYPE."""
         out = np.zeros(self.n, dtype=VEHICLE_DTYPE)
         if self.n:
             out["x"], out["y"], out["yaw"] = _, _, yaw = self.poses()
-            out["vx"], out["vy"] = self.v * np.cos(yaw), self.v * np.sin(yaw)
+            out["vx"], out["vy"] = self.state.speed * np.cos(yaw), self.state.speed * np.sin(yaw)
         out["length"], out["width"] = self.config["length"], self.config["width"]
         return out
 
@@ -256,9 +285,9 @@ class VehicleManager(LaneRouting, JunctionControl):
         """Every vehicle's centre x, y and heading (the states' columns, without building the states)."""
         if not self.n:
             return np.zeros(0), np.zeros(0), np.zeros(0)
-        xy, seg = lane_points(self.lane_id, self.s, self.lane_off, self.lane_len, self.all_cum, self.all_pts)
+        xy, seg = self.network.points(self.state.lane_id, self.state.s)
         return xy[:, 0].copy(), xy[:, 1].copy(), np.arctan2(seg[:, 1], seg[:, 0])
 
     def fronts(self) -> tuple[np.ndarray, np.ndarray]:
         """(lane index, arc length of the front bumper) of every vehicle."""
-        return self.lane_id.copy(), self.s + self.config["length"] / 2.0
+        return self.state.lane_id.copy(), self.state.s + self.config["length"] / 2.0

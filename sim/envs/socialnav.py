@@ -98,7 +98,7 @@ class SocialNavEnv(PointNavEnv):
         if self.config["traffic"]:
             self.traffic.reset(scene, rng)
         else:
-            self.traffic.n = 0
+            self.traffic.clear()
         self._sync_bodies()
         self._min_agent_distance = self._nearest_agent()
 

@@ -28,8 +28,8 @@ def test_vehicles_stay_on_roads_and_apart(street: dict) -> None:
         for _ in range(500):
             st = vm.step(0.1)
             assert shapely.contains_xy(roads, st["x"], st["y"]).all()
-            for li in np.unique(vm.lane_id):
-                s = np.sort(vm.s[vm.lane_id == li])
+            for li in np.unique(vm.state.lane_id):
+                s = np.sort(vm.state.s[vm.state.lane_id == li])
                 # Lanes are not rings: a vehicle at a lane's end leaves it, so only neighbours along it can touch.
                 assert len(s) < 2 or (np.diff(s) - vm.config["length"]).min() > 0.0, "two vehicles in one lane overlap"
         assert np.mean(np.hypot(st["vx"], st["vy"])) > 3.0, "free traffic should be moving"
@@ -40,7 +40,7 @@ def test_vehicles_yield_at_occupied_crosswalk(street: dict) -> None:
     vm.reset(street, np.random.default_rng(1))
     person = np.array([[8.0, 0.5]])  # standing on crosswalk c0 (x in [6.5, 9.5])
     lanes, front = vm.fronts()
-    s_in = {li: [s for ci, s, _ in vm.lanes[li].crossings if ci == 0][0] for li in range(len(vm.lanes))}
+    s_in = {li: [s for ci, s, _ in vm.network.lanes[li].crossings if ci == 0][0] for li in range(len(vm.network.lanes))}
     # Only vehicles with room to brake comfortably are bound to stop; ones already at the line may go through.
     bound = np.array([s_in[li] - f > 30.0 for li, f in zip(lanes, front)])
     assert bound.any()
@@ -49,11 +49,11 @@ def test_vehicles_yield_at_occupied_crosswalk(street: dict) -> None:
         _, front = vm.fronts()
         # Arc lengths only wrap at the lane's end, which lies beyond the crosswalk for these vehicles.
         assert np.all(front[bound] < [s_in[li] for li in lanes[bound]])
-    assert vm.occupied[0] and not vm.occupied[1]
-    assert np.min(vm.v) < 0.05, "the first vehicle in line should have stopped"
+    assert vm.state.occupied_crosswalks[0] and not vm.state.occupied_crosswalks[1]
+    assert np.min(vm.state.speed) < 0.05, "the first vehicle in line should have stopped"
     for _ in range(150):
         vm.step(0.1, None)
-    assert np.min(vm.v) > 1.0, "vehicles should move on once the crosswalk is clear"
+    assert np.min(vm.state.speed) > 1.0, "vehicles should move on once the crosswalk is clear"
 
 
 def _cross_spec(arm: float = 60.0, split: bool = False) -> dict:
@@ -107,25 +107,25 @@ def test_crossing_traffic_takes_turns_and_never_overlaps() -> None:
             tree = shapely.STRtree(boxes)
             a, b = tree.query(boxes, predicate="intersects")
             assert not np.any(a < b), f"seed {seed}: vehicles {a[a < b]} and {b[a < b]} overlap"
-            if not np.isnan(vm.holder[0]):
-                axes_through.add(round(abs(np.sin(vm.holder[0]))))
+            if not np.isnan(vm.state.crossing_holder[0]):
+                axes_through.add(round(abs(np.sin(vm.state.crossing_holder[0]))))
         assert axes_through == {0, 1}, "both roads should get the crossing in turn"
-        assert vm.respawns > 0 and np.mean(vm.v) > 1.0, "traffic should keep flowing through the crossing"
+        assert vm.respawns > 0 and np.mean(vm.state.speed) > 1.0, "traffic should keep flowing through the crossing"
 
 
 def test_vehicles_continue_onto_the_next_block_without_jumping() -> None:
     vm = VehicleManager({"traffic_density": 2.0})
     vm.reset(_cross_spec(split=True), np.random.default_rng(0))
-    assert (vm.next_lane >= 0).sum() == 2, "each direction of the split road continues onto its other half"
+    assert (vm.routing.continuation >= 0).sum() == 2, "each direction of the split road continues onto its other half"
     prev = vm.states()
-    lane = vm.lane_id.copy()
+    lane = vm.state.lane_id.copy()
     for _ in range(400):
         st = vm.step(0.1)
         moved = np.hypot(st["x"] - prev["x"], st["y"] - prev["y"])
-        same = ((vm.lane_id == lane) | (vm.next_lane[lane] == vm.lane_id)) & ~vm.jumped
+        same = ((vm.state.lane_id == lane) | (vm.routing.continuation[lane] == vm.state.lane_id)) & ~vm.state.jumped
         # Staying on a lane or driving onto its continuation moves a vehicle by at most v dt; only respawns jump.
         assert np.all(moved[same] <= 0.1 * vm.config["desired_speed"][1] + 1e-6)
-        prev, lane = st, vm.lane_id.copy()
+        prev, lane = st, vm.state.lane_id.copy()
     assert vm.continued > 0
 
 
@@ -142,11 +142,11 @@ def junction() -> dict:
 
 def _right_turn(vm: VehicleManager) -> tuple[int, int, int, float]:
     """(source lane, connector, target lane, crosswalk index on the target) of a right turn into a crosswalk."""
-    for ci in np.flatnonzero(vm.is_connector & vm.turn).tolist():
-        ln = vm.lanes[ci]
+    for ci in np.flatnonzero(vm.network.is_connector & vm.routing.is_turn).tolist():
+        ln = vm.network.lanes[ci]
         d0, d1 = ln.points[1] - ln.points[0], ln.points[-1] - ln.points[-2]
-        if d0[0] * d1[1] - d0[1] * d1[0] < 0 and vm.lanes[ln.dst].crossings:  # clockwise: a right turn
-            return ln.src, ci, ln.dst, vm.lanes[ln.dst].crossings[0][0]
+        if d0[0] * d1[1] - d0[1] * d1[0] < 0 and vm.network.lanes[ln.dst].crossings:  # clockwise: a right turn
+            return ln.src, ci, ln.dst, vm.network.lanes[ln.dst].crossings[0][0]
     raise AssertionError("the X block has no right turn onto a lane with a crosswalk")
 
 
@@ -155,11 +155,11 @@ def test_a_vehicle_turns_at_an_intersection_and_stops_for_a_pedestrian_on_the_cr
         vm = VehicleManager({"traffic_density": 0.0})
         vm.reset(junction, np.random.default_rng(0))
         src, conn, dst, _ = _right_turn(vm)
-        i = vm.add(src, vm.lanes[src].length - 40.0, speed=8.0, next_lane=conn)
+        i = vm.add(src, vm.network.lanes[src].length - 40.0, speed=8.0, next_lane=conn)
         trace = []
         for _ in range(250):
             st = vm.step(0.1, person)
-            trace.append((int(vm.lane_id[i]), float(vm.s[i]), float(st["yaw"][i])))
+            trace.append((int(vm.state.lane_id[i]), float(vm.state.s[i]), float(st["yaw"][i])))
         return vm, trace
 
     vm, trace = drive(None)
@@ -172,18 +172,18 @@ def test_a_vehicle_turns_at_an_intersection_and_stops_for_a_pedestrian_on_the_cr
     )
     assert vm.turns >= 1
 
-    poly = vm.crosswalks[cw]
+    poly = vm.crosswalks.polygons[cw]
     person = np.array([[poly.centroid.x, poly.centroid.y]])  # someone standing on the target lane's crosswalk
     vm, trace = drive(person)
-    s_in = [s for c, s, _ in vm.lanes[dst].crossings if c == cw][0]
+    s_in = [s for c, s, _ in vm.network.lanes[dst].crossings if c == cw][0]
     half = vm.config["length"] / 2.0
     # Never past the crosswalk's near edge, and stopped there, after turning into the box.
     assert all(lane != dst or s + half < s_in for lane, s, _ in trace), "the vehicle drove onto the occupied crosswalk"
-    assert trace[-1][0] in (conn, dst) and vm.v[-1] < 0.05
+    assert trace[-1][0] in (conn, dst) and vm.state.speed[-1] < 0.05
     passed = False
     for _ in range(100):
         vm.step(0.1, None)
-        passed |= bool(vm.lane_id[-1] == dst and vm.s[-1] - half > s_in)
+        passed |= bool(vm.state.lane_id[-1] == dst and vm.state.s[-1] - half > s_in)
     assert passed, "with the crosswalk clear the vehicle drives on over it"
 
 
@@ -199,7 +199,7 @@ def test_junction_traffic_turns_and_never_overlaps(blocks: str) -> None:
     roads = unary_union([Polygon(r["polygon"]) for r in spec["roads"]]).buffer(0.3)
     vm = VehicleManager({"traffic_density": 2.0})
     vm.reset(spec, np.random.default_rng(0))
-    assert vm.is_connector.any()
+    assert vm.network.is_connector.any()
     for k in range(1200):
         st = vm.step(0.1)
         assert shapely.contains_xy(roads, st["x"], st["y"]).all(), "a vehicle left the roads"
@@ -208,4 +208,4 @@ def test_junction_traffic_turns_and_never_overlaps(blocks: str) -> None:
             a, b = shapely.STRtree(boxes).query(boxes, predicate="intersects")
             assert not np.any(a < b), f"step {k}: vehicles {a[a < b]} and {b[a < b]} overlap"
     assert vm.turns >= 5, "vehicles should turn left and right through the junction"
-    assert np.mean(vm.v) > 1.0 and vm.continued > 0
+    assert np.mean(vm.state.speed) > 1.0 and vm.continued > 0
