@@ -20,17 +20,17 @@ the far end (one site per crosswalk end, added to the navigation grid after the 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
+from sim.agents.crowd_goals import GoalSetter, walking_speed
+from sim.agents.crowd_state import CrowdState
 from sim.agents.kinds import IDLE, KIND_NAMES
 from sim.agents.navgrid import NavGrid
 from sim.scene.grid import RAMP, SIDEWALK
 from sim.scene.scene import Scene
-
-if TYPE_CHECKING:  # pragma: no cover - typing only; crowd imports this module
-    from sim.agents.crowd import AgentManager
 
 GROUP_KINDS = ("pedestrian", "wheelchair_user")
 CROSS_BEYOND = 2.0  # metres past a crosswalk end (over the curb ramp) where a crossing goal lies
@@ -46,9 +46,9 @@ def ring_offsets(size: int, spacing: float, angle: float) -> np.ndarray:
     return rho * np.stack([np.cos(a), np.sin(a)], 1)
 
 
-def ring_spacing(m: AgentManager, members: np.ndarray) -> float:
+def ring_spacing(radius: np.ndarray, safety_margin: float, members: np.ndarray) -> float:
     """Centre distance of neighbours in a group's ring: ORCA discs (radius + safety_margin) 5 cm apart."""
-    return 2.0 * (float(m.radius[members].max()) + m.config["safety_margin"]) + 0.05
+    return 2.0 * (float(radius[members].max()) + safety_margin) + 0.05
 
 
 class Crossings:
@@ -97,7 +97,11 @@ class Crossings:
 
 
 class Groups:
-    """Standing groups: formed at reset, standing for `group_time`, then dispersing or walking on together."""
+    """Standing groups: formed at reset, standing for `group_time`, then dispersing or walking on together.
+
+    The members' positions, movements and goals live in the crowd's state, passed to every method; new goals
+    come from the GoalSetter the crowd passes.
+    """
 
     def __init__(self) -> None:
         self.of = np.zeros(0, dtype=np.int64)  # group id of every agent, -1 for none
@@ -106,50 +110,68 @@ class Groups:
         self.walking: dict[int, bool] = {}
         self.formed = self.stands = self.dispersed = self.walks = 0
 
-    def reset(self, m: AgentManager, rng: np.random.Generator, clear: list[tuple[float, float, float]]) -> None:
-        """Gather about group_prob of the eligible agents into standing rings (moves them; call before ORCA setup)."""
-        c = m.config
-        self.of = np.full(m.n, -1, dtype=np.int64)
-        self.spot = np.full((m.n, 2), np.nan)
+    def reset(
+        self,
+        state: CrowdState,
+        grid: NavGrid,
+        area: Any,
+        config: Mapping[str, Any],
+        rng: np.random.Generator,
+        clear: list[tuple[float, float, float]],
+    ) -> None:
+        """Gather about group_prob of the eligible agents into standing rings (moves them; call before ORCA setup).
+
+        Rings stand on sidewalk planning cells inside `area` (None: anywhere), outside the `clear` discs (x, y, r).
+        """
+        c, s = config, state
+        self.of = np.full(s.n, -1, dtype=np.int64)
+        self.spot = np.full((s.n, 2), np.nan)
         self.members, self.walking = {}, {}
         self.formed = self.stands = self.dispersed = self.walks = 0
-        if c["group_prob"] <= 0 or m.n < 2:
+        if c["group_prob"] <= 0 or s.n < 2:
             return
-        kinds = np.array([KIND_NAMES[k] for k in m.kind_idx])
+        kinds = np.array([KIND_NAMES[k] for k in s.kind_idx])
         order = rng.permutation(np.flatnonzero(np.isin(kinds, GROUP_KINDS)))
-        target = round(c["group_prob"] * m.n)
+        target = round(c["group_prob"] * s.n)
         lo, hi = (int(v) for v in c["group_size"])
         k = placed = 0
         while placed < target and len(order) - k >= lo:
             size = min(int(rng.integers(lo, hi + 1)), len(order) - k)
             members = order[k : k + size]
             k += size
-            if self._place(m, members, rng, clear):
+            if self._place(s, grid, area, c, members, rng, clear):
                 gid = len(self.members)
                 self.members[gid], self.walking[gid] = members, False
                 self.of[members] = gid
-                m.movement[members] = IDLE
-                m.idle_left[members] = rng.uniform(*c["group_time"])
-                self.spot[members] = m.pos[members]
+                s.movement[members] = IDLE
+                s.idle_left[members] = rng.uniform(*c["group_time"])
+                self.spot[members] = s.pos[members]
                 placed += size
                 self.formed += 1
                 self.stands += 1
 
     def _place(
-        self, m: AgentManager, members: np.ndarray, rng: np.random.Generator, clear: list[tuple[float, float, float]]
+        self,
+        state: CrowdState,
+        grid: NavGrid,
+        area: Any,
+        config: Mapping[str, Any],
+        members: np.ndarray,
+        rng: np.random.Generator,
+        clear: list[tuple[float, float, float]],
     ) -> bool:
         """Move `members` into a ring on a sidewalk near the first one's spawn point; False if none fits nearby."""
-        g, c = m.grid, m.config
-        spacing = ring_spacing(m, members)
+        g, c, s = grid, config, state
+        spacing = ring_spacing(s.radius, c["safety_margin"], members)
         offsets = ring_offsets(len(members), spacing, float(rng.uniform(0.0, 2.0 * np.pi)))
         centres = g.node_xy(np.arange(g.n_nodes))
-        d = np.hypot(*(centres - m.pos[members[0]]).T)
+        d = np.hypot(*(centres - s.pos[members[0]]).T)
         cand = np.flatnonzero(d < 15.0)
         cand = cand[np.argsort(d[cand], kind="stable")][:CENTRE_TRIES]
-        if m._area is not None:
+        if area is not None:
             import shapely
 
-            cand = cand[shapely.contains_xy(m._area, centres[cand, 0], centres[cand, 1])]
+            cand = cand[shapely.contains_xy(area, centres[cand, 0], centres[cand, 1])]
         spread = float(np.hypot(*offsets.T).max())
         for x, y, r in clear:
             cand = cand[np.hypot(centres[cand, 0] - x, centres[cand, 1] - y) > r + spread]
@@ -159,67 +181,77 @@ class Groups:
         flat = slots.reshape(-1, 2)
         i, j = g.cell_of(flat)
         ok = (g.is_free(flat) & (g.cells[i, j] == SIDEWALK)).reshape(len(cand), -1).all(1)
-        others = np.setdiff1d(np.arange(m.n), members)
+        others = np.setdiff1d(np.arange(s.n), members)
         if len(others):
             # Other agents (groups placed earlier included) keep the spawn clearance from every slot.
-            gap = np.linalg.norm(flat[:, None, :] - m.pos[others][None], axis=2)
-            need = np.tile(m.radius[members], len(cand))[:, None] + m.radius[others][None] + c["spawn_clearance"]
+            gap = np.linalg.norm(flat[:, None, :] - s.pos[others][None], axis=2)
+            need = np.tile(s.radius[members], len(cand))[:, None] + s.radius[others][None] + c["spawn_clearance"]
             ok &= (gap >= need).reshape(len(cand), -1, len(others)).all((1, 2))
         hit = np.flatnonzero(ok)
         if not len(hit):
             return False
-        m.pos[members] = slots[hit[0]]
+        s.pos[members] = slots[hit[0]]
         return True
 
-    def stand_over(self, m: AgentManager, i: int, nodes: np.ndarray) -> None:
+    def stand_over(
+        self,
+        state: CrowdState,
+        rng: np.random.Generator,
+        config: Mapping[str, Any],
+        i: int,
+        nodes: np.ndarray,
+        set_goal: GoalSetter,
+    ) -> None:
         """Agent i's group has stood long enough: it disperses or walks on together to a shared goal."""
+        s = state
         gid = int(self.of[i])
         members = self.members[gid]
         self.spot[members] = np.nan
-        if m.rng.random() < m.config["group_disperse_prob"]:
-            self.dissolve(m, gid)
+        if rng.random() < config["group_disperse_prob"]:
+            self.dissolve(s, gid)
             self.dispersed += 1
             for k in members.tolist():
-                m._new_goal(k, int(nodes[k]))
+                set_goal(k, int(nodes[k]))
             return
         lead = int(members[0])
-        m._new_goal(lead, int(nodes[lead]))
-        crossing = bool(m.crossing[lead])
-        speed = min(float(m.speed[lead]), *(m._walking_speed(int(k)) for k in members[1:]))
-        spacing = ring_spacing(m, members)
-        ring = m.goal[lead] + ring_offsets(len(members), spacing, float(m.rng.uniform(0.0, 2.0 * np.pi)))
+        set_goal(lead, int(nodes[lead]))
+        crossing = bool(s.crossing[lead])
+        speed = min(float(s.speed[lead]), *(walking_speed(s, int(k), rng) for k in members[1:]))
+        spacing = ring_spacing(s.radius, config["safety_margin"], members)
+        ring = s.goal[lead] + ring_offsets(len(members), spacing, float(rng.uniform(0.0, 2.0 * np.pi)))
         for k, xy in zip(members.tolist(), ring):
-            m._new_goal(k, int(nodes[k]), site=int(m.site[lead]), goal_xy=xy, speed=speed)
-        m.crossing[members] = crossing
+            set_goal(k, int(nodes[k]), site=int(s.site[lead]), goal_xy=xy, speed=speed)
+        s.crossing[members] = crossing
         if crossing:
-            m.cross_counts["started"] += len(members) - 1  # the lead's crossing was counted when it was drawn
+            s.cross_counts["started"] += len(members) - 1  # the lead's crossing was counted when it was drawn
         self.walking[gid] = True
         self.walks += 1
 
-    def arrived(self, m: AgentManager, i: int) -> None:
+    def arrived(self, state: CrowdState, rng: np.random.Generator, config: Mapping[str, Any], i: int) -> None:
         """A walking member reached its goal: it waits; once all have, the group stands again."""
+        s = state
         gid = int(self.of[i])
-        m.movement[i] = IDLE
-        m.idle_left[i] = np.inf
+        s.movement[i] = IDLE
+        s.idle_left[i] = np.inf
         members = self.members[gid]
-        if (m.movement[members] == IDLE).all():
-            m.idle_left[members] = m.rng.uniform(*m.config["group_time"])
-            self.spot[members] = m.pos[members]
+        if (s.movement[members] == IDLE).all():
+            s.idle_left[members] = rng.uniform(*config["group_time"])
+            self.spot[members] = s.pos[members]
             self.walking[gid] = False
             self.stands += 1
 
-    def dissolve(self, m: AgentManager, gid: int) -> None:
+    def dissolve(self, state: CrowdState, gid: int) -> None:
         """End group `gid`: its members become single agents; those waiting for the others leave next step."""
         members = self.members.pop(gid)
         self.walking.pop(gid)
         self.of[members] = -1
         self.spot[members] = np.nan
-        waiting = members[np.isinf(m.idle_left[members])]
-        m.idle_left[waiting] = 0.0
+        waiting = members[np.isinf(state.idle_left[members])]
+        state.idle_left[waiting] = 0.0
 
-    def standing(self, m: AgentManager) -> np.ndarray:
+    def standing(self, state: CrowdState) -> np.ndarray:
         """Bool mask of the members standing in their group now."""
-        return ~np.isnan(self.spot[:, 0]) & (m.movement == IDLE)
+        return ~np.isnan(self.spot[:, 0]) & (state.movement == IDLE)
 
     def stats(self) -> dict[str, int]:
         """Groups formed, standing now, walking now, stands so far, dispersals and walks together."""

@@ -13,9 +13,17 @@ stuck after `regoal_steps` gives up its goal and picks another.
 
 Movements: idle, walking, running (sim.agents.kinds), standing groups and road crossings (sim.agents.behaviours).
 
-This module holds AgentManager's reset, step and public API; its parts live beside it: configuration
-(crowd_config), spawning (crowd_spawning), the ORCA simulator and the ego (crowd_orca) and goal following
-(crowd_goals).
+AgentManager composes explicit parts around one CrowdState (sim.agents.crowd_state), the per-episode arrays
+of every agent, and hands each part the state and the inputs it reads:
+- configuration: AGENT_DEFAULTS and the behaviour value ranges (crowd_config);
+- spawning: the spawn region, the agents' kinds and start positions (crowd_spawning functions);
+- ORCA: OrcaCrowd (crowd_orca), one per scene, owning its obstacles, a pyrvo simulator per agent capacity, the
+  ego's slot and the ORCA radii as last set;
+- goal following: new goals, arrivals, stalls and preferred velocities (crowd_goals functions, GoalCells);
+- behaviours: Groups and Crossings (behaviours; groups set goals through the GoalSetter the manager passes) and
+  the push half of push-and-rotate (deadlock.PushResolver).
+The manager keeps what spans episodes (the scene, its navigation grid, the ORCA part, the goal-cell cache) and
+this episode's random generator; read-only properties expose the state's public arrays (`pos`, `vel`, `n`, ...).
 """
 
 from __future__ import annotations
@@ -28,22 +36,21 @@ import numpy as np
 from kernel.config import ConfigError, merge_strict
 from sim.agents.behaviours import Crossings, Groups
 from sim.agents.crowd_config import AGENT_DEFAULTS, check_behaviour_config
-from sim.agents.crowd_goals import GoalFollowing
+from sim.agents.crowd_goals import GoalCells, new_goal, preferred, update_goals, walking_speed
 from sim.agents.crowd_kernels import nearest_nodes, on_mask
 from sim.agents.crowd_orca import EgoState, OrcaCrowd, as_ego
-from sim.agents.crowd_spawning import SPAWN_AREAS, AgentSpawning, sidewalk_length, spawn_region
+from sim.agents.crowd_spawning import SPAWN_AREAS, draw_kinds, sidewalk_length, spawn_positions, spawn_region
+from sim.agents.crowd_state import AGENT_DTYPE, CrowdState
 from sim.agents.deadlock import PushResolver
-from sim.agents.kinds import AGENT_KINDS, IDLE, KIND_NAMES, WALKING, agent_kind
+from sim.agents.kinds import AGENT_KINDS, IDLE, agent_kind
 from sim.agents.navgrid import NavGrid, build_navgrid
 from sim.scene.scene import Scene, as_scene
 
 # Names other modules import from here, though the crowd_* modules define them.
 __all__ = ["AGENT_DEFAULTS", "AGENT_DTYPE", "SPAWN_AREAS", "AgentManager", "EgoState", "sidewalk_length"]
 
-AGENT_DTYPE = np.dtype([("x", "f8"), ("y", "f8"), ("vx", "f8"), ("vy", "f8"), ("radius", "f8"), ("kind", "U16")])
 
-
-class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
+class AgentManager:
     """Spawns, plans and moves cohabitants on one scene; `reset` then `step` every simulator tick."""
 
     def __init__(self, config: Mapping[str, Any] | None = None) -> None:
@@ -53,8 +60,6 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
             raise ConfigError(
                 f"unknown agents spawn_area {self.config['spawn_area']!r}; valid: {', '.join(SPAWN_AREAS)}"
             )
-        self._area: Any = None
-        self._route_length = 0.0
         for kind in self.config["counts"]:
             agent_kind(kind)
         if any(v < 0 for v in self.config["mix"].values()) or sum(self.config["mix"].values()) <= 0:
@@ -76,13 +81,58 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
             raise ConfigError(
                 f"agents config lookahead_cells must be 1, 2, 4 or 8, got {self.config['lookahead_cells']}"
             )
-        self.grid: NavGrid | None = None
-        self._scene: Scene | None = None  # the scene the cached grid and ORCA obstacles belong to
-        self.n = 0
-        self.time = 0.0
+        self.grid: NavGrid | None = None  # the navigation grid of the scene last reset on
+        self.orca: OrcaCrowd | None = None  # the ORCA part of that scene
+        self._scene: Scene | None = None  # the scene the grid and the ORCA part were built for
+        self.goal_cells = GoalCells()  # goal cells around each site of the grid, drawn from at every new goal
+        self.rng: np.random.Generator | None = None  # the generator reset was given: this episode's draws
+        self.state = CrowdState.empty()
         self.push = PushResolver(self.config["push_window"])
         self.groups = Groups()
         self.crossings = Crossings()
+
+    # ------------------------------------------------------------------ the state's public arrays
+    @property
+    def n(self) -> int:
+        """Number of agents this episode (0 before reset)."""
+        return self.state.n
+
+    @property
+    def pos(self) -> np.ndarray:
+        """[n, 2] agent positions: the state's own array (writing into it leaves the ORCA slot where it was; place()
+        moves both)."""
+        return self.state.pos
+
+    @property
+    def vel(self) -> np.ndarray:
+        """[n, 2] agent velocities from the last step."""
+        return self.state.vel
+
+    @property
+    def radius(self) -> np.ndarray:
+        """[n] agent body radii."""
+        return self.state.radius
+
+    @property
+    def kind_idx(self) -> np.ndarray:
+        """[n] index of each agent's kind in sim.agents.kinds.KIND_NAMES."""
+        return self.state.kind_idx
+
+    @property
+    def trail(self) -> np.ndarray:
+        """[trail_length, n, 2] recent agent positions, oldest first."""
+        return self.state.trail
+
+    @property
+    def time(self) -> float:
+        """Seconds since reset."""
+        return self.state.time
+
+    def _parts(self, what: str) -> tuple[NavGrid, OrcaCrowd, np.random.Generator]:
+        """The scene's grid and ORCA part and the episode's generator; RuntimeError naming `what` before reset."""
+        if self.grid is None or self.orca is None or self.rng is None:
+            raise RuntimeError(f"AgentManager.{what} called before reset(scene, rng)")
+        return self.grid, self.orca, self.rng
 
     # ------------------------------------------------------------------ reset
     def reset(
@@ -101,57 +151,67 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
         c = self.config
         self.rng = rng
         scene = as_scene(scene, self._scene)
-        fresh = scene is not self._scene
-        if fresh:
-            self.grid = build_navgrid(scene, plan_radius=c["plan_radius"], n_sites=c["n_goal_sites"])
-            self._goal_cell_cache: dict = {}  # (site, spread) -> goal cells (GoalFollowing._goal_cells)
-            self.crossings.setup(scene, self.grid)
-        self._area = spawn_region(scene, c, route)
+        grid, orca = self.grid, self.orca
+        if grid is None or orca is None or scene is not self._scene:
+            grid = build_navgrid(scene, plan_radius=c["plan_radius"], n_sites=c["n_goal_sites"])
+            self.goal_cells.clear()
+            self.crossings.setup(scene, grid)
+            # Processing the scene's obstacles costs ~0.2 s, more than a short episode: each scene keeps its part.
+            orca = OrcaCrowd(scene, grid)
+            self.grid, self.orca, self._scene = grid, orca, scene
+        area = spawn_region(scene, c, route)
+        route_length = 0.0  # only spawn_area "route" reads it, and spawn_region has checked the route is there
         if route is not None and len(route) >= 2:
-            self._route_length = float(np.linalg.norm(np.diff(np.asarray(route)[:, :2], axis=0), axis=1).sum())
-        kinds = self._draw_kinds(scene, rng)
-        self.n = n = len(kinds)
-        self.kind_idx = np.array([KIND_NAMES.index(k) for k in kinds], dtype=np.int16)
-        self.radius = np.array([AGENT_KINDS[k].radius for k in kinds])
-        self._template = np.zeros(n, dtype=AGENT_DTYPE)
-        self._template["radius"], self._template["kind"] = self.radius, kinds
+            route_length = float(np.linalg.norm(np.diff(np.asarray(route)[:, :2], axis=0), axis=1).sum())
+        kinds = draw_kinds(scene, c, area, route_length, rng)
+        radius = np.array([AGENT_KINDS[k].radius for k in kinds])
         ego = as_ego(ego)
         clear = list(keep_clear) + ([(ego.x, ego.y, ego.radius + 1.0)] if ego else [])
-        self.pos = self._spawn_positions(rng, clear)
-        self.vel = np.zeros((n, 2))
-        self.movement = np.full(n, WALKING, dtype=np.int8)
-        self.speed = np.zeros(n)
-        self.site = np.zeros(n, dtype=np.int64)
-        self.goal = np.zeros((n, 2))
-        self.idle_left = np.zeros(n)
-        self.best = np.full(n, np.inf)
-        self.stall = np.zeros(n, dtype=np.int64)
-        self.goal_t0 = np.zeros(n)
-        self.budget = np.zeros(n)
-        self.time = 0.0
-        self.counts = {"in_time": 0, "late": 0, "abandoned": 0}
-        self.crossing = np.zeros(n, dtype=bool)
-        self.cross_counts = {"started": 0, "done": 0}
+        pos = spawn_positions(grid, area, radius, c, rng, clear)
+        self.state = s = CrowdState.start(kinds, radius, pos)
         self.push.window = float(c["push_window"])
         self.push.reset()
-        self.groups.reset(self, rng, clear)
-        self._build_orca(scene, fresh)
-        self._orca_radius = self.radius + c["safety_margin"]
-        self._orca_plain = True  # _orca_radius holds no standing margin
-        self._ego_radius = float("nan")  # the ego's ORCA radius as last set (nan: set it on the next placement)
-        self._scene = scene
-        nodes = self.grid.nearest_node(self.pos)
-        for i in range(n):
+        self.groups.reset(s, grid, area, c, rng, clear)
+        orca.start(s, c)
+        nodes = grid.nearest_node(s.pos)
+        for i in range(s.n):
             if self.groups.of[i] >= 0:
                 continue  # standing in its group already
             if rng.random() < c["idle_prob"]:
-                self.movement[i] = IDLE
-                self.idle_left[i] = rng.uniform(0.0, c["idle_time"][1])
+                s.movement[i] = IDLE
+                s.idle_left[i] = rng.uniform(0.0, c["idle_time"][1])
             else:
-                self._new_goal(i, int(nodes[i]))
-        self.trail = np.repeat(self.pos[None], c["trail_length"], axis=0)
-        self._set_ego(ego)
+                self._set_goal(i, int(nodes[i]))
+        s.trail = np.repeat(s.pos[None], c["trail_length"], axis=0)
+        orca.set_ego(ego, c["ego_margin"])
         return self.states()
+
+    def _set_goal(
+        self,
+        i: int,
+        node: int,
+        *,
+        abandon: bool = False,
+        site: int | None = None,
+        goal_xy: np.ndarray | None = None,
+        speed: float | None = None,
+    ) -> None:
+        """crowd_goals.new_goal on this manager's parts: the GoalSetter the goal updates and the groups call."""
+        grid, _, rng = self._parts("new goal")
+        new_goal(
+            self.state,
+            grid,
+            rng,
+            self.config,
+            self.crossings,
+            self.goal_cells,
+            i,
+            node,
+            abandon=abandon,
+            site=site,
+            goal_xy=goal_xy,
+            speed=speed,
+        )
 
     # ------------------------------------------------------------------ step
     def step(self, dt: float, ego: EgoState | Mapping[str, float] | Sequence[float] | None = None) -> np.ndarray:
@@ -161,67 +221,60 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
 
     def advance(self, dt: float, ego: EgoState | Mapping[str, float] | Sequence[float] | None = None) -> None:
         """step() without building its states (the env reads `pos` directly)."""
-        if self.grid is None:
-            raise RuntimeError("AgentManager.step called before reset(scene, rng)")
-        g = self.grid
-        self._set_ego(as_ego(ego))
-        self.time += dt
-        pref = np.zeros((self.n, 2))
-        pinned = np.zeros(self.n, dtype=bool)
+        g, orca, rng = self._parts("step")
+        c, s = self.config, self.state
+        orca.set_ego(as_ego(ego), c["ego_margin"])
+        s.time += dt
+        pref = np.zeros((s.n, 2))
+        pinned = np.zeros(s.n, dtype=bool)
         ox, oy, res = float(g.origin[0]), float(g.origin[1]), float(g.res)
-        if self.n:
-            nodes = nearest_nodes(self.pos, ox, oy, res, g.nearest_rc, g.node_of)
-            self.push.release(self, nodes)
-            self._update_goals(dt, nodes)
-            self.push.hold(self)
-            self.push.detect(self, nodes)
-            moving = self.movement != IDLE
+        if s.n:
+            nodes = nearest_nodes(s.pos, ox, oy, res, g.nearest_rc, g.node_of)
+            self.push.release(s, g, c, nodes)
+            update_goals(s, g, rng, c, self.groups, self._set_goal, dt, nodes)
+            self.push.hold(s)
+            self.push.detect(s, g, c, nodes)
+            moving = s.movement != IDLE
             if moving.any():
-                pref[moving] = self._preferred(nodes[moving], np.flatnonzero(moving))
-            self.push.steer(self, pref)
-            pinned = self.groups.standing(self) & ~self.push.busy(self.n)
-            self._set_orca_radii(pinned)
-        sim = self.sim
-        sim.set_time_step(float(dt))
-        set_pref = sim.set_agent_pref_velocity
-        for i, v in enumerate(pref.tolist()):  # pyrvo has no batch setters; one list walk beats n numpy reads
-            set_pref(i, v)
-        sim.do_step()
-        get_pos, get_vel = sim.get_agent_position, sim.get_agent_velocity
-        state = np.array([get_pos(i).to_tuple() + get_vel(i).to_tuple() for i in range(self.n)]).reshape(self.n, 4)
-        new_pos, new_vel = state[:, :2].copy(), state[:, 2:].copy()
+                pref[moving] = preferred(s, g, c, orca.sim.query_visibility, nodes[moving], np.flatnonzero(moving))
+            self.push.steer(s, pref)
+            pinned = self.groups.standing(s) & ~self.push.busy(s.n)
+            orca.set_radii(s.radius, c["safety_margin"], pinned)
+        new_pos, new_vel = orca.step(dt, pref)
         # ORCA's obstacle handling is not a hard guarantee at concave corners: an agent whose step would leave
         # the walkable area stays put instead; so do members standing in a group (see sim.agents.behaviours).
-        bad = (~on_mask(new_pos, ox, oy, res, g.walkable) | pinned) if self.n else pinned
+        bad = (~on_mask(new_pos, ox, oy, res, g.walkable) | pinned) if s.n else pinned
         for i in np.flatnonzero(bad):
-            sim.set_agent_position(int(i), (float(self.pos[i, 0]), float(self.pos[i, 1])))
-            sim.set_agent_velocity(int(i), (0.0, 0.0))
-            new_pos[i], new_vel[i] = self.pos[i], 0.0
-        self.pos, self.vel = new_pos, new_vel
-        self.trail[:-1] = self.trail[1:]  # oldest first; in place, no new [trail, n, 2] array per step
-        self.trail[-1] = self.pos
+            orca.place(int(i), (float(s.pos[i, 0]), float(s.pos[i, 1])))
+            new_pos[i], new_vel[i] = s.pos[i], 0.0
+        s.pos, s.vel = new_pos, new_vel
+        s.trail[:-1] = s.trail[1:]  # oldest first; in place, no new [trail, n, 2] array per step
+        s.trail[-1] = s.pos
 
     # ------------------------------------------------------------------ outputs
     def states(self) -> np.ndarray:
         """Every agent's x, y, vx, vy, radius and kind as a structured array of AGENT_DTYPE."""
-        out = self._template.copy()  # radius and kind never change within an episode
-        if self.n:
-            out["x"], out["y"] = self.pos[:, 0], self.pos[:, 1]
-            out["vx"], out["vy"] = self.vel[:, 0], self.vel[:, 1]
+        s = self.state
+        out = s.template.copy()  # radius and kind never change within an episode
+        if s.n:
+            out["x"], out["y"] = s.pos[:, 0], s.pos[:, 1]
+            out["vx"], out["vy"] = s.vel[:, 0], s.vel[:, 1]
         return out
 
     def goal_stats(self) -> dict[str, float]:
         """Goals reached within budget, late and abandoned so far, and the in-time fraction of finished goals."""
-        done = sum(self.counts.values())
-        return {**self.counts, "finished": done, "in_time_fraction": self.counts["in_time"] / done if done else 1.0}
+        counts = self.state.counts
+        done = sum(counts.values())
+        return {**counts, "finished": done, "in_time_fraction": counts["in_time"] / done if done else 1.0}
 
     def behaviour_stats(self) -> dict[str, int]:
         """Standing groups (sim.agents.behaviours.Groups.stats), crossings started and done, pushes started and ended."""
+        s = self.state
         return {
             **self.groups.stats(),
-            "crossings_started": self.cross_counts["started"],
-            "crossings_done": self.cross_counts["done"],
-            "crossing_now": int(self.crossing.sum()),
+            "crossings_started": s.cross_counts["started"],
+            "crossings_done": s.cross_counts["done"],
+            "crossing_now": int(s.crossing.sum()),
             "pushes": self.push.started,
             "pushes_done": self.push.finished,
         }
@@ -229,30 +282,33 @@ class AgentManager(AgentSpawning, OrcaCrowd, GoalFollowing):
     # ------------------------------------------------------------------ scripted scenarios
     def place(self, i: int, xy: Sequence[float]) -> None:
         """Put agent i at rest on world point `xy` (after reset; the point must be walkable)."""
+        g, orca, _ = self._parts("place")
+        s = self.state
         p = np.asarray(xy, dtype=np.float64).reshape(2)
-        if not bool(self.grid.is_walkable(p[None])[0]):
+        if not bool(g.is_walkable(p[None])[0]):
             raise ValueError(f"agent {i} cannot stand at {p.tolist()}: not on the walkable area")
-        self.pos[i], self.vel[i] = p, 0.0
-        self.trail[:, i] = p
-        self.sim.set_agent_position(int(i), (float(p[0]), float(p[1])))
-        self.sim.set_agent_velocity(int(i), (0.0, 0.0))
+        s.pos[i], s.vel[i] = p, 0.0
+        s.trail[:, i] = p
+        orca.place(int(i), (float(p[0]), float(p[1])))
 
     def send(self, i: int, xy: Sequence[float], speed: float | None = None) -> None:
         """Give agent i a goal at the planning cell nearest `xy` (a goal site of its own), walking at `speed`."""
-        g = self.grid
+        g, _, rng = self._parts("send")
+        s = self.state
         p = np.asarray(xy, dtype=np.float64).reshape(1, 2)
         site = g.add_site(int(g.nearest_node(p)[0]))
         if self.groups.of[i] >= 0:
-            self.groups.dissolve(self, int(self.groups.of[i]))
-        self._new_goal(
+            self.groups.dissolve(s, int(self.groups.of[i]))
+        self._set_goal(
             i,
-            int(g.nearest_node(self.pos[i : i + 1])[0]),
+            int(g.nearest_node(s.pos[i : i + 1])[0]),
             site=site,
             goal_xy=p[0],
-            speed=self._walking_speed(i) if speed is None else float(speed),
+            speed=walking_speed(s, i, rng) if speed is None else float(speed),
         )
 
     def overdue(self) -> int:
         """Agents still travelling whose time budget has already run out (goals that will count as late)."""
-        moving = self.movement != IDLE
-        return int(np.sum(moving & (self.time - self.goal_t0 > self.budget)))
+        s = self.state
+        moving = s.movement != IDLE
+        return int(np.sum(moving & (s.time - s.goal_t0 > s.budget)))

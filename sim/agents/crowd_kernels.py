@@ -86,7 +86,7 @@ def progress(
     stuck_progress: float,
     regoal_steps: int,
 ):  # pragma: no cover
-    """Arrivals, progress and stall counts of the moving agents (GoalFollowing._update_goals): updates `stall` and
+    """Arrivals, progress and stall counts of the moving agents (crowd_goals.update_goals): updates `stall` and
     `best` in place; returns (arrived, abandon) masks over `moving`."""
     k_n = moving.size
     arrived = np.zeros(k_n, dtype=np.bool_)

@@ -9,6 +9,7 @@ import numpy as np
 
 from kernel.config import ConfigError
 from sim.agents.kinds import KIND_NAMES
+from sim.agents.navgrid import NavGrid
 from sim.scene.scene import Scene, as_scene
 
 SPAWN_AREAS = ("sidewalks", "intersections", "route")
@@ -40,66 +41,82 @@ def sidewalk_length(scene: Scene | Mapping[str, Any]) -> float:
     return total
 
 
-class AgentSpawning:
-    """AgentManager's spawning part: draws the agents' kinds and places them apart on the walkable grid."""
+def draw_kinds(
+    scene: Scene, config: Mapping[str, Any], area: Any, route_length: float, rng: np.random.Generator
+) -> list[str]:
+    """The kinds of this episode's agents: the config's counts, else the scene's own, else drawn by density.
 
-    def _draw_kinds(self, scene: Scene, rng: np.random.Generator) -> list[str]:
-        c = self.config
-        # Explicit counts win, then the scene's own agent groups (a custom scene's `agents`), then the density.
-        counts = c["counts"] or scene.spec.get("agents") or {}
-        if counts:
-            kinds = [k for k in KIND_NAMES for _ in range(int(counts.get(k, 0)))]
-        else:
-            n = int(round(c["dynamic_density"] * self._area_length(scene) / 100.0))
-            names = list(c["mix"])
-            p = np.array([c["mix"][k] for k in names], dtype=np.float64)
-            kinds = list(rng.choice(names, size=n, p=p / p.sum())) if n else []
-        if len(kinds) > c["max_agents"]:
-            raise ConfigError(
-                f"{len(kinds)} agents requested but max_agents is {c['max_agents']}; "
-                "lower dynamic_density/counts or raise max_agents"
-            )
-        return [str(k) for k in kinds]
+    `area` is spawn_region's polygon (None: every sidewalk) and `route_length` the ego's route in metres, the
+    lengths a density scales with.
+    """
+    c = config
+    # Explicit counts win, then the scene's own agent groups (a custom scene's `agents`), then the density.
+    counts = c["counts"] or scene.spec.get("agents") or {}
+    if counts:
+        kinds = [k for k in KIND_NAMES for _ in range(int(counts.get(k, 0)))]
+    else:
+        n = int(round(c["dynamic_density"] * area_length(scene, config, area, route_length) / 100.0))
+        names = list(c["mix"])
+        p = np.array([c["mix"][k] for k in names], dtype=np.float64)
+        kinds = list(rng.choice(names, size=n, p=p / p.sum())) if n else []
+    if len(kinds) > c["max_agents"]:
+        raise ConfigError(
+            f"{len(kinds)} agents requested but max_agents is {c['max_agents']}; "
+            "lower dynamic_density/counts or raise max_agents"
+        )
+    return [str(k) for k in kinds]
 
-    def _area_length(self, scene: Scene) -> float:
-        """Metres of sidewalk (or route) the spawn count scales with: dynamic_density agents per 100 m of it."""
-        if self._area is None:
-            return sidewalk_length(scene)
-        if self.config["spawn_area"] == "route":
-            return float(self._route_length)
-        from shapely.geometry import LineString
 
-        total = 0.0
-        for sw in scene.sidewalks:
-            line = sw.get("clear_path") or sw.get("edge") or []
-            if len(line) >= 2:
-                total += LineString(line).intersection(self._area).length
-        return total
+def area_length(scene: Scene, config: Mapping[str, Any], area: Any, route_length: float) -> float:
+    """Metres of sidewalk (or route) the spawn count scales with: dynamic_density agents per 100 m of it."""
+    if area is None:
+        return sidewalk_length(scene)
+    if config["spawn_area"] == "route":
+        return float(route_length)
+    from shapely.geometry import LineString
 
-    def _spawn_positions(self, rng: np.random.Generator, clear: list[tuple[float, float, float]]) -> np.ndarray:
-        g = self.grid
-        cand = g.node_xy(rng.permutation(g.n_nodes))
-        if self._area is not None:
-            import shapely
+    total = 0.0
+    for sw in scene.sidewalks:
+        line = sw.get("clear_path") or sw.get("edge") or []
+        if len(line) >= 2:
+            total += LineString(line).intersection(area).length
+    return total
 
-            cand = cand[shapely.contains_xy(self._area, cand[:, 0], cand[:, 1])]
-        for x, y, r in clear:
-            cand = cand[np.hypot(cand[:, 0] - x, cand[:, 1] - y) > r]
-        cand = cand + rng.uniform(-0.3, 0.3, cand.shape) * g.res  # off the cell centres, still in the cell
-        pos = np.zeros((self.n, 2))
-        placed, k = 0, 0
-        while placed < self.n and k < len(cand):
-            p = cand[k]
-            k += 1
-            if placed:
-                d = np.linalg.norm(pos[:placed] - p, axis=1)
-                if np.any(d < self.radius[:placed] + self.radius[placed] + self.config["spawn_clearance"]):
-                    continue
-            pos[placed] = p
-            placed += 1
-        if placed < self.n:
-            raise ValueError(
-                f"only {placed} of {self.n} agents fit on this scene's walkable area; "
-                "lower dynamic_density or the explicit counts"
-            )
-        return pos
+
+def spawn_positions(
+    grid: NavGrid,
+    area: Any,
+    radius: np.ndarray,
+    config: Mapping[str, Any],
+    rng: np.random.Generator,
+    clear: list[tuple[float, float, float]],
+) -> np.ndarray:
+    """Positions [n, 2] for agents of `radius` on planning cells in `area` (None: anywhere), outside the `clear`
+    discs (x, y, r) and `spawn_clearance` apart; ValueError when they do not all fit."""
+    g = grid
+    n = len(radius)
+    cand = g.node_xy(rng.permutation(g.n_nodes))
+    if area is not None:
+        import shapely
+
+        cand = cand[shapely.contains_xy(area, cand[:, 0], cand[:, 1])]
+    for x, y, r in clear:
+        cand = cand[np.hypot(cand[:, 0] - x, cand[:, 1] - y) > r]
+    cand = cand + rng.uniform(-0.3, 0.3, cand.shape) * g.res  # off the cell centres, still in the cell
+    pos = np.zeros((n, 2))
+    placed, k = 0, 0
+    while placed < n and k < len(cand):
+        p = cand[k]
+        k += 1
+        if placed:
+            d = np.linalg.norm(pos[:placed] - p, axis=1)
+            if np.any(d < radius[:placed] + radius[placed] + config["spawn_clearance"]):
+                continue
+        pos[placed] = p
+        placed += 1
+    if placed < n:
+        raise ValueError(
+            f"only {placed} of {n} agents fit on this scene's walkable area; "
+            "lower dynamic_density or the explicit counts"
+        )
+    return pos

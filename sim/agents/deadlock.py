@@ -3,7 +3,7 @@
 Push-and-Rotate (de Wilde, ter Mors & Witteveen, AAMAS 2013) resolves deadlocks on graphs with two moves: *push*
 moves an agent that stands on another's path out of the way, to the nearest vertex off that path, and *rotate*
 moves agents around each other where there is room. On the continuous sidewalk the crowd does the rotate half as
-a side-step (crowd.AgentManager._preferred); this module is the push half, which is what a corridor one body
+a side-step (sim.agents.crowd_goals.preferred); this module is the push half, which is what a corridor one body
 wide needs, where no side-step is possible:
 
 1. Trigger (`PushResolver.detect`, every step, vectorised over the stalled agents): a moving agent that has made
@@ -27,17 +27,17 @@ Everything is a pure function of the agents' state, in index order, so runs stay
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 from scipy import ndimage
 from scipy.sparse.csgraph import dijkstra
 
+from sim.agents.crowd_state import CrowdState
 from sim.agents.kinds import AGENT_KINDS, IDLE, KIND_NAMES
-
-if TYPE_CHECKING:  # pragma: no cover - typing only; crowd imports this module
-    from sim.agents.crowd import AgentManager
+from sim.agents.navgrid import NavGrid
 
 FRONT_COS = 0.5  # "in front": within 60 degrees of the path direction
 REACH_GAP = 0.5  # metres between ORCA discs that still count as face to face
@@ -56,7 +56,10 @@ class Push:
 
 
 class PushResolver:
-    """Detects face-to-face blocks, sends the lower-priority agent to a passing place and releases it later."""
+    """Detects face-to-face blocks, sends the lower-priority agent to a passing place and releases it later.
+
+    It keeps the pushes under way; the agents' state, the navigation grid and the agents config come in as arguments.
+    """
 
     def __init__(self, window: float) -> None:
         self.window = float(window)
@@ -77,37 +80,38 @@ class PushResolver:
             out[[p.mover for p in self.active.values()]] = True
         return out
 
-    def _directions(self, m: AgentManager, nodes: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    def _directions(self, state: CrowdState, grid: NavGrid, nodes: np.ndarray, idx: np.ndarray) -> np.ndarray:
         """Unit path directions (4 cells ahead on the own goal field) of agents `idx`; zero where undefined."""
-        g = m.grid
-        ahead = g.node_xy(g.lookahead(nodes[idx], m.site[idx], 4))
-        d = ahead - m.pos[idx]
+        g = grid
+        ahead = g.node_xy(g.lookahead(nodes[idx], state.site[idx], 4))
+        d = ahead - state.pos[idx]
         norm = np.sqrt((d * d).sum(1))[:, None]
         return np.where(norm > 1e-6, d / np.maximum(norm, 1e-6), 0.0)
 
-    def detect(self, m: AgentManager, nodes: np.ndarray) -> None:
-        """Start pushes for the agents stalled face to face with a blocker (see the module docstring)."""
-        if self.window <= 0 or m.n < 2:
+    def detect(self, state: CrowdState, grid: NavGrid, config: Mapping[str, Any], nodes: np.ndarray) -> None:
+        """Start pushes for the agents (at `nodes`) stalled face to face with a blocker (see the module docstring)."""
+        s = state
+        if self.window <= 0 or s.n < 2:
             return
-        c, g = m.config, m.grid
+        c, g = config, grid
         stuck = c["stuck_steps"]
-        if not (m.stall >= max(stuck, 1)).any():
+        if not (s.stall >= max(stuck, 1)).any():
             return  # nobody stalled long enough: no candidate
-        busy = self.busy(m.n)
-        moving = m.movement != IDLE
-        cand = np.flatnonzero(moving & (m.stall >= max(stuck, 1)) & ~busy)
+        busy = self.busy(s.n)
+        moving = s.movement != IDLE
+        cand = np.flatnonzero(moving & (s.stall >= max(stuck, 1)) & ~busy)
         if not len(cand):
             return
-        u = self._directions(m, nodes, cand)
+        u = self._directions(s, g, nodes, cand)
         right = np.stack([u[:, 1], -u[:, 0]], 1)
-        room = g.is_free(m.pos[cand] + right) | g.is_free(m.pos[cand] - right)
-        ready = (m.stall[cand] >= 2 * stuck) | ~room
+        room = g.is_free(s.pos[cand] + right) | g.is_free(s.pos[cand] - right)
+        ready = (s.stall[cand] >= 2 * stuck) | ~room
         cand, u = cand[ready], u[ready]
         if not len(cand):
             return
-        d = m.pos[None, :, :] - m.pos[cand][:, None, :]  # [k, n, 2] from each candidate to every agent
+        d = s.pos[None, :, :] - s.pos[cand][:, None, :]  # [k, n, 2] from each candidate to every agent
         dist = np.sqrt((d * d).sum(2))
-        reach = m.radius[cand][:, None] + m.radius[None, :] + 2 * c["safety_margin"] + REACH_GAP
+        reach = s.radius[cand][:, None] + s.radius[None, :] + 2 * c["safety_margin"] + REACH_GAP
         front = np.einsum("knd,kd->kn", d, u) > FRONT_COS * np.maximum(dist, 1e-9)
         near = (dist < reach) & front
         near[np.arange(len(cand)), cand] = False
@@ -118,14 +122,14 @@ class PushResolver:
             if not len(js):
                 continue
             j = int(js[np.argmin(dist[k, js])])
-            if m.movement[j] == IDLE:
-                plan, yielder, mover = self._plan(m, nodes, j, i), j, i
+            if s.movement[j] == IDLE:
+                plan, yielder, mover = self._plan(s, g, c, nodes, j, i), j, i
             else:
-                uj = self._directions(m, nodes, np.array([j]))[0]
-                oncoming = float(uj @ (m.pos[i] - m.pos[j])) > FRONT_COS * float(dist[k, j])
-                if not (oncoming or m.stall[j] >= stuck):
+                uj = self._directions(s, g, nodes, np.array([j]))[0]
+                oncoming = float(uj @ (s.pos[i] - s.pos[j])) > FRONT_COS * float(dist[k, j])
+                if not (oncoming or s.stall[j] >= stuck):
                     continue
-                pi, pj = self._plan(m, nodes, i, j), self._plan(m, nodes, j, i)
+                pi, pj = self._plan(s, g, c, nodes, i, j), self._plan(s, g, c, nodes, j, i)
                 options = [(p[1], -y, y, mv, p) for p, y, mv in ((pi, i, j), (pj, j, i)) if p is not None]
                 if not options:
                     continue
@@ -133,20 +137,22 @@ class PushResolver:
             if plan is None:
                 continue
             path, _, hold_field = plan
-            self.active[yielder] = Push(mover, int(m.site[mover]), path, hold_field)
+            self.active[yielder] = Push(mover, int(s.site[mover]), path, hold_field)
             busy[yielder] = busy[mover] = True
             self.started += 1
 
-    def _plan(self, m: AgentManager, nodes: np.ndarray, y: int, mv: int) -> tuple[np.ndarray, float, float] | None:
+    def _plan(
+        self, state: CrowdState, grid: NavGrid, config: Mapping[str, Any], nodes: np.ndarray, y: int, mv: int
+    ) -> tuple[np.ndarray, float, float] | None:
         """Cells from yielder `y` to the nearest passing place off mover `mv`'s path, its length, and mv's field there."""
-        g, c = m.grid, m.config
+        s, g, c = state, grid, config
         h, w = g.free.shape
         half = int(np.ceil(self.window / g.res))
         yi, yj = (int(v) for v in g.node_rc[nodes[y]])
         r0, r1, c0, c1 = max(yi - half, 0), min(yi + half + 1, h), max(yj - half, 0), min(yj + half + 1, w)
-        site = int(m.site[mv])
+        site = int(s.site[mv])
         route = g.node_rc[g.path_nodes(int(nodes[mv]), site, max_steps=8 * half)]
-        goal_rc = np.stack(g.cell_of(m.goal[mv][None]), 1)
+        goal_rc = np.stack(g.cell_of(s.goal[mv][None]), 1)
         route = np.concatenate([route, goal_rc.astype(route.dtype)])
         inside = (route[:, 0] >= r0) & (route[:, 0] < r1) & (route[:, 1] >= c0) & (route[:, 1] < c1)
         if not inside.any():
@@ -154,13 +160,13 @@ class PushResolver:
         on_route = np.zeros((r1 - r0, c1 - c0), dtype=bool)
         on_route[route[inside, 0] - r0, route[inside, 1] - c0] = True
         to_route = ndimage.distance_transform_edt(~on_route) * g.res
-        need = m.radius[y] + m.radius[mv] + 2 * c["safety_margin"] + PASS_MARGIN
+        need = s.radius[y] + s.radius[mv] + 2 * c["safety_margin"] + PASS_MARGIN
         xs = g.origin[0] + (np.arange(c0, c1) + 0.5) * g.res
         ys = g.origin[1] + (np.arange(r0, r1) + 0.5) * g.res
-        to_mover = np.hypot(xs[None, :] - m.pos[mv, 0], ys[:, None] - m.pos[mv, 1])
+        to_mover = np.hypot(xs[None, :] - s.pos[mv, 0], ys[:, None] - s.pos[mv, 1])
         start_xy = g.node_xy(np.array([nodes[y]]))[0]
         # The way out must not pass through the mover: cells closer to it than the yielder's own cell are cut.
-        guard = min(need, float(np.hypot(*(start_xy - m.pos[mv]))))
+        guard = min(need, float(np.hypot(*(start_xy - s.pos[mv]))))
         allowed = g.free[r0:r1, c0:c1] & (to_mover >= guard)
         ids = g.node_of[r0:r1, c0:c1][allowed]
         start = np.flatnonzero(ids == nodes[y])
@@ -179,41 +185,42 @@ class PushResolver:
         hold_field = float(g.distance(np.array([ids[t]]), np.array([site]))[0])
         return path, float(dist[t]), hold_field
 
-    def hold(self, m: AgentManager) -> None:
+    def hold(self, state: CrowdState) -> None:
         """Keep the stall counts of everyone in a push at zero: no side-step, no abandoned goal meanwhile."""
         if self.active:
-            m.stall[self.busy(m.n)] = 0
+            state.stall[self.busy(state.n)] = 0
 
-    def release(self, m: AgentManager, nodes: np.ndarray) -> None:
+    def release(self, state: CrowdState, grid: NavGrid, config: Mapping[str, Any], nodes: np.ndarray) -> None:
         """End the pushes whose mover has passed, reached or changed its goal, or that ran `regoal_steps`."""
         if not self.active:
             return
-        g = m.grid
+        s, g = state, grid
         for y in list(self.active):
             p = self.active[y]
             p.steps += 1
             mv = p.mover
-            done = m.movement[mv] == IDLE or int(m.site[mv]) != p.site or p.steps > m.config["regoal_steps"]
+            done = s.movement[mv] == IDLE or int(s.site[mv]) != p.site or p.steps > config["regoal_steps"]
             if not done:
-                left = float(g.distance(nodes[mv : mv + 1], m.site[mv : mv + 1], planned=True)[0])
-                need = m.radius[y] + m.radius[mv]
+                left = float(g.distance(nodes[mv : mv + 1], s.site[mv : mv + 1], planned=True)[0])
+                need = s.radius[y] + s.radius[mv]
                 done = left < p.hold_field - need
             if done:
                 del self.active[y]
-                m.stall[y], m.best[y] = 0, np.inf  # progress toward its own goal counts afresh from the passing place
+                s.stall[y], s.best[y] = 0, np.inf  # progress toward its own goal counts afresh from the passing place
                 self.finished += 1
 
-    def steer(self, m: AgentManager, pref: np.ndarray) -> None:
+    def steer(self, state: CrowdState, pref: np.ndarray) -> None:
         """Overwrite the yielders' preferred velocities: along their planned cells to the passing place, then stop."""
+        s = state
         for y, p in self.active.items():
-            d = p.path - m.pos[y]
+            d = p.path - s.pos[y]
             k = int(np.argmin((d * d).sum(1)))
             target = p.path[min(k + 4, len(p.path) - 1)]
-            step = target - m.pos[y]
+            step = target - s.pos[y]
             dist = float(np.hypot(*step))
-            left = float(np.hypot(*(p.path[-1] - m.pos[y])))
+            left = float(np.hypot(*(p.path[-1] - s.pos[y])))
             if dist < 0.05 or left < 0.1:
                 pref[y] = 0.0
                 continue
-            speed = min(AGENT_KINDS[KIND_NAMES[m.kind_idx[y]]].pref_speed, max(left, 0.3))
+            speed = min(AGENT_KINDS[KIND_NAMES[s.kind_idx[y]]].pref_speed, max(left, 0.3))
             pref[y] = step / dist * speed

@@ -114,6 +114,16 @@ class NavGrid:
             )
         return self._centres
 
+    @property
+    def dist_table(self) -> np.ndarray:
+        """[sites, nodes] path length in metres from every node to every goal site (inf until the site is planned)."""
+        return self._tables()[0]
+
+    @property
+    def jump_table(self) -> np.ndarray:
+        """[len(JUMPS), sites, nodes] node reached after JUMPS[j] steps toward every goal site (once it is planned)."""
+        return self._tables()[1]
+
     def node_xy(self, nodes: np.ndarray) -> np.ndarray:
         """World centres [n, 2] of graph nodes."""
         return self.centres[nodes]

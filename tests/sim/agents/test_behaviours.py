@@ -97,7 +97,7 @@ def _swap(
         m.place(i, ends[i])
     for i in range(2):
         m.send(i, ends[1 - i])
-    goal0 = m.goal.copy()
+    goal0 = m.state.goal.copy()
     arrived: list[float | None] = [None, None]
     gap, off, passed_inside = np.inf, 0, 0
     order = np.sign(m.pos[1, 0] - m.pos[0, 0])
@@ -111,7 +111,7 @@ def _swap(
             passed_inside += int(in_corridor.all())
             order = now
         for i in range(2):
-            if arrived[i] is None and not np.array_equal(m.goal[i], goal0[i]):
+            if arrived[i] is None and not np.array_equal(m.state.goal[i], goal0[i]):
                 arrived[i] = m.time
     return {
         "arrived": arrived,
@@ -193,7 +193,7 @@ def test_crossing_agents_cross_on_crosswalks(toy: dict) -> None:
     m.reset(toy, np.random.default_rng(5))
     crosswalks = [np.asarray(c["polygon"]) for c in toy["crosswalks"]]
     side0 = np.sign(m.pos[:, 1])
-    was, goal = m.crossing.copy(), m.goal.copy()
+    was, goal = m.state.crossing.copy(), m.state.goal.copy()
     flipped = not_flipped = off_crosswalk = 0
     gap = np.inf
     for _ in range(700):
@@ -201,15 +201,15 @@ def test_crossing_agents_cross_on_crosswalks(toy: dict) -> None:
         on_road = np.abs(m.pos[:, 1]) < 3.5
         for x, _y in m.pos[on_road]:
             off_crosswalk += not any(p[:, 0].min() <= x <= p[:, 0].max() for p in crosswalks)
-        changed = np.any(m.goal != goal, axis=1)
-        for i in np.flatnonzero(was & (changed | ~m.crossing)):  # a crossing ends in a new goal or in idling
+        changed = np.any(m.state.goal != goal, axis=1)
+        for i in np.flatnonzero(was & (changed | ~m.state.crossing)):  # a crossing ends in a new goal or in idling
             if np.sign(m.pos[i, 1]) == -side0[i]:
                 flipped += 1
             else:
                 not_flipped += 1
-        started = m.crossing & (changed | ~was)
+        started = m.state.crossing & (changed | ~was)
         side0[started] = np.sign(m.pos[started, 1])
-        was, goal = m.crossing.copy(), m.goal.copy()
+        was, goal = m.state.crossing.copy(), m.state.goal.copy()
         d = np.linalg.norm(m.pos[:, None] - m.pos[None], axis=2) - (m.radius[:, None] + m.radius[None])
         np.fill_diagonal(d, np.inf)
         gap = min(gap, float(d.min()))
