@@ -52,10 +52,15 @@ def read_run(run_dir: str | Path) -> dict[str, Any]:
     return run
 
 
-def load_policy(run_dir: str | Path) -> tuple[Callable[[np.ndarray], np.ndarray], dict[str, Any]]:
-    """(act, run) for a run folder: act(obs) returns the deterministic action of the saved policy."""
+def load_policy(
+    run_dir: str | Path, *, deterministic: bool = True
+) -> tuple[Callable[[np.ndarray], np.ndarray], dict[str, Any]]:
+    """(act, run) for a run folder: act(obs) returns the saved policy's action, its mean (`deterministic`) or a draw
+    from its distribution (PPO family, BC and GAIL; draws follow torch's global seed)."""
     run = read_run(run_dir)
     algo = run["algo"]
+    if not deterministic and (algo in ("iql", "td3bc") or run.get("engine") == "rllib"):
+        raise ConfigError(f"a {algo} policy from {run_dir} acts deterministically only; drop the stochastic option")
     if run.get("engine") == "rllib":  # `curbside train run --executor ray`: an RLlib checkpoint folder
         from curbside.train.rllib import load_rllib_policy
 
@@ -87,8 +92,8 @@ def load_policy(run_dir: str | Path) -> tuple[Callable[[np.ndarray], np.ndarray]
         from stable_baselines3.common.policies import ActorCriticPolicy
 
         policy = ActorCriticPolicy.load(str(path), device="cpu")
-        return (lambda obs: policy.predict(obs, deterministic=True)[0]), run
+        return (lambda obs: policy.predict(obs, deterministic=deterministic)[0]), run
     from stable_baselines3 import PPO
 
     model = PPO.load(str(path), device="cpu")
-    return (lambda obs: model.predict(obs, deterministic=True)[0]), run
+    return (lambda obs: model.predict(obs, deterministic=deterministic)[0]), run

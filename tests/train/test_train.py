@@ -8,11 +8,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
 from curbside.train.demos import collect_demos, load_demos
 from curbside.train.evaluate import evaluate_policy
 from curbside.train.policies import ALGOS, load_policy
 from curbside.train.run import train
+from kernel.config import ConfigError
 from tests.helpers import cli, one_error_line
 
 CFG = {"lidar": {"beams": 24, "low_beams": 8}, "route_length": [5.0, 25.0], "scene": {"blocks": 1}}
@@ -87,6 +89,17 @@ def test_each_algorithm_trains_saves_reloads_and_evaluates(algo, demos, tmp_path
     assert a.shape == (2,) and np.isfinite(a).all()
     summary = evaluate_policy(act, "PointNav", CFG, split="test", episodes=1, num_scenes=1, progress=False)
     assert summary["episodes"] == 1 and 0.0 <= summary["sr"] <= 1.0 and "spl" in summary
+    if algo in ("iql", "td3bc"):  # deterministic actors: asking for draws is refused in one line
+        with pytest.raises(ConfigError, match="deterministically only"):
+            load_policy(out, deterministic=False)
+    else:  # draws from the policy's distribution: they vary around the mean, and torch's seed repeats them
+        draw, _ = load_policy(out, deterministic=False)
+        torch.manual_seed(0)
+        first = [np.asarray(draw(obs)) for _ in range(3)]
+        torch.manual_seed(0)
+        again = [np.asarray(draw(obs)) for _ in range(3)]
+        assert all(np.array_equal(x, y) for x, y in zip(first, again))
+        assert not all(np.allclose(x, a) for x in first)
     if algo == "gail":  # the discriminator learned after each rollout and logged beside the generator
         header = (out / "logs" / "progress.csv").read_text().splitlines()[0].split(",")
         assert {"gail/disc_loss", "gail/disc_acc_expert"} <= set(header) and (out / "discriminator.pt").is_file()
