@@ -12,12 +12,21 @@ overestimates and A* returns a shortest path.
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 import numpy as np
 from numba import njit
 
 _DIAG = math.sqrt(2.0) - 1.0
 _SHRINK = 1.0 - 1e-9  # keeps the estimate below the true cost after float rounding
+
+
+class CsrGraph(Protocol):
+    """The arrays of a scipy CSR matrix (`sim.scene.grid.grid_graph`) that the search reads."""
+
+    indptr: np.ndarray
+    indices: np.ndarray
+    data: np.ndarray
 
 
 @njit(cache=True)
@@ -101,7 +110,7 @@ def _astar(
 
 
 def astar_chain(
-    graph: object, rows: np.ndarray, cols: np.ndarray, resolution: float, start: int, goal: int, limit: float
+    graph: CsrGraph, rows: np.ndarray, cols: np.ndarray, resolution: float, start: int, goal: int, limit: float
 ) -> tuple[float, list[int]]:
     """(cost, nodes start..goal) of a shortest path in the CSR `graph` over cells (rows, cols); (inf, []) when its
     cost exceeds `limit`."""

@@ -42,6 +42,7 @@ def bench_scene(target_objects: int = 200, seed: int = 0) -> dict[str, Any]:
                 best = spec
             if abs(n - target_objects) <= 0.25 * target_objects:
                 break
+    assert best is not None  # the loop generates at least one scene
     return best
 
 

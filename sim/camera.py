@@ -16,7 +16,7 @@ import numpy as np
 from catalogs.categories import NAMES
 from kernel.config import ConfigError
 from kernel.quiet import pybullet as p
-from sim.schema import Choice, Float, Int, Pos, Rule
+from sim.schema import Choice, Float, Int, Key, Pos, Rule, Table, defaults_of, table_of
 
 MODALITIES = ("rgb", "depth", "semantic")
 # Semantic ids: surfaces, then the 33 object categories (catalogs/categories.csv order), then what moves.
@@ -24,28 +24,31 @@ SURFACES = ("unlabeled", "ground", "road", "crosswalk", "sidewalk", "ramp", "bui
 SEMANTIC_CLASSES: tuple[str, ...] = (*SURFACES, *NAMES, "agent", "vehicle", "ego")
 SEMANTIC_ID = {name: k for k, name in enumerate(SEMANTIC_CLASSES)}
 
-CAMERA_DEFAULTS: dict[str, Any] = {
-    "modalities": [],  # any of rgb, depth, semantic; none: no camera (the flat observation)
-    "width": 128,
-    "height": 128,
-    "fov": 90.0,  # vertical field of view, degrees
-    "near": 0.05,
-    "far": 50.0,  # clipping planes (m); depth beyond `far` (or sky) reads `far`
-    "mount_height": None,  # metres above the ground; None: the machine's height
-    "pitch": -10.0,  # degrees, negative looks down
-    "renderer": "tiny",  # "tiny" (CPU TinyRenderer), "egl" (GPU OpenGL through PyBullet's EGL plugin)
+# The ego camera's config (PointNav's `camera`): one Key per setting.
+CAMERA_KEYS: dict[str, Key] = {
+    "modalities": Key(
+        [], Rule("list", choices=MODALITIES), "any of rgb, depth, semantic; none: no camera (the flat observation)"
+    ),
+    "width": Key(128, Int(8, 2048), "image width (pixels)"),
+    "height": Key(128, Int(8, 2048), "image height (pixels)"),
+    "fov": Key(90.0, Float(10.0, 170.0), "vertical field of view, degrees"),
+    "near": Key(0.05, Float(0.001, 10.0), "near clipping plane (m), below `far`"),
+    "far": Key(50.0, Float(1.0, 10_000.0), "far clipping plane (m); depth beyond `far` (or sky) reads `far`"),
+    "mount_height": Key(None, Pos(20.0, none=True), "metres above the ground; None: the machine's height"),
+    "pitch": Key(-10.0, Float(-89.0, 89.0), "degrees, negative looks down"),
+    "renderer": Key(
+        "tiny", Choice("tiny", "egl"), '"tiny" (CPU TinyRenderer), "egl" (GPU OpenGL through PyBullet\'s EGL plugin)'
+    ),
 }
-CAMERA_TABLE: dict[str, Rule] = {
-    "modalities": Rule("list", choices=MODALITIES),
-    "width": Int(8, 2048),
-    "height": Int(8, 2048),
-    "fov": Float(10.0, 170.0),
-    "near": Float(0.001, 10.0),
-    "far": Float(1.0, 10_000.0),
-    "mount_height": Pos(20.0, none=True),
-    "pitch": Float(-89.0, 89.0),
-    "renderer": Choice("tiny", "egl"),
-}
+CAMERA_DEFAULTS: dict[str, Any] = defaults_of(CAMERA_KEYS)
+CAMERA_TABLE: dict[str, Rule | Table] = table_of(CAMERA_KEYS)
+
+
+def check_clipping_planes(camera: Mapping[str, Any], name: str = "config.camera") -> None:
+    """A ConfigError unless the near clipping plane lies before the far one (each is in range on its own)."""
+    if camera["near"] >= camera["far"]:
+        raise ConfigError(f"{name}.near ({camera['near']}) must be below {name}.far ({camera['far']})")
+
 
 _EGL: dict[int, int] = {}  # client -> loaded plugin id
 
@@ -54,6 +57,7 @@ def load_egl(client: int) -> None:
     """Load PyBullet's EGL renderer plugin into `client`; a clear ConfigError where no GPU or EGL is present."""
     if client in _EGL:
         return
+    import importlib.abc
     import pkgutil
 
     if not any(os.path.exists(f"/dev/nvidia{k}") for k in range(8)) and not os.path.exists("/dev/dri/renderD128"):
@@ -62,7 +66,11 @@ def load_egl(client: int) -> None:
             "use renderer 'tiny' (CPU) or run on a GPU machine"
         )
     egl = pkgutil.get_loader("eglRenderer")
-    plugin = p.loadPlugin(egl.get_filename(), "_eglRendererPlugin", physicsClientId=client) if egl else -1
+    # The plugin is an extension module: its loader (an ExecutionLoader) knows the file; no loader, no plugin.
+    if isinstance(egl, importlib.abc.ExecutionLoader):
+        plugin = p.loadPlugin(egl.get_filename("eglRenderer"), "_eglRendererPlugin", physicsClientId=client)
+    else:
+        plugin = -1
     if plugin < 0:
         raise ConfigError(
             "PyBullet's EGL plugin failed to load (eglRenderer); check the GPU driver's libEGL, or "

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from kernel.quiet import pybullet as p
+
+if TYPE_CHECKING:
+    from sim.envs.pointnav import PointNavEnv
 
 
 def camera_image(
@@ -60,12 +63,14 @@ def rollout_gif(
     register_envs()
 
     env = gym.make(env_id, config=dict(config or {}))
-    u = env.unwrapped
+    u = cast("PointNavEnv", env.unwrapped)  # gym.make's type is any Env; curbside's env ids make PointNav-style ones
     frames: list[np.ndarray] = []
     view: dict[str, Any] = {}
 
     def start(env: Any) -> None:
-        pts = u.route.points
+        route = u.route
+        assert route is not None  # on_reset runs after a reset that drew the route
+        pts = route.points
         margin = 8.0
         x0, y0 = pts.min(0) - margin
         x1, y1 = pts.max(0) + margin
@@ -84,6 +89,7 @@ def rollout_gif(
         c = Canvas(view["extent"], view["px_per_m"], background=bg)
         c.line(u.episode.trajectory, TRAJECTORY, 3.0)
         m = u.machine
+        assert m is not None  # on_step runs after a reset placed the machine
         draw_ego(
             c,
             m.position[0],
@@ -96,7 +102,7 @@ def rollout_gif(
         )
         frame = Image.fromarray(c.image())
         if chase and (u.episode.steps % 2 == 1 or done):
-            view["cam"] = Image.fromarray(camera_image(u, "chase", 160, 160)).resize((h, h), Image.NEAREST)
+            view["cam"] = Image.fromarray(camera_image(u, "chase", 160, 160)).resize((h, h), Image.Resampling.NEAREST)
         if chase:
             canvas = Image.new("RGB", (w + h, h))
             canvas.paste(frame, (0, 0))
@@ -110,7 +116,7 @@ def rollout_gif(
         env.close()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    imageio.mimsave(out, frames, duration=1000 / fps, loop=0)
+    imageio.mimsave(out, list(frames), duration=1000 / fps, loop=0)  # a list of ArrayLike, as its stub asks
     Image.fromarray(frames[-1]).save(out.with_suffix(".png"))
     return metrics
 

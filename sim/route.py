@@ -131,7 +131,9 @@ class RoutePlanner:
         coarse = np.vstack([cells[:-1:4], cells[-1:]])
         return Route(_chaikin(coarse, 3), spacing)
 
-    def plan(self, start: Sequence[float], goal: Sequence[float], spacing: float = 0.25) -> Route:
+    def plan(
+        self, start: Sequence[float] | np.ndarray, goal: Sequence[float] | np.ndarray, spacing: float = 0.25
+    ) -> Route:
         """The smoothed route between two given world points (each snapped to the nearest usable cell)."""
         a, b = self._nearest_node(*start[:2]), self._nearest_node(*goal[:2])
         _, chain = astar_chain(self.graph, self.rows, self.cols, self.grid.resolution, a, b, math.inf)

@@ -7,17 +7,25 @@ where it is given instead of turning into NaN observations or an IndexError many
 A table maps each key to a `Rule` or to a nested table (a sub-config such as `lidar`). Keys a table does not
 list are checked against the type of their default value when defaults are given (so a key another module
 adds to its defaults is still type- and finiteness-checked).
+
+Each config is declared once, beside the component that reads it, as a mapping of `Key`s (default, rule and
+one-line doc together; a sub-config is a nested mapping of Keys): `defaults_of` and `table_of` derive its
+defaults dict and its table, and `key_field` / `dataclass_keys` declare the Keys of a dataclass's fields.
 """
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Any, Union
+from dataclasses import dataclass, field, fields, replace
+from typing import TYPE_CHECKING, Any, Union
 
 from kernel.config import ConfigError, excerpt
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 
 def _num(v: Any) -> bool:
@@ -220,3 +228,50 @@ def check_table(
                 continue  # merge_strict already rejected keys without a default
             rule = infer(defaults[key])
         rule.check(value, full)
+
+
+@dataclass(frozen=True)
+class Key:
+    """One config key, declared once: its default value, the rule its values obey and a one-line doc.
+
+    `rule` is a Table (not a Rule) for a key whose value is a partial sub-config, such as PointNav's `reward`
+    (overrides of a preset's terms, default {}).
+    """
+
+    default: Any
+    rule: Rule | Table
+    doc: str
+
+
+# A config's declaration: each key's Key, or a nested mapping of Keys for a sub-config (such as `lidar`).
+Keys = Mapping[str, Union[Key, "Keys"]]
+
+
+def defaults_of(keys: Keys) -> dict[str, Any]:
+    """The defaults dict of a declaration, in declaration order; mutable defaults are deep copies."""
+    return {
+        name: copy.deepcopy(key.default) if isinstance(key, Key) else defaults_of(key) for name, key in keys.items()
+    }
+
+
+def table_of(keys: Keys) -> dict[str, Rule | Table]:
+    """The table (key -> Rule, or nested table) of a declaration, for `check_table`."""
+    return {name: key.rule if isinstance(key, Key) else table_of(key) for name, key in keys.items()}
+
+
+def redeclare(key: Key | Keys, **changes: Any) -> Key:
+    """`key` with some of its default, rule and doc replaced: an inherited key that another config declares anew
+    (SocialNav's cost_kinds); TypeError for a sub-config."""
+    if not isinstance(key, Key):
+        raise TypeError(f"redeclare takes a Key, not a sub-config ({', '.join(key)})")
+    return replace(key, **changes)
+
+
+def key_field(default: Any, rule: Rule, doc: str) -> Any:
+    """A dataclass field whose default, rule and doc are one Key (`dataclass_keys` collects them)."""
+    return field(default=default, metadata={"key": Key(default, rule, doc)})
+
+
+def dataclass_keys(cls: type[DataclassInstance]) -> dict[str, Key]:
+    """The Keys of a dataclass's fields declared with `key_field`, in field order."""
+    return {f.name: f.metadata["key"] for f in fields(cls) if "key" in f.metadata}

@@ -51,7 +51,7 @@ def colourise(name: str, image: np.ndarray, far: float = 50.0) -> np.ndarray:
 def _fit(image: np.ndarray, width: int, height: int) -> np.ndarray:
     from PIL import Image  # here, not at import: every env imports this module, few draw frames
 
-    return np.asarray(Image.fromarray(image).resize((max(width, 1), max(height, 1)), Image.NEAREST))
+    return np.asarray(Image.fromarray(image).resize((max(width, 1), max(height, 1)), Image.Resampling.NEAREST))
 
 
 def top_down_map(env: Any, size: int, view: float) -> np.ndarray:

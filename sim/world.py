@@ -151,6 +151,7 @@ class World:
         self.patch_index: dict[int, int] = {}  # body id -> index into scene.terrain
         for k, rec in enumerate(scene.terrain):
             body = self._mesh_body("sidewalk", *patches.mesh(rec), terrain_colour(rec["kind"], rec["surface"]))
+            assert body is not None  # a patch's mesh always has triangles (its skirt's at least)
             p.changeDynamics(body, -1, lateralFriction=patches.friction(rec), physicsClientId=c)
             self.patch_index[body] = k
         self._friction = patches.FrictionIndex(scene.terrain)

@@ -15,7 +15,7 @@ Movements: idle, walking, running (sim.agents.kinds), standing groups and road c
 
 AgentManager composes explicit parts around one CrowdState (sim.agents.crowd_state), the per-episode arrays
 of every agent, and hands each part the state and the inputs it reads:
-- configuration: AGENT_DEFAULTS and the behaviour value ranges (crowd_config);
+- configuration: the agents' Keys, AGENT_DEFAULTS and AGENTS_TABLE (crowd_config);
 - spawning: the spawn region, the agents' kinds and start positions (crowd_spawning functions);
 - ORCA: OrcaCrowd (crowd_orca), one per scene, owning its obstacles, a pyrvo simulator per agent capacity, the
   ego's slot and the ORCA radii as last set;
@@ -35,7 +35,7 @@ import numpy as np
 
 from kernel.config import ConfigError, merge_strict
 from sim.agents.behaviours import Crossings, Groups
-from sim.agents.crowd_config import AGENT_DEFAULTS, check_behaviour_config
+from sim.agents.crowd_config import AGENT_DEFAULTS, AGENTS_TABLE
 from sim.agents.crowd_goals import GoalCells, new_goal, preferred, update_goals, walking_speed
 from sim.agents.crowd_kernels import nearest_nodes, on_mask
 from sim.agents.crowd_orca import EgoState, OrcaCrowd, as_ego
@@ -45,6 +45,7 @@ from sim.agents.deadlock import PushResolver
 from sim.agents.kinds import AGENT_KINDS, IDLE, agent_kind
 from sim.agents.navgrid import NavGrid, build_navgrid
 from sim.scene.scene import Scene, as_scene
+from sim.schema import check_table
 
 # Names other modules import from here, though the crowd_* modules define them.
 __all__ = ["AGENT_DEFAULTS", "AGENT_DTYPE", "SPAWN_AREAS", "AgentManager", "EgoState", "sidewalk_length"]
@@ -55,11 +56,7 @@ class AgentManager:
 
     def __init__(self, config: Mapping[str, Any] | None = None) -> None:
         self.config = merge_strict(AGENT_DEFAULTS, config, name="agents config")
-        check_behaviour_config(self.config)
-        if self.config["spawn_area"] not in SPAWN_AREAS:
-            raise ConfigError(
-                f"unknown agents spawn_area {self.config['spawn_area']!r}; valid: {', '.join(SPAWN_AREAS)}"
-            )
+        check_table(self.config, AGENTS_TABLE, name="agents config")
         for kind in self.config["counts"]:
             agent_kind(kind)
         if any(v < 0 for v in self.config["mix"].values()) or sum(self.config["mix"].values()) <= 0:
@@ -76,10 +73,6 @@ class AgentManager:
             raise ConfigError(
                 f"agents config max_agents is 0 with dynamic_density {c['dynamic_density']:g}; set "
                 "dynamic_density 0 for no agents, or raise max_agents"
-            )
-        if self.config["lookahead_cells"] not in (1, 2, 4, 8):
-            raise ConfigError(
-                f"agents config lookahead_cells must be 1, 2, 4 or 8, got {self.config['lookahead_cells']}"
             )
         self.grid: NavGrid | None = None  # the navigation grid of the scene last reset on
         self.orca: OrcaCrowd | None = None  # the ORCA part of that scene

@@ -1,84 +1,100 @@
-"""The crowd's configuration: AGENT_DEFAULTS and the value ranges of its deadlock and behaviour keys."""
+"""The crowd's configuration (SocialNav's `agents`): one Key per setting, AGENT_DEFAULTS and AGENTS_TABLE."""
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping
 from typing import Any
 
-from kernel.config import ConfigError
+from sim.agents.crowd_spawning import SPAWN_AREAS
 from sim.agents.kinds import DEFAULT_MIX
+from sim.schema import Choice, Float, Int, Key, Pair, Pos, Rule, Table, defaults_of, table_of
 
-AGENT_DEFAULTS: dict[str, Any] = {
-    "dynamic_density": 2.0,  # agents per 100 m of sidewalk (MetaUrban's rho_d); ignored when `counts` is given
-    "counts": {},  # explicit {kind: count}; non-empty overrides dynamic_density
-    "mix": dict(DEFAULT_MIX),  # kind shares when spawning by density
-    "max_agents": 1000,
-    "plan_radius": 0.5,  # objects and edges are grown by this much for planning (the widest ORCA radius)
-    "n_goal_sites": 32,  # distance fields shared by all agents; more sites = more varied goals, slower reset
-    "goal_spread": 2.5,  # each agent's goal is a free cell within this distance of its site
-    "lookahead_cells": 8,  # 1, 2, 4 or 8
-    "keep_right": 0.5,  # metres the carrot is shifted to the right of the path (lane formation)
-    "arrive_radius": 0.5,
-    "crowded_arrive_radius": 2.0,  # a stalled agent this close to its goal has arrived (someone stands on it)
-    "idle_prob": 0.25,  # chance to stand still on arrival
-    "idle_time": [2.0, 8.0],
-    "run_prob": 0.1,  # chance that a kind able to run runs to its next goal
-    "neighbor_dist": 5.0,
-    "max_neighbors": 10,
-    "time_horizon": 2.0,
-    "time_horizon_obst": 1.0,
-    "safety_margin": 0.1,  # added to every ORCA radius so sampling error never lets bodies touch
-    "ego_margin": 0.25,  # the ego does not reciprocate, so agents keep extra room from it
-    "stuck_steps": 30,  # steps without progress before the side-step (rotate); push after this or twice this
-    "regoal_steps": 150,
-    "push_window": 12.0,  # metres searched for a passing place when pushed aside (push half); 0 turns push off
-    "group_prob": 0.15,  # share of agents (pedestrians, wheelchair users) that start in standing groups
-    "group_size": [2, 4],  # members per group, [min, max]
-    "group_time": [10.0, 40.0],  # seconds a group stands before dispersing or walking on together
-    "group_disperse_prob": 0.5,  # chance that a group disperses (else it walks on together and stands again)
-    "cross_prob": 0.15,  # chance that a new goal lies across a road, reached over the nearest crosswalk
-    "stuck_progress": 0.25,  # metres of field distance that count as progress
-    "budget_factor": 2.0,  # goal time budget = factor * path length / speed + slack
-    "budget_slack": 10.0,
-    "spawn_clearance": 0.3,
-    "spawn_area": "sidewalks",  # sidewalks | intersections (within intersection_margin of X/T/O blocks) | route
-    "intersection_margin": 10.0,  # metres around an intersection/junction/roundabout road polygon
-    "route_band": 5.0,  # metres either side of the ego's route ("route": dynamic_density per 100 m of route)
-    "trail_length": 15,
+AGENT_KEYS: dict[str, Key] = {
+    "dynamic_density": Key(
+        2.0,
+        Float(0.0, 100.0, hint="agents per 100 m of sidewalk"),
+        "agents per 100 m of sidewalk (MetaUrban's rho_d); ignored when `counts` is given",
+    ),
+    "counts": Key(
+        {},
+        Rule("mapping", item=Int(0, 10_000), hint="{kind: count}"),
+        "explicit {kind: count}; non-empty overrides dynamic_density",
+    ),
+    "mix": Key(
+        dict(DEFAULT_MIX),
+        Rule("mapping", item=Float(0.0, 1e6), hint="{kind: share}"),
+        "kind shares when spawning by density",
+    ),
+    "max_agents": Key(1000, Int(0, 10_000), "the most agents an episode holds"),
+    "plan_radius": Key(
+        0.5, Float(0.0, 5.0), "objects and edges are grown by this much for planning (the widest ORCA radius)"
+    ),
+    "n_goal_sites": Key(
+        32, Int(1, 1024), "distance fields shared by all agents; more sites = more varied goals, slower reset"
+    ),
+    "goal_spread": Key(2.5, Float(0.0, 100.0), "each agent's goal is a free cell within this distance of its site"),
+    "lookahead_cells": Key(8, Choice(1, 2, 4, 8), "cells ahead on the distance field an agent steers at: 1, 2, 4 or 8"),
+    "keep_right": Key(0.5, Float(-5.0, 5.0), "metres the carrot is shifted to the right of the path (lane formation)"),
+    "arrive_radius": Key(0.5, Pos(100.0), "metres from its goal at which an agent has arrived"),
+    "crowded_arrive_radius": Key(
+        2.0, Float(0.0, 100.0), "a stalled agent this close to its goal has arrived (someone stands on it)"
+    ),
+    "idle_prob": Key(0.25, Float(0.0, 1.0), "chance to stand still on arrival"),
+    "idle_time": Key([2.0, 8.0], Pair(Float(0.0, 3600.0), hint="seconds"), "[min, max] seconds an idle agent stands"),
+    "run_prob": Key(0.1, Float(0.0, 1.0), "chance that a kind able to run runs to its next goal"),
+    "neighbor_dist": Key(5.0, Pos(100.0), "ORCA: metres within which other agents are considered"),
+    "max_neighbors": Key(10, Int(0, 100), "ORCA: the most neighbours considered"),
+    "time_horizon": Key(2.0, Pos(100.0), "ORCA: seconds ahead that velocities stay collision-free from agents"),
+    "time_horizon_obst": Key(1.0, Pos(100.0), "ORCA: seconds ahead that velocities stay collision-free from obstacles"),
+    "safety_margin": Key(0.1, Float(0.0, 5.0), "added to every ORCA radius so sampling error never lets bodies touch"),
+    "ego_margin": Key(0.25, Float(0.0, 5.0), "the ego does not reciprocate, so agents keep extra room from it"),
+    "stuck_steps": Key(
+        30,
+        Int(0, 1_000_000),
+        "steps without progress before the side-step (rotate); push after this or twice this",
+    ),
+    "regoal_steps": Key(150, Int(1, 1_000_000), "steps without progress before an agent picks a new goal"),
+    "push_window": Key(
+        12.0,
+        Float(0.0, 100.0, hint="metres; 0 turns the push half of push-and-rotate off"),
+        "metres searched for a passing place when pushed aside (push half); 0 turns push off",
+    ),
+    "group_prob": Key(
+        0.15,
+        Float(0.0, 1.0, hint="share of agents that start in standing groups"),
+        "share of agents (pedestrians, wheelchair users) that start in standing groups",
+    ),
+    "group_size": Key([2, 4], Pair(Int(2, 8), hint="[min, max] members"), "members per group, [min, max]"),
+    "group_time": Key(
+        [10.0, 40.0],
+        Pair(Float(0.0, 3600.0), hint="[min, max] seconds a group stands"),
+        "seconds a group stands before dispersing or walking on together",
+    ),
+    "group_disperse_prob": Key(
+        0.5,
+        Float(0.0, 1.0, hint="chance that a group disperses"),
+        "chance that a group disperses (else it walks on together and stands again)",
+    ),
+    "cross_prob": Key(
+        0.15,
+        Float(0.0, 1.0, hint="chance that a new goal lies across a road"),
+        "chance that a new goal lies across a road, reached over the nearest crosswalk",
+    ),
+    "stuck_progress": Key(0.25, Float(0.0, 100.0), "metres of field distance that count as progress"),
+    "budget_factor": Key(2.0, Pos(100.0), "goal time budget = factor * path length / speed + slack"),
+    "budget_slack": Key(10.0, Float(0.0, 10_000.0), "seconds added to every goal's time budget"),
+    "spawn_clearance": Key(0.3, Float(0.0, 10.0), "metres kept free around a spawned agent"),
+    "spawn_area": Key(
+        "sidewalks",
+        Choice(*SPAWN_AREAS),
+        "sidewalks | intersections (within intersection_margin of X/T/O blocks) | route",
+    ),
+    "intersection_margin": Key(
+        10.0, Float(0.0, 1000.0), "metres around an intersection/junction/roundabout road polygon"
+    ),
+    "route_band": Key(
+        5.0, Pos(1000.0), 'metres either side of the ego\'s route ("route": dynamic_density per 100 m of route)'
+    ),
+    "trail_length": Key(15, Int(0, 10_000), "past positions kept per agent (drawn as its trail)"),
 }
-# Value ranges of the deadlock and behaviour keys: (low, high, integers only, a [min, max] pair, what it means).
-BEHAVIOUR_RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
-    "stuck_steps": (0, 1_000_000, True, False, "steps"),
-    "regoal_steps": (1, 1_000_000, True, False, "steps"),
-    "push_window": (0.0, 100.0, False, False, "metres; 0 turns the push half of push-and-rotate off"),
-    "group_prob": (0.0, 1.0, False, False, "share of agents that start in standing groups"),
-    "group_size": (2, 8, True, True, "[min, max] members"),
-    "group_time": (0.0, 3600.0, False, True, "[min, max] seconds a group stands"),
-    "group_disperse_prob": (0.0, 1.0, False, False, "chance that a group disperses"),
-    "cross_prob": (0.0, 1.0, False, False, "chance that a new goal lies across a road"),
-}
-
-
-def check_behaviour_config(config: Mapping[str, Any]) -> None:
-    """Raise ConfigError naming the key and its valid range for a bad deadlock or behaviour value."""
-    for key, (lo, hi, integer, pair, hint) in BEHAVIOUR_RANGES.items():
-        value = config[key]
-        items = list(value) if pair and isinstance(value, (list, tuple)) else [value]
-        number = "an integer" if integer else "a finite number"
-        ok = (
-            len(items) == (2 if pair else 1)
-            and all(
-                isinstance(v, (int, float))
-                and not isinstance(v, bool)
-                and (isinstance(v, int) or not integer)
-                and math.isfinite(v)
-                and lo <= v <= hi
-                for v in items
-            )
-            and (not pair or items[0] <= items[1])
-        )
-        if not ok:
-            span = f"{number} in [{lo:g}, {hi:g}]"
-            what = f"a [min, max] pair (min <= max), each {span}" if pair else span
-            raise ConfigError(f"agents config.{key} must be {what}, got {value!r} ({hint})")
+AGENT_DEFAULTS: dict[str, Any] = defaults_of(AGENT_KEYS)
+AGENTS_TABLE: dict[str, Rule | Table] = table_of(AGENT_KEYS)

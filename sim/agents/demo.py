@@ -10,7 +10,7 @@ import json
 import warnings
 from pathlib import Path
 
-import numpy as np
+from numpy.typing import ArrayLike
 
 
 def run_episode(out: Path, seed: int = 0, n_agents: int = 24, size: int = 320) -> dict[str, float]:
@@ -30,7 +30,7 @@ def run_episode(out: Path, seed: int = 0, n_agents: int = 24, size: int = 320) -
         warnings.simplefilter("ignore")
         env = gym.make("curbside/SocialNav-v0", config=cfg, render_mode="rgb_array")
     expert = PurePursuitExpert()
-    frames: list[np.ndarray] = []
+    frames: list[ArrayLike] = []  # rendered frames, for imageio only
     try:
         metrics = rollout(
             env,

@@ -40,6 +40,12 @@ class AgentKind:
         return float(np.clip(rng.normal(mean, self.speed_std), lo, hi))
 
 
+def _rgb(text: str) -> tuple[float, float, float]:
+    """The colour column's "r g b" as three floats (ValueError for any other count)."""
+    r, g, b = (float(c) for c in text.split())
+    return r, g, b
+
+
 def _load_kinds() -> tuple[dict[str, AgentKind], dict[str, float]]:
     """The kinds table `kinds.csv` beside this module (row order is the kind index) and each kind's spawn share."""
     with resources.files("sim.agents").joinpath("kinds.csv").open(encoding="utf-8") as f:
@@ -52,11 +58,11 @@ def _load_kinds() -> tuple[dict[str, AgentKind], dict[str, float]]:
             float(r["speed_std"]),
             float(r["run_speed"]) if r["run_speed"] else None,
             float(r["height"]),
-            tuple(float(c) for c in r["color"].split()),
+            _rgb(r["color"]),
             r["source"],
         )
         for r in rows
-    }  # type: ignore[arg-type]
+    }
     return kinds, {r["name"]: float(r["mix"]) for r in rows}
 
 

@@ -209,8 +209,8 @@ def build_conflict_zones(lanes: list[Lane], width: float, merge: float = 12.0) -
             grow = 0.5 * width * (1.0 + cos) / sin + 0.5
             pts += [(a, sa, grow, g.x, g.y), (b, sb, grow, g.x, g.y)]
     if not pts:
-        z = np.zeros(0)
-        return ConflictZones(z.astype(np.int64), z.astype(np.int64), z, z, z, 0)
+        none = np.zeros(0)
+        return ConflictZones(none.astype(np.int64), none.astype(np.int64), none, none, none, 0)
     arr = np.array(pts)
     # Crossings closer than `merge` belong to one intersection: connected components of the "close" graph,
     # numbered in the order of their first point.

@@ -81,16 +81,17 @@ class NavGrid:
             return int(hit[0])
         self.sites = np.append(self.sites, np.int64(node))
         if self._dist is not None:
+            dist, jump, done = self._tables()
             # Appended sites go after the spread ones, so random goal draws (over the first n_spread) do not change.
-            self._dist = np.vstack([self._dist, np.full((1, self.n_nodes), np.inf)])
-            self._jump = np.concatenate([self._jump, np.zeros((len(JUMPS), 1, self.n_nodes), dtype=np.int32)], 1)
-            self._done = np.append(self._done, False)
+            self._dist = np.vstack([dist, np.full((1, self.n_nodes), np.inf)])
+            self._jump = np.concatenate([jump, np.zeros((len(JUMPS), 1, self.n_nodes), dtype=np.int32)], 1)
+            self._done = np.append(done, False)
         return len(self.sites) - 1
 
     def path_nodes(self, node: int, site: int, max_steps: int) -> np.ndarray:
         """Nodes of the shortest path from `node` toward `site` (at most max_steps + 1 of them, the site last)."""
         self.plan_all(np.array([site]))
-        step = self._jump[0, site]
+        step = self._tables()[1][0, site]
         out = [int(node)]
         for _ in range(max_steps):
             nxt = int(step[out[-1]])
@@ -164,12 +165,13 @@ class NavGrid:
         return self.node_of[self.nearest_rc[0, i, j], self.nearest_rc[1, i, j]]
 
     def _tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        if self._dist is None:
+        dist, jump, done = self._dist, self._jump, self._done
+        if dist is None or jump is None or done is None:  # made together: all three or none
             k, n = len(self.sites), self.n_nodes
-            self._dist = np.full((k, n), np.inf)
-            self._jump = np.zeros((len(JUMPS), k, n), dtype=np.int32)  # node reached after 2^j steps
-            self._done = np.zeros(k, dtype=bool)
-        return self._dist, self._jump, self._done
+            dist = self._dist = np.full((k, n), np.inf)
+            jump = self._jump = np.zeros((len(JUMPS), k, n), dtype=np.int32)  # node reached after 2^j steps
+            done = self._done = np.zeros(k, dtype=bool)
+        return dist, jump, done
 
     def plan_all(self, sites: np.ndarray) -> None:
         """Compute the distance fields of all `sites` not yet computed, in one Dijkstra call."""
@@ -194,19 +196,23 @@ class NavGrid:
     def field(self, site: int) -> np.ndarray:
         """Distance in metres from every node to `site` (computed once per site)."""
         self.plan_all(np.array([site]))
-        return self._dist[site]
+        return self._tables()[0][site]
 
     def distance(self, nodes: np.ndarray, sites: np.ndarray, planned: bool = False) -> np.ndarray:
         """Path length in metres from each node to its agent's goal site (`planned`: caller ran plan_all)."""
         if not planned:
             self.plan_all(sites)
-        return self._dist[sites, nodes]
+        dist = self._dist
+        assert dist is not None  # made by plan_all, here or by the caller
+        return dist[sites, nodes]
 
     def lookahead(self, nodes: np.ndarray, sites: np.ndarray, steps: int, planned: bool = False) -> np.ndarray:
         """Node reached by following each agent's field `steps` (a power of two <= 8) cells toward its site."""
         if not planned:
             self.plan_all(sites)
-        return self._jump[JUMPS.index(steps), sites, nodes]
+        jump = self._jump
+        assert jump is not None  # made by plan_all, here or by the caller
+        return jump[JUMPS.index(steps), sites, nodes]
 
     def is_free(self, xy: np.ndarray) -> np.ndarray:
         """Whether world points lie on a planning cell (inside the grid, on the kept free component)."""

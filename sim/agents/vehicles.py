@@ -39,36 +39,19 @@ from sim.agents.lanes import (
     build_lanes,
     connector_compatibility,
 )
+from sim.agents.vehicle_config import VEHICLE_DEFAULTS, VEHICLES_TABLE
 from sim.agents.vehicle_idm import follow, idm, leaders
 from sim.agents.vehicle_junctions import CrosswalkOccupancy, JunctionGrants, LaneCrossings
 from sim.agents.vehicle_routing import LaneRouting
 from sim.agents.vehicle_state import LaneNetwork, TrafficState
 from sim.scene.scene import Scene, as_scene
+from sim.schema import check_table
 
 __all__ = ["VEHICLE_DEFAULTS", "VEHICLE_DTYPE", "Lane", "TrafficState", "VehicleManager", "build_lanes"]
 
 VEHICLE_DTYPE = np.dtype(
     [("x", "f8"), ("y", "f8"), ("vx", "f8"), ("vy", "f8"), ("yaw", "f8"), ("length", "f8"), ("width", "f8")]
 )
-
-VEHICLE_DEFAULTS: dict[str, Any] = {
-    "traffic_density": 1.0,  # vehicles per 100 m of lane (stochastic rounding per lane, so short lanes get some)
-    "desired_speed": [8.0, 12.0],  # m/s (29-43 km/h, urban streets), drawn per vehicle
-    "time_headway": 1.5,  # IDM T (s)
-    "min_gap": 2.0,  # IDM s0 (m)
-    "max_accel": 1.5,  # IDM a (m/s^2)
-    "comfort_decel": 2.0,  # IDM b (m/s^2)
-    "max_decel": 8.0,  # physical braking limit (m/s^2)
-    "delta": 4.0,
-    "length": 4.5,
-    "width": 1.8,
-    "crosswalk_margin": 1.0,  # agents this close to a crosswalk make vehicles yield
-    "stop_gap": 1.5,  # where a yielding vehicle's front stops, before the crosswalk's near edge
-    "max_hold": 10.0,  # s an axis may keep a lane crossing while vehicles of another axis wait
-    "junction_stop": 1.0,  # m before the box edge where a vehicle without a grant stops
-    "turn_accel": 3.0,  # m/s^2 lateral acceleration through turns: speed limit sqrt(a R) on connectors
-    "turning": True,  # drive through X/T junctions on connectors (False: lanes end at the box, vehicles respawn)
-}
 
 
 class VehicleManager:
@@ -88,6 +71,7 @@ class VehicleManager:
 
     def __init__(self, config: Mapping[str, Any] | None = None) -> None:
         self.config = merge_strict(VEHICLE_DEFAULTS, config, name="vehicles config")
+        check_table(self.config, VEHICLES_TABLE, name="vehicles config")
         self.state = TrafficState.empty()
         self._scene: Scene | None = None
 

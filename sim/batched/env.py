@@ -30,10 +30,9 @@ from sim.envs.scenes import SceneSource
 from sim.machines import machine_spec
 from sim.raycast.grids import CROSSWALK, KIND_NAMES, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
 from sim.route import ROUTE_REDRAWS, Route, RouteError
-from sim.schema import Int
+from sim.schema import Int, Key, Rule, Table, defaults_of, table_of
 from sim.tasks.pointnav import (
-    CONFIG_TABLE,
-    DEFAULT_CONFIG,
+    CONFIG_KEYS,
     TASK_PRESETS,
     check_config,
     make_reward,
@@ -41,12 +40,18 @@ from sim.tasks.pointnav import (
 )
 from sim.tasks.sensors import check_lidar_reach
 
-BATCHED_DEFAULTS: dict[str, Any] = {
-    **DEFAULT_CONFIG,
-    "route_pool": 0,  # routes kept per scene and drawn from once full (0: plan every reset, as PointNav)
-    "scene_steps": 0,  # an env keeps its scene until it has stepped this many steps there (0: a draw every reset)
+# PointNav's keys plus the batched env's own.
+BATCHED_KEYS: dict[str, Key | dict[str, Key]] = {
+    **CONFIG_KEYS,
+    "route_pool": Key(
+        0, Int(0, 1_000_000), "routes kept per scene and drawn from once full (0: plan every reset, as PointNav)"
+    ),
+    "scene_steps": Key(
+        0, Int(0, 10**9), "an env keeps its scene until it has stepped this many steps there (0: a draw every reset)"
+    ),
 }
-BATCHED_TABLE: dict[str, Any] = {**CONFIG_TABLE, "route_pool": Int(0, 1_000_000), "scene_steps": Int(0, 10**9)}
+BATCHED_DEFAULTS: dict[str, Any] = defaults_of(BATCHED_KEYS)
+BATCHED_TABLE: dict[str, Rule | Table] = table_of(BATCHED_KEYS)
 # PointNav keys the batched env cannot honour: (key, the value it needs, why).
 PYBULLET_ONLY = (
     ("gui", False, "there is no PyBullet world to show"),

@@ -34,8 +34,8 @@ class Episodes:
         """Env k starts an episode of `horizon` steps."""
         for a in (self.progress, self.max_progress, self.lateral, self.path_length):
             a[k] = 0.0
-        for a in (self.steps, self.cost_total, *self.collision_counts.values()):
-            a[k] = 0
+        for counts in (self.steps, self.cost_total, *self.collision_counts.values()):
+            counts[k] = 0
         self.marks.reset(k)
         self.horizon[k] = horizon
         self.last_action[k] = 0.0

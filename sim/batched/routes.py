@@ -8,6 +8,8 @@ route), so one `np.searchsorted` serves every env.
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 
 from sim.route import Route
@@ -17,6 +19,14 @@ WINDOW = (3.0, 8.0)  # metres searched behind and ahead of the last projection (
 
 class RouteBatch:
     """Routes of `n` envs; `set(i, route)` at a reset, then array queries for all envs."""
+
+    # Padded per-env arrays (`_alloc` makes them, `cap` columns wide) and the shifted arc lengths (`_flat`).
+    points: np.ndarray
+    s: np.ndarray
+    seg: np.ndarray
+    seg_len: np.ndarray
+    seg_heading: np.ndarray
+    flat_s: np.ndarray
 
     def __init__(self, n: int) -> None:
         self.n = n
@@ -69,7 +79,7 @@ class RouteBatch:
         else:
             self.flat_s[i * self.cap : (i + 1) * self.cap] = self.s[i] + self.span * i
 
-    def _search(self, s: np.ndarray, side: str) -> np.ndarray:
+    def _search(self, s: np.ndarray, side: Literal["left", "right"]) -> np.ndarray:
         """np.searchsorted(route.s, s[i], side) of every env's own route."""
         rows = np.arange(self.n)
         q = np.clip(s, -WINDOW[0] - 1.0, self.length + WINDOW[1] + 1.0) + self.span * rows

@@ -47,9 +47,9 @@ class CohabitantBodies:
         self._vehicles_shown = -1
         self._half_heights = np.zeros(0)
         self._radii = np.zeros(0)
-        self._xyz: np.ndarray | None = None
+        self._xyz = _NO_XYZ  # the agents' body centres as last placed (nan: not placed since they were made)
         self._yaw = np.zeros(0)  # the agents' headings (their figures face their motion)
-        self._vehicle_cols: tuple[np.ndarray, ...] = _NO_BOXES  # x, y, yaw of the vehicles shown
+        self._vehicle_cols: tuple[np.ndarray, np.ndarray, np.ndarray] = _NO_BOXES  # x, y, yaw of the vehicles shown
         self._vehicle_ids = self._agent_ids = np.zeros(0, dtype=np.int64)
         self._shaft = np.zeros(0)
 
@@ -58,8 +58,7 @@ class CohabitantBodies:
         for body in self.agents + self.vehicles:
             p.resetBasePositionAndOrientation(body, PARKED, [0, 0, 0, 1], physicsClientId=self.client)
         self._vehicles_shown = -1
-        if self._xyz is not None:
-            self._xyz = np.full_like(self._xyz, np.nan)
+        self._xyz = np.full_like(self._xyz, np.nan)
         self._yaw[:] = 0.0  # an episode's pictures must not depend on where the last one left the figures
         self._vehicle_cols, self._vehicle_ids = _NO_BOXES, np.zeros(0, dtype=np.int64)
 
@@ -86,7 +85,8 @@ class CohabitantBodies:
                 p.resetBasePositionAndOrientation(self.agents[k], at, (0, 0, sz, cz), physicsClientId=c)
             self._xyz = xyz
         # The ray test's inputs: the shown vehicles' x, y and yaw (contiguous) and their body ids.
-        vx, vy, vyaw = self._vehicle_cols = tuple(np.ascontiguousarray(v, dtype=np.float64) for v in vehicles)
+        vx, vy, vyaw = (np.ascontiguousarray(v, dtype=np.float64) for v in vehicles)
+        self._vehicle_cols = (vx, vy, vyaw)
         self._vehicle_ids = np.asarray(self.vehicles[: len(vx)], dtype=np.int64)
         if len(vx):
             half_yaw = (0.5 * vyaw).tolist()
@@ -171,8 +171,8 @@ class CohabitantBodies:
         """
         dist = np.full(cos.shape, np.inf)
         which = np.full(cos.shape, -1, dtype=np.int64)
-        xyz = self._xyz if self._xyz is not None else _NO_XYZ
-        boxes = self._vehicle_cols if 0.0 <= h <= VEHICLE_HEIGHT else _NO_BOXES
+        xyz = self._xyz
+        bx, by, byaw = self._vehicle_cols if 0.0 <= h <= VEHICLE_HEIGHT else _NO_BOXES
         capsule_box_hits(
             float(x),
             float(y),
@@ -185,7 +185,9 @@ class CohabitantBodies:
             self._shaft,
             self._radii,
             self._agent_ids,
-            *boxes,
+            bx,
+            by,
+            byaw,
             0.5 * self.vehicle_size[0],
             0.5 * self.vehicle_size[1],
             self._vehicle_ids,

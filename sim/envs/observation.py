@@ -14,6 +14,7 @@ from kernel.config import ConfigError
 from sim.camera import camera_spaces
 
 GOAL_LOG_SCALE = math.log1p(500.0)  # goal distances up to 500 m span [0, 1] in the observation
+Observation = np.ndarray | dict[str, np.ndarray]  # the flat vector, or the Dict of parts and camera images
 
 
 def _wrap(a: float) -> float:
@@ -49,7 +50,9 @@ class EgoObservation:
         n = len(self.names)
         low = -np.ones(n, dtype=np.float32)
         low[: self.num_beams + self.num_low_beams] = 0.0
-        self.space = gym.spaces.Box(low, np.ones(n, dtype=np.float32), dtype=np.float32)
+        self.space: gym.spaces.Box | gym.spaces.Dict = gym.spaces.Box(
+            low, np.ones(n, dtype=np.float32), dtype=np.float32
+        )
         self.mode = observation_mode(cfg)
         self.last_images: dict[str, np.ndarray] = {}  # the camera's latest images (the dashboard shows them)
         b = self.num_beams + self.num_low_beams
@@ -77,7 +80,7 @@ class EgoObservation:
         low_lidar: Any | None,
         camera: Any = None,
         extra_kinds: Mapping[int, str] | None = None,
-    ) -> np.ndarray | dict[str, np.ndarray]:
+    ) -> Observation:
         """The observation of `machine` at arc length `progress` and offset `lateral` on `route` (scans now; the
         camera renders when the observation is a Dict, `extra_kinds` naming the bodies the world does not hold)."""
         m = machine

@@ -13,12 +13,12 @@ import numpy as np
 from kernel.config import ConfigError
 from kernel.quiet import pybullet as p
 from sim.envs.episode import Episode
-from sim.envs.observation import EgoObservation
+from sim.envs.observation import EgoObservation, Observation
 from sim.envs.reset_options import check_reset_options
 from sim.envs.scenes import SceneCache, SceneSlot, SceneSource, build_slot, trim_heap
 from sim.machines import Machine, machine_spec
 from sim.metrics import EpisodeView, make_measures
-from sim.route import ROUTE_REDRAWS, RouteError, RoutePlanner
+from sim.route import ROUTE_REDRAWS, Route, RouteError, RoutePlanner
 from sim.scene.scene import Scene
 from sim.tasks.pointnav import (
     CONFIG_TABLE,
@@ -117,7 +117,7 @@ class PointNavEnv(gym.Env):
                 "images without one) or run under a desktop or xvfb-run"
             )
         self.client = p.connect(p.GUI if cfg["gui"] else p.DIRECT)
-        self.cache = SceneCache(cfg["scene_cache"], self.client, bool(cfg["gui"]))
+        self.cache: SceneCache | None = SceneCache(cfg["scene_cache"], self.client, bool(cfg["gui"]))  # None: closed
         self.slot: SceneSlot | None = None
         self.world: World | None = None
         self.machine: Machine | None = None
@@ -125,7 +125,8 @@ class PointNavEnv(gym.Env):
         # Subclass hook: body id -> collision kind for bodies the subclass adds (agents), per world.
         self._collision_kinds: dict[int, str] = {}
         self.collision_kinds_all: list[str] = list(STATIC_COLLISION_KINDS)
-        self.route = None
+        self.route: Route | None = None  # None: no episode to step (no reset yet, or the last one failed)
+        self._reference_length: float | None = None  # the episode's SPL geodesic, planned on first use
 
     # -- scene -------------------------------------------------------------------------------------
     def _ensure_scene(self, rng: np.random.Generator) -> None:
@@ -134,16 +135,18 @@ class PointNavEnv(gym.Env):
             return  # same scene: keep every static body, only the machine moves
         if self.slot is not None:
             self.slot.state = self._scene_state()
-        slot = self.cache.get(key)
+        cache = self._check_open()
+        slot = cache.get(key)
         if slot is None:
-            slot = self.cache.new_slot(key)
+            slot = cache.new_slot(key)
             try:
-                build_slot(slot, load(), self.config, self.spec_machine)
+                scene = load()
+                build_slot(slot, scene, self.config, self.spec_machine)
                 self._use(slot)
-                self._on_scene(slot.scene)
+                self._on_scene(scene)
                 trim_heap()  # the scene it replaced is freed now
             except BaseException:
-                self.cache.discard(key)
+                cache.discard(key)
                 self.slot = self.route = None
                 raise
         else:
@@ -200,11 +203,13 @@ class PointNavEnv(gym.Env):
 
     def _measure_view(self) -> EpisodeView:
         """What the measures read of the episode just reset (SocialNav adds the agents' distance)."""
+        route, m = self.route, self.machine
+        assert route is not None and m is not None  # reset calls this once it has placed the machine on a route
         return EpisodeView(
             episode=self.episode,
-            route_length=float(self.route.length),
+            route_length=float(route.length),
             dt=self.dt,
-            cruise_speed=min(float(self.config["stl_cruise_speed"]), self.machine.spec.v_max),
+            cruise_speed=min(float(self.config["stl_cruise_speed"]), m.spec.v_max),
             collision_kinds=tuple(self.collision_kinds_all),
             reference_length=self.reference_length,
         )
@@ -212,12 +217,15 @@ class PointNavEnv(gym.Env):
     def reference_length(self) -> float:
         """l of SPL and STL: the geodesic from the start to the route point where success is reached (cached)."""
         if self._reference_length is None:
-            upto = float(self.config["success_completion"]) * self.route.length
-            self._reference_length = self.planner.geodesic_length(self.route, upto)
+            route, planner = self.route, self.planner
+            if route is None or planner is None:
+                raise RuntimeError("the env has no route yet: call reset() first")
+            upto = float(self.config["success_completion"]) * route.length
+            self._reference_length = planner.geodesic_length(route, upto)
         return self._reference_length
 
     # -- gym API -----------------------------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Observation, dict]:
         """Draw a scene (if several), a route and the machine's forces; place the machine at the start.
 
         options: {"start": [x, y], "goal": [x, y]} plans the route between given points instead of drawing it.
@@ -230,37 +238,40 @@ class PointNavEnv(gym.Env):
         lo, hi = (float(v) for v in self.config["route_length"])
         for attempt in range(ROUTE_REDRAWS):
             self._ensure_scene(rng)
+            planner = self.planner
+            assert planner is not None  # _ensure_scene has put the env in a built scene slot
             try:
-                self.route = self.planner.plan(*route_points) if route_points else self.planner.sample(rng, lo, hi)
+                self.route = planner.plan(*route_points) if route_points else planner.sample(rng, lo, hi)
                 break
             except RouteError:
                 if route_points or attempt == ROUTE_REDRAWS - 1:
                     raise
-        start = self.route.start
-        yaw = self.route.heading_at(0.0)
-        m = self.machine
+        route, m, world = self.route, self.machine, self.world
+        assert route is not None and m is not None and world is not None  # the last redraw's RouteError is raised
+        start = route.start
+        yaw = route.heading_at(0.0)
         # Park the machine (and the subclass's bodies) far away so the height probe sees the surface only.
         p.resetBasePositionAndOrientation(m.body, [0, 0, -50], [0, 0, 0, 1], physicsClientId=self.client)
         self._park_bodies()
         # With the machine away from everything, Bullet drops its cached contacts (warm-start impulses):
         # an episode then does not depend on the episodes before it.
         p.performCollisionDetection(physicsClientId=self.client)
-        z = self.world.surface_height(float(start[0]), float(start[1]))
+        z = world.surface_height(float(start[0]), float(start[1]))
         m.reset(float(start[0]), float(start[1]), z, yaw, rng)
         cfg = self.config
         horizon = int(cfg["horizon"])
         if cfg["horizon_min_speed"] is not None:
-            horizon = min(horizon, max(int(math.ceil(self.route.length / cfg["horizon_min_speed"] / self.dt)), 1))
+            horizon = min(horizon, max(int(math.ceil(route.length / cfg["horizon_min_speed"] / self.dt)), 1))
         self.episode = Episode(horizon, [(float(start[0]), float(start[1]))])
         self.termination = Termination.from_config(cfg)
-        self._reference_length: float | None = None
+        self._reference_length = None
         self._on_reset(rng)
         self.measure_view = self._measure_view()
         for meas in self.measures:
             meas.reset(self.measure_view)
-        return self._observe(), {"route_length": self.route.length, "horizon": horizon}
+        return self._observe(), {"route_length": route.length, "horizon": horizon}
 
-    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
+    def step(self, action: Any) -> tuple[Observation, float, bool, bool, dict]:
         """Advance 0.1 s (config dt): apply the action, step physics, sense, reward."""
         self._check_open()
         if self.route is None:
@@ -274,7 +285,8 @@ class PointNavEnv(gym.Env):
             raise ValueError(f"action {a.tolist()} holds NaN or inf; policies must output finite values in [-1, 1]")
         a = np.clip(a, -1.0, 1.0)
         steer, throttle = float(a[0]), float(a[1])
-        m, c = self.machine, self.client
+        m, c, planner = self.machine, self.client, self.planner
+        assert m is not None and planner is not None  # placed with the route by the reset
         x0, y0 = m.position[0], m.position[1]
         hits: set[str] = set()
         for _ in range(self.substeps):
@@ -301,7 +313,7 @@ class PointNavEnv(gym.Env):
             collided,
             bool(hits),
             ep.cost_total,
-            lambda: self.planner.grid.label_at(x, y) != 0,
+            lambda: planner.grid.label_at(x, y) != 0,
         )
         end = self.termination(step)
         ep.succeeded, ep.out_of_route, ep.stuck = end.succeeded, end.out_of_route, end.stuck
@@ -325,9 +337,11 @@ class PointNavEnv(gym.Env):
         return obs, reward, terminated, truncated, info
 
     def _contacts(self, hits: set[str]) -> None:
-        touching(self.client, self.machine.body, self.kinds, self._collision_kinds, hits)
+        m = self.machine
+        assert m is not None  # step runs only after a reset placed the machine
+        touching(self.client, m.body, self.kinds, self._collision_kinds, hits)
 
-    def _observe(self) -> np.ndarray:
+    def _observe(self) -> Observation:
         ep = self.episode
         obs = self.observation(
             self.machine,
@@ -352,13 +366,16 @@ class PointNavEnv(gym.Env):
             raise RuntimeError("call reset() before render(): there is no scene to draw yet")
         return render_frame(self)
 
-    def _check_open(self) -> None:
+    def _check_open(self) -> SceneCache:
+        """The scene cache of the open env; RuntimeError once it is closed."""
         if self.cache is None:
             raise RuntimeError("the env is closed; make a new one (gymnasium.make) to run more episodes")
+        return self.cache
 
     def close(self) -> None:
         """Close the viewer window and disconnect every Bullet client of the scene cache."""
         close_window(self)
-        if getattr(self, "cache", None) is not None:
-            self.cache.close()
+        cache = getattr(self, "cache", None)
+        if cache is not None:
+            cache.close()
             self.cache, self.client = None, None

@@ -114,6 +114,7 @@ class SceneSource:
         cfg = self.config
         if self.kind == "fixed":
             fixed = self.fixed
+            assert fixed is not None  # a "fixed" source parses its scene at construction
             return ("fixed",), lambda: fixed
         k = int(rng.integers(self.count)) if self.count > 1 else 0
         if self.kind == "dir":

@@ -82,18 +82,21 @@ class SocialNavEnv(PointNavEnv):
     def _load_scene_state(self, state: dict[str, Any]) -> None:
         for k in self._WORLD_STATE:
             setattr(self, k, state.get(k))
-        self._collision_kinds = self.bodies.collision_kinds
+        bodies = self.bodies
+        assert bodies is not None  # every cached world got its bodies from _on_scene
+        self._collision_kinds = bodies.collision_kinds
 
     def _on_reset(self, rng: np.random.Generator) -> None:
-        scene = self.scene
-        start = self.route.start
-        goal = self.route.goal
+        scene, route = self.scene, self.route
+        assert route is not None  # reset calls this hook once the machine stands on the route
+        start = route.start
+        goal = route.goal
         self.crowd.reset(
             scene,
             rng,
             ego=self._ego_state(),
             keep_clear=[(float(goal[0]), float(goal[1]), 1.0), (float(start[0]), float(start[1]), 2.0)],
-            route=self.route.points,
+            route=route.points,
         )
         if self.config["traffic"]:
             self.traffic.reset(scene, rng)
@@ -121,13 +124,15 @@ class SocialNavEnv(PointNavEnv):
     # -- bodies ------------------------------------------------------------------------------------
     def _sync_bodies(self) -> None:
         vehicles = self.traffic.poses() if self.config["traffic"] else (np.zeros(0), np.zeros(0), np.zeros(0))
-        crowd = self.crowd
-        self.bodies.sync(crowd.kind_idx, crowd.pos, self._agent_base_heights(crowd.pos), vehicles)
+        crowd, bodies = self.crowd, self.bodies
+        assert bodies is not None  # made with the world (_on_scene)
+        bodies.sync(crowd.kind_idx, crowd.pos, self._agent_base_heights(crowd.pos), vehicles)
 
     def _agent_base_heights(self, xy: np.ndarray) -> np.ndarray:
         g = self.crowd.grid
         if not len(xy):
             return np.zeros(0)
+        assert g is not None  # the crowd's reset built its grid; only then are there agents
         codes = cell_values(xy, float(g.origin[0]), float(g.origin[1]), float(g.res), g.cells)
         curb = self.scene.curb_height
         # Legend: sidewalk on the curb, crosswalk on the road, ramps half way.
@@ -136,6 +141,7 @@ class SocialNavEnv(PointNavEnv):
     # -- state -------------------------------------------------------------------------------------
     def _ego_state(self) -> EgoState:
         m = self.machine
+        assert m is not None  # called from reset's hook and from steps, once the machine is placed
         x, y, _ = m.position
         s = m.spec
         return EgoState(
@@ -152,6 +158,7 @@ class SocialNavEnv(PointNavEnv):
         if not len(pos):
             return math.inf
         m = self.machine
+        assert m is not None  # as in _ego_state
         x, y, _ = m.position
         c, s = math.cos(m.yaw), math.sin(m.yaw)
         # Agent centres in the ego frame, then the distance to the footprint box (0 inside it).

@@ -78,7 +78,7 @@ def _ramp_tops(grid: WalkableGrid, wedges: list[tuple[np.ndarray, np.ndarray]]) 
 
     A wedge is Bullet's convex hull of its top vertices (and their feet): its top over a point is the largest
     interpolation of the vertex heights over any triangle of vertices that holds the point."""
-    top = np.full(grid.mask.shape, -np.inf, dtype=np.float32)
+    top = np.full(grid.shape, -np.inf, dtype=np.float32)
     res, (x0, y0) = grid.resolution, grid.origin
     for pts, z in wedges:
         for tri in combinations(range(len(pts)), 3):

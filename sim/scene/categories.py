@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from bisect import bisect_right
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -49,13 +49,16 @@ def load_distribution(country: str, path: str | Path) -> dict[str, float]:
     return freq
 
 
+_Cdf = tuple[list[str], np.ndarray, list[float]]  # categories, their normalised CDF, the CDF as floats
+
+
 class CategorySampler:
     """Draws categories per object class from uniform weights or a country's frequencies."""
 
     def __init__(self, exclude: list[str], frequencies: dict[str, float] | None = None) -> None:
         self.warnings: list[str] = []
         self.weights: dict[str, tuple[list[str], np.ndarray]] = {}
-        self._cdf: dict[tuple[str, tuple[str, ...] | None], Any] = {}
+        self._cdf: dict[tuple[str, tuple[str, ...] | None], _Cdf | Literal[False]] = {}  # False: none allowed
         for cls in OBJECT_CLASSES:
             cats = by_class(cls, exclude)
             w = np.ones(len(cats))
@@ -80,7 +83,7 @@ class CategorySampler:
         made = self._cdf_of(object_class, allowed)
         return None if made is None else (made[0], made[1])
 
-    def _cdf_of(self, object_class: str, allowed: Any) -> tuple[list[str], np.ndarray, list[float]] | None:
+    def _cdf_of(self, object_class: str, allowed: Any) -> _Cdf | None:
         key = (object_class, None if allowed is None else allowed if type(allowed) is tuple else tuple(allowed))
         cdf = self._cdf.get(key)
         if cdf is None:
@@ -89,7 +92,7 @@ class CategorySampler:
             cdf = self._cdf[key] = False if made is False else (made[0], made[1], made[1].tolist())
         return cdf or None
 
-    def _make_cdf(self, object_class: str, allowed: list[str] | None) -> tuple[list[str], np.ndarray] | bool:
+    def _make_cdf(self, object_class: str, allowed: list[str] | None) -> tuple[list[str], np.ndarray] | Literal[False]:
         cats, w = self.weights[object_class]
         if allowed is not None:
             keep = np.array([c in allowed for c in cats], dtype=bool)

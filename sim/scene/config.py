@@ -1,4 +1,5 @@
-"""Generator configuration: defaults, sidewalk templates, block codes, and strict validation."""
+"""Generator configuration: its keys (default, rule and doc of each), sidewalk templates, block codes, and strict
+validation."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from kernel.config import ConfigError, merge_strict
-from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule, check_table
+from sim.schema import Bool, Choice, Float, Int, Key, Pair, Pos, Rule, Table, check_table, defaults_of, table_of
 from sim.terrain.patches import KINDS as TERRAIN_KINDS
 
 BLOCK_CODES = {"S": "straight", "C": "curve", "X": "intersection", "T": "T-junction", "O": "roundabout"}
@@ -31,49 +32,6 @@ TEMPLATE_NAMES = {
     "g": "wide commercial",
 }
 
-DEFAULT_CONFIG: dict[str, Any] = {
-    "preset": None,  # a name from PRESETS: its values replace the defaults (explicit keys still win)
-    "blocks": 3,  # a count, or a string of block codes such as "SXCT"
-    "block_types": "SCXTO",  # codes drawn from when `blocks` is a count
-    "templates": "abcdef",  # sidewalk templates drawn uniformly per sidewalk
-    "lanes": [1, 2],  # lanes per direction, inclusive range, drawn per block
-    "lane_width": [3.0, 3.6],  # metres, drawn per block
-    "straight_length": [30.0, 60.0],
-    "curve_radius": [40.0, 70.0],  # centerline radius; large enough for inner sidewalks and buildings
-    "curve_angle": [45.0, 90.0],  # degrees, either direction
-    "arm_length": [20.0, 35.0],  # junction and roundabout arms
-    "roundabout_radius": [8.0, 14.0],  # central island radius
-    "building_depth": [8.0, 12.0],  # depth of the building zone beyond the sidewalk
-    "buildings": True,
-    "curb_height": 0.15,
-    "crosswalk_density": 0.5,  # probability that each crosswalk candidate is built
-    "crosswalks": None,  # or an explicit list of candidate ids, e.g. ["r0.0:start", "r1.2:end"]
-    "connect_crosswalks": True,  # also build the fewest extra candidates that join every sidewalk group
-    "crosswalk_width": 3.0,
-    "ramp_depth": 1.5,
-    "object_density": 1.0,  # rho_s: scales standard spacing (1/rho) and zoned/clutter counts (rho)
-    "standard_spacing": 12.0,  # metres between standard infrastructure at density 1
-    "non_standard_per_100m": 8.0,
-    "clutter_per_100m": 5.0,
-    "density_model": "sparse",  # "sparse": counts per 100 m; "paper": rows along every furniture zone (MetaUrban-12K)
-    "fill_gap": 0.9,  # mean gap (m) between neighbours in a row at object_density 1 ("paper" model)
-    "fill_clutter": 0.15,  # share of clutter items in the rows ("paper" model)
-    "fill_row_width": 1.4,  # a zone holds floor(width / this) rows of objects ("paper" model)
-    "min_objects": 0,  # "paper" model: refill the gaps (smaller each round) until a scene holds this many
-    "placement_tries": 4,  # positions tried per object before it counts as refused
-    "min_clear_width": 1.2,  # free corridor kept along every clear path (wheelchair)
-    "country": None,  # None: uniform categories; else ISO alpha-2 row of the distribution table
-    "distribution_path": "data/distribution/distribution.parquet",
-    "exclude_categories": [],  # held-out categories (dataset splits)
-    "assets": "all",  # catalog assets drawn: all, seen (train, test) or held_out (unseen, finetune)
-    "grid_resolution": 0.25,
-    "block_tries": 30,  # shapes/parameters tried per block before giving up
-    # Terrain patches on the sidewalks (sim.scene.terrain, docs/terrain.md): density 1 is a city's typical share,
-    # 0 none; kinds any of roots (tree-root heave), rough (uneven pavers), steps (entrances), slick (wet, gravel).
-    "terrain": {"density": 1.0, "kinds": list(TERRAIN_KINDS)},
-}
-
-
 # Named bundles of settings. "metaurban12k": the paper's density (docs/scenes.md: each statistic of MetaUrban-12K
 # within 25 % on 200 train scenes, measured by `curbside scenes stats --vs-paper`).
 PRESETS: dict[str, dict[str, Any]] = {
@@ -92,51 +50,119 @@ MAX_BLOCKS = 64
 MAX_BLOCK_DENSITY = 640.0  # blocks x max(object_density, 1): 20 x 50 (11,000 objects) took 74 s, 64 x 50 took 3 min
 MIN_FILL_GAP = 0.1
 _M = "metres"
-# Every key of DEFAULT_CONFIG: its type and valid range. The upper bounds keep one scene's generation within
-# about a minute on one core (object counts scale with object_density and 1 / standard_spacing, the raster with
-# 1 / grid_resolution^2); tests/sim/test_bad_input.py checks that no key is missing.
-CONFIG_TABLE: dict[str, Rule] = {
-    "preset": Choice(*PRESETS, none=True),
-    "blocks": Rule("any"),  # a count or codes: checked in resolve_config (1 to MAX_BLOCKS)
-    "block_types": Rule("str"),  # letters checked by check_codes (its message lists them)
-    "templates": Rule("str"),
-    "lanes": Pair(Int(1, 4), hint="lanes per direction, whole numbers"),
-    "lane_width": Pair(Float(1.0, 10.0), hint=_M),
-    "straight_length": Pair(Float(5.0, 500.0), hint=_M),
-    "curve_radius": Pair(Float(5.0, 1000.0), hint=_M),
-    "curve_angle": Pair(Float(1.0, 180.0), hint="degrees"),
-    "arm_length": Pair(Float(5.0, 500.0), hint=_M),
-    "roundabout_radius": Pair(Float(1.0, 200.0), hint=_M),
-    "building_depth": Pair(Float(0.5, 200.0), hint=_M),
-    "buildings": Bool(),
-    "curb_height": Float(0.0, 1.0, hint=_M),
-    "crosswalk_density": Float(0.0, 1.0),
-    "crosswalks": Rule("list", item=Rule("str"), none=True, hint="candidate ids such as 'r0.0:start'"),
-    "connect_crosswalks": Bool(),
-    "crosswalk_width": Pos(20.0, hint=_M),
-    "ramp_depth": Float(0.0, 20.0, hint=_M),
-    "object_density": Float(0.0, 50.0, hint="rho_s: 1 is the default density"),
-    "standard_spacing": Float(0.5, 1000.0, hint=_M),
-    "non_standard_per_100m": Float(0.0, 500.0),
-    "clutter_per_100m": Float(0.0, 500.0),
-    "density_model": Choice("sparse", "paper"),
-    "fill_gap": Float(0.0, 100.0, hi_open=True, hint=_M),
-    "fill_clutter": Float(0.0, 1.0, hi_open=True),
-    "fill_row_width": Float(0.3, 100.0, hi_open=True, hint=_M),
-    "min_objects": Int(0, 100_000),
-    "placement_tries": Int(1, 100),
-    "min_clear_width": Float(0.0, 10.0, hint=_M),
-    "country": Rule("str", none=True, hint="an ISO alpha-2 code such as FI"),
-    "distribution_path": Rule("path"),
-    "exclude_categories": Rule("list", item=Rule("str")),
-    "assets": Choice("all", "seen", "held_out"),
-    "grid_resolution": Float(0.05, 2.0, hint="metres per walkable cell"),
-    "block_tries": Int(1, 1000),
+# The generator's config: every key's default, its type and valid range, and what it means. The upper bounds keep
+# one scene's generation within about a minute on one core (object counts scale with object_density and
+# 1 / standard_spacing, the raster with 1 / grid_resolution^2).
+CONFIG_KEYS: dict[str, Key | dict[str, Key]] = {
+    "preset": Key(
+        None,
+        Choice(*PRESETS, none=True),
+        "a name from PRESETS: its values replace the defaults (explicit keys still win)",
+    ),
+    # resolve_config checks a count or codes (1 to MAX_BLOCKS).
+    "blocks": Key(3, Rule("any"), 'a count, or a string of block codes such as "SXCT"'),
+    # check_codes checks the letters (its message lists them).
+    "block_types": Key("SCXTO", Rule("str"), "codes drawn from when `blocks` is a count"),
+    "templates": Key("abcdef", Rule("str"), "sidewalk templates drawn uniformly per sidewalk"),
+    "lanes": Key(
+        [1, 2],
+        Pair(Int(1, 4), hint="lanes per direction, whole numbers"),
+        "lanes per direction, inclusive range, drawn per block",
+    ),
+    "lane_width": Key([3.0, 3.6], Pair(Float(1.0, 10.0), hint=_M), "metres, drawn per block"),
+    "straight_length": Key([30.0, 60.0], Pair(Float(5.0, 500.0), hint=_M), "metres of a straight block"),
+    "curve_radius": Key(
+        [40.0, 70.0],
+        Pair(Float(5.0, 1000.0), hint=_M),
+        "centerline radius; large enough for inner sidewalks and buildings",
+    ),
+    "curve_angle": Key([45.0, 90.0], Pair(Float(1.0, 180.0), hint="degrees"), "degrees, either direction"),
+    "arm_length": Key([20.0, 35.0], Pair(Float(5.0, 500.0), hint=_M), "junction and roundabout arms"),
+    "roundabout_radius": Key([8.0, 14.0], Pair(Float(1.0, 200.0), hint=_M), "central island radius"),
+    "building_depth": Key(
+        [8.0, 12.0], Pair(Float(0.5, 200.0), hint=_M), "depth of the building zone beyond the sidewalk"
+    ),
+    "buildings": Key(True, Bool(), "buildings along the sidewalks"),
+    "curb_height": Key(0.15, Float(0.0, 1.0, hint=_M), "metres the sidewalk stands above the road"),
+    "crosswalk_density": Key(0.5, Float(0.0, 1.0), "probability that each crosswalk candidate is built"),
+    "crosswalks": Key(
+        None,
+        Rule("list", item=Rule("str"), none=True, hint="candidate ids such as 'r0.0:start'"),
+        'or an explicit list of candidate ids, e.g. ["r0.0:start", "r1.2:end"]',
+    ),
+    "connect_crosswalks": Key(True, Bool(), "also build the fewest extra candidates that join every sidewalk group"),
+    "crosswalk_width": Key(3.0, Pos(20.0, hint=_M), "metres across a crosswalk"),
+    "ramp_depth": Key(1.5, Float(0.0, 20.0, hint=_M), "metres a curb ramp reaches into the sidewalk"),
+    "object_density": Key(
+        1.0,
+        Float(0.0, 50.0, hint="rho_s: 1 is the default density"),
+        "rho_s: scales standard spacing (1/rho) and zoned/clutter counts (rho)",
+    ),
+    "standard_spacing": Key(12.0, Float(0.5, 1000.0, hint=_M), "metres between standard infrastructure at density 1"),
+    "non_standard_per_100m": Key(
+        8.0, Float(0.0, 500.0), 'non-standard objects per 100 m of sidewalk at density 1 ("sparse" model)'
+    ),
+    "clutter_per_100m": Key(
+        5.0, Float(0.0, 500.0), 'clutter items per 100 m of sidewalk at density 1 ("sparse" model)'
+    ),
+    "density_model": Key(
+        "sparse",
+        Choice("sparse", "paper"),
+        '"sparse": counts per 100 m; "paper": rows along every furniture zone (MetaUrban-12K)',
+    ),
+    "fill_gap": Key(
+        0.9,
+        Float(0.0, 100.0, hi_open=True, hint=_M),
+        'mean gap (m) between neighbours in a row at object_density 1 ("paper" model)',
+    ),
+    "fill_clutter": Key(0.15, Float(0.0, 1.0, hi_open=True), 'share of clutter items in the rows ("paper" model)'),
+    "fill_row_width": Key(
+        1.4,
+        Float(0.3, 100.0, hi_open=True, hint=_M),
+        'a zone holds floor(width / this) rows of objects ("paper" model)',
+    ),
+    "min_objects": Key(
+        0,
+        Int(0, 100_000),
+        '"paper" model: refill the gaps (smaller each round) until a scene holds this many',
+    ),
+    "placement_tries": Key(4, Int(1, 100), "positions tried per object before it counts as refused"),
+    "min_clear_width": Key(1.2, Float(0.0, 10.0, hint=_M), "free corridor kept along every clear path (wheelchair)"),
+    "country": Key(
+        None,
+        Rule("str", none=True, hint="an ISO alpha-2 code such as FI"),
+        "None: uniform categories; else ISO alpha-2 row of the distribution table",
+    ),
+    "distribution_path": Key(
+        "data/distribution/distribution.parquet",
+        Rule("path"),
+        "the category distribution table (rows per country)",
+    ),
+    "exclude_categories": Key([], Rule("list", item=Rule("str")), "held-out categories (dataset splits)"),
+    "assets": Key(
+        "all",
+        Choice("all", "seen", "held_out"),
+        "catalog assets drawn: all, seen (train, test) or held_out (unseen, finetune)",
+    ),
+    "grid_resolution": Key(0.25, Float(0.05, 2.0, hint="metres per walkable cell"), "metres per walkable cell"),
+    "block_tries": Key(30, Int(1, 1000), "shapes/parameters tried per block before giving up"),
+    # Terrain patches on the sidewalks (sim.scene.terrain, docs/terrain.md).
     "terrain": {
-        "density": Float(0.0, 10.0, hint="1 is a city's typical share of terrain patches, 0 none"),
-        "kinds": Rule("list", choices=TERRAIN_KINDS),
+        "density": Key(
+            1.0,
+            Float(0.0, 10.0, hint="1 is a city's typical share of terrain patches, 0 none"),
+            "terrain patches: 1 is a city's typical share, 0 none",
+        ),
+        "kinds": Key(
+            list(TERRAIN_KINDS),
+            Rule("list", choices=TERRAIN_KINDS),
+            "any of roots (tree-root heave), rough (uneven pavers), steps (entrances), slick (wet, gravel)",
+        ),
     },
 }
+DEFAULT_CONFIG: dict[str, Any] = defaults_of(CONFIG_KEYS)
+# tests/sim/test_bad_input.py checks that no key of DEFAULT_CONFIG is missing here.
+CONFIG_TABLE: dict[str, Rule | Table] = table_of(CONFIG_KEYS)
 
 
 def check_codes(codes: str, valid: Mapping[str, Any] | str, *, what: str) -> None:

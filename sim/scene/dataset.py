@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -59,7 +59,7 @@ def split_config(split: str, base: dict[str, Any] | None = None) -> tuple[dict[s
     return cfg, int(s["seed_offset"])
 
 
-def summarize(spec: dict[str, Any], file: str, split: str) -> dict[str, Any]:
+def summarize(spec: Mapping[str, Any], file: str, split: str) -> dict[str, Any]:
     """One index row: the scene's id, file, seed and headline statistics."""
     st = spec["stats"]
     row = {"scene_id": Path(file).stem, "file": file, "split": split, "seed": spec["seed"]}
@@ -84,7 +84,7 @@ def scene_file(split: str, seed: int) -> str:
     return f"scenes/{split}_{seed:08d}.json"
 
 
-def verified_scene(path: Path, seed: int, config: dict[str, Any], catalog: str | None) -> dict[str, Any] | None:
+def verified_scene(path: Path, seed: int, config: dict[str, Any], catalog: str | None) -> Mapping[str, Any] | None:
     """The spec at `path` when it is a complete scene of this seed, resolved config and catalog, else None.
 
     Files are written atomically, so a file that parses is whole; the seed, config and catalog checks make a

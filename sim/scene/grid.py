@@ -9,7 +9,7 @@ from __future__ import annotations
 import base64
 import math
 import zlib
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,7 +33,7 @@ class WalkableGrid:
     @property
     def shape(self) -> tuple[int, int]:
         """(rows, cols)."""
-        return self.mask.shape  # type: ignore[return-value]
+        return self.mask.shape
 
     @property
     def walkable(self) -> np.ndarray:
@@ -206,7 +206,7 @@ def encode_walkable(mask: np.ndarray, origin: tuple[float, float], resolution: f
     }
 
 
-def decode_walkable(spec: dict[str, Any]) -> WalkableGrid:
+def decode_walkable(spec: Mapping[str, Any]) -> WalkableGrid:
     """Decode the `walkable` grid of a scene spec (or of its `walkable` object itself)."""
     w = spec.get("walkable", spec)
     if w.get("encoding") != ENCODING:

@@ -96,7 +96,9 @@ class Occupancy:
         if polys:
             shapely.prepare(polys)
         self.keep_bounds = (
-            [tuple(map(float, b)) for b in shapely.bounds(np.asarray(polys, dtype=object))] if polys else []
+            [(x0, y0, x1, y1) for x0, y0, x1, y1 in shapely.bounds(np.asarray(polys, dtype=object)).tolist()]
+            if polys
+            else []
         )
         self.keep_cells = {}
         self.keep_tree = shapely.STRtree(polys) if polys else None

@@ -86,7 +86,8 @@ class Placer:
         if ent is None or ent[0] is not zp:
             if not shapely.is_prepared(zp):
                 shapely.prepare(zp)
-            ent = self._zones[id(zp)] = (zp, tuple(map(float, zp.bounds)))
+            x0, y0, x1, y1 = zp.bounds
+            ent = self._zones[id(zp)] = (zp, (float(x0), float(y0), float(x1), float(y1)))
         return ent
 
     def try_place(
@@ -281,13 +282,13 @@ class Placer:
                 if fill and not self.in_catalog("building_facade")
                 else self.asset("building_facade", "building", zone.width, want)
             )
-            if a is None and not fill:
-                skipped += 1
-                s += 3.0
-                continue
             if fill:
                 height = a[1][2] if a is not None and a[0] is not None else float(self.rng.uniform(6.0, 30.0))
                 a = (None if a is None else a[0], [zone.width, want, height])
+            elif a is None:
+                skipped += 1
+                s += 3.0
+                continue
             elif a[0] is None:
                 a = (None, [zone.width, want, float(self.rng.uniform(6.0, 30.0))])
             placed = False

@@ -67,7 +67,7 @@ class Polyline:
 
     def heading_at(self, s: float) -> float:
         """Heading (radians) of the segment at arc length `s` (the chord, not the vertex tangent)."""
-        k = int(min(max(np.searchsorted(self.s, s, side="right") - 1, 0), len(self.seg) - 1))
+        k = min(max(int(np.searchsorted(self.s, s, side="right")) - 1, 0), len(self.seg) - 1)
         return math.atan2(self.seg[k, 1], self.seg[k, 0])
 
     def offset(self, d: float) -> np.ndarray:

@@ -16,6 +16,8 @@ from sim.palette import EDGE, OBJECT_CLASS, SURFACE, ZONE, terrain_colour
 from sim.scene.scene import Scene, as_scene
 from sim.topdown import Colour, dashes, draw_scene
 
+_Item = tuple[np.ndarray, Colour | None, Colour | None, float]  # points, fill (line: colour), outline, width
+
 
 class PlotCanvas:
     """`sim.topdown.Canvas`'s drawing calls onto a matplotlib Axes; widths in pixels become `pt_per_px` points.
@@ -26,7 +28,8 @@ class PlotCanvas:
 
     def __init__(self, ax: Any, px_per_m: float, pt_per_px: float = 0.4) -> None:
         self.ax, self.px_per_m, self.pt_per_px = ax, px_per_m, pt_per_px
-        self._kind, self._items, self._z = "", [], 1.0
+        self._kind, self._z = "", 1.0
+        self._items: list[_Item] = []
 
     def polygon(self, pts: Any, fill: Colour | None, outline: Colour | None = None, width: float = 1.0) -> None:
         """A polygon filled with `fill` (None: not filled), outlined `width` pixels wide when `outline` is given."""
@@ -71,7 +74,7 @@ class PlotCanvas:
             )
         self._items, self._z = [], self._z + 0.001
 
-    def _add(self, kind: str, item: tuple) -> None:
+    def _add(self, kind: str, item: _Item) -> None:
         if kind != self._kind:
             self.finish()
             self._kind = kind

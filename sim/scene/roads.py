@@ -100,10 +100,9 @@ def build_block(code: str, bid: str, p: np.ndarray, h: float, rng: np.random.Gen
             ways.append(_arm(bid, k, start, a, la + ro - r0, hw))
             sockets.append((c + (ro + la) * unit(a), a))
         for k in range(4):
-            a0 = angles[k]
-            a1 = a0 + HALF_PI
             # Counter-clockwise ring: its right side faces outward, the left side is the central island.
-            ways.append(Roadway(f"{bid}.{4 + k}", arc_about(c, ri + hw, a0, a1), hw, sides=(-1,), crosswalk_ends=()))
+            ring = arc_about(c, ri + hw, angles[k], angles[k] + HALF_PI)
+            ways.append(Roadway(f"{bid}.{4 + k}", ring, hw, sides=(-1,), crosswalk_ends=()))
         island = Point(c).buffer(ri, quad_segs=16)
         through = 2 * la + 2 * ro
     else:
@@ -133,6 +132,7 @@ def _overlaps(new: Block, blocks: list[Block], socket: np.ndarray, margin: float
     """Whether `new` comes too close to earlier blocks (its parent only near the joint is allowed)."""
     claim = new.claim = _claim(new, margin)
     for i, b in enumerate(blocks):
+        assert b.claim is not None  # set on every placed block: the first by generate_network, the rest here
         if i == new.parent:
             inter = new.polygon.intersection(b.polygon).area
             if inter > 2.0:

@@ -30,6 +30,7 @@ _INDEX = {c: k for k, c in enumerate(NAMES)}
 _CLASS = [CATEGORIES[c].object_class for c in NAMES]
 _FALLBACK = np.array([CATEGORIES[c].size for c in NAMES], dtype=np.float64)
 _MAX_BATCH = 256
+_NO_ASSETS = np.zeros(0, dtype=object)  # asset ids without a catalog: its indices are all -1, none is looked up
 
 
 class Fits:
@@ -265,7 +266,7 @@ def place_many(
     wrapped = [math.atan2(math.sin(v), math.cos(v)) for v in yaw[p].tolist()]  # (-pi, pi]
     pos, yw = round_array(np.stack([x[p], y[p]], axis=1)), round_array(np.array(wrapped))
     sz, fp = round_array(size[p]), round_array(corners[p], rows=True)
-    ids = placer.catalog.table.asset_id if placer.catalog is not None else None
+    ids = placer.catalog.table.asset_id if placer.catalog is not None else _NO_ASSETS
     objects, z, sid = placer.objects, placer.z, sw.id
     for k, (i, ci, zi) in enumerate(zip(index[p].tolist(), cat[p].tolist(), zone_of[p].tolist())):
         objects.append(

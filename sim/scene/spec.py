@@ -91,6 +91,7 @@ def canonical(obj: Any) -> Any:
         n = len(obj)
         if 0 < n <= 32:  # longer coordinate lists are quicker in numpy (`_canonical`)
             t0 = type(obj[0])
+            r: list[float] | list[list[float]] | None
             if t0 is float:
                 for v in obj:
                     if type(v) is not float:

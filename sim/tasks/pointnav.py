@@ -18,68 +18,27 @@ from typing import Any
 import numpy as np
 
 from kernel.config import ConfigError, excerpt, merge_strict
-from sim.camera import CAMERA_DEFAULTS, CAMERA_TABLE
+from sim.camera import CAMERA_KEYS, check_clipping_planes
 from sim.metrics import POINTNAV_MEASURES
 from sim.scene.dataset import SPLITS
-from sim.schema import Bool, Choice, Float, Int, Pair, Pos, Rule, check_table
-from sim.tasks.sensors import LIDAR_TABLE, RENDER_TABLE
+from sim.schema import (
+    Bool,
+    Choice,
+    Float,
+    Int,
+    Key,
+    Pair,
+    Pos,
+    Rule,
+    Table,
+    check_table,
+    dataclass_keys,
+    defaults_of,
+    key_field,
+    table_of,
+)
+from sim.tasks.sensors import LIDAR_KEYS, RENDER_KEYS
 from sim.tasks.termination import StepContext, StepEnd
-
-DEFAULT_CONFIG: dict[str, Any] = {
-    "preset": None,  # a TASK_PRESETS name (e.g. "metaurban12k"): its values replace these defaults
-    "machine": "delivery_bot",  # a name from sim.machines.MACHINES or a dict of MachineSpec fields
-    "scene": {},  # generator config passed to sim.scene.generate_scene (partial is fine)
-    "split": "train",  # train | test | unseen | finetune (sim.scene.dataset.SPLITS), or None
-    "scene_dir": None,  # a `curbside scenes dataset` folder: episodes draw its scenes of `split`
-    "scene_seed": 0,  # first generated scene (within the split's seed range)
-    "num_scenes": 1,  # episodes draw scene k in [0, num_scenes) (generated or from scene_dir)
-    "scene_cache": 8,  # built worlds kept (LRU), each in its own Bullet client: a repeat costs no build
-    "scene_spec": None,  # an explicit scene spec (dict) instead of the generator
-    "scene_path": None,  # or a path to a scene spec JSON file
-    "catalog": None,  # catalog path for the generator and for mesh collision/visuals
-    "collision": "box",  # static objects: "box" from `size`, or "convex" hull of the catalog mesh
-    "visual_meshes": "auto",  # catalog meshes (textured) as visual shapes; auto: with camera modalities
-    "gui": False,  # PyBullet GUI instead of DIRECT
-    "dt": 0.1,  # seconds per env step
-    "physics_substeps": 5,  # Bullet substeps per env step (0.02 s each by default)
-    "horizon": 1000,  # truncation after at most this many steps
-    "horizon_min_speed": 0.5,  # m/s: the horizon is also cut to route_length / this (None: fixed horizon)
-    "stl_cruise_speed": 2.5,  # m/s: STL's t_ref = geodesic / min(this, v_max); the expert's cruise speed
-    "route_length": [10.0, 60.0],  # reference route length range in metres (>= 5 m)
-    "route_margin": 0.25,  # extra clearance beyond the machine's half-width when planning
-    "success_completion": 0.95,  # route fraction that counts as success
-    "out_of_route_distance": 3.0,  # lateral offset (m) that ends the episode as out of route
-    "terminate_off_walkable": True,  # leaving the walkable area (road, buildings) is out of route too
-    "stuck_steps": 100,  # end the episode when the route progress grew < stuck_distance in this many steps (0: never)
-    "stuck_distance": 0.5,  # metres of new progress that count as moving on
-    "collision_steps": 30,  # end the episode after this many consecutive steps in contact (0: never)
-    "max_episode_cost": None,  # end the episode, failed, once its cost exceeds this (PPO-ET's rule; None: never)
-    "topple_angle": 60.0,  # degrees of roll or pitch that end the episode as toppled
-    "cost_kinds": ["object", "building"],  # contacts that cost (the paper: objects and buildings, not curbs)
-    "lidar": {
-        "beams": 240,
-        "range": 50.0,
-        "height": 0.4,
-        "encoding": "log",
-        "low_beams": 60,
-        "low_range": 5.0,
-        "low_height": 0.08,
-        # Static geometry: "grid" traces distance grids of `resolution` m (sim.raycast; ~0.1 ms for 300 rays
-        # against Bullet's ~0.7 ms), "bullet" ray-tests the Bullet world; "auto" is grid with box collision, else bullet.
-        "static": "auto",
-        "resolution": 0.05,
-    },
-    "speed_scale": 5.0,  # m/s that maps to 1 in the `speed` observation (clipped)
-    "num_waypoints": 10,
-    "waypoint_spacing": 1.0,  # metres between the observed route waypoints
-    "reward_preset": "learnable",  # "learnable" or "paper" (REWARD_PRESETS)
-    "reward": {},  # overrides of the preset's terms (Reward fields)
-    "measures": list(POINTNAV_MEASURES),
-    "render": {"camera": "dashboard", "width": 768, "height": 384, "top_down_height": 25.0},
-    "camera": CAMERA_DEFAULTS,  # the ego camera (sim.camera): modalities rgb / depth / semantic, size, fov
-    "observation": "auto",  # "flat" Box, or "dict" {lidar, state, nav, camera images}; auto: dict with a camera
-}
-
 
 # Named route-length ranges (metres). "metaurban12k": the paper's mean episode of ~410 m (chained legs, see
 # sim.route.RoutePlanner.sample).
@@ -121,6 +80,9 @@ def resolve_task_config(
     return merge_strict(base, cfg, name="config")
 
 
+_WEIGHT = Float(-1e6, 1e6)
+
+
 @dataclass(frozen=True)
 class Reward:
     """R = R_term + w_disp R_disp - w_lat max(0, |lat| - free) - w_steer |ds| v - w_crash [collision], floored or not.
@@ -131,23 +93,22 @@ class Reward:
     lack of progress or a lasting collision. floor: the dense part is floored at zero (MetaUrban's released code).
     """
 
-    success: float = 10.0
-    out_of_route: float = -5.0
-    stuck: float = -5.0
-    disp: float = 1.0
-    progress: str = "max"
-    lateral: float = 0.05
-    lateral_free: float = 0.5
-    steering: float = 0.05
-    crash: float = 0.5
-    floor: bool = False
+    # Weights are bounded so that one step cannot dwarf a return.
+    success: float = key_field(10.0, _WEIGHT, "R_term of a successful episode")
+    out_of_route: float = key_field(-5.0, _WEIGHT, "R_term of an episode that ends off the route")
+    stuck: float = key_field(
+        -5.0, _WEIGHT, "R_term of an episode that ends for lack of progress or a lasting collision"
+    )
+    disp: float = key_field(1.0, _WEIGHT, "w_disp: the weight of the progress term R_disp")
+    progress: str = key_field("max", Choice("route", "max"), '"route": R_disp is arc length gained; "max": new ground')
+    lateral: float = key_field(0.05, _WEIGHT, "w_lat: the cost per metre of lateral offset beyond lateral_free")
+    lateral_free: float = key_field(0.5, _WEIGHT, "metres of lateral offset from the route that cost nothing")
+    steering: float = key_field(0.05, _WEIGHT, "w_steer: the cost of |steering change| x speed")
+    crash: float = key_field(0.5, _WEIGHT, "w_crash: the cost of a step in collision")
+    floor: bool = key_field(False, Bool(), "floor the dense part of each step's reward at zero")
 
     def __post_init__(self) -> None:
-        if self.progress not in ("route", "max"):
-            raise ConfigError(f"config.reward.progress must be 'route' or 'max', got {self.progress!r}")
-        for k, v in asdict(self).items():
-            if k not in ("progress", "floor") and not (isinstance(v, (int, float)) and abs(v) < float("inf")):
-                raise ConfigError(f"config.reward.{k} must be a finite number, got {v!r}")
+        check_table(asdict(self), REWARD_TABLE, name="config.reward")
 
     def __call__(self, step: StepContext, end: StepEnd) -> float:
         """One step's reward from progress along the route, the offset, steering change and events: `batch`'s
@@ -193,6 +154,9 @@ class Reward:
         return np.where(np.logical_or(np.logical_or(succeeded, out_of_route), stuck), r + bonus, r)
 
 
+# The Keys of the Reward fields; a config's `reward` overrides some of a preset's terms.
+REWARD_KEYS: dict[str, Key] = dataclass_keys(Reward)
+REWARD_TABLE: dict[str, Rule | Table] = table_of(REWARD_KEYS)
 REWARD_PRESETS: dict[str, dict[str, Any]] = {
     # The MetaUrban paper: progress along the route, full lateral penalty, no stuck ending (stuck_steps and
     # collision_steps still end such episodes unless set to 0; their penalty is then 0).
@@ -214,61 +178,110 @@ REWARD_PRESETS: dict[str, dict[str, Any]] = {
 
 COLLISION_KINDS = ("object", "building", "curb", "agent", "vehicle")
 MAX_SEED = 1_000_000  # splits start 1,000,000 seeds apart: scene_seed + num_scenes stays below that
-# Overrides of a reward preset's terms (Reward fields); weights are bounded so one step cannot dwarf a return.
-REWARD_TABLE: dict[str, Rule] = {
-    **{
-        k: Float(-1e6, 1e6)
-        for k in ("success", "out_of_route", "stuck", "disp", "lateral", "lateral_free", "steering", "crash")
-    },
-    "progress": Choice("route", "max"),
-    "floor": Bool(),
+# PointNav's config: every key's default, its type and valid range, and what it means. Bounds are generous for
+# research use but finite: a NaN, inf or absurd value fails at construction.
+CONFIG_KEYS: dict[str, Key | dict[str, Key]] = {
+    "preset": Key(
+        None,
+        Choice(*TASK_PRESETS, none=True),
+        'a TASK_PRESETS name (e.g. "metaurban12k"): its values replace these defaults',
+    ),
+    # machine_spec and check_machine check a name or a dict of MachineSpec fields.
+    "machine": Key("delivery_bot", Rule("any"), "a name from sim.machines.MACHINES or a dict of MachineSpec fields"),
+    "scene": Key(
+        {},
+        Rule("mapping", hint="a partial scene generator config, see sim.scene.DEFAULT_CONFIG"),
+        "generator config passed to sim.scene.generate_scene (partial is fine)",
+    ),
+    "split": Key(
+        "train", Choice(*SPLITS, none=True), "train | test | unseen | finetune (sim.scene.dataset.SPLITS), or None"
+    ),
+    "scene_dir": Key(
+        None, Rule("path", none=True), "a `curbside scenes dataset` folder: episodes draw its scenes of `split`"
+    ),
+    "scene_seed": Key(0, Int(0, MAX_SEED - 1), "first generated scene (within the split's seed range)"),
+    "num_scenes": Key(
+        1, Int(1, MAX_SEED, none=True), "episodes draw scene k in [0, num_scenes) (generated or from scene_dir)"
+    ),
+    "scene_cache": Key(
+        8, Int(1, 1024), "built worlds kept (LRU), each in its own Bullet client: a repeat costs no build"
+    ),
+    "scene_spec": Key(None, Rule("mapping", none=True), "an explicit scene spec (dict) instead of the generator"),
+    "scene_path": Key(None, Rule("path", none=True), "or a path to a scene spec JSON file"),
+    "catalog": Key(
+        None,
+        Rule("file", none=True, hint="build one with `curbside catalog build --catalog PATH`"),
+        "catalog path for the generator and for mesh collision/visuals",
+    ),
+    "collision": Key(
+        "box", Choice("box", "convex"), 'static objects: "box" from `size`, or "convex" hull of the catalog mesh'
+    ),
+    "visual_meshes": Key(
+        "auto",
+        Choice("auto", True, False),
+        "catalog meshes (textured) as visual shapes; auto: with camera modalities",
+    ),
+    "gui": Key(False, Bool(), "PyBullet GUI instead of DIRECT"),
+    "dt": Key(0.1, Pos(1.0, hint="seconds per env step"), "seconds per env step"),
+    "physics_substeps": Key(5, Int(1, 100), "Bullet substeps per env step (0.02 s each by default)"),
+    "horizon": Key(1000, Int(1, 10_000_000), "truncation after at most this many steps"),
+    "horizon_min_speed": Key(
+        0.5,
+        Pos(100.0, none=True),
+        "m/s: the horizon is also cut to route_length / this (None: fixed horizon)",
+    ),
+    "stl_cruise_speed": Key(
+        2.5, Pos(50.0, hint="m/s"), "m/s: STL's t_ref = geodesic / min(this, v_max); the expert's cruise speed"
+    ),
+    "route_length": Key(
+        [10.0, 60.0], Pair(Float(5.0, 100_000.0), hint="metres"), "reference route length range in metres (>= 5 m)"
+    ),
+    "route_margin": Key(0.25, Float(0.0, 5.0), "extra clearance beyond the machine's half-width when planning"),
+    "success_completion": Key(0.95, Float(0.0, 1.0, lo_open=True), "route fraction that counts as success"),
+    "out_of_route_distance": Key(3.0, Pos(1000.0), "lateral offset (m) that ends the episode as out of route"),
+    "terminate_off_walkable": Key(True, Bool(), "leaving the walkable area (road, buildings) is out of route too"),
+    "stuck_steps": Key(
+        100,
+        Int(0, 10_000_000),
+        "end the episode when the route progress grew < stuck_distance in this many steps (0: never)",
+    ),
+    "stuck_distance": Key(0.5, Pos(1000.0), "metres of new progress that count as moving on"),
+    "collision_steps": Key(
+        30, Int(0, 10_000_000), "end the episode after this many consecutive steps in contact (0: never)"
+    ),
+    "max_episode_cost": Key(
+        None,
+        Float(0.0, 1e9, none=True),
+        "end the episode, failed, once its cost exceeds this (PPO-ET's rule; None: never)",
+    ),
+    "topple_angle": Key(
+        60.0, Float(1.0, 180.0, hint="degrees"), "degrees of roll or pitch that end the episode as toppled"
+    ),
+    "cost_kinds": Key(
+        ["object", "building"],
+        Rule("list", choices=COLLISION_KINDS),
+        "contacts that cost (the paper: objects and buildings, not curbs)",
+    ),
+    "lidar": LIDAR_KEYS,
+    "speed_scale": Key(5.0, Pos(100.0), "m/s that maps to 1 in the `speed` observation (clipped)"),
+    "num_waypoints": Key(10, Int(1, 1000), "route waypoints in the observation"),
+    "waypoint_spacing": Key(1.0, Pos(100.0), "metres between the observed route waypoints"),
+    "reward_preset": Key("learnable", Choice(*REWARD_PRESETS), '"learnable" or "paper" (REWARD_PRESETS)'),
+    "reward": Key({}, REWARD_TABLE, "overrides of the preset's terms (Reward fields)"),
+    "measures": Key(
+        list(POINTNAV_MEASURES), Rule("list", item=Rule("str")), "the episode metrics reported (sim.metrics)"
+    ),
+    "render": RENDER_KEYS,
+    "camera": CAMERA_KEYS,  # the ego camera (sim.camera): modalities rgb / depth / semantic, size, fov
+    "observation": Key(
+        "auto",
+        Choice("auto", "flat", "dict"),
+        '"flat" Box, or "dict" {lidar, state, nav, camera images}; auto: dict with a camera',
+    ),
 }
-# Every key of DEFAULT_CONFIG: its type and valid range (tests/sim/test_bad_input.py checks that none is missing).
-# Bounds are generous for research use but finite: a NaN, inf or absurd value fails here, at construction.
-CONFIG_TABLE: dict[str, Any] = {
-    "preset": Choice(*TASK_PRESETS, none=True),
-    "machine": Rule(
-        "any"
-    ),  # a name or a dict of MachineSpec fields: checked by sim.machines.machine_spec + check_machine
-    "scene": Rule("mapping", hint="a partial scene generator config, see sim.scene.DEFAULT_CONFIG"),
-    "split": Choice(*SPLITS, none=True),
-    "scene_dir": Rule("path", none=True),
-    "scene_seed": Int(0, MAX_SEED - 1),
-    "num_scenes": Int(1, MAX_SEED, none=True),
-    "scene_cache": Int(1, 1024),
-    "scene_spec": Rule("mapping", none=True),
-    "scene_path": Rule("path", none=True),
-    "catalog": Rule("file", none=True, hint="build one with `curbside catalog build --catalog PATH`"),
-    "collision": Choice("box", "convex"),
-    "visual_meshes": Choice("auto", True, False),
-    "gui": Bool(),
-    "dt": Pos(1.0, hint="seconds per env step"),
-    "physics_substeps": Int(1, 100),
-    "horizon": Int(1, 10_000_000),
-    "horizon_min_speed": Pos(100.0, none=True),
-    "stl_cruise_speed": Pos(50.0, hint="m/s"),
-    "route_length": Pair(Float(5.0, 100_000.0), hint="metres"),
-    "route_margin": Float(0.0, 5.0),
-    "success_completion": Float(0.0, 1.0, lo_open=True),
-    "out_of_route_distance": Pos(1000.0),
-    "terminate_off_walkable": Bool(),
-    "stuck_steps": Int(0, 10_000_000),
-    "stuck_distance": Pos(1000.0),
-    "collision_steps": Int(0, 10_000_000),
-    "max_episode_cost": Float(0.0, 1e9, none=True),
-    "topple_angle": Float(1.0, 180.0, hint="degrees"),
-    "cost_kinds": Rule("list", choices=COLLISION_KINDS),
-    "lidar": LIDAR_TABLE,
-    "speed_scale": Pos(100.0),
-    "num_waypoints": Int(1, 1000),
-    "waypoint_spacing": Pos(100.0),
-    "reward_preset": Choice(*REWARD_PRESETS),
-    "reward": REWARD_TABLE,
-    "measures": Rule("list", item=Rule("str")),
-    "render": RENDER_TABLE,
-    "camera": CAMERA_TABLE,
-    "observation": Choice("auto", "flat", "dict"),
-}
+DEFAULT_CONFIG: dict[str, Any] = defaults_of(CONFIG_KEYS)
+# tests/sim/test_bad_input.py checks that no key of DEFAULT_CONFIG is missing here.
+CONFIG_TABLE: dict[str, Rule | Table] = table_of(CONFIG_KEYS)
 # Numeric MachineSpec fields of a custom machine (a dict): finite and within these bounds.
 MACHINE_TABLE: dict[str, Rule] = {
     "v_max_kmh": Pos(200.0),
@@ -325,10 +338,12 @@ def check_config(
         defaults=DEFAULT_CONFIG if defaults is None else defaults,
     )
     check_machine(cfg["machine"])
-    if cfg["camera"]["near"] >= cfg["camera"]["far"]:
-        raise ConfigError(
-            f"config.camera.near ({cfg['camera']['near']}) must be below config.camera.far ({cfg['camera']['far']})"
-        )
+    check_clipping_planes(cfg["camera"])
+    check_grid_lidar_collision(cfg)
+
+
+def check_grid_lidar_collision(cfg: Mapping[str, Any]) -> None:
+    """A ConfigError when the grid LiDAR would trace boxes while the objects collide as mesh hulls."""
     if cfg["lidar"]["static"] == "grid" and cfg["collision"] != "box":
         raise ConfigError(
             "config.lidar.static 'grid' traces the objects' boxes, but config.collision is "
