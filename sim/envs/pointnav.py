@@ -13,6 +13,7 @@ import numpy as np
 from kernel.config import ConfigError
 from kernel.quiet import pybullet as p
 from sim.envs.episode import Episode
+from sim.envs.managers import EgoPose, Manager, ResetContext, SceneContext, TickContext
 from sim.envs.observation import EgoObservation, Observation
 from sim.envs.reset_options import check_reset_options
 from sim.envs.scenes import SceneCache, SceneSlot, SceneSource, build_slot, trim_heap
@@ -20,6 +21,7 @@ from sim.machines import Machine, machine_spec
 from sim.metrics import EpisodeView, make_measures
 from sim.route import ROUTE_REDRAWS, Route, RouteError, RoutePlanner
 from sim.scene.scene import Scene
+from sim.sensors import GridLidar, Lidar
 from sim.tasks.pointnav import (
     CONFIG_TABLE,
     DEFAULT_CONFIG,
@@ -80,9 +82,10 @@ class PointNavEnv(gym.Env):
     `cost_kinds` body, else 0. At episode end `info` also holds the metrics (`success`, `spl`, `route_completion`,
     `episode_cost`, `collisions_<kind>`, `path_length`, `time`, ...) and `info["metrics"]` (`cost`: the total).
 
-    ## Subclass hooks
-    `_on_scene(scene)`, `_on_reset(rng)`, `_on_step()`, `_scene_state()`, `_load_scene_state(state)`,
-    `_collision_kinds`, `collision_kinds_all`, `_episode_metrics()`: see docs/simulator.md.
+    ## Managers
+    `managers` (sim.envs.managers; none here, SocialNav's crowd, traffic and bodies): the env calls each one's
+    hooks in list order when a world is built, left or re-entered, at reset and before and after the physics of
+    every step; see docs/simulator.md.
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
@@ -122,9 +125,10 @@ class PointNavEnv(gym.Env):
         self.world: World | None = None
         self.machine: Machine | None = None
         self.planner: RoutePlanner | None = None
-        # Subclass hook: body id -> collision kind for bodies the subclass adds (agents), per world.
+        # Body id -> collision kind of the bodies the managers add (agents, vehicles): the current world's table.
         self._collision_kinds: dict[int, str] = {}
         self.collision_kinds_all: list[str] = list(STATIC_COLLISION_KINDS)
+        self.managers: list[Manager[Any]] = []  # called in this order by every hook (sim.envs.managers)
         self.route: Route | None = None  # None: no episode to step (no reset yet, or the last one failed)
         self._reference_length: float | None = None  # the episode's SPL geodesic, planned on first use
 
@@ -134,7 +138,7 @@ class PointNavEnv(gym.Env):
         if self.slot is not None and key == self.slot.key:
             return  # same scene: keep every static body, only the machine moves
         if self.slot is not None:
-            self.slot.state = self._scene_state()
+            self.slot.manager_states = [mg.leave_scene() for mg in self.managers]
         cache = self._check_open()
         slot = cache.get(key)
         if slot is None:
@@ -143,7 +147,9 @@ class PointNavEnv(gym.Env):
                 scene = load()
                 build_slot(slot, scene, self.config, self.spec_machine)
                 self._use(slot)
-                self._on_scene(scene)
+                ctx = SceneContext(scene, slot.client, self._lidars(), slot.collision_kinds)
+                for mg in self.managers:
+                    mg.on_scene(ctx)
                 trim_heap()  # the scene it replaced is freed now
             except BaseException:
                 cache.discard(key)
@@ -151,13 +157,18 @@ class PointNavEnv(gym.Env):
                 raise
         else:
             self._use(slot)
-            self._load_scene_state(slot.state)
+            for mg, state in zip(self.managers, slot.manager_states, strict=True):
+                mg.enter_scene(state)
 
     def _use(self, slot: SceneSlot) -> None:
         self.slot = slot
         self.client, self.world, self.machine = slot.client, slot.world, slot.machine
         self.lidar, self.low_lidar, self.planner, self.camera = slot.lidar, slot.low_lidar, slot.planner, slot.camera
         self.kinds = dict(slot.world.kinds)
+        self._collision_kinds = slot.collision_kinds
+
+    def _lidars(self) -> tuple[Lidar | GridLidar, ...]:
+        return tuple(lidar for lidar in (self.lidar, self.low_lidar) if lidar is not None)
 
     @property
     def scene(self) -> Scene:
@@ -172,27 +183,13 @@ class PointNavEnv(gym.Env):
         """The raw spec dict of the current scene (`scene.spec`; read it, never write it)."""
         return self.scene.spec  # type: ignore[return-value]
 
-    # -- hooks -------------------------------------------------------------------------------------
-    def _on_scene(self, scene: Scene) -> None:
-        """Called after a new scene's world is built (subclasses add their bodies here)."""
-        self._collision_kinds = {}
-
-    def _scene_state(self) -> dict[str, Any]:
-        """What a subclass keeps per cached world (body ids and the like), saved when the env leaves it."""
-        return {"collision_kinds": self._collision_kinds}
-
-    def _load_scene_state(self, state: dict[str, Any]) -> None:
-        """Restore what `_scene_state` saved when the env comes back to a cached world."""
-        self._collision_kinds = state.get("collision_kinds", {})
-
-    def _park_bodies(self) -> None:
-        """Called at reset before the start's height is probed: move bodies the subclass added out of the way."""
-
-    def _on_reset(self, rng: np.random.Generator) -> None:
-        """Called after the machine is placed at the route's start (subclasses place agents here)."""
-
-    def _on_step(self) -> None:
-        """Called after the machine's physics and before sensing (subclasses move agents here)."""
+    # -- managers and measures --------------------------------------------------------------------
+    def _ego(self) -> EgoPose:
+        """The machine as the managers see it."""
+        m = self.machine
+        assert m is not None  # the managers run once reset has placed the machine
+        x, y, _ = m.position
+        return EgoPose(float(x), float(y), m.yaw, m.speed, m.spec.length, m.spec.width)
 
     def _episode_metrics(self) -> dict[str, float]:
         """The metrics of the finished episode, from the configured measures in order."""
@@ -202,9 +199,12 @@ class PointNavEnv(gym.Env):
         return metrics
 
     def _measure_view(self) -> EpisodeView:
-        """What the measures read of the episode just reset (SocialNav adds the agents' distance)."""
+        """What the measures read of the episode just reset, with the fields the managers supply."""
         route, m = self.route, self.machine
         assert route is not None and m is not None  # reset calls this once it has placed the machine on a route
+        fields: dict[str, Any] = {}
+        for mg in self.managers:
+            fields.update(mg.view_fields())
         return EpisodeView(
             episode=self.episode,
             route_length=float(route.length),
@@ -212,6 +212,7 @@ class PointNavEnv(gym.Env):
             cruise_speed=min(float(self.config["stl_cruise_speed"]), m.spec.v_max),
             collision_kinds=tuple(self.collision_kinds_all),
             reference_length=self.reference_length,
+            **fields,
         )
 
     def reference_length(self) -> float:
@@ -250,9 +251,10 @@ class PointNavEnv(gym.Env):
         assert route is not None and m is not None and world is not None  # the last redraw's RouteError is raised
         start = route.start
         yaw = route.heading_at(0.0)
-        # Park the machine (and the subclass's bodies) far away so the height probe sees the surface only.
+        # Park the machine (and the managers' bodies) far away so the height probe sees the surface only.
         p.resetBasePositionAndOrientation(m.body, [0, 0, -50], [0, 0, 0, 1], physicsClientId=self.client)
-        self._park_bodies()
+        for mg in self.managers:
+            mg.park()
         # With the machine away from everything, Bullet drops its cached contacts (warm-start impulses):
         # an episode then does not depend on the episodes before it.
         p.performCollisionDetection(physicsClientId=self.client)
@@ -265,7 +267,10 @@ class PointNavEnv(gym.Env):
         self.episode = Episode(horizon, [(float(start[0]), float(start[1]))])
         self.termination = Termination.from_config(cfg)
         self._reference_length = None
-        self._on_reset(rng)
+        if self.managers:
+            reset_ctx = ResetContext(self.scene, rng, self._ego(), route)
+            for mg in self.managers:
+                mg.reset(reset_ctx)
         self.measure_view = self._measure_view()
         for meas in self.measures:
             meas.reset(self.measure_view)
@@ -288,13 +293,20 @@ class PointNavEnv(gym.Env):
         m, c, planner = self.machine, self.client, self.planner
         assert m is not None and planner is not None  # placed with the route by the reset
         x0, y0 = m.position[0], m.position[1]
+        if self.managers:  # PointNav has none: its steps build no contexts
+            tick = TickContext(self.dt, self._ego(), (steer, throttle))
+            for mg in self.managers:
+                mg.before_step(tick)
         hits: set[str] = set()
         for _ in range(self.substeps):
             m.command(steer, throttle, self.dt / self.substeps)
             p.stepSimulation(physicsClientId=c)
             m.sync()
             self._contacts(hits)
-        self._on_step()
+        if self.managers:
+            tick = TickContext(self.dt, self._ego(), (steer, throttle))
+            for mg in self.managers:
+                mg.after_step(tick)
         x, y = m.position[0], m.position[1]
         ep = self.episode
         s, lat = self.route.locate(x, y, ep.progress)

@@ -35,7 +35,7 @@ from sim.world import World
 
 @dataclass
 class SceneSlot:
-    """One built scene: its Bullet client and the objects that live in it, plus per-subclass state."""
+    """One built scene: its Bullet client and the objects that live in it, plus the env managers' state there."""
 
     key: Any
     client: int
@@ -46,7 +46,8 @@ class SceneSlot:
     low_lidar: Any = None
     planner: Any = None
     camera: Any = None  # sim.camera.EgoCamera when config.camera has modalities
-    state: dict[str, Any] = field(default_factory=dict)
+    collision_kinds: dict[int, str] = field(default_factory=dict)  # body id -> kind of the managers' bodies
+    manager_states: list[Any] = field(default_factory=list)  # each manager's leave_scene(), saved when left
 
 
 def check_has_sidewalks(scene: Scene, source: str) -> None:
@@ -224,7 +225,6 @@ def build_slot(slot: SceneSlot, scene: Scene, cfg: Mapping[str, Any], machine: A
         slot.low_lidar = Lidar(slot.client, **low) if low else None
     slot.planner = RoutePlanner(scene, machine.half_width, margin=float(cfg["route_margin"]))
     slot.camera = EgoCamera(slot.client, slot.world, cfg["camera"]) if cfg["camera"]["modalities"] else None
-    slot.state = {}
 
 
 @lru_cache(maxsize=1)

@@ -94,7 +94,7 @@ def test_socialnav_grid_scans_see_agents_and_vehicles_as_bullet_does() -> None:
         m = env.machine
         # An agent just ahead, so that some beams certainly meet one.
         env.crowd.pos[0] = (m.position[0] + 1.5 * np.cos(m.yaw), m.position[1] + 1.5 * np.sin(m.yaw))
-        env._sync_bodies()
+        env.body_adapter.sync()
         for k in range(20):
             env.step([0.0, 0.3])
             if k % 5 == 0:
@@ -183,7 +183,7 @@ def test_parked_or_absent_bodies_are_not_seen() -> None:
     cos, sin = np.cos(env.lidar.angles), np.sin(env.lidar.angles)
     m = env.machine
     env.crowd.pos[0] = (m.position[0] + 1.0, m.position[1])
-    env._sync_bodies()
+    env.body_adapter.sync()
     d, ids = env.bodies.ray_hits(m.position[0], m.position[1], 0.5, cos, sin, 0.4, 50.0)
     assert (ids == env.bodies.agents[0]).any()
     env.bodies.park()

@@ -62,11 +62,11 @@ def test_agent_collision_costs_and_lidar_sees_agents(env) -> None:
     x, y, _ = u.machine.position
     ahead = (x + 1.2 * np.cos(u.machine.yaw), y + 1.2 * np.sin(u.machine.yaw))
     u.crowd.pos[0] = ahead
-    u._sync_bodies()
+    u.body_adapter.sync()
     u.lidar.scan(*u.machine.position, u.machine.yaw)
     assert u.bodies.agents[0] in set(u.lidar.hit_ids.tolist()), "the LiDAR must see an agent in front"
     u.crowd.pos[0] = (x, y)
-    u._sync_bodies()
+    u.body_adapter.sync()
     _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
     assert info["cost"] == 1.0 and "agent" in info["collision_kinds"]
 
