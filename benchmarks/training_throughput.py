@@ -183,7 +183,12 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "summary.json"
     summary: dict[str, Any] = json.loads(path.read_text()) if path.is_file() else {"cases": {}}
-    summary["command"] = "python benchmarks/" + " ".join(shlex.quote(a) for a in [Path(__file__).name, *sys.argv[1:]])
+    command = "python benchmarks/" + " ".join(shlex.quote(a) for a in [Path(__file__).name, *sys.argv[1:]])
+    if args.only:  # a partial re-measure: its command goes with the cases it measured, the full run's stays
+        summary.setdefault("case_commands", {}).update({name: command for name in args.only})
+    else:
+        summary["command"] = command
+        summary.pop("case_commands", None)
     summary["machine"] = f"{os.cpu_count()} CPUs"
     for task, backend in cases:
         name = f"ppo_{task.lower()}_{args.protocol}_{backend}" if task != "bc" else f"bc_{args.protocol}_minibatch_ms"
