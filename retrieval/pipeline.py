@@ -25,6 +25,7 @@ from catalogs.layout import IMAGE_EMBEDDING_FILE, asset_root, retrieved_asset_di
 from catalogs.records import AssetRecord, DescriptionRecord, MatchRecord, RejectionRecord, ViewRecord
 from catalogs.schema import DESCRIPTION_KIND
 from kernel.config import ConfigError
+from retrieval.defaults import DEFAULT_N_VIEWS, MAX_VIEWS
 from retrieval.normalize import AssetRejected, CanonicalMesh, QualityLimits
 from retrieval.scoring import AssetScores, DescriptionPool, ScoringConfig
 from retrieval.sources import SourceItem
@@ -39,7 +40,7 @@ T = TypeVar("T")
 class IngestConfig:
     """Parameters of the per-asset steps and their drivers (defaults mirror retrieval/params.yaml)."""
 
-    n_views: int = 20
+    n_views: int = DEFAULT_N_VIEWS
     n_informative: int = 3
     image_size: int = 160
     elevations: tuple[float, float] = (15.0, 40.0)
@@ -53,8 +54,6 @@ class IngestConfig:
     def __post_init__(self) -> None:
         # Checked here, once, so a bad value stops the run before any asset: inside a step it would become a
         # per-asset rejection of every asset, remembered by content hash (e.g. --views 0).
-        from retrieval.render import MAX_VIEWS
-
         if not (isinstance(self.n_views, int) and 1 <= self.n_views <= MAX_VIEWS):
             raise ConfigError(f"n_views must be an integer in 1..{MAX_VIEWS}, got {self.n_views!r}; e.g. --views 8")
         if not (isinstance(self.n_informative, int) and self.n_informative >= 1):

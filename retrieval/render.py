@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-MAX_VIEWS = 20
+from retrieval.defaults import MAX_VIEWS
 
 
 @dataclass(frozen=True)

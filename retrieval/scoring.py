@@ -24,6 +24,7 @@ import numpy as np
 
 from catalogs.schema import DEFAULT_TEXT_MODEL
 from kernel.config import check_choice
+from retrieval.defaults import DEFAULT_CALIBRATION, DEFAULT_IMAGE_ENCODER, DEFAULT_THRESHOLDS
 
 if TYPE_CHECKING:  # the encoders load lazily, only the configured one
     from retrieval.encoders.aligned import AlignedEncoder
@@ -69,7 +70,7 @@ def load_pool(rows: Sequence[tuple[str, str, str | None]], categories: list[str]
 class ScoringConfig:
     """How images and metadata text are scored against the pool."""
 
-    image_encoder: str = "aligned"
+    image_encoder: str = DEFAULT_IMAGE_ENCODER
     clip_model: str | None = None  # the clip / blip / blip2 weights folder (or a cached hub name)
     aligned_weights: str | None = None  # the aligned scorer's heads; None: retrieval/models/aligned.npz
     text_model: str | None = None
@@ -77,7 +78,7 @@ class ScoringConfig:
     image_weight: float = 0.6
     text_weight: float = 0.4
     threshold: float = 0.35
-    calibration: str = "softmax"
+    calibration: str = DEFAULT_CALIBRATION
     temperature: float = 0.1
     min_lift: float = 1.0
     top_k_per_asset: int = 3
@@ -86,7 +87,7 @@ class ScoringConfig:
     # calibrated: a description with a category gets its own image-cosine threshold from the aligned scorer's
     # labelled calibration set (AlignedEncoder.thresholds): more precise, less recall on shapes unlike the
     # procedural library's (docs/retrieval.md); global: `threshold` for every description and scorer.
-    thresholds: str = "global"
+    thresholds: str = DEFAULT_THRESHOLDS
 
     def __post_init__(self) -> None:
         check_choice(self.image_encoder, IMAGE_ENCODERS, what="image encoder")

@@ -16,6 +16,9 @@ from typing import Any
 import numpy as np
 
 from kernel.quiet import pybullet as p
+from sim.tasks import DEFAULT_TASK
+from sim.tasks.pointnav import DEFAULT_CONFIG as POINTNAV_DEFAULTS
+from sim.tasks.sensors import CAMERA_DEFAULTS
 
 # Terrain off: the bench times the step code on the scene its recorded figures (benchmarks/results/sim_speed) ran on;
 # terrain patches (docs/terrain.md) add ~20 static meshes and a friction lookup, not step-code work worth timing.
@@ -140,7 +143,9 @@ def _new_scenes(task: str, count: int, machine: str) -> dict[str, float]:
     }
 
 
-def run_bench(quick: bool = False, machine: str = "delivery_bot", task: str = "PointNav") -> dict[str, Any]:
+def run_bench(
+    quick: bool = False, machine: str = POINTNAV_DEFAULTS["machine"], task: str = DEFAULT_TASK
+) -> dict[str, Any]:
     """Measure env steps/s and the floor in the same run, reset and scene build time, RSS growth over resets."""
     steps = 1000 if quick else 5000
     resets = 100 if quick else 1000
@@ -198,7 +203,11 @@ PAPER_FPS = {"rgb": 50, "depth": 60, "lidar": 120}  # MetaUrban Table 6: 128x128
 
 
 def run_camera_bench(
-    quick: bool = False, machine: str = "delivery_bot", size: int = 128, renderer: str = "tiny", task: str = "PointNav"
+    quick: bool = False,
+    machine: str = POINTNAV_DEFAULTS["machine"],
+    size: int = CAMERA_DEFAULTS["width"],
+    renderer: str = CAMERA_DEFAULTS["renderer"],
+    task: str = DEFAULT_TASK,
 ) -> dict[str, Any]:
     """Env steps per CPU-second (and wall-second) in the bench scene with each camera modality at `size` pixels."""
     steps = 200 if quick else 1000

@@ -16,38 +16,21 @@ import numpy as np
 from catalogs.categories import NAMES
 from kernel.config import ConfigError
 from kernel.quiet import pybullet as p
-from sim.schema import Choice, Float, Int, Key, Pos, Rule, Table, defaults_of, table_of
 
-MODALITIES = ("rgb", "depth", "semantic")
+# The camera's config declarations live in the light sim.tasks.sensors (the task config and `curbside --help`
+# read them without pybullet); imported here so sim.camera names them too.
+from sim.tasks.sensors import (  # noqa: F401
+    CAMERA_DEFAULTS,
+    CAMERA_KEYS,
+    CAMERA_TABLE,
+    MODALITIES,
+    check_clipping_planes,
+)
+
 # Semantic ids: surfaces, then the 33 object categories (catalogs/categories.csv order), then what moves.
 SURFACES = ("unlabeled", "ground", "road", "crosswalk", "sidewalk", "ramp", "building")
 SEMANTIC_CLASSES: tuple[str, ...] = (*SURFACES, *NAMES, "agent", "vehicle", "ego")
 SEMANTIC_ID = {name: k for k, name in enumerate(SEMANTIC_CLASSES)}
-
-# The ego camera's config (PointNav's `camera`): one Key per setting.
-CAMERA_KEYS: dict[str, Key] = {
-    "modalities": Key(
-        [], Rule("list", choices=MODALITIES), "any of rgb, depth, semantic; none: no camera (the flat observation)"
-    ),
-    "width": Key(128, Int(8, 2048), "image width (pixels)"),
-    "height": Key(128, Int(8, 2048), "image height (pixels)"),
-    "fov": Key(90.0, Float(10.0, 170.0), "vertical field of view, degrees"),
-    "near": Key(0.05, Float(0.001, 10.0), "near clipping plane (m), below `far`"),
-    "far": Key(50.0, Float(1.0, 10_000.0), "far clipping plane (m); depth beyond `far` (or sky) reads `far`"),
-    "mount_height": Key(None, Pos(20.0, none=True), "metres above the ground; None: the machine's height"),
-    "pitch": Key(-10.0, Float(-89.0, 89.0), "degrees, negative looks down"),
-    "renderer": Key(
-        "tiny", Choice("tiny", "egl"), '"tiny" (CPU TinyRenderer), "egl" (GPU OpenGL through PyBullet\'s EGL plugin)'
-    ),
-}
-CAMERA_DEFAULTS: dict[str, Any] = defaults_of(CAMERA_KEYS)
-CAMERA_TABLE: dict[str, Rule | Table] = table_of(CAMERA_KEYS)
-
-
-def check_clipping_planes(camera: Mapping[str, Any], name: str = "config.camera") -> None:
-    """A ConfigError unless the near clipping plane lies before the far one (each is in range on its own)."""
-    if camera["near"] >= camera["far"]:
-        raise ConfigError(f"{name}.near ({camera['near']}) must be below {name}.far ({camera['far']})")
 
 
 _EGL: dict[int, int] = {}  # client -> loaded plugin id

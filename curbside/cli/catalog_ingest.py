@@ -12,6 +12,8 @@ import typer
 from catalogs import DEFAULT_CATALOG  # light: only the schema constants
 from curbside.cli.errors import RunError, UsageError, catalog_cli_errors
 from curbside.cli.executor_options import Executor  # kernel.executors.EXECUTORS, one choice across the CLI
+from retrieval import defaults  # the pipeline's defaults and view limit (no imports)
+from retrieval.defaults import MAX_VIEWS
 
 # Option choices as Enums and ranges, so click refuses a bad value before the catalog is touched: a bad value
 # reaching the per-asset steps would be recorded as every asset's rejection.
@@ -25,9 +27,6 @@ Calibration = Enum(
     "Calibration", {"softmax": "softmax", "zscore": "zscore", "none": "none"}, type=str
 )  # scoring.CALIBRATIONS
 Thresholds = Enum("Thresholds", {"global": "global", "calibrated": "calibrated"}, type=str)  # scoring.THRESHOLDS
-MAX_VIEWS = 20  # retrieval.render.MAX_VIEWS, not imported so `--help` stays light (a test checks they agree)
-# --views, --scorer, --calibration and --per-category defaults equal IngestConfig / ScoringConfig / ProceduralSource's
-# (retrieval imports numpy and trimesh, so not imported here): tests/cli/test_cli_defaults.py keeps them equal.
 
 
 @contextlib.contextmanager
@@ -53,15 +52,17 @@ def register(app: typer.Typer) -> None:
         address: str = typer.Option(None, help="Ray cluster address (with --executor ray)"),
         workers: int = typer.Option(None, min=1, help="worker processes (process/ray executors)"),
         catalog: Path = typer.Option(Path(DEFAULT_CATALOG), help="catalog file (created if missing)"),
-        scorer: Scorer = typer.Option(Scorer.aligned.value, help="image encoder"),
+        scorer: Scorer = typer.Option(defaults.DEFAULT_IMAGE_ENCODER, help="image encoder"),
         clip_model: str = typer.Option(None, help="CLIP/BLIP/BLIP-2 weights folder (with --scorer clip|blip|blip2)"),
-        views: int = typer.Option(20, min=1, max=MAX_VIEWS, help="rendered views per asset"),
-        calibration: Calibration = typer.Option(Calibration.softmax.value, help="per-signal calibration over the pool"),
+        views: int = typer.Option(defaults.DEFAULT_N_VIEWS, min=1, max=MAX_VIEWS, help="rendered views per asset"),
+        calibration: Calibration = typer.Option(
+            defaults.DEFAULT_CALIBRATION, help="per-signal calibration over the pool"
+        ),
         thresholds: Thresholds = typer.Option(
-            Thresholds("global").value,
+            defaults.DEFAULT_THRESHOLDS,
             help="global: one threshold; calibrated: per description, from the aligned scorer's labelled set",
         ),
-        per_category: int = typer.Option(2, min=1, help="procedural variants per category"),
+        per_category: int = typer.Option(defaults.DEFAULT_PER_CATEGORY, min=1, help="procedural variants per category"),
         objaverse_cache: Path = typer.Option(None, help="objaverse / objaverse-xl cache folder (default ~/.objaverse)"),
     ) -> None:
         """Retrieve assets from a source, render, score and curate them into the catalog (resumable)."""
@@ -101,7 +102,7 @@ def register(app: typer.Typer) -> None:
     @app.command("eval")
     def eval_cmd(
         per_category: int = typer.Option(1, min=1, help="procedural assets per category in the built-in labelled set"),
-        scorer: Scorer = typer.Option(Scorer.aligned.value, help="image encoder"),
+        scorer: Scorer = typer.Option(defaults.DEFAULT_IMAGE_ENCODER, help="image encoder"),
         clip_model: str = typer.Option(None, help="CLIP/BLIP/BLIP-2 weights folder (with --scorer clip|blip|blip2)"),
         objaverse_cache: Path = typer.Option(None, help="evaluate on this objaverse cache's LVIS labels instead"),
         mesh_set: MeshSet = typer.Option(
@@ -109,9 +110,11 @@ def register(app: typer.Typer) -> None:
             help="procedural: held-out library variants; primitives: hand-built meshes the scorer never trained on",
         ),
         limit: int = typer.Option(None, min=1, help="at most this many assets"),
-        calibration: Calibration = typer.Option(Calibration.softmax.value, help="per-signal calibration over the pool"),
+        calibration: Calibration = typer.Option(
+            defaults.DEFAULT_CALIBRATION, help="per-signal calibration over the pool"
+        ),
         thresholds: Thresholds = typer.Option(
-            Thresholds("global").value,
+            defaults.DEFAULT_THRESHOLDS,
             help="global: one threshold; calibrated: per description, from the aligned scorer's labelled set",
         ),
     ) -> None:

@@ -19,6 +19,7 @@ from curbside.cli.executor_options import (
     check_executor_args,
     workers_option,
 )
+from sim.scene.config import DEFAULT_CONFIG  # the generator's defaults, which the options show (no pybullet)
 
 app = typer.Typer(
     rich_markup_mode=None, help="Generate, render and collect urban scenes (scene specs as JSON).", no_args_is_help=True
@@ -28,7 +29,7 @@ app = typer.Typer(
 def _terrain_density_option() -> Any:
     """The --terrain-density option of `generate` and `dataset`."""
     return typer.Option(
-        1.0,
+        DEFAULT_CONFIG["terrain"]["density"],
         "--terrain-density",
         help="Terrain patches (tree-root heave, uneven pavers, entrance "
         "steps, wet ground): 1 a city's typical share, 0 none, at most 10 (docs/terrain.md).",
@@ -42,9 +43,6 @@ Preset = Enum("Preset", {"metaurban12k": "metaurban12k", "none": "none"}, type=s
 RoutePreset = Enum("RoutePreset", {"short": "short", "metaurban12k": "metaurban12k"}, type=str)
 MAX_SEED = 2**32 - 1
 MAX_COUNT = 1_000_000  # splits start 1,000,000 seeds apart (sim.scene.dataset.MAX_COUNT)
-# Option defaults (--blocks, --templates, --object-density, --crosswalk-density, --country, --workers) are literals
-# equal to sim.scene.config.DEFAULT_CONFIG / build_dataset's: importing sim would load pybullet on `--help`;
-# tests/cli/test_cli_defaults.py keeps them equal.
 
 
 def _catalog(path: Path | None) -> str | None:
@@ -88,16 +86,22 @@ def _file_out(out: Path, example: str) -> None:
 @app.command()
 def generate(
     out: Path = typer.Option(..., "--out", "-o", help="Scene spec JSON to write."),
-    blocks: str = typer.Option("3", help="Number of blocks (1-64), or block codes such as SXC (S, C, X, T, O)."),
-    seed: int = typer.Option(0, min=0, max=MAX_SEED, help="Random seed."),
-    templates: str = typer.Option("abcdef", help="Sidewalk templates to draw from (a-g)."),
-    object_density: float = typer.Option(
-        1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."
+    blocks: str = typer.Option(
+        str(DEFAULT_CONFIG["blocks"]), help="Number of blocks (1-64), or block codes such as SXC (S, C, X, T, O)."
     ),
-    country: str | None = typer.Option(None, help="ISO country code of the category distribution (default: uniform)."),
+    seed: int = typer.Option(0, min=0, max=MAX_SEED, help="Random seed."),
+    templates: str = typer.Option(DEFAULT_CONFIG["templates"], help="Sidewalk templates to draw from (a-g)."),
+    object_density: float = typer.Option(
+        DEFAULT_CONFIG["object_density"], "--object-density", help="Object density rho_s, a finite number in [0, 50]."
+    ),
+    country: str | None = typer.Option(
+        DEFAULT_CONFIG["country"], help="ISO country code of the category distribution (default: uniform)."
+    ),
     catalog: Path | None = typer.Option(None, help=f"Asset catalog (default: {DEFAULT_CATALOG} if present)."),
     crosswalk_density: float = typer.Option(
-        0.5, "--crosswalk-density", help="Fraction of crosswalk candidates built, in [0, 1]."
+        DEFAULT_CONFIG["crosswalk_density"],
+        "--crosswalk-density",
+        help="Fraction of crosswalk candidates built, in [0, 1].",
     ),
     terrain_density: float = _terrain_density_option(),
     from_file: Path | None = typer.Option(
@@ -198,9 +202,9 @@ def dataset(
         "train", help="train | test (templates a-f) | unseen | finetune (template g, held-out categories)."
     ),
     count: int = typer.Option(100, min=1, max=MAX_COUNT, help="Number of scenes."),
-    blocks: str = typer.Option("3", help="Blocks per scene (count 1-64 or codes)."),
+    blocks: str = typer.Option(str(DEFAULT_CONFIG["blocks"]), help="Blocks per scene (count 1-64 or codes)."),
     object_density: float = typer.Option(
-        1.0, "--object-density", help="Object density rho_s, a finite number in [0, 50]."
+        DEFAULT_CONFIG["object_density"], "--object-density", help="Object density rho_s, a finite number in [0, 50]."
     ),
     terrain_density: float = _terrain_density_option(),
     catalog: Path | None = typer.Option(None, help=f"Asset catalog (default: {DEFAULT_CATALOG} if present)."),

@@ -18,6 +18,11 @@ from curbside.cli.executor_options import (
     workers_option,
 )
 
+# The declarations sim.bench's keyword defaults read (light modules, no pybullet): the bench options show them.
+from sim.tasks import DEFAULT_TASK
+from sim.tasks.pointnav import DEFAULT_CONFIG as POINTNAV_DEFAULTS
+from sim.tasks.sensors import CAMERA_DEFAULTS
+
 app = typer.Typer(
     rich_markup_mode=None, help="Run, evaluate, render and benchmark the PyBullet simulator.", no_args_is_help=True
 )
@@ -36,8 +41,6 @@ MACHINE_NAMES = (
     "humanoid",
 )
 MAX_SEED = 2**31 - 1  # episode seeds seed..seed+N-1 must stay valid numpy seeds
-# bench --machine/--task defaults equal sim.tasks.pointnav.DEFAULT_CONFIG's machine and run_bench's (literals so
-# `--help` does not import sim): tests/cli/test_cli_defaults.py keeps them equal.
 
 Task = Enum("Task", {k: k for k in TASKS}, type=str)  # type: ignore[misc]
 Policy = Enum("Policy", {k: k for k in POLICIES}, type=str)  # type: ignore[misc]
@@ -184,16 +187,20 @@ def rollout_cmd(
 @app.command("bench")
 def bench_cmd(
     quick: bool = typer.Option(False, "--quick", help="Smaller counts (seconds instead of minutes)."),
-    task: Task = typer.Option("PointNav", "--task", help="PointNav, or SocialNav (20 agents + traffic)."),
-    machine: MachineName = typer.Option("delivery_bot", help="Machine to drive."),
+    task: Task = typer.Option(DEFAULT_TASK, "--task", help="PointNav, or SocialNav (20 agents + traffic)."),
+    machine: MachineName = typer.Option(POINTNAV_DEFAULTS["machine"], help="Machine to drive."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
     cameras: bool = typer.Option(
         False,
         "--cameras",
         help="Steps/s with each ego-camera modality instead (rgb, depth, semantic, all three) beside no camera.",
     ),
-    size: int = typer.Option(128, "--size", min=8, max=2048, help="Camera width and height in pixels (--cameras)."),
-    renderer: Renderer = typer.Option("tiny", "--renderer", help="tiny (CPU) or egl (GPU) (--cameras)."),
+    size: int = typer.Option(
+        CAMERA_DEFAULTS["width"], "--size", min=8, max=2048, help="Camera width and height in pixels (--cameras)."
+    ),
+    renderer: Renderer = typer.Option(
+        CAMERA_DEFAULTS["renderer"], "--renderer", help="tiny (CPU) or egl (GPU) (--cameras)."
+    ),
 ) -> None:
     """Env steps per CPU-second in the ~150-object bench scene vs the raw PyBullet floor measured in the same run;
     reset and scene build time; RSS growth over resets on one scene and over new scenes. With --cameras: steps/s

@@ -17,6 +17,7 @@ from curbside.cli.executor_options import (
     workers_option,
 )
 from curbside.cli.extras import require
+from curbside.train import defaults  # the run and collect defaults (no imports)
 from kernel.config import ConfigError
 
 app = typer.Typer(
@@ -29,9 +30,6 @@ demos_app = typer.Typer(
     help="Expert demonstrations as Minari datasets for offline RL and imitation.",
     no_args_is_help=True,
 )
-# run/collect defaults (--envs, --scenes, --seed, --eval-every, --steps, --noise, --random-prob) equal those of
-# curbside.train.run.train and curbside.train.demos.collect_demos (literals: they import numpy);
-# tests/cli/test_cli_defaults.py keeps them equal.
 
 
 def _check_env_config(task: str, cfg: dict, split: str) -> None:
@@ -74,19 +72,21 @@ def run_cmd(
     ),
     demos: Path | None = typer.Option(None, help="Demonstration dataset folder from `curbside demos collect`."),
     envs: int | None = typer.Option(
-        None, min=1, max=256, help="Parallel envs (online algorithms and GAIL); default: the protocol's."
+        defaults.RUN_N_ENVS, min=1, max=256, help="Parallel envs (online algorithms and GAIL); default: the protocol's."
     ),
     scenes: int | None = typer.Option(
-        None, min=1, help="Scenes of the split episodes draw from; default: the protocol's."
+        defaults.RUN_NUM_SCENES, min=1, help="Scenes of the split episodes draw from; default: the protocol's."
     ),
-    seed: int = typer.Option(0, min=0, help="Seed of the run."),
+    seed: int = typer.Option(defaults.RUN_SEED, min=0, help="Seed of the run."),
     seeds: str | None = typer.Option(
         None,
         help="Comma-separated seeds (e.g. 0,1,2): one run each in OUT/seed_<s>, "
         "their final evaluations aggregated as mean +/- std in OUT/seeds.json.",
     ),
     resume: bool = typer.Option(False, help="Continue from the latest checkpoint in --out."),
-    eval_every: int = typer.Option(0, min=0, help="Evaluate on the test split every N env steps (0: never)."),
+    eval_every: int = typer.Option(
+        defaults.RUN_EVAL_EVERY, min=0, help="Evaluate on the test split every N env steps (0: never)."
+    ),
     eval_episodes: int | None = typer.Option(
         None, min=1, help="Episodes per learning-curve evaluation; default: the protocol's."
     ),
@@ -193,13 +193,19 @@ def ppo_cmd(
     task: str = typer.Option("PointNav", help="PointNav or SocialNav."),
     out: Path = typer.Option(Path("outputs/train/ppo"), help="Output folder: run.json, policy, checkpoints, logs."),
     steps: int = typer.Option(200_000, min=1, help="Env steps."),
-    envs: int | None = typer.Option(None, min=1, max=256, help="Parallel envs (in all); default: the protocol's (8)."),
-    scenes: int | None = typer.Option(
-        None, min=1, help="Train-split scenes, sharded across the workers or env runners; default: 64."
+    envs: int | None = typer.Option(
+        defaults.RUN_N_ENVS, min=1, max=256, help="Parallel envs (in all); default: the protocol's (8)."
     ),
-    seed: int = typer.Option(0, min=0, help="Seed of the run."),
+    scenes: int | None = typer.Option(
+        defaults.RUN_NUM_SCENES,
+        min=1,
+        help="Train-split scenes, sharded across the workers or env runners; default: 64.",
+    ),
+    seed: int = typer.Option(defaults.RUN_SEED, min=0, help="Seed of the run."),
     resume: bool = typer.Option(False, help="Continue from the latest checkpoint in --out."),
-    eval_every: int = typer.Option(0, min=0, help="Evaluate on the test split every N env steps (0: never)."),
+    eval_every: int = typer.Option(
+        defaults.RUN_EVAL_EVERY, min=0, help="Evaluate on the test split every N env steps (0: never)."
+    ),
     config: str | None = typer.Option(None, help="Env config overrides as a JSON object."),
     executor: Executor = typer.Option("local", help="local (SB3) or ray (RLlib PPO on a Ray cluster)."),
     num_env_runners: int = typer.Option(2, "--num-env-runners", min=1, max=1024, help="RLlib env runners (ray)."),
@@ -290,17 +296,21 @@ def collect_cmd(
         help="Minari datasets root (default: Minari's, MINARI_DATASETS_PATH or "
         "~/.minari/datasets); the dataset goes to OUT/curbside/<task>-expert-v0.",
     ),
-    steps: int = typer.Option(30_000, min=1, max=10_000_000, help="Steps to record (whole episodes)."),
-    noise: float = typer.Option(0.7, min=0.0, max=5.0, help="Std of the Gaussian noise added to the expert's actions."),
-    random_prob: float = typer.Option(0.0, min=0.0, max=1.0, help="Fraction of fully random episodes."),
+    steps: int = typer.Option(defaults.DEMOS_STEPS, min=1, max=10_000_000, help="Steps to record (whole episodes)."),
+    noise: float = typer.Option(
+        defaults.DEMOS_NOISE, min=0.0, max=5.0, help="Std of the Gaussian noise added to the expert's actions."
+    ),
+    random_prob: float = typer.Option(
+        defaults.DEMOS_RANDOM_PROB, min=0.0, max=1.0, help="Fraction of fully random episodes."
+    ),
     policy: Path | None = typer.Option(
         None,
         help="A trained PPO-family run of the task: drives --policy-fraction "
         "of the episodes (the paper: 80 % from a trained PPO policy).",
     ),
     policy_fraction: float = typer.Option(0.0, min=0.0, max=1.0, help="Fraction of episodes driven by --policy."),
-    scenes: int = typer.Option(64, min=1, help="Train-split scenes to draw episodes from."),
-    seed: int = typer.Option(0, min=0, help="Seed of the first episode."),
+    scenes: int = typer.Option(defaults.DEMOS_NUM_SCENES, min=1, help="Train-split scenes to draw episodes from."),
+    seed: int = typer.Option(defaults.DEMOS_SEED, min=0, help="Seed of the first episode."),
     config: str | None = typer.Option(None, help="Env config overrides as a JSON object."),
     executor: Executor = executor_option(),
     workers: int | None = workers_option(),

@@ -20,6 +20,7 @@ from typing import Any, SupportsFloat, cast
 
 import numpy as np
 
+from curbside.train.defaults import DEMOS_NOISE, DEMOS_NUM_SCENES, DEMOS_RANDOM_PROB, DEMOS_SEED, DEMOS_STEPS
 from curbside.train.envs import env_id, split_config
 from curbside.train.progress import progress_bar
 from kernel.config import ConfigError
@@ -55,12 +56,12 @@ def collect_demos(
     task: str,
     out: Path,
     *,
-    steps: int = 30_000,
-    noise: float = 0.7,
-    random_prob: float = 0.0,
+    steps: int = DEMOS_STEPS,
+    noise: float = DEMOS_NOISE,
+    random_prob: float = DEMOS_RANDOM_PROB,
     env_config: Mapping[str, Any] | None = None,
-    num_scenes: int = 64,
-    seed: int = 0,
+    num_scenes: int = DEMOS_NUM_SCENES,
+    seed: int = DEMOS_SEED,
     progress: bool = True,
     executor: str = "local",
     workers: int | None = None,

@@ -8,6 +8,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from curbside.train.defaults import RUN_EVAL_EVERY, RUN_N_ENVS, RUN_NUM_SCENES, RUN_SEED
 from curbside.train.policies import check_algo
 from kernel.config import ConfigError
 
@@ -105,13 +106,13 @@ def train(
     backend: str = "pybullet",
     split: str = "train",
     env_config: Mapping[str, Any] | None = None,
-    n_envs: int | None = None,
-    num_scenes: int | None = None,
-    seed: int = 0,
+    n_envs: int | None = RUN_N_ENVS,
+    num_scenes: int | None = RUN_NUM_SCENES,
+    seed: int = RUN_SEED,
     demos: Path | None = None,
     resume: bool = False,
     init_from: Path | None = None,
-    eval_every: int = 0,
+    eval_every: int = RUN_EVAL_EVERY,
     eval_episodes: int | None = None,
     hparams: Mapping[str, Any] | None = None,
     progress: bool = True,

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from pathlib import Path
 
+from retrieval.defaults import DEFAULT_PER_CATEGORY
 from retrieval.sources import SourceItem
 
 PROCEDURAL_LICENSE = "CC0-1.0"
@@ -22,7 +23,7 @@ class ProceduralSource:
 
     def __init__(
         self,
-        per_category: int = 2,
+        per_category: int = DEFAULT_PER_CATEGORY,
         categories: list[str] | None = None,
         seed: int = 0,
         work_dir: str | Path | None = None,

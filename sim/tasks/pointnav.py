@@ -18,7 +18,6 @@ from typing import Any
 import numpy as np
 
 from kernel.config import ConfigError, excerpt, merge_strict
-from sim.camera import CAMERA_KEYS, check_clipping_planes
 from sim.metrics import POINTNAV_MEASURES
 from sim.scene.dataset import SPLITS
 from sim.schema import (
@@ -37,7 +36,7 @@ from sim.schema import (
     key_field,
     table_of,
 )
-from sim.tasks.sensors import LIDAR_KEYS, RENDER_KEYS
+from sim.tasks.sensors import CAMERA_KEYS, LIDAR_KEYS, RENDER_KEYS, check_clipping_planes
 from sim.tasks.termination import StepContext, StepEnd
 
 # Named route-length ranges (metres). "metaurban12k": the paper's mean episode of ~410 m (chained legs, see

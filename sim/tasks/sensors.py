@@ -1,5 +1,5 @@
-"""Config declarations of the sensors a task reads: the LiDAR scans and the render() cameras (the ego camera's
-keys live with it in sim/camera.py)."""
+"""Config declarations of the sensors a task reads: the LiDAR scans, the render() cameras and the ego camera
+(whose behaviour is sim.camera). No pybullet import: the task config and the CLI read these without loading it."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from kernel.config import ConfigError
-from sim.schema import Choice, Float, Int, Key, Pos, Rule, Table, table_of
+from sim.schema import Choice, Float, Int, Key, Pos, Rule, Table, defaults_of, table_of
 
 # PointNav's `lidar`: a high scan and a low one (low_beams 0: none), both planar and 360 degrees.
 LIDAR_KEYS: dict[str, Key] = {
@@ -48,3 +48,30 @@ def check_lidar_reach(lidar: Mapping[str, Any], length: float, width: float) -> 
             f"config.lidar.range {lidar['range']!r} m ends inside this machine's {start:.2f} m start "
             f"radius (its rays start outside the footprint); use a range above {start:.2f} m"
         )
+
+
+MODALITIES = ("rgb", "depth", "semantic")
+# The ego camera's config (PointNav's `camera`): one Key per setting.
+CAMERA_KEYS: dict[str, Key] = {
+    "modalities": Key(
+        [], Rule("list", choices=MODALITIES), "any of rgb, depth, semantic; none: no camera (the flat observation)"
+    ),
+    "width": Key(128, Int(8, 2048), "image width (pixels)"),
+    "height": Key(128, Int(8, 2048), "image height (pixels)"),
+    "fov": Key(90.0, Float(10.0, 170.0), "vertical field of view, degrees"),
+    "near": Key(0.05, Float(0.001, 10.0), "near clipping plane (m), below `far`"),
+    "far": Key(50.0, Float(1.0, 10_000.0), "far clipping plane (m); depth beyond `far` (or sky) reads `far`"),
+    "mount_height": Key(None, Pos(20.0, none=True), "metres above the ground; None: the machine's height"),
+    "pitch": Key(-10.0, Float(-89.0, 89.0), "degrees, negative looks down"),
+    "renderer": Key(
+        "tiny", Choice("tiny", "egl"), '"tiny" (CPU TinyRenderer), "egl" (GPU OpenGL through PyBullet\'s EGL plugin)'
+    ),
+}
+CAMERA_DEFAULTS: dict[str, Any] = defaults_of(CAMERA_KEYS)
+CAMERA_TABLE: dict[str, Rule | Table] = table_of(CAMERA_KEYS)
+
+
+def check_clipping_planes(camera: Mapping[str, Any], name: str = "config.camera") -> None:
+    """A ConfigError unless the near clipping plane lies before the far one (each is in range on its own)."""
+    if camera["near"] >= camera["far"]:
+        raise ConfigError(f"{name}.near ({camera['near']}) must be below {name}.far ({camera['far']})")
