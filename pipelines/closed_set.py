@@ -3,16 +3,10 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 from catalogs.categories import CATEGORIES, check_category
-from pipelines.common import CLOSED_SET_DIR, PipelineError, load_params, stage_cli, write_metrics, write_table
+from pipelines.common import PipelineError, load_params, stage_cli, write_metrics, write_table
 
-DEFAULTS: dict[str, Any] = {
-    "segmentation_csv": str(CLOSED_SET_DIR / "segmentation_classes.csv"),
-    "handbook_csv": str(CLOSED_SET_DIR / "handbook_objects.csv"),
-    "out_dir": "data/closed_set",
-}
 COLUMNS = ["source", "name", "category", "group", "prompt", "provenance"]
 
 
@@ -52,7 +46,7 @@ def load_closed_set(segmentation_csv: str | Path, handbook_csv: str | Path):  # 
 
 def run(params_path: str | None = None) -> dict[str, int]:
     """Stage entry: write data/closed_set/classes.parquet and metrics.json; returns the metrics."""
-    p = load_params(params_path, "closed_set", DEFAULTS)
+    p = load_params(params_path, "closed_set")
     df = load_closed_set(p["segmentation_csv"], p["handbook_csv"])
     out = Path(p["out_dir"])
     write_table(df, out / "classes.parquet")

@@ -12,14 +12,6 @@ import numpy as np
 
 from pipelines.common import PipelineError, load_params, stage_cli, write_metrics, write_table
 
-DEFAULTS: dict[str, Any] = {
-    "eps": 0.15,
-    "min_samples": 2,
-    "descriptions": "data/describe/descriptions.parquet",
-    "embeddings": "data/embed/embeddings.parquet",
-    "catalog": "",
-    "out_dir": "data/pool",
-}
 POOL_COLUMNS = [
     "description_id",
     "cluster_id",
@@ -132,7 +124,7 @@ def run(params_path: str | None = None) -> dict[str, Any]:
 
     from pipelines.embed import load_embeddings
 
-    p = load_params(params_path, "cluster", DEFAULTS)
+    p = load_params(params_path, "cluster")
     if not 0 < float(p["eps"]) < 2 or int(p["min_samples"]) < 1:
         raise PipelineError(f"cluster.eps must be in (0, 2) and min_samples >= 1, got {p['eps']}, {p['min_samples']}")
     texts, vecs, _ = load_embeddings(p["embeddings"])

@@ -20,14 +20,33 @@ class PipelineError(ValueError):
     """Bad pipeline input (a file, a column, a code); the message names the problem and the fix."""
 
 
-def load_params(path: str | Path | None, section: str, defaults: Mapping[str, Any]) -> dict[str, Any]:
-    """Read `section` of a params.yaml and merge it strictly over the stage's `defaults`."""
-    p = Path(path) if path else DEFAULT_PARAMS
+def _read_params(p: Path) -> dict[str, Any]:
+    """The mapping a params file holds (empty for an empty file); PipelineError when it is missing or not YAML."""
     if not p.exists():
         raise PipelineError(f"params file {p} not found; pass --params with the path of params.yaml")
     try:
         data = load_yaml(p.read_text(), str(p)) or {}
-        return merge_strict(defaults, data.get(section) or {}, name=f"{p.name}:{section}")
+    except ConfigError as exc:
+        raise PipelineError(str(exc)) from None
+    if not isinstance(data, Mapping):
+        raise PipelineError(f"params file {p} must be a mapping of stage sections, got {type(data).__name__}")
+    return dict(data)
+
+
+def stage_defaults(section: str) -> dict[str, Any]:
+    """The defaults of a stage: its section of the repo's params.yaml (DEFAULT_PARAMS), the one declaration."""
+    declared = _read_params(DEFAULT_PARAMS).get(section)
+    if not isinstance(declared, Mapping) or not declared:
+        raise PipelineError(f"{DEFAULT_PARAMS.name} declares no section {section!r}; add its keys there")
+    return dict(declared)
+
+
+def load_params(path: str | Path | None, section: str) -> dict[str, Any]:
+    """Read `section` of a params file and merge it strictly over the stage's defaults (`stage_defaults`)."""
+    p = Path(path) if path else DEFAULT_PARAMS
+    data = _read_params(p)
+    try:
+        return merge_strict(stage_defaults(section), data.get(section) or {}, name=f"{p.name}:{section}")
     except ConfigError as exc:
         raise PipelineError(str(exc)) from None
 

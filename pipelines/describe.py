@@ -13,16 +13,6 @@ from catalogs.categories import category
 from pipelines.common import PipelineError, load_params, progress, stage_cli, write_metrics, write_table
 from pipelines.signs import SignTable, sign_table
 
-DEFAULTS: dict[str, Any] = {
-    "closed_set": "data/closed_set/classes.parquet",
-    "osm_objects": "data/osm/objects.parquet",
-    "detections": "data/detect/detections.parquet",
-    "images_dir": "",
-    "manifest": "",
-    "small_max": 0.15,
-    "medium_max": 0.4,
-    "out_dir": "data/describe",
-}
 DESCRIPTION_COLUMNS = ["text", "category", "source", "country", "count"]
 _MATERIAL_ADJ = {
     "wood": "wooden",
@@ -209,7 +199,7 @@ def run(params_path: str | None = None) -> dict[str, int]:
 
     from pipelines.detect import read_manifest
 
-    p = load_params(params_path, "describe", DEFAULTS)
+    p = load_params(params_path, "describe")
     dets = pd.read_parquet(p["detections"])
     files: dict[str, str] = {}
     if not dets.empty:

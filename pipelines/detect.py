@@ -30,26 +30,6 @@ DETECTION_COLUMNS = [
     "sidewalk_overlap",
     "sidewalk_source",
 ]
-DEFAULTS: dict[str, Any] = {
-    "manifest": "",
-    "images_dir": "",
-    "model": "google/owlv2-base-patch16-ensemble",
-    "prompt_sources": ["handbook", "cityscapes", "mapillary_vistas"],
-    "score_threshold": 0.2,
-    "nms_iou": 0.5,
-    "sidewalk_filter": "auto",
-    "segmentation_model": "",
-    "sidewalk_labels": [
-        "sidewalk",
-        "construction--flat--sidewalk",
-        "construction--flat--pedestrian-area",
-        "construction--flat--curb-cut",
-    ],
-    "min_overlap": 0.3,
-    "bottom_fraction": 0.25,
-    "closed_set": "data/closed_set/classes.parquet",
-    "out_dir": "data/detect",
-}
 FILTERS = ("auto", "annotations", "model", "none")
 
 
@@ -191,7 +171,7 @@ def run(params_path: str | None = None) -> dict[str, int]:
 
     from pipelines.detector import SidewalkSegmenter, ZeroShotDetector
 
-    p = load_params(params_path, "detect", DEFAULTS)
+    p = load_params(params_path, "detect")
     if p["sidewalk_filter"] not in FILTERS:
         raise PipelineError(f"unknown detect.sidewalk_filter {p['sidewalk_filter']!r}; valid: {', '.join(FILTERS)}")
     out = Path(p["out_dir"])

@@ -9,11 +9,6 @@ from pipelines.common import REPO_ROOT, PipelineError, load_params, stage_cli, w
 from pipelines.countries import GLOBAL, check_country
 
 DEFAULT_PATH = REPO_ROOT / "data" / "distribution" / "distribution.parquet"
-DEFAULTS: dict[str, Any] = {
-    "sources": ["osm", "images"],
-    "descriptions": "data/describe/descriptions.parquet",
-    "out_dir": "data/distribution",
-}
 COLUMNS = ["country", "category", "count", "frequency"]
 
 
@@ -77,7 +72,7 @@ def run(params_path: str | None = None) -> dict[str, Any]:
     """Stage entry: write distribution.parquet, plot.csv and distribution.png (dvc plots) and metrics.json."""
     import pandas as pd
 
-    p = load_params(params_path, "distribution", DEFAULTS)
+    p = load_params(params_path, "distribution")
     bad = sorted(set(p["sources"]) - {"osm", "images", "closed_set"})
     if bad:
         raise PipelineError(f"unknown distribution.sources {bad}; valid: osm, images")

@@ -7,16 +7,9 @@ from typing import Any
 
 import numpy as np
 
-from catalogs.schema import DEFAULT_TEXT_MODEL
 from kernel.reproducible import write_parquet
 from pipelines.common import load_params, progress, stage_cli, write_metrics
 
-DEFAULTS: dict[str, Any] = {
-    "model": DEFAULT_TEXT_MODEL,
-    "batch_size": 64,
-    "descriptions": "data/describe/descriptions.parquet",
-    "out_dir": "data/embed",
-}
 # Stored vectors are rounded to this many decimals: float noise in the last bits (BLAS kernels, batch padding
 # shapes) mostly falls below the grid, so the same texts give the same bytes more often across machines. The
 # rounding moves a cosine by < 1e-4, far below DBSCAN's eps.
@@ -81,7 +74,7 @@ def run(params_path: str | None = None) -> dict[str, Any]:
     """Stage entry: write data/embed/embeddings.parquet and metrics.json."""
     import pandas as pd
 
-    p = load_params(params_path, "embed", DEFAULTS)
+    p = load_params(params_path, "embed")
     texts = sorted(set(pd.read_parquet(p["descriptions"])["text"]))
     vecs, name = embed_texts(texts, p["model"] or None, int(p["batch_size"]))
     out = Path(p["out_dir"])

@@ -11,7 +11,6 @@ import numpy as np
 
 from catalogs.categories import check_category
 from pipelines.common import (
-    CLOSED_SET_DIR,
     PipelineError,
     load_params,
     progress,
@@ -39,30 +38,6 @@ ATTRIBUTE_TAGS = (
     "advertising",
     "street_cabinet",
 )
-DEFAULTS: dict[str, Any] = {
-    "extracts": [{"path": "", "country": "auto", "region": "Helsinki"}],
-    "tags_csv": str(CLOSED_SET_DIR / "osm_tags.csv"),
-    "street_highways": [
-        "motorway",
-        "trunk",
-        "primary",
-        "secondary",
-        "tertiary",
-        "unclassified",
-        "residential",
-        "living_street",
-        "pedestrian",
-        "service",
-        "footway",
-        "cycleway",
-        "path",
-        "steps",
-    ],
-    "snap_distance_m": 25.0,
-    "max_gap_m": 300.0,
-    "tile_deg": 0.25,
-    "out_dir": "data/osm",
-}
 
 
 def default_extract() -> Path:
@@ -335,7 +310,7 @@ def extract_osm(
 
 def run(params_path: str | None = None) -> dict[str, int]:
     """Stage entry: write data/osm/{objects,counts,spacing}.parquet, spacing.csv (plot) and metrics.json."""
-    p = load_params(params_path, "osm", DEFAULTS)
+    p = load_params(params_path, "osm")
     if not p["extracts"]:
         raise PipelineError("osm.extracts is empty; list at least one extract (path may be '' for Helsinki)")
     rules = load_tag_rules(p["tags_csv"])

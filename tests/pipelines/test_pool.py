@@ -100,21 +100,79 @@ def test_pool_show_country_absent_from_the_pool(descriptions, embedded, tmp_path
         assert words in one_error_line(*cli([*argv, *bad], capsys))
 
 
-def test_dvc_yaml_stages_match_modules_and_params():
-    import importlib
+STAGES = ["closed_set", "osm", "detect", "describe", "embed", "cluster", "distribution"]
 
+
+def _keys_read(module: str) -> set[str]:
+    """The params keys a stage's `run` reads: every `p["key"]` on the dict `load_params` returned."""
+    import ast
+    import importlib
+    import inspect
+
+    tree = ast.parse(inspect.getsource(importlib.import_module(f"pipelines.{module}")))
+    run = next(n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "run")
+    return {
+        n.slice.value
+        for n in ast.walk(run)
+        if isinstance(n, ast.Subscript)
+        and isinstance(n.value, ast.Name)
+        and n.value.id == "p"
+        and isinstance(n.slice, ast.Constant)
+    }
+
+
+def test_dvc_yaml_stages_match_modules_and_params():
+    """Each stage is a dvc.yaml stage reading its params.yaml section, and every key it reads is declared there
+    (and every declared key is read: a declared parameter nothing reads would be silently ignored)."""
     import yaml
 
     from pipelines.common import REPO_ROOT
 
     stages = yaml.safe_load((REPO_ROOT / "dvc.yaml").read_text())["stages"]
     params = yaml.safe_load((REPO_ROOT / "params.yaml").read_text())
-    assert list(stages) == ["closed_set", "osm", "detect", "describe", "embed", "cluster", "distribution"]
+    assert list(stages) == STAGES and list(params) == STAGES
     for name, st in stages.items():
-        mod = importlib.import_module(f"pipelines.{name}")
         assert st["cmd"] == f"python -m pipelines.{name} --params params.yaml"
-        assert st["params"] == [name] and set(params[name]) == set(mod.DEFAULTS)
-        assert st["metrics"], name
+        assert st["params"] == [name] and st["metrics"], name
+        read = _keys_read(name)
+        assert read, f"pipelines.{name}.run reads no p[...] key: the check has lost track of the stage"
+        assert read == set(params[name]), (name, sorted(read ^ set(params[name])))
+
+
+def test_params_files_merge_strictly_over_params_yaml(tmp_path):
+    """A given params file's section merges over the repo's params.yaml: an empty or missing section gives the
+    declared defaults, a key overrides one, an unknown key is one error line naming the valid keys."""
+    import subprocess
+    import sys
+
+    import yaml
+
+    from pipelines.common import DEFAULT_PARAMS, REPO_ROOT, PipelineError, load_params, stage_defaults
+
+    declared = yaml.safe_load(DEFAULT_PARAMS.read_text())
+    given = tmp_path / "params.yaml"
+    for text in ("cluster: {}\n", "cluster:\n", "embed: {batch_size: 8}\n", ""):
+        given.write_text(text)
+        assert load_params(given, "cluster") == stage_defaults("cluster") == declared["cluster"], text
+    assert load_params(None, "cluster") == declared["cluster"]
+    given.write_text("cluster: {eps: 0.3}\n")
+    assert load_params(given, "cluster") == {**declared["cluster"], "eps": 0.3}
+
+    given.write_text("cluster: {epss: 0.3}\n")
+    with pytest.raises(PipelineError) as exc:
+        load_params(given, "cluster")
+    valid = ", ".join(sorted(declared["cluster"]))
+    assert str(exc.value) == f"unknown key 'epss' in params.yaml:cluster; valid keys: {valid}"
+    res = subprocess.run(
+        [sys.executable, "-m", "pipelines.cluster", "--params", str(given)],
+        cwd=REPO_ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert res.returncode == 2 and not res.stdout, (res.stdout, res.stderr)
+    assert res.stderr.strip().splitlines() == [f"cluster: {exc.value}"]
 
 
 def test_pool_show_renders_open_vocabulary_entries(descriptions, embedded, tmp_path):

@@ -9,7 +9,7 @@ import pytest
 
 from catalogs.categories import CATEGORIES
 from pipelines import closed_set, describe, osm, signs
-from pipelines.common import CLOSED_SET_DIR, PipelineError
+from pipelines.common import CLOSED_SET_DIR, PipelineError, stage_defaults
 
 
 def test_closed_set_covers_vocabulary_with_provenance():
@@ -32,13 +32,14 @@ def test_closed_set_rejects_unknown_category(tmp_path):
 @pytest.fixture(scope="module")
 def helsinki():
     rules = osm.load_tag_rules(CLOSED_SET_DIR / "osm_tags.csv")
+    p = stage_defaults("osm")
     return osm.extract_osm(
         [{"path": "", "country": "auto", "region": "Helsinki"}],
         rules,
-        street_highways=osm.DEFAULTS["street_highways"],
-        snap_m=25.0,
-        max_gap_m=300.0,
-        tile_deg=0.25,
+        street_highways=p["street_highways"],
+        snap_m=p["snap_distance_m"],
+        max_gap_m=p["max_gap_m"],
+        tile_deg=p["tile_deg"],
     )
 
 
