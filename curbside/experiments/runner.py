@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from curbside.experiments.spec import Experiment, Run, budget_of, check_run_ids, load_experiment
+from curbside.experiments.spec import BUDGETS, Experiment, Run, budget_of, check_run_ids, load_experiment
 
 ONLINE = ("ppo", "ppo_lag", "ppo_et")
 DEFAULT_ROOT = Path("outputs/experiments")
@@ -38,23 +38,41 @@ def _write_json(path: Path, data: dict[str, Any]) -> None:
     os.replace(tmp, path)
 
 
+def _demo_policy(root: Path, exp: Experiment, task: str) -> Path | None:
+    """The trained PPO that drives the protocol's policy share of `task`'s demonstrations: this experiment's PPO run of
+    the task (its first seed) at the largest budget that has finished (paper, then small, then smoke), or None."""
+    ppo = next((r for r in exp.runs if r.task == task and r.method == "ppo" and r.train), None)
+    if ppo is None:
+        return None
+    for budget in reversed(BUDGETS):
+        source = run_dir(root, exp, budget, ppo, ppo.seeds[0])
+        if (source / "result.json").is_file():
+            return source
+    return None
+
+
 def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]) -> Path:
-    """The task's demonstrations for this experiment and budget (collected on first use)."""
+    """The task's demonstrations for this experiment and budget (collected on first use, and again when the policy
+    that should drive them or the expert's noise has changed since)."""
     from curbside.train.demos import collect_demos, dataset_id
     from curbside.train.protocols import deep_merge, protocol
 
     base = Path(root) / exp.name / budget / "demos" / run.task
     path = base / dataset_id(run.task)
     proto = protocol(exp.protocol)
-    # The protocol's mix: a share of the episodes from this experiment's trained PPO of the task (seed 0), when the
-    # experiment has one and it has finished; the noisy expert drives the rest (or all, without one). A set collected
-    # before that PPO finished is collected again once it has.
-    ppo = next((r for r in exp.runs if r.task == run.task and r.method == "ppo" and r.train), None)
-    source = run_dir(root, exp, budget, ppo, ppo.seeds[0]) if ppo is not None else None
-    use = source is not None and (source / "result.json").is_file() and proto.demos.policy_fraction > 0
+    # The protocol's mix: a share of the episodes from the best trained PPO of the task this experiment has (a PPO
+    # of a few updates drives no better than chance, and its demonstrations would teach nothing); the noisy expert
+    # drives the rest (or all, without one).
+    source = _demo_policy(root, exp, run.task) if proto.demos.policy_fraction > 0 else None
+    fraction = proto.demos.policy_fraction if source is not None else 0.0
+    want: dict[str, Any] = {
+        "policy": str(source) if source is not None else None,
+        "policy_fraction": fraction,
+        "noise": proto.demos.expert_noise,
+    }
     meta = path / "curbside.json"
-    have = json.loads(meta.read_text()).get("policy_fraction", 0.0) if meta.is_file() else None
-    if have is None or (use and have != proto.demos.policy_fraction):
+    have = json.loads(meta.read_text()) if meta.is_file() else None
+    if have is None or any(have.get(k, 0.0 if k == "policy_fraction" else None) != v for k, v in want.items()):
         collect_demos(
             run.task,
             base,
@@ -63,8 +81,8 @@ def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]
             env_config=deep_merge(proto.env_config, run.env),
             num_scenes=int(b["scenes"] or 64),
             progress=False,
-            policy=source if use else None,
-            policy_fraction=proto.demos.policy_fraction if use else 0.0,
+            policy=source,
+            policy_fraction=fraction,
         )
     return path
 

@@ -223,3 +223,19 @@ def test_seeds_and_only_pick_the_runs_to_train(tmp_path, capsys) -> None:
     assert not (root / "tiny" / "smoke" / "a" / "seed_0").exists()
     line = one_error_line(*cli(["experiment", "run", str(exp), "--budget", "smoke", "--seeds", "one"], capsys))
     assert "--seeds must be comma-separated integers" in line
+
+
+def test_demonstrations_follow_the_best_finished_ppo_of_the_task(tmp_path) -> None:
+    from curbside.experiments.runner import _demo_policy, run_dir
+    from curbside.experiments.spec import load_experiment
+
+    exp = load_experiment("table1_paper")
+    ppo = next(r for r in exp.runs if r.task == "PointNav" and r.method == "ppo")
+    assert _demo_policy(tmp_path, exp, "PointNav") is None  # no PPO has finished: the expert drives every episode
+    for budget in ("smoke", "small", "paper"):
+        d = run_dir(tmp_path, exp, budget, ppo, ppo.seeds[0])
+        d.mkdir(parents=True)
+        (d / "result.json").write_text("{}")
+        # the largest finished budget drives, whatever budget the demonstrations are collected for
+        assert _demo_policy(tmp_path, exp, "PointNav") == d
+    assert _demo_policy(tmp_path, exp, "SocialNav") is None  # each task's own PPO
