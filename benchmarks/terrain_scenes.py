@@ -29,7 +29,7 @@ def main() -> None:
     from sim.raycast.grids import build_grids
     from sim.scene import generate_scene
     from sim.scene.config import DEFAULT_CONFIG
-    from sim.scene.render import render_scene
+    from sim.scene.plot import render_scene
     from sim.scene.scene import Scene
     from sim.tasks.pointnav import DEFAULT_CONFIG as TASK
     from sim.terrain.patches import KINDS

@@ -3,8 +3,8 @@
 Layers, bottom up: ground, roads (islands, lane lines), sidewalks (every zone, or buildings only), crosswalks and
 curb ramps, terrain patches by surface (stairs outlined, a line on each riser), objects by object class, route,
 trajectory, vehicles, agents with trails, ego. Three callers differ only in window, resolution and decoration: the
-scene plot (`sim.scene.render.render_scene`, a PNG with axes and legend), the agents' map frame
-(`sim.agents.render.draw_top_down`, `SocialNav render()`) and the rollout GIF (`sim.render.rollout_gif`).
+scene plot (`sim.scene.plot.render_scene`, a PNG with axes and legend), the agents' map frame
+(`sim.agents.map_frame.draw_top_down`, `SocialNav render()`) and the rollout GIF (`sim.frames.rollout_gif`).
 """
 
 from __future__ import annotations

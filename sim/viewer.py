@@ -56,7 +56,7 @@ def _fit(image: np.ndarray, width: int, height: int) -> np.ndarray:
 
 def top_down_map(env: Any, size: int, view: float) -> np.ndarray:
     """The map of a `view`-metre window around the ego: scene, route, agents and vehicles (SocialNav), ego."""
-    from sim.agents.render import draw_top_down
+    from sim.agents.map_frame import draw_top_down
 
     m = env.machine
     x, y, _ = m.position
@@ -86,7 +86,7 @@ def hud_text(env: Any) -> str:
 
 def dashboard(env: Any, width: int, height: int, view: float) -> np.ndarray:
     """Chase camera (left), map around the ego (right), ego-camera panels under the chase view, a metrics line."""
-    from sim.render import camera_image
+    from sim.frames import camera_image
 
     bar = 18 if height >= 120 else 0
     body = height - bar
@@ -116,7 +116,7 @@ def render_frame(env: Any) -> np.ndarray | None:
     """`env.render()`: the frame of config.render's camera; in "human" mode it is shown in a window (returns None)."""
     if env.render_mode is None:
         return None
-    from sim.render import camera_image
+    from sim.frames import camera_image
 
     r = env.config["render"]
     w, h, camera = int(r["width"]), int(r["height"]), r["camera"]

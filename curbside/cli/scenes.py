@@ -188,7 +188,7 @@ def render(
 ) -> None:
     """Render a scene spec top-down to PNG."""
     from sim.scene import Scene
-    from sim.scene.render import render_scene
+    from sim.scene.plot import render_scene
 
     _file_out(out, "scene.png")
     # Scene.load names a file that is not JSON, or the field that is wrong, as a one-line error (exit 2).

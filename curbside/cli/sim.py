@@ -157,7 +157,7 @@ def rollout_cmd(
 ) -> None:
     """Run one episode and write an animated GIF: top-down map with route and trajectory (+ chase camera), or with
     --video an MP4 of the dashboard."""
-    from sim.render import rollout_gif, rollout_video
+    from sim.frames import rollout_gif, rollout_video
 
     for path, flag in ((out, "--out"), (video, "--video"), (metrics_out, "--metrics-out")):
         if path is not None and path.is_dir():

@@ -7,8 +7,8 @@ GLB; `to_record` turns it into a catalog row; `contact_sheet` renders a grid of 
 from retrieval.procedural.contact import contact_sheet
 from retrieval.procedural.export import ExportedAsset, export_asset, pybullet_extents, to_record
 from retrieval.procedural.library import GENERATORS, RECIPES, ProceduralAsset, category_names, generate
-from retrieval.procedural.render import render_views
 from retrieval.procedural.spec import CategorySpec, Variant, load_recipes
+from retrieval.procedural.views import render_views
 
 __all__ = [
     "RECIPES",

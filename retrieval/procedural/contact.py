@@ -10,7 +10,7 @@ from PIL import Image, ImageDraw, ImageFont
 
 from retrieval.procedural.export import ExportedAsset, export_asset
 from retrieval.procedural.library import ProceduralAsset
-from retrieval.procedural.render import render_views
+from retrieval.procedural.views import render_views
 
 LABEL_H = 18
 

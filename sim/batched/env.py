@@ -23,10 +23,10 @@ from sim.batched.episodes import KIND_BITS, Episodes
 from sim.batched.kinematics import Drive
 from sim.batched.lidar import lidar_pair
 from sim.batched.routes import RouteBatch
-from sim.batched.scenes import BuiltScene, SceneStore
+from sim.batched.scene_store import BuiltScene, SceneStore
 from sim.envs.observation import GOAL_LOG_SCALE, EgoObservation
 from sim.envs.reset_options import check_reset_options
-from sim.envs.scenes import SceneSource
+from sim.envs.worlds import SceneSource
 from sim.machines import machine_spec
 from sim.raycast.grids import CROSSWALK, KIND_NAMES, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
 from sim.route import ROUTE_REDRAWS, Route, RouteError

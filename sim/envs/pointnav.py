@@ -16,7 +16,7 @@ from sim.envs.episode import Episode
 from sim.envs.managers import EgoPose, Manager, ResetContext, SceneContext, TickContext
 from sim.envs.observation import EgoObservation, Observation
 from sim.envs.reset_options import check_reset_options
-from sim.envs.scenes import SceneCache, SceneSlot, SceneSource, build_slot, trim_heap
+from sim.envs.worlds import SceneCache, SceneSlot, SceneSource, build_slot, trim_heap
 from sim.machines import Machine, machine_spec
 from sim.metrics import EpisodeView, make_measures
 from sim.route import ROUTE_REDRAWS, Route, RouteError, RoutePlanner

@@ -106,7 +106,7 @@ def dataset_vs_paper(
     """Mean of every figure over a dataset's scenes beside the paper's, with the ratio; also the per-scene values."""
     from sim.scene.dataset import read_index
     from sim.tasks.pointnav import DEFAULT_CONFIG
-    from sim.tasks.scenes import read_scene
+    from sim.tasks.scene_loader import read_scene
 
     d = Path(directory)
     rows = read_index(d)

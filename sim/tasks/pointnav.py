@@ -1,4 +1,4 @@
-"""The PointNav task: its config defaults and reward presets (an episode's scene comes from `sim.tasks.scenes`).
+"""The PointNav task: its config defaults and reward presets (an episode's scene comes from `sim.tasks.scene_loader`).
 
 Two reward presets (docs/tasks.md explains each choice):
 - `paper`: the MetaUrban paper's formula R = R_term + 0.5 R_disp + 1.0 R_lateral + 0.1 R_steering + 1.0 R_crash, kept

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import pytest
 
-from tests.scenes import street
+from tests.street import street
 
 
 @pytest.fixture(scope="session")
 def spec() -> dict:
-    """The hand-built straight-street scene spec (tests/scenes.py; no generator needed)."""
+    """The hand-built straight-street scene spec (tests/street.py; no generator needed)."""
     return street()
 
 

@@ -1,6 +1,6 @@
 """The batched numpy env (sim.batched) against the PyBullet PointNav env, its reference, and its VectorEnv API.
 
-The match: on the hand-built street (tests/scenes.py), the same start, goal and action sequence (the expert's actions
+The match: on the hand-built street (tests/street.py), the same start, goal and action sequence (the expert's actions
 driving the PyBullet env, 100 steps along the left sidewalk and around the trash bin on it) give observations and
 rewards within TOL (docs/batched.md says why each bound is what it is); the same check fails for a perturbed action
 sequence.
@@ -19,7 +19,7 @@ from kernel.config import ConfigError
 from sim.batched import BatchedPointNav
 from sim.envs.pointnav import PointNavEnv
 from sim.expert import PurePursuitExpert
-from tests.scenes import street
+from tests.street import street
 
 ROUTE = {"start": [3.0, 7.0], "goal": [40.0, 7.0]}  # left sidewalk, swerving around the trash bin at x = 15
 STEPS = 100

@@ -45,7 +45,7 @@ def test_complex_actions_are_refused_not_truncated() -> None:
 
 
 def test_a_scene_spec_without_sidewalks_is_refused_at_construction() -> None:
-    from tests.scenes import street
+    from tests.street import street
 
     spec = {**street(), "sidewalks": []}
     with pytest.raises(ConfigError, match="scene_spec has no sidewalk"):

@@ -17,7 +17,7 @@ from sim.envs.pointnav import PointNavEnv
 from sim.envs.socialnav import SocialNavEnv
 from sim.expert import PurePursuitExpert
 from sim.sensors import GridLidar, Lidar
-from tests.scenes import street
+from tests.street import street
 
 TOL = {"far_frac": 0.05, "median": 0.03}  # beams more than 0.1 m off (fraction), median error (m)
 

@@ -25,9 +25,9 @@ from sim.sensors import GridLidar, Lidar
 from sim.terrain.patches import LIFT, riser_lines
 from sim.topdown import Canvas, draw_scene
 from sim.world import World
-from tests.scenes import CURB, street
+from tests.street import CURB, street
 
-Y_CLEAR = 7.0  # the left sidewalk's clear path in tests.scenes.street (clear zone 5.6-8.4 m, frontage 8.4-9.0 m)
+Y_CLEAR = 7.0  # the left sidewalk's clear path in tests.street.street (clear zone 5.6-8.4 m, frontage 8.4-9.0 m)
 
 
 def _scene(cfg: dict[str, Any], seed: int) -> dict[str, Any]:

@@ -87,7 +87,7 @@ def test_world_builds_do_not_keep_objects_or_memory(client: int) -> None:
 
 def test_trim_heap_gives_freed_scene_arrays_back() -> None:
     """Scene-sized arrays freed from the heap stay in RSS until `trim_heap` (called after each new scene)."""
-    from sim.envs.scenes import _malloc_trim, trim_heap
+    from sim.envs.worlds import _malloc_trim, trim_heap
 
     if _malloc_trim() is None:
         pytest.skip("no glibc malloc_trim here")

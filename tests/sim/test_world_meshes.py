@@ -10,7 +10,7 @@ import pytest
 
 from catalogs.reader import CatalogReader
 from sim.world import World
-from tests.scenes import street
+from tests.street import street
 
 
 def _rows_drawn(world: World, body: int, eye: list[float], target: list[float]) -> tuple[int, int, int]:

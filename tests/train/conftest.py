@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from tests.scenes import street
+from tests.street import street
 
 
 @pytest.fixture(scope="session")
 def spec() -> dict:
-    """The hand-built straight-street scene spec (tests/scenes.py)."""
+    """The hand-built straight-street scene spec (tests/street.py)."""
     return street()

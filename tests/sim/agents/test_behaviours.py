@@ -14,7 +14,7 @@ from kernel.config import ConfigError
 from sim.agents import AgentManager
 from sim.agents.crowd import sidewalk_length
 from sim.scene.grid import paint
-from tests.scenes import NARROW, street
+from tests.street import NARROW, street
 
 BAY = 4.0  # side of the square bays at both ends of the corridor
 

@@ -8,7 +8,7 @@ import pytest
 from kernel.config import ConfigError
 from sim.agents import AGENT_DTYPE, AGENT_KINDS, AgentManager, EgoState
 from sim.agents.crowd import sidewalk_length
-from tests.scenes import NARROW, street
+from tests.street import NARROW, street
 
 STEPS = 500
 SEEDS = range(5)

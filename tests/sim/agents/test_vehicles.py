@@ -10,8 +10,8 @@ from shapely.ops import unary_union
 
 from sim.agents.vehicles import VEHICLE_DTYPE, VehicleManager
 from sim.scene.grid import encode_walkable
-from tests.scenes import NARROW
-from tests.scenes import street as street_spec
+from tests.street import NARROW
+from tests.street import street as street_spec
 
 
 @pytest.fixture(scope="module")

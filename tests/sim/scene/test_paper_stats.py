@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from curbside.cli.scenes import app
 from sim.scene.paper_stats import PAPER_STATS, scene_figures
-from tests.scenes import street
+from tests.street import street
 
 runner = CliRunner()
 

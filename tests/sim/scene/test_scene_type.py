@@ -13,7 +13,7 @@ import pytest
 from kernel.config import ConfigError
 from sim.scene import SPEC_VERSION, Scene, SceneError, load
 from sim.scene.scene import as_scene
-from tests.scenes import NARROW, street
+from tests.street import NARROW, street
 
 
 @pytest.fixture(scope="module")

@@ -29,7 +29,7 @@ from sim.scene.grid import SIDEWALK
 from sim.scene.scene import Scene
 from sim.sensors import GridLidar, Lidar
 from sim.tasks.pointnav import MAX_SEED, static_lidar
-from sim.tasks.scenes import dataset_scenes, generator_config, load_scene, read_scene, split_seed_offset
+from sim.tasks.scene_loader import dataset_scenes, generator_config, load_scene, read_scene, split_seed_offset
 from sim.world import World
 
 

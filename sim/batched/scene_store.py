@@ -1,7 +1,7 @@
 """The scenes the batched envs run in: built once each (distance grids in the atlas, route planner, route pool),
 kept while any env uses them, and otherwise up to `scene_cache` least recently used ones.
 
-Scene choice is the PyBullet env's: `sim.envs.scenes.SceneSource.draw` with the sub-env's generator, so sub-env i
+Scene choice is the PyBullet env's: `sim.envs.worlds.SceneSource.draw` with the sub-env's generator, so sub-env i
 reset with seed s draws the scene and route `PointNavEnv.reset(seed=s)` draws (with `route_pool` 0).
 """
 
@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from sim.batched.atlas import Atlas
-from sim.envs.scenes import trim_heap
+from sim.envs.worlds import trim_heap
 from sim.machines import MachineSpec
 from sim.raycast.grids import build_grids
 from sim.route import Route, RoutePlanner
