@@ -60,22 +60,22 @@ def _resample(pts: np.ndarray, spacing: float) -> np.ndarray:
     seg = np.hypot(*np.diff(pts, axis=0).T)
     keep = np.concatenate([[True], seg > 1e-9])
     pts = pts[keep]
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
-    if len(pts) < 2 or s[-1] <= 0:
+    arclen = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    if len(pts) < 2 or arclen[-1] <= 0:
         raise RouteError("a route needs two distinct points")
-    n = max(int(math.ceil(s[-1] / spacing)), 1)
-    ss = np.linspace(0.0, s[-1], n + 1)
-    return np.stack([np.interp(ss, s, pts[:, 0]), np.interp(ss, s, pts[:, 1])], -1)
+    n_steps = max(int(math.ceil(arclen[-1] / spacing)), 1)
+    ss = np.linspace(0.0, arclen[-1], n_steps + 1)
+    return np.stack([np.interp(ss, arclen, pts[:, 0]), np.interp(ss, arclen, pts[:, 1])], -1)
 
 
 def _chaikin(pts: np.ndarray, iterations: int) -> np.ndarray:
     for _ in range(iterations):
         if len(pts) < 3:
             return pts
-        q = 0.75 * pts[:-1] + 0.25 * pts[1:]
-        r = 0.25 * pts[:-1] + 0.75 * pts[1:]
-        mid = np.empty((2 * len(q), 2))
-        mid[0::2], mid[1::2] = q, r
+        quarter = 0.75 * pts[:-1] + 0.25 * pts[1:]
+        three_quarter = 0.25 * pts[:-1] + 0.75 * pts[1:]
+        mid = np.empty((2 * len(quarter), 2))
+        mid[0::2], mid[1::2] = quarter, three_quarter
         pts = np.vstack([pts[:1], mid[1:-1], pts[-1:]])
     return pts
 
@@ -87,34 +87,34 @@ class RoutePlanner:
         self, scene: Scene | Mapping[str, Any], half_width: float, margin: float = 0.25, comfort: float = 0.75
     ) -> None:
         self.scene = as_scene(scene)  # a dict is parsed (checked) here, once
-        self.grid = g = self.scene.walkable
+        self.grid = grid = self.scene.walkable
         # Entrance steps block routes as objects do (a stair's footprint; rough and slick ground is drivable).
-        steps = [t for t in self.scene.terrain if t["kind"] == "steps"]
-        blocked = (g.mask == 0) | obstacle_mask(g, [*self.scene.objects, *steps])
+        steps = [terrain for terrain in self.scene.terrain if terrain["kind"] == "steps"]
+        blocked = (grid.mask == 0) | obstacle_mask(grid, [*self.scene.objects, *steps])
         # Distance from each cell centre to the nearest blocked cell's edge, in metres.
-        clearance = ndimage.distance_transform_edt(~blocked) * g.resolution - 0.5 * g.resolution
+        clearance = ndimage.distance_transform_edt(~blocked) * grid.resolution - 0.5 * grid.resolution
         free = clearance >= half_width + margin
-        labels, n = ndimage.label(free, structure=np.ones((3, 3)))
-        if n == 0:
+        labels, n_labels = ndimage.label(free, structure=np.ones((3, 3)))
+        if n_labels == 0:
             raise RouteError(f"no walkable cell is wide enough for a machine of half-width {half_width:.2f} m")
         sizes = np.bincount(labels.ravel())[1:]
         self.free = labels == (int(np.argmax(sizes)) + 1)  # keep the largest connected component
         self.clearance = clearance
         self.half_width = half_width
         rows, cols = np.nonzero(self.free)
-        self.node = -np.ones(g.shape, dtype=np.int64)
+        self.node = -np.ones(grid.shape, dtype=np.int64)
         self.node[rows, cols] = np.arange(len(rows))
         self.rows, self.cols = rows, cols
         # Edges near obstacles cost up to 3x their length, so routes keep to the middle of the clear path
         # when there is room, and squeeze past obstacles only when they must.
         prefer = half_width + margin + comfort
         self.penalty = 1.0 + 2.0 * np.clip(1.0 - clearance / prefer, 0.0, 1.0)
-        self.graph = grid_graph(self.free, g.resolution, cost=self.penalty)
+        self.graph = grid_graph(self.free, grid.resolution, cost=self.penalty)
         self._edge_rows: np.ndarray | None = None  # row of each stored edge (built on the first long route)
-        sidewalk = g.mask[rows, cols] == SIDEWALK
+        sidewalk = grid.mask[rows, cols] == SIDEWALK
         candidates = np.nonzero(sidewalk)[0] if sidewalk.any() else np.arange(len(rows))
         # Per node: on a sidewalk; the nodes routes start and end on; their world (x, y).
-        self._starts = (sidewalk, candidates, g.cell_to_world(np.stack([rows[candidates], cols[candidates]], -1)))
+        self._starts = (sidewalk, candidates, grid.cell_to_world(np.stack([rows[candidates], cols[candidates]], -1)))
 
     def _nearest_node(self, x: float, y: float) -> int:
         pts = self.grid.cell_to_world(np.stack([self.rows, self.cols], -1))
@@ -135,8 +135,8 @@ class RoutePlanner:
         self, start: Sequence[float] | np.ndarray, goal: Sequence[float] | np.ndarray, spacing: float = 0.25
     ) -> Route:
         """The smoothed route between two given world points (each snapped to the nearest usable cell)."""
-        a, b = self._nearest_node(*start[:2]), self._nearest_node(*goal[:2])
-        _, chain = astar_chain(self.graph, self.rows, self.cols, self.grid.resolution, a, b, math.inf)
+        start_node, goal_node = self._nearest_node(*start[:2]), self._nearest_node(*goal[:2])
+        _, chain = astar_chain(self.graph, self.rows, self.cols, self.grid.resolution, start_node, goal_node, math.inf)
         if not chain:
             raise RouteError(f"no path from {list(start)} to {list(goal)} for this machine")
         return self._route(chain, spacing)
@@ -155,10 +155,10 @@ class RoutePlanner:
             return 0.0
         fits = self.clearance >= self.half_width - 0.5 * self.grid.resolution
 
-        def visible(a: np.ndarray, b: np.ndarray) -> bool:
-            n = max(int(math.ceil(math.hypot(*(b - a)) / step)), 1)
-            t = np.linspace(0.0, 1.0, n + 1)[:, None]
-            rc = self.grid.world_to_cell(a + t * (b - a))
+        def visible(start: np.ndarray, end: np.ndarray) -> bool:
+            n_samples = max(int(math.ceil(math.hypot(*(end - start)) / step)), 1)
+            frac = np.linspace(0.0, 1.0, n_samples + 1)[:, None]
+            rc = self.grid.world_to_cell(start + frac * (end - start))
             inside = self.grid.inside(rc)
             return bool(inside.all() and fits[rc[:, 0], rc[:, 1]].all())
 
@@ -222,31 +222,36 @@ class RoutePlanner:
         next leg leave south-west, at right angles to the 3 m heading but 135 degrees from the hook. Cells just
         beside the end (within 0.5 m behind it) stay, so the end keeps its neighbours.
         """
-        r = int(round(radius_m / self.grid.resolution))
+        radius_cells = int(round(radius_m / self.grid.resolution))
         i0, j0 = int(self.rows[cur]), int(self.cols[cur])
         n_i, n_j = self.node.shape
-        sl = (slice(max(i0 - r, 0), min(i0 + r + 1, n_i)), slice(max(j0 - r, 0), min(j0 + r + 1, n_j)))
+        sl = (
+            slice(max(i0 - radius_cells, 0), min(i0 + radius_cells + 1, n_i)),
+            slice(max(j0 - radius_cells, 0), min(j0 + radius_cells + 1, n_j)),
+        )
         ii, jj = np.mgrid[sl]
         behind = np.zeros(ii.shape, dtype=bool)
         for back_m in (1.0, 3.0):
             k = min(len(chain) - 1, int(back_m / self.grid.resolution))
-            a, b = chain[-1 - k], chain[-1]
-            heading = np.array([self.cols[b] - self.cols[a], self.rows[b] - self.rows[a]], dtype=float)
+            from_node, to_node = chain[-1 - k], chain[-1]
+            heading = np.array(
+                [self.cols[to_node] - self.cols[from_node], self.rows[to_node] - self.rows[from_node]], dtype=float
+            )
             heading /= max(float(np.hypot(*heading)), 1e-9)
             behind |= (jj - j0) * heading[0] + (ii - i0) * heading[1] < -0.5 / self.grid.resolution
-        behind &= (ii - i0) ** 2 + (jj - j0) ** 2 <= r * r
+        behind &= (ii - i0) ** 2 + (jj - j0) ** 2 <= radius_cells * radius_cells
         nodes = self.node[sl][behind]
         keep = np.ones(self.graph.shape[0], dtype=bool)
         keep[nodes[nodes >= 0]] = False
         # The graph's edges between kept nodes, filtered in place of the CSR arrays (the same matrix as
         # diag(keep) @ graph @ diag(keep) without its zeros, at a fraction of two sparse products' cost).
-        g = self.graph
+        graph = self.graph
         if self._edge_rows is None:
-            self._edge_rows = np.repeat(np.arange(g.shape[0]), np.diff(g.indptr))
-        kept = keep[self._edge_rows] & keep[g.indices]
-        indptr = np.zeros(g.shape[0] + 1, dtype=g.indptr.dtype)
-        np.cumsum(np.bincount(self._edge_rows[kept], minlength=g.shape[0]), out=indptr[1:])
-        return csr_matrix((g.data[kept], g.indices[kept], indptr), shape=g.shape)
+            self._edge_rows = np.repeat(np.arange(graph.shape[0]), np.diff(graph.indptr))
+        kept = keep[self._edge_rows] & keep[graph.indices]
+        indptr = np.zeros(graph.shape[0] + 1, dtype=graph.indptr.dtype)
+        np.cumsum(np.bincount(self._edge_rows[kept], minlength=graph.shape[0]), out=indptr[1:])
+        return csr_matrix((graph.data[kept], graph.indices[kept], indptr), shape=graph.shape)
 
     def _goes_on(self, chain: list[int], cur: int, ahead_m: float = 20.0) -> bool:
         """Whether open space lies `ahead_m` onwards from the chain's end without turning back."""

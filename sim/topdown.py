@@ -173,17 +173,17 @@ def draw_route(c: Surface, route: Any, width: float = 2.0, goal: bool = False) -
     pts = np.asarray(route, dtype=np.float64).reshape(-1, 2)
     c.line(pts, ROUTE, width)
     if goal and len(pts):
-        r = 7.0 / c.px_per_m  # a 7-pixel star, whatever the scale
-        a = np.pi / 2 + np.arange(10) * np.pi / 5
-        rad = np.where(np.arange(10) % 2 == 0, r, 0.4 * r)
-        c.polygon(pts[-1] + np.c_[rad * np.cos(a), rad * np.sin(a)], ROUTE)
+        radius = 7.0 / c.px_per_m  # a 7-pixel star, whatever the scale
+        angles = np.pi / 2 + np.arange(10) * np.pi / 5
+        rad = np.where(np.arange(10) % 2 == 0, radius, 0.4 * radius)
+        c.polygon(pts[-1] + np.c_[rad * np.cos(angles), rad * np.sin(angles)], ROUTE)
 
 
 def box(x: float, y: float, yaw: float, length: float, width: float) -> np.ndarray:
     """The four corners (4, 2) of a `length` x `width` rectangle centred at (x, y), heading `yaw`."""
-    c, s = math.cos(yaw), math.sin(yaw)
+    cos, sin = math.cos(yaw), math.sin(yaw)
     corners = np.array([[1, 1], [1, -1], [-1, -1], [-1, 1]]) * [length / 2, width / 2]
-    return corners @ np.array([[c, s], [-s, c]]) + [x, y]
+    return corners @ np.array([[cos, sin], [-sin, cos]]) + [x, y]
 
 
 def draw_vehicles(c: Surface, vehicles: Any) -> None:
@@ -213,24 +213,24 @@ def draw_ego(
 
 def _zebra(polygon: Any, bar: float = 0.5) -> list[np.ndarray]:
     """The white bars of a zebra crossing, `bar` m wide and apart along its long sides (all of it unless a quad)."""
-    q = np.asarray(polygon, dtype=np.float64)
-    if len(q) != 4:
-        return [q]
-    if np.hypot(*(q[1] - q[0])) < np.hypot(*(q[2] - q[1])):
-        q = np.roll(q, -1, axis=0)  # q0 -> q1 and q3 -> q2 are now the long sides, the walking direction
-    length = 0.5 * (np.hypot(*(q[1] - q[0])) + np.hypot(*(q[2] - q[3])))
-    n = int((length + bar) // (2 * bar))
-    start = 0.5 * (length - (2 * n - 1) * bar)
+    quad = np.asarray(polygon, dtype=np.float64)
+    if len(quad) != 4:
+        return [quad]
+    if np.hypot(*(quad[1] - quad[0])) < np.hypot(*(quad[2] - quad[1])):
+        quad = np.roll(quad, -1, axis=0)  # q0 -> q1 and q3 -> q2 are now the long sides, the walking direction
+    length = 0.5 * (np.hypot(*(quad[1] - quad[0])) + np.hypot(*(quad[2] - quad[3])))
+    n_bars = int((length + bar) // (2 * bar))
+    start = 0.5 * (length - (2 * n_bars - 1) * bar)
     bars = []
-    for i in range(n):
+    for i in range(n_bars):
         t0, t1 = (start + 2 * bar * i) / length, (start + 2 * bar * i + bar) / length
         bars.append(
             np.array(
                 [
-                    q[0] + t0 * (q[1] - q[0]),
-                    q[0] + t1 * (q[1] - q[0]),
-                    q[3] + t1 * (q[2] - q[3]),
-                    q[3] + t0 * (q[2] - q[3]),
+                    quad[0] + t0 * (quad[1] - quad[0]),
+                    quad[0] + t1 * (quad[1] - quad[0]),
+                    quad[3] + t1 * (quad[2] - quad[3]),
+                    quad[3] + t0 * (quad[2] - quad[3]),
                 ]
             )
         )
@@ -239,11 +239,20 @@ def _zebra(polygon: Any, bar: float = 0.5) -> list[np.ndarray]:
 
 def dashes(pts: np.ndarray, on: float, off: float) -> list[np.ndarray]:
     """The `on`-metre pieces of a polyline, `off` metres apart along its arc length."""
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
-    a = np.arange(0.0, s[-1], on + off)
-    b = np.minimum(a + on, s[-1])
+    arclen = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    starts = np.arange(0.0, arclen[-1], on + off)
+    stops = np.minimum(starts + on, arclen[-1])
     # Both ends of every dash at once (frames redraw the lane lines every step); inner vertices where bent.
-    ends = np.stack([np.stack([np.interp(t, s, pts[:, 0]), np.interp(t, s, pts[:, 1])], -1) for t in (a, b)], 1)
+    ends = np.stack(
+        [
+            np.stack([np.interp(bound, arclen, pts[:, 0]), np.interp(bound, arclen, pts[:, 1])], -1)
+            for bound in (starts, stops)
+        ],
+        1,
+    )
     if len(pts) == 2:
         return list(ends)
-    return [np.vstack([e[:1], pts[(s > lo) & (s < hi)], e[1:]]) for e, lo, hi in zip(ends, a, b)]
+    return [
+        np.vstack([end_pts[:1], pts[(arclen > lo) & (arclen < hi)], end_pts[1:]])
+        for end_pts, lo, hi in zip(ends, starts, stops)
+    ]

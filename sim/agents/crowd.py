@@ -62,16 +62,16 @@ class AgentManager:
         if any(v < 0 for v in self.config["mix"].values()) or sum(self.config["mix"].values()) <= 0:
             raise ConfigError("agents config mix needs non-negative shares with a positive sum")
         # The counts are known now; a density's agent count depends on the scene, but none fits in max_agents 0.
-        c = self.config
-        asked = sum(int(v) for v in c["counts"].values()) if c["counts"] else None
-        if asked is not None and asked > c["max_agents"]:
+        cfg = self.config
+        asked = sum(int(v) for v in cfg["counts"].values()) if cfg["counts"] else None
+        if asked is not None and asked > cfg["max_agents"]:
             raise ConfigError(
-                f"agents config counts ask for {asked} agents but max_agents is {c['max_agents']}; "
+                f"agents config counts ask for {asked} agents but max_agents is {cfg['max_agents']}; "
                 "lower the counts or raise max_agents"
             )
-        if asked is None and c["dynamic_density"] > 0 and c["max_agents"] < 1:
+        if asked is None and cfg["dynamic_density"] > 0 and cfg["max_agents"] < 1:
             raise ConfigError(
-                f"agents config max_agents is 0 with dynamic_density {c['dynamic_density']:g}; set "
+                f"agents config max_agents is 0 with dynamic_density {cfg['dynamic_density']:g}; set "
                 "dynamic_density 0 for no agents, or raise max_agents"
             )
         self.grid: NavGrid | None = None  # the navigation grid of the scene last reset on
@@ -141,42 +141,42 @@ class AgentManager:
 
         `route` (N, 2): the ego's route, for `spawn_area: "route"` (agents per 100 m of route, along it).
         """
-        c = self.config
+        cfg = self.config
         self.rng = rng
         scene = as_scene(scene, self._scene)
         grid, orca = self.grid, self.orca
         if grid is None or orca is None or scene is not self._scene:
-            grid = build_navgrid(scene, plan_radius=c["plan_radius"], n_sites=c["n_goal_sites"])
+            grid = build_navgrid(scene, plan_radius=cfg["plan_radius"], n_sites=cfg["n_goal_sites"])
             self.goal_cells.clear()
             self.crossings.setup(scene, grid)
             # Processing the scene's obstacles costs ~0.2 s, more than a short episode: each scene keeps its part.
             orca = OrcaCrowd(scene, grid)
             self.grid, self.orca, self._scene = grid, orca, scene
-        area = spawn_region(scene, c, route)
+        area = spawn_region(scene, cfg, route)
         route_length = 0.0  # only spawn_area "route" reads it, and spawn_region has checked the route is there
         if route is not None and len(route) >= 2:
             route_length = float(np.linalg.norm(np.diff(np.asarray(route)[:, :2], axis=0), axis=1).sum())
-        kinds = draw_kinds(scene, c, area, route_length, rng)
+        kinds = draw_kinds(scene, cfg, area, route_length, rng)
         radius = np.array([AGENT_KINDS[k].radius for k in kinds])
         ego = as_ego(ego)
         clear = list(keep_clear) + ([(ego.x, ego.y, ego.radius + 1.0)] if ego else [])
-        pos = spawn_positions(grid, area, radius, c, rng, clear)
-        self.state = s = CrowdState.start(kinds, radius, pos)
-        self.push.window = float(c["push_window"])
+        pos = spawn_positions(grid, area, radius, cfg, rng, clear)
+        self.state = state = CrowdState.start(kinds, radius, pos)
+        self.push.window = float(cfg["push_window"])
         self.push.reset()
-        self.groups.reset(s, grid, area, c, rng, clear)
-        orca.start(s, c)
-        nodes = grid.nearest_node(s.pos)
-        for i in range(s.n):
+        self.groups.reset(state, grid, area, cfg, rng, clear)
+        orca.start(state, cfg)
+        nodes = grid.nearest_node(state.pos)
+        for i in range(state.n):
             if self.groups.of[i] >= 0:
                 continue  # standing in its group already
-            if rng.random() < c["idle_prob"]:
-                s.movement[i] = IDLE
-                s.idle_left[i] = rng.uniform(0.0, c["idle_time"][1])
+            if rng.random() < cfg["idle_prob"]:
+                state.movement[i] = IDLE
+                state.idle_left[i] = rng.uniform(0.0, cfg["idle_time"][1])
             else:
                 self._set_goal(i, int(nodes[i]))
-        s.trail = np.repeat(s.pos[None], c["trail_length"], axis=0)
-        orca.set_ego(ego, c["ego_margin"])
+        state.trail = np.repeat(state.pos[None], cfg["trail_length"], axis=0)
+        orca.set_ego(ego, cfg["ego_margin"])
         return self.states()
 
     def _set_goal(
@@ -214,44 +214,46 @@ class AgentManager:
 
     def advance(self, dt: float, ego: EgoState | Mapping[str, float] | Sequence[float] | None = None) -> None:
         """step() without building its states (the env reads `pos` directly)."""
-        g, orca, rng = self._parts("step")
-        c, s = self.config, self.state
-        orca.set_ego(as_ego(ego), c["ego_margin"])
-        s.time += dt
-        pref = np.zeros((s.n, 2))
-        pinned = np.zeros(s.n, dtype=bool)
-        ox, oy, res = float(g.origin[0]), float(g.origin[1]), float(g.res)
-        if s.n:
-            nodes = nearest_nodes(s.pos, ox, oy, res, g.nearest_rc, g.node_of)
-            self.push.release(s, g, c, nodes)
-            update_goals(s, g, rng, c, self.groups, self._set_goal, dt, nodes)
-            self.push.hold(s)
-            self.push.detect(s, g, c, nodes)
-            moving = s.movement != IDLE
+        grid, orca, rng = self._parts("step")
+        cfg, state = self.config, self.state
+        orca.set_ego(as_ego(ego), cfg["ego_margin"])
+        state.time += dt
+        pref = np.zeros((state.n, 2))
+        pinned = np.zeros(state.n, dtype=bool)
+        ox, oy, res = float(grid.origin[0]), float(grid.origin[1]), float(grid.res)
+        if state.n:
+            nodes = nearest_nodes(state.pos, ox, oy, res, grid.nearest_rc, grid.node_of)
+            self.push.release(state, grid, cfg, nodes)
+            update_goals(state, grid, rng, cfg, self.groups, self._set_goal, dt, nodes)
+            self.push.hold(state)
+            self.push.detect(state, grid, cfg, nodes)
+            moving = state.movement != IDLE
             if moving.any():
-                pref[moving] = preferred(s, g, c, orca.sim.query_visibility, nodes[moving], np.flatnonzero(moving))
-            self.push.steer(s, pref)
-            pinned = self.groups.standing(s) & ~self.push.busy(s.n)
-            orca.set_radii(s.radius, c["safety_margin"], pinned)
+                pref[moving] = preferred(
+                    state, grid, cfg, orca.sim.query_visibility, nodes[moving], np.flatnonzero(moving)
+                )
+            self.push.steer(state, pref)
+            pinned = self.groups.standing(state) & ~self.push.busy(state.n)
+            orca.set_radii(state.radius, cfg["safety_margin"], pinned)
         new_pos, new_vel = orca.step(dt, pref)
         # ORCA's obstacle handling is not a hard guarantee at concave corners: an agent whose step would leave
         # the walkable area stays put instead; so do members standing in a group (see sim.agents.behaviours).
-        bad = (~on_mask(new_pos, ox, oy, res, g.walkable) | pinned) if s.n else pinned
+        bad = (~on_mask(new_pos, ox, oy, res, grid.walkable) | pinned) if state.n else pinned
         for i in np.flatnonzero(bad):
-            orca.place(int(i), (float(s.pos[i, 0]), float(s.pos[i, 1])))
-            new_pos[i], new_vel[i] = s.pos[i], 0.0
-        s.pos, s.vel = new_pos, new_vel
-        s.trail[:-1] = s.trail[1:]  # oldest first; in place, no new [trail, n, 2] array per step
-        s.trail[-1] = s.pos
+            orca.place(int(i), (float(state.pos[i, 0]), float(state.pos[i, 1])))
+            new_pos[i], new_vel[i] = state.pos[i], 0.0
+        state.pos, state.vel = new_pos, new_vel
+        state.trail[:-1] = state.trail[1:]  # oldest first; in place, no new [trail, n, 2] array per step
+        state.trail[-1] = state.pos
 
     # ------------------------------------------------------------------ outputs
     def states(self) -> np.ndarray:
         """Every agent's x, y, vx, vy, radius and kind as a structured array of AGENT_DTYPE."""
-        s = self.state
-        out = s.template.copy()  # radius and kind never change within an episode
-        if s.n:
-            out["x"], out["y"] = s.pos[:, 0], s.pos[:, 1]
-            out["vx"], out["vy"] = s.vel[:, 0], s.vel[:, 1]
+        state = self.state
+        out = state.template.copy()  # radius and kind never change within an episode
+        if state.n:
+            out["x"], out["y"] = state.pos[:, 0], state.pos[:, 1]
+            out["vx"], out["vy"] = state.vel[:, 0], state.vel[:, 1]
         return out
 
     def goal_stats(self) -> dict[str, float]:
@@ -262,12 +264,12 @@ class AgentManager:
 
     def behaviour_stats(self) -> dict[str, int]:
         """Standing groups (sim.agents.behaviours.Groups.stats), crossings started and done, pushes started and ended."""
-        s = self.state
+        state = self.state
         return {
             **self.groups.stats(),
-            "crossings_started": s.cross_counts["started"],
-            "crossings_done": s.cross_counts["done"],
-            "crossing_now": int(s.crossing.sum()),
+            "crossings_started": state.cross_counts["started"],
+            "crossings_done": state.cross_counts["done"],
+            "crossing_now": int(state.crossing.sum()),
             "pushes": self.push.started,
             "pushes_done": self.push.finished,
         }
@@ -275,33 +277,33 @@ class AgentManager:
     # ------------------------------------------------------------------ scripted scenarios
     def place(self, i: int, xy: Sequence[float]) -> None:
         """Put agent i at rest on world point `xy` (after reset; the point must be walkable)."""
-        g, orca, _ = self._parts("place")
-        s = self.state
-        p = np.asarray(xy, dtype=np.float64).reshape(2)
-        if not bool(g.is_walkable(p[None])[0]):
-            raise ValueError(f"agent {i} cannot stand at {p.tolist()}: not on the walkable area")
-        s.pos[i], s.vel[i] = p, 0.0
-        s.trail[:, i] = p
-        orca.place(int(i), (float(p[0]), float(p[1])))
+        grid, orca, _ = self._parts("place")
+        state = self.state
+        point = np.asarray(xy, dtype=np.float64).reshape(2)
+        if not bool(grid.is_walkable(point[None])[0]):
+            raise ValueError(f"agent {i} cannot stand at {point.tolist()}: not on the walkable area")
+        state.pos[i], state.vel[i] = point, 0.0
+        state.trail[:, i] = point
+        orca.place(int(i), (float(point[0]), float(point[1])))
 
     def send(self, i: int, xy: Sequence[float], speed: float | None = None) -> None:
         """Give agent i a goal at the planning cell nearest `xy` (a goal site of its own), walking at `speed`."""
-        g, _, rng = self._parts("send")
-        s = self.state
-        p = np.asarray(xy, dtype=np.float64).reshape(1, 2)
-        site = g.add_site(int(g.nearest_node(p)[0]))
+        grid, _, rng = self._parts("send")
+        state = self.state
+        point = np.asarray(xy, dtype=np.float64).reshape(1, 2)
+        site = grid.add_site(int(grid.nearest_node(point)[0]))
         if self.groups.of[i] >= 0:
-            self.groups.dissolve(s, int(self.groups.of[i]))
+            self.groups.dissolve(state, int(self.groups.of[i]))
         self._set_goal(
             i,
-            int(g.nearest_node(s.pos[i : i + 1])[0]),
+            int(grid.nearest_node(state.pos[i : i + 1])[0]),
             site=site,
-            goal_xy=p[0],
-            speed=walking_speed(s, i, rng) if speed is None else float(speed),
+            goal_xy=point[0],
+            speed=walking_speed(state, i, rng) if speed is None else float(speed),
         )
 
     def overdue(self) -> int:
         """Agents still travelling whose time budget has already run out (goals that will count as late)."""
-        s = self.state
-        moving = s.movement != IDLE
-        return int(np.sum(moving & (s.time - s.goal_t0 > s.budget)))
+        state = self.state
+        moving = state.movement != IDLE
+        return int(np.sum(moving & (state.time - state.goal_t0 > state.budget)))

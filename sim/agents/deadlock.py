@@ -77,42 +77,39 @@ class PushResolver:
         out = np.zeros(n, dtype=bool)
         if self.active:
             out[list(self.active)] = True
-            out[[p.mover for p in self.active.values()]] = True
+            out[[push.mover for push in self.active.values()]] = True
         return out
 
     def _directions(self, state: CrowdState, grid: NavGrid, nodes: np.ndarray, idx: np.ndarray) -> np.ndarray:
         """Unit path directions (4 cells ahead on the own goal field) of agents `idx`; zero where undefined."""
-        g = grid
-        ahead = g.node_xy(g.lookahead(nodes[idx], state.site[idx], 4))
-        d = ahead - state.pos[idx]
-        norm = np.sqrt((d * d).sum(1))[:, None]
-        return np.where(norm > 1e-6, d / np.maximum(norm, 1e-6), 0.0)
+        ahead = grid.node_xy(grid.lookahead(nodes[idx], state.site[idx], 4))
+        offset = ahead - state.pos[idx]
+        norm = np.sqrt((offset * offset).sum(1))[:, None]
+        return np.where(norm > 1e-6, offset / np.maximum(norm, 1e-6), 0.0)
 
     def detect(self, state: CrowdState, grid: NavGrid, config: Mapping[str, Any], nodes: np.ndarray) -> None:
         """Start pushes for the agents (at `nodes`) stalled face to face with a blocker (see the module docstring)."""
-        s = state
-        if self.window <= 0 or s.n < 2:
+        if self.window <= 0 or state.n < 2:
             return
-        c, g = config, grid
-        stuck = c["stuck_steps"]
-        if not (s.stall >= max(stuck, 1)).any():
+        stuck = config["stuck_steps"]
+        if not (state.stall >= max(stuck, 1)).any():
             return  # nobody stalled long enough: no candidate
-        busy = self.busy(s.n)
-        moving = s.movement != IDLE
-        cand = np.flatnonzero(moving & (s.stall >= max(stuck, 1)) & ~busy)
+        busy = self.busy(state.n)
+        moving = state.movement != IDLE
+        cand = np.flatnonzero(moving & (state.stall >= max(stuck, 1)) & ~busy)
         if not len(cand):
             return
-        u = self._directions(s, g, nodes, cand)
-        right = np.stack([u[:, 1], -u[:, 0]], 1)
-        room = g.is_free(s.pos[cand] + right) | g.is_free(s.pos[cand] - right)
-        ready = (s.stall[cand] >= 2 * stuck) | ~room
-        cand, u = cand[ready], u[ready]
+        heading = self._directions(state, grid, nodes, cand)
+        right = np.stack([heading[:, 1], -heading[:, 0]], 1)
+        room = grid.is_free(state.pos[cand] + right) | grid.is_free(state.pos[cand] - right)
+        ready = (state.stall[cand] >= 2 * stuck) | ~room
+        cand, heading = cand[ready], heading[ready]
         if not len(cand):
             return
-        d = s.pos[None, :, :] - s.pos[cand][:, None, :]  # [k, n, 2] from each candidate to every agent
-        dist = np.sqrt((d * d).sum(2))
-        reach = s.radius[cand][:, None] + s.radius[None, :] + 2 * c["safety_margin"] + REACH_GAP
-        front = np.einsum("knd,kd->kn", d, u) > FRONT_COS * np.maximum(dist, 1e-9)
+        offset = state.pos[None, :, :] - state.pos[cand][:, None, :]  # [k, n, 2] from each candidate to every agent
+        dist = np.sqrt((offset * offset).sum(2))
+        reach = state.radius[cand][:, None] + state.radius[None, :] + 2 * config["safety_margin"] + REACH_GAP
+        front = np.einsum("knd,kd->kn", offset, heading) > FRONT_COS * np.maximum(dist, 1e-9)
         near = (dist < reach) & front
         near[np.arange(len(cand)), cand] = False
         for k, i in enumerate(cand.tolist()):
@@ -122,22 +119,26 @@ class PushResolver:
             if not len(js):
                 continue
             j = int(js[np.argmin(dist[k, js])])
-            if s.movement[j] == IDLE:
-                plan, yielder, mover = self._plan(s, g, c, nodes, j, i), j, i
+            if state.movement[j] == IDLE:
+                plan, yielder, mover = self._plan(state, grid, config, nodes, j, i), j, i
             else:
-                uj = self._directions(s, g, nodes, np.array([j]))[0]
-                oncoming = float(uj @ (s.pos[i] - s.pos[j])) > FRONT_COS * float(dist[k, j])
-                if not (oncoming or s.stall[j] >= stuck):
+                uj = self._directions(state, grid, nodes, np.array([j]))[0]
+                oncoming = float(uj @ (state.pos[i] - state.pos[j])) > FRONT_COS * float(dist[k, j])
+                if not (oncoming or state.stall[j] >= stuck):
                     continue
-                pi, pj = self._plan(s, g, c, nodes, i, j), self._plan(s, g, c, nodes, j, i)
-                options = [(p[1], -y, y, mv, p) for p, y, mv in ((pi, i, j), (pj, j, i)) if p is not None]
+                pi, pj = self._plan(state, grid, config, nodes, i, j), self._plan(state, grid, config, nodes, j, i)
+                options = [
+                    (option_plan[1], -y, y, mv, option_plan)
+                    for option_plan, y, mv in ((pi, i, j), (pj, j, i))
+                    if option_plan is not None
+                ]
                 if not options:
                     continue
                 _, _, yielder, mover, plan = min(options, key=lambda o: (o[0], o[1]))
             if plan is None:
                 continue
             path, _, hold_field = plan
-            self.active[yielder] = Push(mover, int(s.site[mover]), path, hold_field)
+            self.active[yielder] = Push(mover, int(state.site[mover]), path, hold_field)
             busy[yielder] = busy[mover] = True
             self.started += 1
 
@@ -145,45 +146,44 @@ class PushResolver:
         self, state: CrowdState, grid: NavGrid, config: Mapping[str, Any], nodes: np.ndarray, y: int, mv: int
     ) -> tuple[np.ndarray, float, float] | None:
         """Cells from yielder `y` to the nearest passing place off mover `mv`'s path, its length, and mv's field there."""
-        s, g, c = state, grid, config
-        h, w = g.free.shape
-        half = int(np.ceil(self.window / g.res))
-        yi, yj = (int(v) for v in g.node_rc[nodes[y]])
-        r0, r1, c0, c1 = max(yi - half, 0), min(yi + half + 1, h), max(yj - half, 0), min(yj + half + 1, w)
-        site = int(s.site[mv])
-        route = g.node_rc[g.path_nodes(int(nodes[mv]), site, max_steps=8 * half)]
-        goal_rc = np.stack(g.cell_of(s.goal[mv][None]), 1)
+        rows, cols = grid.free.shape
+        half = int(np.ceil(self.window / grid.res))
+        yi, yj = (int(v) for v in grid.node_rc[nodes[y]])
+        r0, r1, c0, c1 = max(yi - half, 0), min(yi + half + 1, rows), max(yj - half, 0), min(yj + half + 1, cols)
+        site = int(state.site[mv])
+        route = grid.node_rc[grid.path_nodes(int(nodes[mv]), site, max_steps=8 * half)]
+        goal_rc = np.stack(grid.cell_of(state.goal[mv][None]), 1)
         route = np.concatenate([route, goal_rc.astype(route.dtype)])
         inside = (route[:, 0] >= r0) & (route[:, 0] < r1) & (route[:, 1] >= c0) & (route[:, 1] < c1)
         if not inside.any():
             return None
         on_route = np.zeros((r1 - r0, c1 - c0), dtype=bool)
         on_route[route[inside, 0] - r0, route[inside, 1] - c0] = True
-        to_route = ndimage.distance_transform_edt(~on_route) * g.res
-        need = s.radius[y] + s.radius[mv] + 2 * c["safety_margin"] + PASS_MARGIN
-        xs = g.origin[0] + (np.arange(c0, c1) + 0.5) * g.res
-        ys = g.origin[1] + (np.arange(r0, r1) + 0.5) * g.res
-        to_mover = np.hypot(xs[None, :] - s.pos[mv, 0], ys[:, None] - s.pos[mv, 1])
-        start_xy = g.node_xy(np.array([nodes[y]]))[0]
+        to_route = ndimage.distance_transform_edt(~on_route) * grid.res
+        need = state.radius[y] + state.radius[mv] + 2 * config["safety_margin"] + PASS_MARGIN
+        xs = grid.origin[0] + (np.arange(c0, c1) + 0.5) * grid.res
+        ys = grid.origin[1] + (np.arange(r0, r1) + 0.5) * grid.res
+        to_mover = np.hypot(xs[None, :] - state.pos[mv, 0], ys[:, None] - state.pos[mv, 1])
+        start_xy = grid.node_xy(np.array([nodes[y]]))[0]
         # The way out must not pass through the mover: cells closer to it than the yielder's own cell are cut.
-        guard = min(need, float(np.hypot(*(start_xy - s.pos[mv]))))
-        allowed = g.free[r0:r1, c0:c1] & (to_mover >= guard)
-        ids = g.node_of[r0:r1, c0:c1][allowed]
+        guard = min(need, float(np.hypot(*(start_xy - state.pos[mv]))))
+        allowed = grid.free[r0:r1, c0:c1] & (to_mover >= guard)
+        ids = grid.node_of[r0:r1, c0:c1][allowed]
         start = np.flatnonzero(ids == nodes[y])
         if not len(start):
             return None
-        sub = g.graph[ids][:, ids]
+        sub = grid.graph[ids][:, ids]
         dist, pred = dijkstra(sub, directed=True, indices=int(start[0]), return_predecessors=True)
         target = (to_route[allowed] >= need) & np.isfinite(dist)
         if not target.any():
             return None
-        t = int(np.argmin(np.where(target, dist, np.inf)))
-        chain = [t]
+        best = int(np.argmin(np.where(target, dist, np.inf)))
+        chain = [best]
         while chain[-1] != start[0]:
             chain.append(int(pred[chain[-1]]))
-        path = g.node_xy(ids[np.asarray(chain[::-1])])
-        hold_field = float(g.distance(np.array([ids[t]]), np.array([site]))[0])
-        return path, float(dist[t]), hold_field
+        path = grid.node_xy(ids[np.asarray(chain[::-1])])
+        hold_field = float(grid.distance(np.array([ids[best]]), np.array([site]))[0])
+        return path, float(dist[best]), hold_field
 
     def hold(self, state: CrowdState) -> None:
         """Keep the stall counts of everyone in a push at zero: no side-step, no abandoned goal meanwhile."""
@@ -194,33 +194,34 @@ class PushResolver:
         """End the pushes whose mover has passed, reached or changed its goal, or that ran `regoal_steps`."""
         if not self.active:
             return
-        s, g = state, grid
         for y in list(self.active):
-            p = self.active[y]
-            p.steps += 1
-            mv = p.mover
-            done = s.movement[mv] == IDLE or int(s.site[mv]) != p.site or p.steps > config["regoal_steps"]
+            push = self.active[y]
+            push.steps += 1
+            mv = push.mover
+            done = state.movement[mv] == IDLE or int(state.site[mv]) != push.site or push.steps > config["regoal_steps"]
             if not done:
-                left = float(g.distance(nodes[mv : mv + 1], s.site[mv : mv + 1], planned=True)[0])
-                need = s.radius[y] + s.radius[mv]
-                done = left < p.hold_field - need
+                left = float(grid.distance(nodes[mv : mv + 1], state.site[mv : mv + 1], planned=True)[0])
+                need = state.radius[y] + state.radius[mv]
+                done = left < push.hold_field - need
             if done:
                 del self.active[y]
-                s.stall[y], s.best[y] = 0, np.inf  # progress toward its own goal counts afresh from the passing place
+                state.stall[y], state.best[y] = (
+                    0,
+                    np.inf,
+                )  # progress toward its own goal counts afresh from the passing place
                 self.finished += 1
 
     def steer(self, state: CrowdState, pref: np.ndarray) -> None:
         """Overwrite the yielders' preferred velocities: along their planned cells to the passing place, then stop."""
-        s = state
-        for y, p in self.active.items():
-            d = p.path - s.pos[y]
-            k = int(np.argmin((d * d).sum(1)))
-            target = p.path[min(k + 4, len(p.path) - 1)]
-            step = target - s.pos[y]
+        for y, push in self.active.items():
+            offset = push.path - state.pos[y]
+            k = int(np.argmin((offset * offset).sum(1)))
+            target = push.path[min(k + 4, len(push.path) - 1)]
+            step = target - state.pos[y]
             dist = float(np.hypot(*step))
-            left = float(np.hypot(*(p.path[-1] - s.pos[y])))
+            left = float(np.hypot(*(push.path[-1] - state.pos[y])))
             if dist < 0.05 or left < 0.1:
                 pref[y] = 0.0
                 continue
-            speed = min(AGENT_KINDS[KIND_NAMES[s.kind_idx[y]]].pref_speed, max(left, 0.3))
+            speed = min(AGENT_KINDS[KIND_NAMES[state.kind_idx[y]]].pref_speed, max(left, 0.3))
             pref[y] = step / dist * speed

@@ -73,13 +73,13 @@ class ConflictZones:
 def build_lanes(scene: Scene | Mapping[str, Any]) -> list[Lane]:
     """Lane polylines of every road in `scene` (a dict is parsed), with the crosswalks each one crosses."""
     scene = as_scene(scene)
-    crosswalks = [Polygon(c["polygon"]) for c in scene.crosswalks]
+    crosswalks = [Polygon(crosswalk["polygon"]) for crosswalk in scene.crosswalks]
     lanes = []
     for ri, road in enumerate(scene.roads):
-        lw, n = float(road["lane_width"]), int(road["lanes"])
+        lw, n_lanes = float(road["lane_width"]), int(road["lanes"])
         for line in road.get("centerlines", []):
             base = LineString(line)
-            for k in range(n):
+            for k in range(n_lanes):
                 for side in (-1.0, 1.0):  # right lanes follow the centerline, left lanes run against it
                     off = base.offset_curve(side * (k + 0.5) * lw)
                     if off.is_empty or off.geom_type != "LineString":
@@ -106,7 +106,7 @@ def build_connectors(
     circle and the start lies ahead of the end; lane k (counted from the centerline) joins lane k.
     """
     scene = as_scene(scene)
-    crosswalks = [Polygon(c["polygon"]) for c in scene.crosswalks]
+    crosswalks = [Polygon(crosswalk["polygon"]) for crosswalk in scene.crosswalks]
     roads = scene.roads
     out: list[Lane] = []
     for ri, road in enumerate(roads):
@@ -115,8 +115,8 @@ def build_connectors(
         hw = int(road["lanes"]) * float(road["lane_width"])
         # The box centre lies half a road width beyond the end of the first arm (the block's entry arm).
         arm = np.asarray(road["centerlines"][0], dtype=np.float64)
-        d = arm[-1] - arm[-2]
-        centre = arm[-1] + hw * d / np.hypot(*d)
+        direction = arm[-1] - arm[-2]
+        centre = arm[-1] + hw * direction / np.hypot(*direction)
         near = math.sqrt(2.0) * hw + 1.0  # the box's circumscribed circle plus a metre
         ids = [i for i, ln in enumerate(lanes) if ln.road == ri]
         ends = [i for i in ids if np.hypot(*(lanes[i].points[-1] - centre)) <= near]
@@ -143,24 +143,24 @@ def _bezier(p0: np.ndarray, h0: float, p3: np.ndarray, h3: float, n: int = 17) -
     k = 0.4 * float(np.hypot(*(p3 - p0)))
     p1 = p0 + k * np.array([math.cos(h0), math.sin(h0)])
     p2 = p3 - k * np.array([math.cos(h3), math.sin(h3)])
-    t = np.linspace(0.0, 1.0, n)[:, None]
-    return (1 - t) ** 3 * p0 + 3 * (1 - t) ** 2 * t * p1 + 3 * (1 - t) * t * t * p2 + t**3 * p3
+    frac = np.linspace(0.0, 1.0, n)[:, None]
+    return (1 - frac) ** 3 * p0 + 3 * (1 - frac) ** 2 * frac * p1 + 3 * (1 - frac) * frac * frac * p2 + frac**3 * p3
 
 
 def connector_compatibility(lanes: list[Lane], width: float, margin: float = 0.3) -> np.ndarray:
     """[n, n] bool: whether vehicles may be on connectors i and j at once (same junction, disjoint swept paths,
     different source and target lanes); always True between lanes of different junctions or for i == j.
     """
-    n = len(lanes)
-    ok = np.ones((n, n), dtype=bool)
+    n_lanes = len(lanes)
+    ok = np.ones((n_lanes, n_lanes), dtype=bool)
     conn = [i for i, ln in enumerate(lanes) if ln.is_connector]
     swept = {i: lanes[i].line.buffer(0.5 * width + margin) for i in conn}
     for i in conn:
         for j in conn:
-            a, b = lanes[i], lanes[j]
-            if i >= j or a.road != b.road:
+            lane_a, lane_b = lanes[i], lanes[j]
+            if i >= j or lane_a.road != lane_b.road:
                 continue
-            clash = a.src == b.src or a.dst == b.dst or swept[i].intersects(swept[j])
+            clash = lane_a.src == lane_b.src or lane_a.dst == lane_b.dst or swept[i].intersects(swept[j])
             ok[i, j] = ok[j, i] = not clash
     return ok
 
@@ -173,9 +173,9 @@ def _lane(pts: np.ndarray, crosswalks: list[Polygon]) -> Lane:
         inter = line.intersection(poly)
         if inter.is_empty:
             continue
-        coords = np.concatenate([np.asarray(g.coords) for g in getattr(inter, "geoms", [inter])])
-        s = np.array([line.project(shapely.Point(c)) for c in coords])
-        crossings.append((ci, float(s.min()), float(s.max())))
+        coords = np.concatenate([np.asarray(geom.coords) for geom in getattr(inter, "geoms", [inter])])
+        arclen = np.array([line.project(shapely.Point(coord)) for coord in coords])
+        crossings.append((ci, float(arclen.min()), float(arclen.max())))
     return lane
 
 

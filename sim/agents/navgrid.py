@@ -32,13 +32,13 @@ def boundary_segments(
     hdiff = padded[1:, 1:-1] != padded[:-1, 1:-1]  # (rows+1, cols)
     vdiff = padded[1:-1, 1:] != padded[1:-1, :-1]  # (rows, cols+1)
     for i, row in enumerate(hdiff):
-        for a, b in _runs(row):
+        for start, end in _runs(row):
             y = y0 + i * res
-            segs.append(((x0 + a * res, y), (x0 + b * res, y)))
+            segs.append(((x0 + start * res, y), (x0 + end * res, y)))
     for j, col in enumerate(vdiff.T):
-        for a, b in _runs(col):
+        for start, end in _runs(col):
             x = x0 + j * res
-            segs.append(((x, y0 + a * res), (x, y0 + b * res)))
+            segs.append(((x, y0 + start * res), (x, y0 + end * res)))
     return segs
 
 
@@ -46,8 +46,8 @@ def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
     """Start (inclusive) and end (exclusive) indices of the runs of True in a 1-D bool array."""
     if not flags.any():
         return []
-    d = np.diff(np.concatenate(([0], flags.astype(np.int8), [0])))
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
+    step = np.diff(np.concatenate(([0], flags.astype(np.int8), [0])))
+    return list(zip(np.flatnonzero(step == 1).tolist(), np.flatnonzero(step == -1).tolist()))
 
 
 @dataclass
@@ -137,26 +137,28 @@ class NavGrid:
     def cell_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(row, col) of the cells holding world points [n, 2], clipped to the grid."""
         fx, fy = self._frac(xy)
-        h, w = self.cells.shape
+        n_rows, n_cols = self.cells.shape
         # ndarray.clip and astype skip np.clip's Python dispatch: this runs several times per simulator tick.
-        j = np.floor(fx).clip(0, w - 1).astype(np.int64)
-        i = np.floor(fy).clip(0, h - 1).astype(np.int64)
+        j = np.floor(fx).clip(0, n_cols - 1).astype(np.int64)
+        i = np.floor(fy).clip(0, n_rows - 1).astype(np.int64)
         return i, j
 
     def inside(self, xy: np.ndarray) -> np.ndarray:
         """Whether world points lie inside the grid's extent."""
         fx, fy = self._frac(xy)
-        h, w = self.cells.shape
-        return (fx >= 0) & (fx < w) & (fy >= 0) & (fy < h)
+        n_rows, n_cols = self.cells.shape
+        return (fx >= 0) & (fx < n_cols) & (fy >= 0) & (fy < n_rows)
 
     def is_walkable(self, xy: np.ndarray) -> np.ndarray:
         """Whether world points lie on a walkable cell that no object covers."""
         fx, fy = self._frac(xy)
-        h, w = self.cells.shape
-        inside = (fx >= 0) & (fx < w) & (fy >= 0) & (fy < h)
+        n_rows, n_cols = self.cells.shape
+        inside = (fx >= 0) & (fx < n_cols) & (fy >= 0) & (fy < n_rows)
         return (
             inside
-            & self.walkable[np.floor(fy).clip(0, h - 1).astype(np.int64), np.floor(fx).clip(0, w - 1).astype(np.int64)]
+            & self.walkable[
+                np.floor(fy).clip(0, n_rows - 1).astype(np.int64), np.floor(fx).clip(0, n_cols - 1).astype(np.int64)
+            ]
         )
 
     def nearest_node(self, xy: np.ndarray) -> np.ndarray:
@@ -217,11 +219,13 @@ class NavGrid:
     def is_free(self, xy: np.ndarray) -> np.ndarray:
         """Whether world points lie on a planning cell (inside the grid, on the kept free component)."""
         fx, fy = self._frac(xy)
-        h, w = self.cells.shape
-        inside = (fx >= 0) & (fx < w) & (fy >= 0) & (fy < h)
+        n_rows, n_cols = self.cells.shape
+        inside = (fx >= 0) & (fx < n_cols) & (fy >= 0) & (fy < n_rows)
         return (
             inside
-            & self.free[np.floor(fy).clip(0, h - 1).astype(np.int64), np.floor(fx).clip(0, w - 1).astype(np.int64)]
+            & self.free[
+                np.floor(fy).clip(0, n_rows - 1).astype(np.int64), np.floor(fx).clip(0, n_cols - 1).astype(np.int64)
+            ]
         )
 
 
@@ -235,19 +239,19 @@ def build_navgrid(scene: Scene | Mapping[str, Any], *, plan_radius: float = 0.5,
     A pure function of the scene, so one grid (and its distance fields) serves every episode in a scene.
     """
     scene = as_scene(scene)
-    g = scene.walkable
-    cells, origin, res = g.mask, np.asarray(g.origin, dtype=np.float64), g.resolution
+    walk = scene.walkable
+    cells, origin, res = walk.mask, np.asarray(walk.origin, dtype=np.float64), walk.resolution
     surface = cells > 0
-    footprints = [Polygon(f) for f in scene.footprints()]
+    footprints = [Polygon(footprint) for footprint in scene.footprints()]
     # Agents keep the cells of objects thinner than a cell (cover_thin=False): ORCA sees those as obstacles.
-    objects = obstacle_mask(g, footprints, cover_thin=False)
+    objects = obstacle_mask(walk, footprints, cover_thin=False)
     walkable = surface & ~objects
-    inflated = obstacle_mask(g, footprints, inflate=plan_radius, cover_thin=False, join_style="round")
+    inflated = obstacle_mask(walk, footprints, inflate=plan_radius, cover_thin=False, join_style="round")
     # Keep plans a body radius away from curbs and building edges, so ORCA obstacles are rarely touched.
     edge_clear = ndimage.distance_transform_edt(surface) * res > plan_radius
     free = surface & ~inflated & edge_clear
-    labels, n = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))
-    if n == 0:
+    labels, n_labels = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))
+    if n_labels == 0:
         raise ValueError("the scene has no walkable cell wide enough for agents; widen sidewalks or lower plan_radius")
     sizes = np.bincount(labels.ravel())
     sizes[0] = 0
@@ -270,9 +274,9 @@ def _spread_sites(rc: np.ndarray, candidates: np.ndarray, k: int) -> np.ndarray:
     """Pick `k` candidate nodes by farthest-point sampling from the first one, so goals cover the whole scene."""
     k = min(k, len(candidates))
     chosen = [0]
-    d = np.linalg.norm(rc - rc[chosen[0]], axis=1)
+    dist = np.linalg.norm(rc - rc[chosen[0]], axis=1)
     for _ in range(k - 1):
-        nxt = int(np.argmax(d))
+        nxt = int(np.argmax(dist))
         chosen.append(nxt)
-        d = np.minimum(d, np.linalg.norm(rc - rc[nxt], axis=1))
+        dist = np.minimum(dist, np.linalg.norm(rc - rc[nxt], axis=1))
     return candidates[np.asarray(chosen)]

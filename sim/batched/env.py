@@ -94,7 +94,7 @@ class BatchedPointNav(VectorEnv):
                 "config.camera.modalities must be [], observation flat and visual_meshes not true in the "
                 "batched env: there is nothing to render; use the PyBullet env (curbside/PointNav-v0)"
             )
-        self.num_envs = n = num_envs
+        self.num_envs = n_envs = num_envs
         self.render_mode = None
         self.spec_machine = machine_spec(cfg["machine"])
         check_lidar_reach(cfg["lidar"], self.spec_machine.length, self.spec_machine.width)
@@ -105,8 +105,8 @@ class BatchedPointNav(VectorEnv):
         self.observation_names = self.observation.names
         self.single_observation_space = self.observation.space
         self.single_action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
-        self.observation_space = batch_space(self.single_observation_space, n)
-        self.action_space = batch_space(self.single_action_space, n)
+        self.observation_space = batch_space(self.single_observation_space, n_envs)
+        self.action_space = batch_space(self.single_action_space, n_envs)
         self.sources = SceneSource(cfg)
         if cfg["lidar"]["static"] == "bullet":
             raise ConfigError(
@@ -115,19 +115,19 @@ class BatchedPointNav(VectorEnv):
             )
         self.atlas = Atlas(float(cfg["lidar"]["resolution"]))
         self.store = SceneStore(cfg, self.spec_machine, self.atlas)
-        self.drive = Drive(self.spec_machine, n)
+        self.drive = Drive(self.spec_machine, n_envs)
         self.lidar, self.low_lidar = lidar_pair(cfg, self.drive.bounding_radius)
-        self.routes = RouteBatch(n)
-        self.episodes = Episodes(n, cfg)
-        self.rngs = [np.random.default_rng() for _ in range(n)]
-        self.built: list[BuiltScene | None] = [None] * n
-        self.slots = np.zeros(n, dtype=np.int64)
-        self.scene_steps_left = np.zeros(n, dtype=np.int64)
-        self.level = np.zeros(n, dtype=np.int64)
-        self.reference = np.zeros(n)  # SPL's reference length of each env's route
-        self.labels = np.zeros(n, dtype=np.int64)
+        self.routes = RouteBatch(n_envs)
+        self.episodes = Episodes(n_envs, cfg)
+        self.rngs = [np.random.default_rng() for _ in range(n_envs)]
+        self.built: list[BuiltScene | None] = [None] * n_envs
+        self.slots = np.zeros(n_envs, dtype=np.int64)
+        self.scene_steps_left = np.zeros(n_envs, dtype=np.int64)
+        self.level = np.zeros(n_envs, dtype=np.int64)
+        self.reference = np.zeros(n_envs)  # SPL's reference length of each env's route
+        self.labels = np.zeros(n_envs, dtype=np.int64)
         self._started = False
-        self.autoreset = np.ones(n, dtype=bool)
+        self.autoreset = np.ones(n_envs, dtype=bool)
         hl, hw = 0.5 * self.spec_machine.length, 0.5 * self.spec_machine.width
         res = self.atlas.resolution
         u, w = np.meshgrid(
@@ -164,7 +164,7 @@ class BatchedPointNav(VectorEnv):
         cfg = self.config
         lengths, horizons = np.zeros(self.num_envs), np.zeros(self.num_envs, dtype=np.int64)
         for k in envs.tolist():
-            b, route = self._draw_route(k, options)
+            built, route = self._draw_route(k, options)
             yaw = route.heading_at(0.0)
             self.drive.reset(k, float(route.start[0]), float(route.start[1]), yaw, self.rngs[k])
             horizon = int(cfg["horizon"])
@@ -172,7 +172,7 @@ class BatchedPointNav(VectorEnv):
                 horizon = min(horizon, max(int(math.ceil(route.length / cfg["horizon_min_speed"] / self.dt)), 1))
             self.episodes.reset(k, horizon)
             self.routes.set(k, route)
-            self.reference[k] = self.store.reference_length(b, route)
+            self.reference[k] = self.store.reference_length(built, route)
             lengths[k], horizons[k] = route.length, horizon
         self._locate_level(envs)
         mask = np.zeros(self.num_envs, dtype=bool)
@@ -184,16 +184,16 @@ class BatchedPointNav(VectorEnv):
         the asked length is swapped for another draw, up to ROUTE_REDRAWS scenes."""
         rng = self.rngs[k]
         for attempt in range(ROUTE_REDRAWS):
-            b = self.built[k]
-            if b is None or self.scene_steps_left[k] <= 0 or attempt > 0:
+            built = self.built[k]
+            if built is None or self.scene_steps_left[k] <= 0 or attempt > 0:
                 key, load = self.sources.draw(rng)
-                if b is not None:
-                    self.store.release(b)
-                b = self.built[k] = self.store.acquire(key, load)
+                if built is not None:
+                    self.store.release(built)
+                built = self.built[k] = self.store.acquire(key, load)
                 self.scene_steps_left[k] = int(self.config["scene_steps"])
-            self.slots[k] = b.slot
+            self.slots[k] = built.slot
             try:
-                return b, self.store.route(b, rng, options, k)
+                return built, self.store.route(built, rng, options, k)
             except RouteError:
                 if options or attempt == ROUTE_REDRAWS - 1:
                     raise
@@ -201,12 +201,12 @@ class BatchedPointNav(VectorEnv):
 
     def _locate_level(self, envs: np.ndarray | None = None) -> None:
         """Walkable labels under the machines (off-walkable ends, which level the machine is on)."""
-        d = self.drive
-        for b in {id(b): b for b in self.built if b is not None}.values():
-            k = np.nonzero(self.slots == b.slot)[0]
+        drive = self.drive
+        for built in {id(built): built for built in self.built if built is not None}.values():
+            k = np.nonzero(self.slots == built.slot)[0]
             if envs is not None:
                 k = np.intersect1d(k, envs)
-            self.labels[k] = walkable_labels(b.scene.walkable, d.x[k], d.y[k])
+            self.labels[k] = walkable_labels(built.scene.walkable, drive.x[k], drive.y[k])
         self.level = np.where(self.labels == CROSSWALK, ROAD_LEVEL, SIDEWALK_LEVEL)
 
     # -- stepping ------------------------------------------------------------------------------------
@@ -216,38 +216,48 @@ class BatchedPointNav(VectorEnv):
             raise RuntimeError("call reset() before step()")
         if np.iscomplexobj(actions):
             raise ValueError("actions hold complex numbers; pass [steering, throttle_brake] per env as real numbers")
-        a = np.asarray(actions, dtype=np.float64)
-        if a.shape != (self.num_envs, 2):
-            raise ValueError(f"actions must have shape ({self.num_envs}, 2) [steering, throttle_brake], got {a.shape}")
-        bad = ~np.isfinite(a).all(axis=1)
+        act = np.asarray(actions, dtype=np.float64)
+        if act.shape != (self.num_envs, 2):
+            raise ValueError(
+                f"actions must have shape ({self.num_envs}, 2) [steering, throttle_brake], got {act.shape}"
+            )
+        bad = ~np.isfinite(act).all(axis=1)
         if bad.any():
             raise ValueError(
                 f"actions of env(s) {np.nonzero(bad)[0].tolist()} hold NaN or inf; policies must output "
                 "finite values in [-1, 1]"
             )
-        a = np.clip(a, -1.0, 1.0)
-        steer, throttle = a[:, 0], a[:, 1]
-        d, ep = self.drive, self.episodes
-        x0, y0 = d.x.copy(), d.y.copy()
+        act = np.clip(act, -1.0, 1.0)
+        steer, throttle = act[:, 0], act[:, 1]
+        drive, ep = self.drive, self.episodes
+        x0, y0 = drive.x.copy(), drive.y.copy()
         sub_dt = self.dt / self.substeps
         hits = np.zeros(self.num_envs, dtype=np.int64)
         every = np.arange(self.num_envs)
         for _ in range(self.substeps):
-            v, w = d.command(steer, throttle, sub_dt)
-            x, y, yaw = d.integrate(v, w, sub_dt)
+            v, w = drive.command(steer, throttle, sub_dt)
+            x, y, yaw = drive.integrate(v, w, sub_dt)
             blocked, kinds = self._collide(every, x, y, yaw)
             hits |= kinds
             if blocked.any():
                 self._back_off(np.nonzero(blocked)[0], x, y, yaw)
-            d.store(x, y, yaw, v, w, sub_dt, blocked)
-        s, lat = self.routes.locate(d.x, d.y, ep.progress)
-        progress, new_progress, collided = ep.advance(d.x - x0, d.y - y0, s, lat, hits)
+            drive.store(x, y, yaw, v, w, sub_dt, blocked)
+        arclen, lat = self.routes.locate(drive.x, drive.y, ep.progress)
+        progress, new_progress, collided = ep.advance(drive.x - x0, drive.y - y0, arclen, lat, hits)
         self._locate_level()
         succeeded, out, stuck, over = ep.end(self.routes.length, self.labels != 0, hits != 0)
         reward = self.reward_fn.batch(
-            progress, new_progress, lat, steer - ep.last_action[:, 0], d.speed, collided, succeeded, out, stuck | over
+            progress,
+            new_progress,
+            lat,
+            steer - ep.last_action[:, 0],
+            drive.speed,
+            collided,
+            succeeded,
+            out,
+            stuck | over,
         ).astype(np.float64)
-        ep.last_action = a
+        ep.last_action = act
         self.scene_steps_left -= 1
         terminated = succeeded | out | stuck | over
         truncated = ~terminated & (ep.steps >= ep.horizon)
@@ -307,9 +317,9 @@ class BatchedPointNav(VectorEnv):
         near = np.nonzero(centre * self.atlas.resolution <= self.drive.bounding_radius + 2.0 * self.atlas.resolution)[0]
         if near.size == 0:
             return blocked, bits
-        c, s = np.cos(yaw[near])[:, None], np.sin(yaw[near])[:, None]
-        px = x[near, None] + c * self._body_u - s * self._body_w
-        py = y[near, None] + s * self._body_u + c * self._body_w
+        cos, sin = np.cos(yaw[near])[:, None], np.sin(yaw[near])[:, None]
+        px = x[near, None] + cos * self._body_u - sin * self._body_w
+        py = y[near, None] + sin * self._body_u + cos * self._body_w
         occupied = self.atlas.lookup({key: v[near] for key, v in frame.items()}, px, py) == 0
         hit = occupied.any(axis=1)
         if hit.any():
@@ -324,8 +334,8 @@ class BatchedPointNav(VectorEnv):
     def _back_off(self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray, rounds: int = 5) -> None:
         """Move blocked envs' new poses (in place) back along the substep to the last free fraction of it (bisection:
         within 1/32 of the substep's motion), where Bullet would leave a machine that ran into something."""
-        d = self.drive
-        x0, y0, yaw0 = d.x[envs], d.y[envs], d.yaw[envs]
+        drive = self.drive
+        x0, y0, yaw0 = drive.x[envs], drive.y[envs], drive.yaw[envs]
         dx, dy = x[envs] - x0, y[envs] - y0
         dyaw = (yaw[envs] - yaw0 + np.pi) % (2.0 * np.pi) - np.pi
         lo, hi = np.zeros(envs.size), np.ones(envs.size)
@@ -339,25 +349,25 @@ class BatchedPointNav(VectorEnv):
     # -- observation ---------------------------------------------------------------------------------
     def _observe(self) -> np.ndarray:
         """Every env's observation (the layout of `EgoObservation`, PointNavEnv's table)."""
-        d, ep, r, o = self.drive, self.episodes, self.routes, self.observation
-        parts = [self.lidar.scan(self.atlas, self.slots, self.level, d.x, d.y, d.yaw)]
+        drive, ep, routes, observation = self.drive, self.episodes, self.routes, self.observation
+        parts = [self.lidar.scan(self.atlas, self.slots, self.level, drive.x, drive.y, drive.yaw)]
         if self.low_lidar is not None:
-            parts.append(self.low_lidar.scan(self.atlas, self.slots, self.level, d.x, d.y, d.yaw))
-        heading_err = (d.yaw - r.heading_at(ep.progress) + np.pi) % (2.0 * np.pi) - np.pi
-        c, s = np.cos(d.yaw)[:, None], np.sin(d.yaw)[:, None]
-        wp = r.point_at(ep.progress[:, None] + o._wp_offsets[None])
-        dx, dy = wp[..., 0] - d.x[:, None], wp[..., 1] - d.y[:, None]
-        ego = np.stack([(c * dx + s * dy) * o._wp_scale, (-s * dx + c * dy) * o._wp_scale], -1).reshape(
-            self.num_envs, -1
-        )
-        gx, gy = r.goal[:, 0] - d.x, r.goal[:, 1] - d.y
-        bearing = np.arctan2(gy, gx) - d.yaw
+            parts.append(self.low_lidar.scan(self.atlas, self.slots, self.level, drive.x, drive.y, drive.yaw))
+        heading_err = (drive.yaw - routes.heading_at(ep.progress) + np.pi) % (2.0 * np.pi) - np.pi
+        cos, sin = np.cos(drive.yaw)[:, None], np.sin(drive.yaw)[:, None]
+        wp = routes.point_at(ep.progress[:, None] + observation._wp_offsets[None])
+        dx, dy = wp[..., 0] - drive.x[:, None], wp[..., 1] - drive.y[:, None]
+        ego = np.stack(
+            [(cos * dx + sin * dy) * observation._wp_scale, (-sin * dx + cos * dy) * observation._wp_scale], -1
+        ).reshape(self.num_envs, -1)
+        gx, gy = routes.goal[:, 0] - drive.x, routes.goal[:, 1] - drive.y
+        bearing = np.arctan2(gy, gx) - drive.yaw
         state = np.stack(
             [
-                d.speed / o.speed_scale,
-                d.yaw_rate / 2.0,
+                drive.speed / observation.speed_scale,
+                drive.yaw_rate / 2.0,
                 heading_err / np.pi,
-                ep.lateral / o.lateral_scale,
+                ep.lateral / observation.lateral_scale,
                 ep.last_action[:, 0],
                 ep.last_action[:, 1],
             ],

@@ -50,8 +50,8 @@ class RouteBatch:
             self.points[:, :k], self.s[:, :k] = old[0], old[1]
             self.seg[:, : k - 1], self.seg_len[:, : k - 1], self.seg_heading[:, : k - 1] = old[2], old[3], old[4]
             for i in range(self.n):  # pad the new columns with the last vertex
-                c = max(int(self.count[i]), 1)
-                self.points[i, k:], self.s[i, k:] = self.points[i, c - 1], self.s[i, c - 1]
+                n_points = max(int(self.count[i]), 1)
+                self.points[i, k:], self.s[i, k:] = self.points[i, n_points - 1], self.s[i, n_points - 1]
         self.cap = cap
         self._flat()
 
@@ -61,19 +61,19 @@ class RouteBatch:
 
     def set(self, i: int, route: Route) -> None:
         """Env i's new route."""
-        c = len(route.points)
-        if c > self.cap:
-            self._alloc(max(c, 2 * self.cap))
+        n_points = len(route.points)
+        if n_points > self.cap:
+            self._alloc(max(n_points, 2 * self.cap))
         self.routes[i] = route
-        self.count[i] = c
+        self.count[i] = n_points
         self.length[i] = route.length
         self.goal[i] = route.goal
-        self.points[i, :c], self.points[i, c:] = route.points, route.points[-1]
-        self.s[i, :c], self.s[i, c:] = route.s, route.s[-1]
-        self.seg[i, : c - 1], self.seg[i, c - 1 :] = route.seg, 0.0
-        self.seg_len[i, : c - 1], self.seg_len[i, c - 1 :] = route.seg_len, 1.0
-        self.seg_heading[i, : c - 1] = np.arctan2(route.seg[:, 1], route.seg[:, 0])
-        self.seg_heading[i, c - 1 :] = self.seg_heading[i, c - 2]
+        self.points[i, :n_points], self.points[i, n_points:] = route.points, route.points[-1]
+        self.s[i, :n_points], self.s[i, n_points:] = route.s, route.s[-1]
+        self.seg[i, : n_points - 1], self.seg[i, n_points - 1 :] = route.seg, 0.0
+        self.seg_len[i, : n_points - 1], self.seg_len[i, n_points - 1 :] = route.seg_len, 1.0
+        self.seg_heading[i, : n_points - 1] = np.arctan2(route.seg[:, 1], route.seg[:, 0])
+        self.seg_heading[i, n_points - 1 :] = self.seg_heading[i, n_points - 2]
         if route.length + 2.0 * (WINDOW[1] + 1.0) > self.span:
             self._flat()
         else:
@@ -82,8 +82,8 @@ class RouteBatch:
     def _search(self, s: np.ndarray, side: Literal["left", "right"]) -> np.ndarray:
         """np.searchsorted(route.s, s[i], side) of every env's own route."""
         rows = np.arange(self.n)
-        q = np.clip(s, -WINDOW[0] - 1.0, self.length + WINDOW[1] + 1.0) + self.span * rows
-        return np.searchsorted(self.flat_s, q, side=side) - rows * self.cap
+        query = np.clip(s, -WINDOW[0] - 1.0, self.length + WINDOW[1] + 1.0) + self.span * rows
+        return np.searchsorted(self.flat_s, query, side=side) - rows * self.cap
 
     def locate(self, x: np.ndarray, y: np.ndarray, s_hint: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(arc length, signed lateral offset) of every env's (x, y) on its route, searched within WINDOW of
@@ -91,24 +91,24 @@ class RouteBatch:
         nseg = self.count - 1
         k0 = np.maximum(self._search(s_hint - WINDOW[0], "left") - 1, 0)
         k1 = np.minimum(self._search(s_hint + WINDOW[1], "left") + 1, nseg)
-        w = int((k1 - k0).max())
-        ks = k0[:, None] + np.arange(w)[None]
+        width = int((k1 - k0).max())
+        ks = k0[:, None] + np.arange(width)[None]
         valid = ks < k1[:, None]
         ks = np.minimum(ks, self.cap - 2)
         rows = np.arange(self.n)[:, None]
-        a = self.points[rows, ks]
-        d = self.seg[rows, ks]
+        start = self.points[rows, ks]
+        seg = self.seg[rows, ks]
         ln = self.seg_len[rows, ks]
-        qx, qy = x[:, None] - a[..., 0], y[:, None] - a[..., 1]
-        t = np.clip((qx * d[..., 0] + qy * d[..., 1]) / (ln**2), 0.0, 1.0)
-        ex, ey = qx - t * d[..., 0], qy - t * d[..., 1]
+        qx, qy = x[:, None] - start[..., 0], y[:, None] - start[..., 1]
+        frac = np.clip((qx * seg[..., 0] + qy * seg[..., 1]) / (ln**2), 0.0, 1.0)
+        ex, ey = qx - frac * seg[..., 0], qy - frac * seg[..., 1]
         dist2 = np.where(valid, ex * ex + ey * ey, np.inf)
         j = np.argmin(dist2, axis=1)
-        r = np.arange(self.n)
-        k = ks[r, j]
-        cross = d[r, j, 0] * qy[r, j] - d[r, j, 1] * qx[r, j]
-        lateral = np.sqrt(dist2[r, j]) * np.where(cross >= 0, 1.0, -1.0)
-        return self.s[r, k] + t[r, j] * self.seg_len[r, k], lateral
+        env_idx = np.arange(self.n)
+        k = ks[env_idx, j]
+        cross = seg[env_idx, j, 0] * qy[env_idx, j] - seg[env_idx, j, 1] * qx[env_idx, j]
+        lateral = np.sqrt(dist2[env_idx, j]) * np.where(cross >= 0, 1.0, -1.0)
+        return self.s[env_idx, k] + frac[env_idx, j] * self.seg_len[env_idx, k], lateral
 
     def point_at(self, s: np.ndarray) -> np.ndarray:
         """Points [n, m, 2] at arc lengths s [n, m] of every env's route (clamped onto it, as `Polyline.point_at`)."""
@@ -117,9 +117,9 @@ class RouteBatch:
         rows = np.arange(self.n)[:, None]
         s0, s1 = self.s[rows, i], self.s[rows, i + 1]
         span = s1 - s0
-        f = np.where(span > 0, (s - s0) / np.where(span > 0, span, 1.0), 0.0)
+        frac = np.where(span > 0, (s - s0) / np.where(span > 0, span, 1.0), 0.0)
         p0, p1 = self.points[rows, i], self.points[rows, i + 1]
-        return p0 + f[..., None] * (p1 - p0)
+        return p0 + frac[..., None] * (p1 - p0)
 
     def _search_many(self, s: np.ndarray) -> np.ndarray:
         rows = np.arange(self.n)[:, None]

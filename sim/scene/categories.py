@@ -26,26 +26,26 @@ def load_distribution(country: str, path: str | Path) -> dict[str, float]:
     """Category frequencies of `country` from the distribution table (parquet: country, category, count, frequency)."""
     import duckdb
 
-    p = Path(path)
-    if not p.is_absolute() and not p.exists() and (_repo_root() / p).exists():
-        p = _repo_root() / p
-    if not p.exists():
+    file_path = Path(path)
+    if not file_path.is_absolute() and not file_path.exists() and (_repo_root() / file_path).exists():
+        file_path = _repo_root() / file_path
+    if not file_path.exists():
         raise ConfigError(
-            f"no category distribution table at {p} (needed for country={country!r}); "
+            f"no category distribution table at {file_path} (needed for country={country!r}); "
             "run `dvc repro` to build it, or set country to null for uniform categories"
         )
     con = duckdb.connect()
     try:
         rows = con.execute(
             "SELECT country, category, CAST(frequency AS DOUBLE) FROM read_parquet(?) ORDER BY country, category",
-            [str(p)],
+            [str(file_path)],
         ).fetchall()
     finally:
         con.close()
-    countries = sorted({r[0] for r in rows})
+    countries = sorted({row[0] for row in rows})
     freq = {cat: f for c, cat, f in rows if c == country}
     if not freq:
-        raise ConfigError(f"country {country!r} is not in {p}; available: {', '.join(countries)}")
+        raise ConfigError(f"country {country!r} is not in {file_path}; available: {', '.join(countries)}")
     return freq
 
 
@@ -61,13 +61,13 @@ class CategorySampler:
         self._cdf: dict[tuple[str, tuple[str, ...] | None], _Cdf | Literal[False]] = {}  # False: none allowed
         for cls in OBJECT_CLASSES:
             cats = by_class(cls, exclude)
-            w = np.ones(len(cats))
+            weights = np.ones(len(cats))
             if frequencies is not None:
-                w = np.array([max(float(frequencies.get(c, 0.0)), 0.0) for c in cats])
-                if w.sum() <= 0:
+                weights = np.array([max(float(frequencies.get(cat, 0.0)), 0.0) for cat in cats])
+                if weights.sum() <= 0:
                     self.warnings.append(f"the distribution has no {cls} category; drawing {cls} categories uniformly")
-                    w = np.ones(len(cats))
-            self.weights[cls] = (cats, w)
+                    weights = np.ones(len(cats))
+            self.weights[cls] = (cats, weights)
 
     def draw(self, rng: np.random.Generator, object_class: str, allowed: list[str] | None = None) -> str | None:
         """One category of `object_class` (restricted to `allowed` when given); None when none is allowed."""
@@ -93,16 +93,16 @@ class CategorySampler:
         return cdf or None
 
     def _make_cdf(self, object_class: str, allowed: list[str] | None) -> tuple[list[str], np.ndarray] | Literal[False]:
-        cats, w = self.weights[object_class]
+        cats, weights = self.weights[object_class]
         if allowed is not None:
-            keep = np.array([c in allowed for c in cats], dtype=bool)
+            keep = np.array([cat in allowed for cat in cats], dtype=bool)
             if not keep.any():
                 return False
-            w = np.where(keep, w, 0.0)
-            if w.sum() <= 0:
-                w = keep.astype(np.float64)
+            weights = np.where(keep, weights, 0.0)
+            if weights.sum() <= 0:
+                weights = keep.astype(np.float64)
         if not cats:
             return False
-        c = (w / w.sum()).cumsum()
-        c /= c[-1]
-        return cats, c
+        cat = (weights / weights.sum()).cumsum()
+        cat /= cat[-1]
+        return cats, cat

@@ -42,83 +42,83 @@ AT_KEYS = {"sidewalk": None, "along": 0.5, "zone": "clear"}
 
 def load_custom(path: str | Path) -> dict[str, Any]:
     """Read a custom scene YAML into its checked, complete form (unknown keys are refused listing the valid ones)."""
-    p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"no custom scene file at {p}; write one as in docs/scenes.md (Custom scenes)")
-    data = load_yaml(p.read_text(encoding="utf-8"), str(p)) or {}
+    file_path = Path(path)
+    if not file_path.is_file():
+        raise ConfigError(f"no custom scene file at {file_path}; write one as in docs/scenes.md (Custom scenes)")
+    data = load_yaml(file_path.read_text(encoding="utf-8"), str(file_path)) or {}
     if not isinstance(data, Mapping):
-        raise ConfigError(f"{p} must hold a mapping of {', '.join(KEYS)}; got {type(data).__name__}")
-    return check_custom(data, str(p))
+        raise ConfigError(f"{file_path} must hold a mapping of {', '.join(KEYS)}; got {type(data).__name__}")
+    return check_custom(data, str(file_path))
 
 
 def check_custom(data: Mapping[str, Any], where: str = "custom scene") -> dict[str, Any]:
     """Merge `data` over the defaults strictly and check its categories, kinds and named objects."""
     from sim.agents.kinds import agent_kind
 
-    c = merge_strict(KEYS, data, name=where)
-    seed = c["seed"]
+    cfg = merge_strict(KEYS, data, name=where)
+    seed = cfg["seed"]
     if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2**32:
         raise ConfigError(f"{where}: seed must be an integer in [0, 2**32), got {excerpt(seed)}")
-    if not isinstance(c["generator"], Mapping):
-        raise ConfigError(f"{where}: generator must be a mapping of scene generator keys, got {c['generator']!r}")
-    taken = sorted(set(c["generator"]) & {"blocks", "templates", "object_density", "country"})
+    if not isinstance(cfg["generator"], Mapping):
+        raise ConfigError(f"{where}: generator must be a mapping of scene generator keys, got {cfg['generator']!r}")
+    taken = sorted(set(cfg["generator"]) & {"blocks", "templates", "object_density", "country"})
     if taken:
         raise ConfigError(
             f"{where}: set {', '.join(taken)} at the top level (blocks, templates) or under objects "
             "(density, country), not under generator"
         )
-    c["objects"] = merge_strict(OBJECT_KEYS, c["objects"] or {}, name=f"{where}: objects")
-    pool = c["objects"]["pool"]
+    cfg["objects"] = merge_strict(OBJECT_KEYS, cfg["objects"] or {}, name=f"{where}: objects")
+    pool = cfg["objects"]["pool"]
     if pool is not None:
         if not isinstance(pool, list) or not pool or not all(isinstance(n, str) for n in pool):
             raise ConfigError(f"{where}: objects.pool must be a non-empty list of categories, got {pool!r}")
         for name in pool:
             category(name, where=f"{where}: objects.pool")
-    if not isinstance(c["place"], list):
+    if not isinstance(cfg["place"], list):
         raise ConfigError(f"{where}: place must be a list of named objects")
-    c["place"] = [_check_place(item, f"{where}: place[{k}]") for k, item in enumerate(c["place"])]
-    names = [item["name"] for item in c["place"]]
+    cfg["place"] = [_check_place(item, f"{where}: place[{k}]") for k, item in enumerate(cfg["place"])]
+    names = [item["name"] for item in cfg["place"]]
     if len(set(names)) != len(names):
         raise ConfigError(f"{where}: named objects need distinct names, got {names}")
-    if not isinstance(c["agents"], Mapping):
+    if not isinstance(cfg["agents"], Mapping):
         raise ConfigError(f"{where}: agents must map kinds to counts, e.g. {{pedestrian: 10}}")
-    for kind, count in c["agents"].items():
+    for kind, count in cfg["agents"].items():
         try:
             agent_kind(kind)
         except ValueError as e:
             raise ConfigError(f"{where}: agents: {e}") from None
         if not isinstance(count, int) or isinstance(count, bool) or not 0 <= count <= 1000:
             raise ConfigError(f"{where}: agents.{kind} must be a count in [0, 1000], got {count!r}")
-    return c
+    return cfg
 
 
 def _check_place(item: Any, where: str) -> dict[str, Any]:
     if not isinstance(item, Mapping):
         raise ConfigError(f"{where} must be a mapping with name, category and at")
-    p = merge_strict(PLACE_KEYS, item, name=where)
-    if not isinstance(p["name"], str) or not p["name"]:
+    place = merge_strict(PLACE_KEYS, item, name=where)
+    if not isinstance(place["name"], str) or not place["name"]:
         raise ConfigError(f"{where}: give the object a name")
-    if not isinstance(p["category"], str):
-        raise ConfigError(f"{where}.category must be one category name, got {p['category']!r}")
-    category(p["category"], where=f"{where}.category")
-    at = p["at"]
+    if not isinstance(place["category"], str):
+        raise ConfigError(f"{where}.category must be one category name, got {place['category']!r}")
+    category(place["category"], where=f"{where}.category")
+    at = place["at"]
     if isinstance(at, Mapping):
-        p["at"] = merge_strict(AT_KEYS, at, name=f"{where}.at")
-        along = p["at"]["along"]
+        place["at"] = merge_strict(AT_KEYS, at, name=f"{where}.at")
+        along = place["at"]["along"]
         if not isinstance(along, (int, float)) or isinstance(along, bool) or not 0.0 <= float(along) <= 1.0:
             raise ConfigError(f"{where}.at.along must be a fraction of the sidewalk's length in [0, 1]")
     elif not (
         isinstance(at, list) and len(at) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in at)
     ):
         raise ConfigError(f"{where}.at must be [x, y] in metres or {{sidewalk: ID, along: 0..1, zone: KIND}}")
-    size = p["size"]
+    size = place["size"]
     if size is not None and not (
         isinstance(size, list) and len(size) == 3 and all(isinstance(v, (int, float)) and 0 < v < 100 for v in size)
     ):
         raise ConfigError(f"{where}.size must be [depth, width, height] in metres (0-100)")
-    if not (isinstance(p["yaw"], (int, float)) and math.isfinite(p["yaw"])):
+    if not (isinstance(place["yaw"], (int, float)) and math.isfinite(place["yaw"])):
         raise ConfigError(f"{where}.yaw must be a finite number of degrees")
-    return p
+    return place
 
 
 def generator_config(c: Mapping[str, Any]) -> dict[str, Any]:
@@ -152,11 +152,15 @@ def generate_custom(c: Mapping[str, Any], catalog: Any = None) -> dict[str, Any]
         yaw = math.radians(float(item["yaw"]))
         corners, _ = rect(x, y, math.cos(yaw), math.sin(yaw), d, w)
         box = Polygon(corners)
-        hit = [o["name"] for o in objects if o.get("name") and Polygon(o["footprint"]).intersects(box)]
+        hit = [obj["name"] for obj in objects if obj.get("name") and Polygon(obj["footprint"]).intersects(box)]
         if hit:
             raise ConfigError(f"named objects {hit[0]!r} and {item['name']!r} overlap; move one of them")
-        objects = [o for o in objects if o.get("name") or not Polygon(o["footprint"]).intersects(box)]  # named win
-        terrain = [t for t in terrain if not Polygon(t["footprint"]).intersects(box)]  # over terrain patches too
+        objects = [
+            obj for obj in objects if obj.get("name") or not Polygon(obj["footprint"]).intersects(box)
+        ]  # named win
+        terrain = [
+            patch for patch in terrain if not Polygon(patch["footprint"]).intersects(box)
+        ]  # over terrain patches too
         objects.append(
             {
                 "id": "",
@@ -172,10 +176,10 @@ def generate_custom(c: Mapping[str, Any], catalog: Any = None) -> dict[str, Any]
                 "footprint": round_points(corners),
             }
         )
-    for k, o in enumerate(objects):
-        o["id"] = f"o{k}"
-    for k, t in enumerate(terrain):
-        t["id"] = f"t{k}"
+    for k, obj in enumerate(objects):
+        obj["id"] = f"o{k}"
+    for k, patch in enumerate(terrain):
+        patch["id"] = f"t{k}"
     spec["objects"], spec["terrain"] = objects, terrain
     spec["stats"] = {**spec["stats"], "objects": len(objects), "terrain": terrain_stats(terrain)}
     if c["agents"]:
@@ -187,7 +191,7 @@ def generate_custom(c: Mapping[str, Any], catalog: Any = None) -> dict[str, Any]
 def _locate(spec: Mapping[str, Any], item: Mapping[str, Any]) -> tuple[float, float, str | None]:
     """World (x, y) and sidewalk id of a named object's `at`: a point, or a fraction along a sidewalk's zone."""
     at = item["at"]
-    sidewalks = {s["id"]: s for s in spec["sidewalks"]}
+    sidewalks = {sidewalk["id"]: sidewalk for sidewalk in spec["sidewalks"]}
     if not isinstance(at, Mapping):
         x, y = (float(v) for v in at)
         x0, y0, x1, y1 = spec["bounds"]
@@ -196,7 +200,9 @@ def _locate(spec: Mapping[str, Any], item: Mapping[str, Any]) -> tuple[float, fl
                 f"named object {item['name']!r} at [{x}, {y}] lies outside the scene's bounds "
                 f"[{x0}, {y0}, {x1}, {y1}]; render the scene (`curbside scenes render`) to pick a place"
             )
-        on = next((sid for sid, s in sidewalks.items() if Polygon(s["polygon"]).covers(Point(x, y))), None)
+        on = next(
+            (sid for sid, sidewalk in sidewalks.items() if Polygon(sidewalk["polygon"]).covers(Point(x, y))), None
+        )
         return x, y, on
     sw = sidewalks.get(at["sidewalk"])
     if sw is None:
@@ -210,13 +216,13 @@ def _locate(spec: Mapping[str, Any], item: Mapping[str, Any]) -> tuple[float, fl
             f"{', '.join(z['kind'] for z in sw['zones'])}"
         )
     edge = LineString(sw["edge"])
-    p = edge.interpolate(float(at["along"]), normalized=True)
-    q = edge.interpolate(min(float(at["along"]) + 0.01, 1.0), normalized=True)
-    if q.distance(p) < 1e-9:
-        q, p = p, edge.interpolate(max(float(at["along"]) - 0.01, 0.0), normalized=True)
-    t = np.array([q.x - p.x, q.y - p.y]) / max(q.distance(p), 1e-9)
-    normal = np.array([-t[1], t[0]]) * 200.0
-    across = LineString([(p.x - normal[0], p.y - normal[1]), (p.x + normal[0], p.y + normal[1])])
+    point = edge.interpolate(float(at["along"]), normalized=True)
+    ahead = edge.interpolate(min(float(at["along"]) + 0.01, 1.0), normalized=True)
+    if ahead.distance(point) < 1e-9:
+        ahead, point = point, edge.interpolate(max(float(at["along"]) - 0.01, 0.0), normalized=True)
+    tangent = np.array([ahead.x - point.x, ahead.y - point.y]) / max(ahead.distance(point), 1e-9)
+    normal = np.array([-tangent[1], tangent[0]]) * 200.0
+    across = LineString([(point.x - normal[0], point.y - normal[1]), (point.x + normal[0], point.y + normal[1])])
     cut = across.intersection(Polygon(zone["polygon"]))
     if cut.is_empty:
         raise ConfigError(
@@ -225,6 +231,6 @@ def _locate(spec: Mapping[str, Any], item: Mapping[str, Any]) -> tuple[float, fl
         )
     # The nearest piece of the zone across the curb at that point, and its middle.
     pieces = list(getattr(cut, "geoms", [cut]))
-    piece = min(pieces, key=lambda g: g.distance(p))
+    piece = min(pieces, key=lambda g: g.distance(point))
     mid = piece.interpolate(0.5, normalized=True)
     return float(mid.x), float(mid.y), sw["id"]

@@ -32,16 +32,16 @@ class Polyline:
     @cached_property
     def heading(self) -> np.ndarray:
         """Tangent heading at each vertex (radians, unwrapped along the line)."""
-        h = np.unwrap(np.arctan2(self.seg[:, 1], self.seg[:, 0]))
+        headings = np.unwrap(np.arctan2(self.seg[:, 1], self.seg[:, 0]))
         hv = np.empty(len(self.points))
-        hv[0], hv[-1] = h[0], h[-1]
-        if len(h) > 1:
+        hv[0], hv[-1] = headings[0], headings[-1]
+        if len(headings) > 1:
             # On uniformly sampled arcs the end tangent is the end chord turned back by half a step; using the
             # chord itself tilts end cross-sections and opens gaps between sidewalks at block seams.
-            hv[0] -= 0.5 * (h[1] - h[0])
-            hv[-1] += 0.5 * (h[-1] - h[-2])
+            hv[0] -= 0.5 * (headings[1] - headings[0])
+            hv[-1] += 0.5 * (headings[-1] - headings[-2])
         # The average of adjacent chord headings is the true tangent for uniformly sampled arcs.
-        hv[1:-1] = 0.5 * (h[:-1] + h[1:])
+        hv[1:-1] = 0.5 * (headings[:-1] + headings[1:])
         return hv
 
     @cached_property
@@ -82,9 +82,9 @@ class Polyline:
 
     def to_world(self, s: np.ndarray | float, d: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         """World points at road coordinates (s, d) and the line's heading there."""
-        p, h = self.frame(s)
+        point, heading = self.frame(s)
         d = np.asarray(d, dtype=np.float64)
-        return p + d[..., None] * np.stack([-np.sin(h), np.cos(h)], axis=1), h
+        return point + d[..., None] * np.stack([-np.sin(heading), np.cos(heading)], axis=1), heading
 
     def point_xy(self, s: float, d: float) -> tuple[float, float, float]:
         """World point (x, y) at road coordinates (s, d) and the heading there, as plain floats (`to_world`'s
@@ -92,11 +92,11 @@ class Polyline:
         sl, xl, yl, hl = self._lists
         i = min(max(bisect_left(sl, s) - 1, 0), len(sl) - 2)  # np.searchsorted(self.s, s) - 1, clamped
         s0, s1 = sl[i], sl[i + 1]
-        t = min(max((s - s0) / (s1 - s0), 0.0), 1.0) if s1 > s0 else 0.0
-        x = xl[i] + t * (xl[i + 1] - xl[i])
-        y = yl[i] + t * (yl[i + 1] - yl[i])
-        h = hl[i] + t * (hl[i + 1] - hl[i])
-        return float(x - d * math.sin(h)), float(y + d * math.cos(h)), float(h)
+        frac = min(max((s - s0) / (s1 - s0), 0.0), 1.0) if s1 > s0 else 0.0
+        x = xl[i] + frac * (xl[i + 1] - xl[i])
+        y = yl[i] + frac * (yl[i + 1] - yl[i])
+        heading = hl[i] + frac * (hl[i + 1] - hl[i])
+        return float(x - d * math.sin(heading)), float(y + d * math.cos(heading)), float(heading)
 
     def points_xy(self, s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """`point_xy` for arrays of road coordinates: x, y and the heading there (math's sin and cos, so the
@@ -104,13 +104,17 @@ class Polyline:
         i = np.clip(np.searchsorted(self.s, s) - 1, 0, len(self.s) - 2)
         s0, s1 = self.s[i], self.s[i + 1]
         span = s1 - s0
-        t = np.where(span > 0, np.clip((s - s0) / np.where(span > 0, span, 1.0), 0.0, 1.0), 0.0)
+        frac = np.where(span > 0, np.clip((s - s0) / np.where(span > 0, span, 1.0), 0.0, 1.0), 0.0)
         p0, p1 = self.points[i], self.points[i + 1]
-        h = self.heading[i] + t * (self.heading[i + 1] - self.heading[i])
-        hl = h.tolist()
+        heading = self.heading[i] + frac * (self.heading[i + 1] - self.heading[i])
+        hl = heading.tolist()
         sin = np.array([math.sin(v) for v in hl])
         cos = np.array([math.cos(v) for v in hl])
-        return p0[:, 0] + t * (p1[:, 0] - p0[:, 0]) - d * sin, p0[:, 1] + t * (p1[:, 1] - p0[:, 1]) + d * cos, h
+        return (
+            p0[:, 0] + frac * (p1[:, 0] - p0[:, 0]) - d * sin,
+            p0[:, 1] + frac * (p1[:, 1] - p0[:, 1]) + d * cos,
+            heading,
+        )
 
     def project(self, xy: np.ndarray) -> np.ndarray:
         """Arc length of the closest point of the line to each of the points `xy` [n, 2] (shapely, all at once)."""

@@ -69,12 +69,12 @@ def canonical(obj: Any) -> Any:
     """Copy of `obj` with floats rounded to 0.1 mm, tuples as lists and numpy scalars as Python numbers."""
     # Fast paths for the exact built-in types specs are made of (the objects list holds thousands of small
     # dicts and coordinate lists); anything else goes through `_canonical`, which defines the result.
-    t = type(obj)
-    if t is float:
+    kind = type(obj)
+    if kind is float:
         return _round(obj)
-    if t is str or t is int or obj is None or t is bool:
+    if kind is str or kind is int or obj is None or kind is bool:
         return obj
-    if t is dict:
+    if kind is dict:
         out = {}
         for k, v in obj.items():
             if type(k) is not str:
@@ -87,16 +87,16 @@ def canonical(obj: Any) -> Any:
             else:
                 out[k] = canonical(v)
         return out
-    if t is list:
-        n = len(obj)
-        if 0 < n <= 32:  # longer coordinate lists are quicker in numpy (`_canonical`)
+    if kind is list:
+        n_items = len(obj)
+        if 0 < n_items <= 32:  # longer coordinate lists are quicker in numpy (`_canonical`)
             t0 = type(obj[0])
             r: list[float] | list[list[float]] | None
             if t0 is float:
                 for v in obj:
                     if type(v) is not float:
                         return _canonical(obj)
-                if n <= 4:
+                if n_items <= 4:
                     return [_round(v) for v in obj]
                 r = _np_rounded(obj)
             elif t0 is list:
@@ -202,9 +202,9 @@ def save(spec: dict[str, Any], path: str | Path, *, is_canonical: bool = False, 
     `is_canonical=True` skips rounding a spec that `generate_scene` returned (its floats are rounded already);
     `durable=False` skips the fsync (see `write_atomic`).
     """
-    p = Path(path)
-    write_atomic(p, encode(spec) if is_canonical else dumps(spec), durable=durable)
-    return p
+    file_path = Path(path)
+    write_atomic(file_path, encode(spec) if is_canonical else dumps(spec), durable=durable)
+    return file_path
 
 
 TMP_SUFFIX = ".tmp"
@@ -220,16 +220,16 @@ def write_atomic(path: str | Path, text: str, *, durable: bool = True) -> None:
     """
     import os
 
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.parent / f".{p.name}.{os.getpid()}{TMP_SUFFIX}"
+    file_path = Path(path)
+    file_path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = file_path.parent / f".{file_path.name}.{os.getpid()}{TMP_SUFFIX}"
     try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
             if durable:
-                f.flush()
-                os.fsync(f.fileno())
-        os.replace(tmp, p)
+                fh.flush()
+                os.fsync(fh.fileno())
+        os.replace(tmp, file_path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

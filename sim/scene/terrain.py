@@ -95,14 +95,14 @@ class _Terrain:
     ) -> bool:
         """Add a patch at road coordinates (s, d), local x pointing away from the road, if its footprint lies in
         `area`, meets no object, patch or ramp, and (with `corridor`) stays out of the kept clear-path corridor."""
-        x, y, h = sw.roadway.centerline.point_xy(s, d)
-        yaw = h + sw.side * math.pi / 2
-        c, sn = math.cos(yaw), math.sin(yaw)
-        corners, pb = rect(x, y, c, sn, size[0], size[1])
+        x, y, heading = sw.roadway.centerline.point_xy(s, d)
+        yaw = heading + sw.side * math.pi / 2
+        cos, sn = math.cos(yaw), math.sin(yaw)
+        corners, pb = rect(x, y, cos, sn, size[0], size[1])
         poly = quad_polygon(corners)
         if not area.contains(poly):
             return False
-        check, cb = rect(x, y, c, sn, size[0] + GAP, size[1] + GAP)
+        check, cb = rect(x, y, cos, sn, size[0] + GAP, size[1] + GAP)
         if not self.placer.occupied.free(poly, pb, check, cb, corridor) or not self.own.free(poly, pb, check, cb, True):
             return False
         self.own.add(check, cb)
@@ -122,11 +122,11 @@ def _lateral(sw: Sidewalk, x: float, y: float) -> tuple[float, float]:
     """Road coordinates (s, |d|) of the point (x, y) beside sidewalk `sw`'s roadway."""
     cl = sw.roadway.centerline
     s = float(cl.project(np.array([[x, y]]))[0])
-    px, py, h = cl.point_xy(s, 0.0)
-    return s, abs(-(x - px) * math.sin(h) + (y - py) * math.cos(h))
+    px, py, heading = cl.point_xy(s, 0.0)
+    return s, abs(-(x - px) * math.sin(heading) + (y - py) * math.cos(heading))
 
 
-def _roots(t: _Terrain, sw: Sidewalk, rng: np.random.Generator, rho: float, trees: list[dict[str, Any]]) -> None:
+def _roots(terrain: _Terrain, sw: Sidewalk, rng: np.random.Generator, rho: float, trees: list[dict[str, Any]]) -> None:
     """Heave beside a share of the sidewalk's trees: a rough concrete patch on the walkway side of the tree."""
     for tree in trees:
         if rng.random() >= min(1.0, RATES["roots"] * rho):
@@ -136,10 +136,10 @@ def _roots(t: _Terrain, sw: Sidewalk, rng: np.random.Generator, rho: float, tree
         depth, width = float(rng.uniform(0.8, 1.5)), float(rng.uniform(1.5, 3.0))
         size = (depth, width, float(rng.uniform(*BUMPS["roots"])))
         seed = int(rng.integers(2**31))
-        for k in range(t.tries):  # smaller each try, until it fits beside the tree's neighbours
-            f = 1.0 - 0.25 * min(k, 2)
-            sz = (size[0] * f, size[1] * f, size[2])
-            if t.place(
+        for k in range(terrain.tries):  # smaller each try, until it fits beside the tree's neighbours
+            scale = 1.0 - 0.25 * min(k, 2)
+            sz = (size[0] * scale, size[1] * scale, size[2])
+            if terrain.place(
                 sw,
                 "roots",
                 "concrete",
@@ -153,7 +153,7 @@ def _roots(t: _Terrain, sw: Sidewalk, rng: np.random.Generator, rho: float, tree
                 break
 
 
-def _anywhere(t: _Terrain, sw: Sidewalk, rng: np.random.Generator, rho: float, kind: str) -> None:
+def _anywhere(terrain: _Terrain, sw: Sidewalk, rng: np.random.Generator, rho: float, kind: str) -> None:
     """Uneven pavers (`rough`) or slick ground (`slick`: wet or gravel) at random spots of the sidewalk."""
     s0, s1 = sw.s_range
     lo = sw.roadway.half_width + 0.05
@@ -163,45 +163,47 @@ def _anywhere(t: _Terrain, sw: Sidewalk, rng: np.random.Generator, rho: float, k
             surface, height, extra = "pavers", float(rng.uniform(*BUMPS["rough"])), {"seed": int(rng.integers(2**31))}
         else:
             surface, height, extra = ("wet" if rng.random() < 0.6 else "gravel"), 0.0, {}
-        for _ in range(t.tries):
+        for _ in range(terrain.tries):
             d = float(rng.uniform(lo + 0.5 * depth, max(sw.outer - 0.05 - 0.5 * depth, lo + 0.5 * depth)))
             s = float(rng.uniform(s0 + 0.5 * width, max(s1 - 0.5 * width, s0 + 0.5 * width)))
-            if t.place(sw, kind, surface, s, sw.side * d, (depth, width, height), sw.polygon, corridor=False, **extra):
+            if terrain.place(
+                sw, kind, surface, s, sw.side * d, (depth, width, height), sw.polygon, corridor=False, **extra
+            ):
                 break
 
 
-def _steps(t: _Terrain, sw: Sidewalk, rng: np.random.Generator, rho: float) -> None:
+def _steps(terrain: _Terrain, sw: Sidewalk, rng: np.random.Generator, rho: float) -> None:
     """Entrance stairs of 1-3 steps in the frontage zone, rising to the building line with a landing there."""
     zone = sw.zone("frontage")
     if zone is None or sw.building is None:
         return
-    area = t.placer.zone_shape(zone)[0]
+    area = terrain.placer.zone_shape(zone)[0]
     s0, s1 = sw.s_range
     for _ in range(_count(rng, RATES["steps"] * rho * (s1 - s0) / 100.0)):
-        n, rise, width = int(rng.integers(1, 4)), float(rng.uniform(*RISE)), float(rng.uniform(1.5, 3.0))
+        n_steps, rise, width = int(rng.integers(1, 4)), float(rng.uniform(*RISE)), float(rng.uniform(1.5, 3.0))
         landing = float(rng.uniform(*LANDING))
-        while n > 0 and zone.width - 0.05 - n * TREAD < MIN_LANDING:
-            n -= 1
-        if n == 0:
+        while n_steps > 0 and zone.width - 0.05 - n_steps * TREAD < MIN_LANDING:
+            n_steps -= 1
+        if n_steps == 0:
             return  # the zone is too shallow for a stair
-        landing = min(landing, zone.width - 0.05 - n * TREAD)
-        depth = n * TREAD + landing
+        landing = min(landing, zone.width - 0.05 - n_steps * TREAD)
+        depth = n_steps * TREAD + landing
         d = zone.d1 - 0.01 - 0.5 * depth
-        for _ in range(t.tries):
+        for _ in range(terrain.tries):
             s = float(rng.uniform(s0 + 0.5 * width, max(s1 - 0.5 * width, s0 + 0.5 * width)))
             x, y, _ = sw.roadway.centerline.point_xy(s, sw.side * (zone.d1 + 0.3))
             if not sw.building.polygon.contains(Point(x, y)):
                 continue  # no building beyond this spot: a stair would lead nowhere
-            if t.place(
+            if terrain.place(
                 sw,
                 "steps",
                 "concrete",
                 s,
                 sw.side * d,
-                (depth, width, n * rise),
+                (depth, width, n_steps * rise),
                 area,
                 corridor=True,
-                steps=n,
+                steps=n_steps,
                 tread=TREAD,
             ):
                 break
@@ -211,28 +213,28 @@ def place_terrain(sidewalks: list[Sidewalk], placer: Placer, cfg: dict[str, Any]
     """The scene's terrain records (docs/scene_spec.md), placed around `placer`'s objects; none at density 0."""
     rho = float(cfg["terrain"]["density"])
     kinds = cfg["terrain"]["kinds"]
-    t = _Terrain(sidewalks, placer, cfg)
+    terrain = _Terrain(sidewalks, placer, cfg)
     if rho <= 0 or not kinds:
-        return t.records
+        return terrain.records
     trees: dict[str, list[dict[str, Any]]] = {}
-    for o in placer.objects:
-        if o["category"] == "tree":
-            trees.setdefault(o["sidewalk_id"], []).append(o)
+    for obj in placer.objects:
+        if obj["category"] == "tree":
+            trees.setdefault(obj["sidewalk_id"], []).append(obj)
     for kind in KINDS:
         if kind not in kinds:
             continue
         rng = np.random.default_rng([int(seed), STREAM, KINDS.index(kind)])
         for sw in sidewalks:
             if kind == "roots":
-                _roots(t, sw, rng, rho, trees.get(sw.id, []))
+                _roots(terrain, sw, rng, rho, trees.get(sw.id, []))
             elif kind == "steps":
-                _steps(t, sw, rng, rho)
+                _steps(terrain, sw, rng, rho)
             else:
-                _anywhere(t, sw, rng, rho, kind)
-    return t.records
+                _anywhere(terrain, sw, rng, rho, kind)
+    return terrain.records
 
 
 def terrain_stats(records: list[dict[str, Any]]) -> dict[str, int]:
     """Patches per kind (every kind, 0 when absent)."""
-    n = Counter(r["kind"] for r in records)
-    return {k: n.get(k, 0) for k in KINDS}
+    counts = Counter(rec["kind"] for rec in records)
+    return {k: counts.get(k, 0) for k in KINDS}
