@@ -18,7 +18,12 @@ class Atlas:
 
     Each scene's tables are copied once into a region of `flat` (the first free gap that fits, else the end, the
     buffer growing by at least half its size); the scene's own arrays are not kept, so a scene's grids are held once.
+    Scenes of different sizes coming and going leave gaps too small for the next one: when a scene would end past
+    the cells the tracer can index, the regions in use are first moved down together (`_compact`), so only the
+    scenes in use count against that limit.
     """
+
+    max_cells = 2**31 - 1  # the tracer indexes `flat` with int32 offsets
 
     def __init__(self, resolution: float) -> None:
         self.resolution = float(resolution)
@@ -67,23 +72,42 @@ class Atlas:
 
     def _place(self, cells: int) -> int:
         """The start of a free region of `cells` cells (first fit between the regions in use, else at the end)."""
-        taken = sorted(r for r in self.regions if r is not None)
-        at = 0
-        for start, n in taken:
-            if start - at >= cells:
-                return at
-            at = max(at, start + n)
-        if at + cells >= 2**31:
+        at = self._first_fit(cells)
+        if at + cells > self.max_cells:
+            self._compact()
+            at = self.used
+        if at + cells > self.max_cells:
             raise MemoryError(
-                f"the scenes' grids hold {at + cells} cells, past the 2**31 the tracer indexes; use "
+                f"the scenes' grids hold {at + cells} cells, past the {self.max_cells + 1} the tracer indexes; use "
                 "fewer scenes (scene_cache) or a coarser lidar.resolution"
             )
         if at + cells > self.flat.size:
-            grown = np.zeros(min(max(at + cells, self.flat.size * 3 // 2), 2**31 - 1), dtype=np.uint8)
+            grown = np.zeros(min(max(at + cells, self.flat.size * 3 // 2), self.max_cells), dtype=np.uint8)
             grown[: self.used] = self.flat[: self.used]
             self.flat = grown
         self.used = max(self.used, at + cells)
         return at
+
+    def _first_fit(self, cells: int) -> int:
+        """The start of the first gap between the regions in use that holds `cells` cells, else their end."""
+        at = 0
+        for start, n in sorted(r for r in self.regions if r is not None):
+            if start - at >= cells:
+                return at
+            at = max(at, start + n)
+        return at
+
+    def _compact(self) -> None:
+        """Move the regions in use down to the start of `flat`, in order, closing the gaps; each moved slot's table
+        offsets move with it (frames are read from `offset` at every call, so none goes stale)."""
+        at = 0
+        for start, n, slot in sorted((r[0], r[1], k) for k, r in enumerate(self.regions) if r is not None):
+            if start != at:
+                self.flat[at : at + n] = self.flat[start : start + n]  # numpy copies overlapping slices safely
+                self.offset[slot] += at - start
+                self.regions[slot] = (at, n)
+            at += n
+        self.used = at
 
     def frames(self, slots: np.ndarray, level: np.ndarray, what: str) -> dict[str, np.ndarray]:
         """Per-env frames of grid `what` (a WHAT name or "kinds") at each env's slot and level."""
