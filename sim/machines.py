@@ -72,16 +72,16 @@ class MachineSpec:
 
 def _load_machines() -> dict[str, MachineSpec]:
     """The machines table `machines.csv` beside this module: one MachineSpec a row, in row order."""
-    with resources.files("sim").joinpath("machines.csv").open(encoding="utf-8") as f:
-        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
-    types = {f.name: str(f.type) for f in fields(MachineSpec)}
+    with resources.files("sim").joinpath("machines.csv").open(encoding="utf-8") as fh:
+        rows = list(csv.DictReader(line for line in fh if not line.startswith("#")))
+    types = {fh.name: str(fh.type) for fh in fields(MachineSpec)}
 
     def cell(key: str, text: str) -> Any:
         if types[key].startswith("tuple"):
-            return tuple(float(v) for v in text.split())  # forces (low high) and colours (r g b a)
+            return tuple(float(token) for token in text.split())  # forces (low high) and colours (r g b a)
         return float(text) if types[key] == "float" else text
 
-    return {r["name"]: MachineSpec(**{k: cell(k, v) for k, v in r.items()}) for r in rows}
+    return {row["name"]: MachineSpec(**{k: cell(k, v) for k, v in row.items()}) for row in rows}
 
 
 MACHINES: dict[str, MachineSpec] = _load_machines()
@@ -100,7 +100,7 @@ def machine_spec(machine: str | Mapping[str, Any]) -> MachineSpec:
         raise ConfigError(f"machine must be a name or a dict of parameters, got {type(machine).__name__}")
     params = dict(machine)
     base = machine_spec(params.pop("base", "delivery_bot"))
-    valid = {f.name for f in fields(MachineSpec)}
+    valid = {fld.name for fld in fields(MachineSpec)}
     unknown = sorted(set(params) - valid)
     if unknown:
         raise ConfigError(f"unknown machine parameter(s) {unknown}; valid: {', '.join(sorted(valid))}")
@@ -140,33 +140,33 @@ class Machine:
         self.count_grade = True  # add the grade force (see command); terrain trials turn it off
 
     def _build_body(self) -> int:
-        s, c = self.spec, self.client
-        r = s.wheel_radius
+        spec, client = self.spec, self.client
+        wheel_r = spec.wheel_radius
         # Chassis starts just above the wheel centres so the spheres carry the load on the ground.
-        clear = r * 0.9
-        hz = max(0.5 * (s.height - clear), 0.05)
-        half = [0.5 * s.length, 0.5 * s.width, hz]
+        clear = wheel_r * 0.9
+        hz = max(0.5 * (spec.height - clear), 0.05)
+        half = [0.5 * spec.length, 0.5 * spec.width, hz]
         chassis_z = clear + hz  # body origin sits at the ground; shapes are offset upwards
-        wx, wy = 0.5 * s.wheelbase, max(0.5 * s.width - 0.5 * s.wheel_width, r * 0.5)
-        wheels = [[wx, wy, r], [wx, -wy, r], [-wx, wy, r], [-wx, -wy, r]]
+        wx, wy = 0.5 * spec.wheelbase, max(0.5 * spec.width - 0.5 * spec.wheel_width, wheel_r * 0.5)
+        wheels = [[wx, wy, wheel_r], [wx, -wy, wheel_r], [-wx, wy, wheel_r], [-wx, -wy, wheel_r]]
         col = p.createCollisionShapeArray(
             shapeTypes=[p.GEOM_BOX] + [p.GEOM_SPHERE] * 4,
             halfExtents=[half] + [[0, 0, 0]] * 4,
-            radii=[0.0] + [r] * 4,
+            radii=[0.0] + [wheel_r] * 4,
             collisionFramePositions=[[0, 0, chassis_z]] + wheels,
-            physicsClientId=c,
+            physicsClientId=client,
         )
         vis = p.createVisualShapeArray(
             shapeTypes=[p.GEOM_BOX] + [p.GEOM_CYLINDER] * 4,
             halfExtents=[half] + [[0, 0, 0]] * 4,
-            radii=[0.0] + [r] * 4,
-            lengths=[0.0] + [s.wheel_width] * 4,
-            rgbaColors=[list(s.color)] + [[0.1, 0.1, 0.1, 1]] * 4,
+            radii=[0.0] + [wheel_r] * 4,
+            lengths=[0.0] + [spec.wheel_width] * 4,
+            rgbaColors=[list(spec.color)] + [[0.1, 0.1, 0.1, 1]] * 4,
             visualFramePositions=[[0, 0, chassis_z]] + wheels,
             visualFrameOrientations=[[0, 0, 0, 1]] + [p.getQuaternionFromEuler([math.pi / 2, 0, 0])] * 4,
-            physicsClientId=c,
+            physicsClientId=client,
         )
-        body = p.createMultiBody(s.mass, col, vis, basePosition=[0, 0, 1.0], physicsClientId=c)
+        body = p.createMultiBody(spec.mass, col, vis, basePosition=[0, 0, 1.0], physicsClientId=client)
         # Zero contact friction: traction and cornering come from the force model, Bullet only resolves
         # normal contacts (the ideal no-slip bicycle; sliding along walls instead of sticking to them).
         p.changeDynamics(
@@ -178,8 +178,8 @@ class Machine:
             linearDamping=0.0,
             angularDamping=0.0,
             restitution=0.0,
-            ccdSweptSphereRadius=0.8 * r,
-            physicsClientId=c,
+            ccdSweptSphereRadius=0.8 * wheel_r,
+            physicsClientId=client,
         )
         return body
 
@@ -206,48 +206,48 @@ class Machine:
 
     def command(self, steer: float, throttle: float, dt: float) -> None:
         """Update speed, steering and yaw rate for one substep of `dt` seconds and hand the velocity to Bullet."""
-        s = self.spec
+        spec = self.spec
         v = self.speed
-        if s.kind == "wheeled":
-            self.steering = steer * s.steer_max
+        if spec.kind == "wheeled":
+            self.steering = steer * spec.steer_max
             if throttle >= 0.0:
                 # The motor's force falls linearly to zero at v_max: the speed limit comes out of the drive.
-                force = throttle * self.engine_force * max(0.0, 1.0 - v / s.v_max)
+                force = throttle * self.engine_force * max(0.0, 1.0 - v / spec.v_max)
             else:
                 force = throttle * 4.0 * self.brake_force
-            resist = s.rolling_resistance * s.mass * G + 0.5 * 1.2 * s.drag_area * v * v
+            resist = spec.rolling_resistance * spec.mass * G + 0.5 * 1.2 * spec.drag_area * v * v
             # Bullet's pitch is positive nose-down, so uphill (negative pitch) adds a retarding grade force. The
             # contacts are frictionless, so Bullet's gravity pulls the body down a slope as well: on terrain (the
             # runways) `count_grade` is off and the grade is counted once. In the envs it stays on: it is also what
             # stops a machine driven into a wall at speed from riding up it (the drive sets its velocity).
             if self.count_grade:
-                force += s.mass * G * math.sin(self.pitch)
-            mu = min(s.friction, self.surface_friction)
+                force += spec.mass * G * math.sin(self.pitch)
+            mu = min(spec.friction, self.surface_friction)
             force -= resist
-            accel = force / s.mass
+            accel = force / spec.mass
             limit = mu * G  # tyres cannot transmit more than mu * g (the tyre's mu or the surface's, the lower)
             accel = min(max(accel, -limit), limit)
             v_new = v + accel * dt
             if v_new < 0.0 and throttle <= 0.0:
                 v_new = 0.0  # brakes and resistances stop the machine; they do not drive it backwards
-            v_new = min(max(v_new, -0.2 * s.v_max), s.v_max)
-            yaw_rate = v_new * math.tan(self.steering) / s.wheelbase
+            v_new = min(max(v_new, -0.2 * spec.v_max), spec.v_max)
+            yaw_rate = v_new * math.tan(self.steering) / spec.wheelbase
             if v_new != 0.0:
                 # Cornering is friction-limited too: lateral acceleration v * yaw_rate <= mu * g.
                 max_rate = limit / abs(v_new)
                 yaw_rate = min(max(yaw_rate, -max_rate), max_rate)
         else:
-            target = max(throttle, 0.0) * s.v_max
-            dv = min(max(target - v, -2.0 * s.accel_max * dt), s.accel_max * dt)
+            target = max(throttle, 0.0) * spec.v_max
+            dv = min(max(target - v, -2.0 * spec.accel_max * dt), spec.accel_max * dt)
             v_new = v + dv
             self.steering = steer
-            yaw_rate = steer * s.yaw_rate_max
+            yaw_rate = steer * spec.yaw_rate_max
         self.speed = v_new
         self.yaw_rate = yaw_rate
-        c, sn = math.cos(self.yaw), math.sin(self.yaw)
+        cos_yaw, sn = math.cos(self.yaw), math.sin(self.yaw)
         lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.client)
         p.resetBaseVelocity(
-            self.body, [v_new * c, v_new * sn, lin[2]], [ang[0], ang[1], yaw_rate], physicsClientId=self.client
+            self.body, [v_new * cos_yaw, v_new * sn, lin[2]], [ang[0], ang[1], yaw_rate], physicsClientId=self.client
         )
 
     def sync(self) -> None:

@@ -42,8 +42,8 @@ def colourise(name: str, image: np.ndarray, far: float = 50.0) -> np.ndarray:
     if name == "rgb":
         return image
     if name == "depth":
-        d = np.log1p(np.clip(image[..., 0], 0.0, far)) / np.log1p(far)
-        grey = (255 * (1.0 - d)).astype(np.uint8)
+        depth = np.log1p(np.clip(image[..., 0], 0.0, far)) / np.log1p(far)
+        grey = (255 * (1.0 - depth)).astype(np.uint8)
         return np.repeat(grey[..., None], 3, axis=2)
     return _PALETTE[np.minimum(image, len(_PALETTE) - 1)]
 
@@ -58,8 +58,8 @@ def top_down_map(env: Any, size: int, view: float) -> np.ndarray:
     """The map of a `view`-metre window around the ego: scene, route, agents and vehicles (SocialNav), ego."""
     from sim.agents.map_frame import draw_top_down
 
-    m = env.machine
-    x, y, _ = m.position
+    machine = env.machine
+    x, y, _ = machine.position
     social = getattr(env, "has_agents", False)
     return draw_top_down(
         env.scene,
@@ -67,7 +67,7 @@ def top_down_map(env: Any, size: int, view: float) -> np.ndarray:
         agents=env.crowd.states() if social else None,
         trails=env.crowd.trail if social else None,
         vehicles=env.vehicle_states() if social else None,
-        ego=(x, y, m.yaw, m.spec.length, m.spec.width),
+        ego=(x, y, machine.yaw, machine.spec.length, machine.spec.width),
         route=env.route.point_at(np.linspace(0.0, env.route.length, 200)),
         size=size,
         view=view,
@@ -76,10 +76,10 @@ def top_down_map(env: Any, size: int, view: float) -> np.ndarray:
 
 def hud_text(env: Any) -> str:
     """One line of live metrics: step, speed, route completion, collisions and cost."""
-    ep, m = env.episode, env.machine
+    ep, machine = env.episode, env.machine
     done = min(ep.max_progress / env.route.length, 1.0) if env.route.length > 0 else 0.0
     return (
-        f"step {ep.steps}/{ep.horizon}   {3.6 * m.speed:5.1f} km/h   route {100 * done:3.0f} %   "
+        f"step {ep.steps}/{ep.horizon}   {3.6 * machine.speed:5.1f} km/h   route {100 * done:3.0f} %   "
         f"cost {ep.cost_total}   {env.spec_machine.name}"
     )
 
@@ -118,14 +118,16 @@ def render_frame(env: Any) -> np.ndarray | None:
         return None
     from sim.frames import camera_image
 
-    r = env.config["render"]
-    w, h, camera = int(r["width"]), int(r["height"]), r["camera"]
+    render = env.config["render"]
+    width, height, camera = int(render["width"]), int(render["height"]), render["camera"]
     if camera == "dashboard":
-        frame = dashboard(env, w, h, float(r["top_down_height"]))
+        frame = dashboard(env, width, height, float(render["top_down_height"]))
     elif camera == "map":
-        frame = _fit(top_down_map(env, min(w, h), float(r["top_down_height"]) * 1.6), w, h)
+        frame = _fit(top_down_map(env, min(width, height), float(render["top_down_height"]) * 1.6), width, height)
     else:
-        frame = camera_image(env, camera=camera, width=w, height=h, top_down_height=float(r["top_down_height"]))
+        frame = camera_image(
+            env, camera=camera, width=width, height=height, top_down_height=float(render["top_down_height"])
+        )
     if env.render_mode != "human":
         return frame
     window = _WINDOWS.get(env)
@@ -194,12 +196,12 @@ class HumanWindow:
     def show(self, frame: np.ndarray) -> None:
         """Draw one frame and handle the window's events."""
         pg = self.pygame
-        h, w = frame.shape[:2]
-        if self.screen is None or self.screen.get_size() != (w, h):
-            self.screen = pg.display.set_mode((w, h))
+        height, width = frame.shape[:2]
+        if self.screen is None or self.screen.get_size() != (width, height):
+            self.screen = pg.display.set_mode((width, height))
         pg.surfarray.blit_array(self.screen, np.ascontiguousarray(frame.swapaxes(0, 1)))
         events = pg.event.get()
-        self.closed = self.closed or any(e.type == pg.QUIT for e in events)
+        self.closed = self.closed or any(event.type == pg.QUIT for event in events)
         self.events.extend(events[-256:])
         del self.events[:-256]  # nobody reading them (plain viewing): keep the latest few
         pg.display.flip()

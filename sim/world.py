@@ -52,7 +52,7 @@ def _obj_vertices(path: str) -> np.ndarray:
     with open(path, encoding="utf-8", errors="replace") as fh:
         for line in fh:
             if line.startswith("v "):
-                out.append([float(v) for v in line.split()[1:4]])
+                out.append([float(token) for token in line.split()[1:4]])
     if not out:
         raise SceneError(f"mesh {path} has no vertices; rebuild the asset or use collision='box'")
     return np.asarray(out)
@@ -112,19 +112,19 @@ class World:
     def _mesh_body(self, kind: str, verts: list, idx: list, color, collide: bool = True) -> int | None:
         if not idx:
             return None
-        c = self.client
-        col = mesh_shape(p.createCollisionShape, verts, idx, physicsClientId=c) if collide else -1
-        vis = mesh_shape(p.createVisualShape, verts, idx, rgbaColor=list(color), physicsClientId=c)
+        client = self.client
+        col = mesh_shape(p.createCollisionShape, verts, idx, physicsClientId=client) if collide else -1
+        vis = mesh_shape(p.createVisualShape, verts, idx, rgbaColor=list(color), physicsClientId=client)
         return self._add(kind, col, vis)
 
     def _build(self) -> None:
-        scene, c, h = self.scene, self.client, self.curb_height
+        scene, client, curb_h = self.scene, self.client, self.curb_height
         xmin, ymin, xmax, ymax = scene.bounds
         cx, cy = 0.5 * (xmin + xmax), 0.5 * (ymin + ymax)
         hx, hy = 0.5 * (xmax - xmin) + 50.0, 0.5 * (ymax - ymin) + 50.0
-        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[hx, hy, 0.5], physicsClientId=c)
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[hx, hy, 0.5], physicsClientId=client)
         vis = p.createVisualShape(
-            p.GEOM_BOX, halfExtents=[hx, hy, 0.5], rgbaColor=list(SURFACE["ground"]), physicsClientId=c
+            p.GEOM_BOX, halfExtents=[hx, hy, 0.5], rgbaColor=list(SURFACE["ground"]), physicsClientId=client
         )
         self.ground = self._add("ground", col, vis, (cx, cy, -0.5))
         # Painted surfaces on the road are visual only: the ground plane carries the wheels there.
@@ -136,13 +136,13 @@ class World:
                 self._mesh_body(
                     "crosswalk", *extrusion_mesh(poly, 0.0, 0.004, walls=False), SURFACE["crosswalk"], collide=False
                 )
-        slabs, wedges = sidewalk_solids(scene, h)
+        slabs, wedges = sidewalk_solids(scene, curb_h)
         for pts, z in wedges:
             self._wedge("ramp", pts, z)
         rng = np.random.default_rng(scene.seed)
         for sw, sw_slabs in zip(scene.sidewalks, slabs):
             for poly in sw_slabs:
-                self._mesh_body("sidewalk", *extrusion_mesh(poly, 0.0, h), SURFACE["sidewalk"])
+                self._mesh_body("sidewalk", *extrusion_mesh(poly, 0.0, curb_h), SURFACE["sidewalk"])
             for zone in sw.get("zones", []):
                 if zone.get("kind") == "building":
                     height = float(rng.uniform(6.0, 18.0))
@@ -152,7 +152,7 @@ class World:
         for k, rec in enumerate(scene.terrain):
             body = self._mesh_body("sidewalk", *patches.mesh(rec), terrain_colour(rec["kind"], rec["surface"]))
             assert body is not None  # a patch's mesh always has triangles (its skirt's at least)
-            p.changeDynamics(body, -1, lateralFriction=patches.friction(rec), physicsClientId=c)
+            p.changeDynamics(body, -1, lateralFriction=patches.friction(rec), physicsClientId=client)
             self.patch_index[body] = k
         self._friction = patches.FrictionIndex(scene.terrain)
         for i, obj in enumerate(scene.objects):
@@ -171,39 +171,41 @@ class World:
         self._add(kind, col, vis)
 
     def _build_object(self, obj: Mapping[str, Any]) -> int:
-        c = self.client
-        x, y, z = (float(v) for v in obj["position"])
-        d, w, hgt = (max(float(v), 0.02) for v in obj["size"])
+        client = self.client
+        x, y, z = (float(value) for value in obj["position"])
+        depth, width, hgt = (max(float(value), 0.02) for value in obj["size"])
         orn = p.getQuaternionFromEuler([0, 0, float(obj.get("yaw", 0.0))])
         color = list(category_color(str(obj.get("category", "object"))))
-        size = np.array([d, w, hgt])
+        size = np.array([depth, width, hgt])
         hull = self._mesh_path(obj, "collision_path") if self._collision == "convex" else None
         if hull is not None:
-            v = _obj_vertices(hull)
-            lo, hi = v.min(0), v.max(0)
+            value = _obj_vertices(hull)
+            lo, hi = value.min(0), value.max(0)
             # Fit the hull into the spec's box: base centred on the footprint, bottom on the surface.
-            v = (v - [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]) * (size / np.maximum(hi - lo, 1e-6))
-            col, origin = mesh_shape(p.createCollisionShape, v.tolist(), physicsClientId=c), (x, y, z)
+            value = (value - [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]) * (size / np.maximum(hi - lo, 1e-6))
+            col, origin = mesh_shape(p.createCollisionShape, value.tolist(), physicsClientId=client), (x, y, z)
         else:
-            col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[d / 2, w / 2, hgt / 2], physicsClientId=c)
+            col = p.createCollisionShape(
+                p.GEOM_BOX, halfExtents=[depth / 2, width / 2, hgt / 2], physicsClientId=client
+            )
             origin = (x, y, z + hgt / 2)
         look = self._mesh_path(obj, "mesh_path") if self._visual_meshes else None
         if look is not None:
-            v = _obj_vertices(look)
-            lo, hi = v.min(0), v.max(0)
+            value = _obj_vertices(look)
+            lo, hi = value.min(0), value.max(0)
             scale = size / np.maximum(hi - lo, 1e-6)
             # The textured mesh in the same box, relative to the body's origin (the box centre, or the base).
             at = [-(lo[0] + hi[0]) / 2 * scale[0], -(lo[1] + hi[1]) / 2 * scale[1], -lo[2] * scale[2] + z - origin[2]]
             vis = p.createVisualShape(
-                p.GEOM_MESH, fileName=look, meshScale=scale.tolist(), visualFramePosition=at, physicsClientId=c
+                p.GEOM_MESH, fileName=look, meshScale=scale.tolist(), visualFramePosition=at, physicsClientId=client
             )  # no rgbaColor: the mesh's baked texture shows
         else:
             vis = p.createVisualShape(
                 p.GEOM_BOX,
-                halfExtents=[d / 2, w / 2, hgt / 2],
+                halfExtents=[depth / 2, width / 2, hgt / 2],
                 rgbaColor=color,
                 visualFramePosition=[0.0, 0.0, z + hgt / 2 - origin[2]],
-                physicsClientId=c,
+                physicsClientId=client,
             )
         return self._add("object", col, vis, origin, orn)
 
@@ -281,20 +283,20 @@ def ramp_wedges(
     if sidewalk is not None and len(sidewalk.get("edge", [])) >= 2:
         curb = LineString(sidewalk["edge"])
     else:
-        curb = shapely.union_all([Polygon(r["polygon"]) for r in scene.roads]).boundary
-    d = np.array([curb.distance(Point(x, y)) for x, y in pts])
+        curb = shapely.union_all([Polygon(road["polygon"]) for road in scene.roads]).boundary
+    curb_dist = np.array([curb.distance(Point(x, y)) for x, y in pts])
     # The vertices on the curb line sit at road level; the rest rise to the sidewalk over the ramp.
-    z = np.where(d < max(0.1, 0.25 * float(d.max())), 0.0, h)
+    z = np.where(curb_dist < max(0.1, 0.25 * float(curb_dist.max())), 0.0, h)
     if z.max() == 0.0:
         z = np.full(len(pts), h)
     wedges = [(pts, z)]
     centre = pts.mean(0)
-    n = len(pts)
-    for k in range(n):
-        a, b = k, (k + 1) % n
-        if z[a] == z[b]:
+    num_pts = len(pts)
+    for k in range(num_pts):
+        start, end = k, (k + 1) % num_pts
+        if z[start] == z[end]:
             continue
-        lo, hi = (a, b) if z[a] < z[b] else (b, a)
+        lo, hi = (start, end) if z[start] < z[end] else (end, start)
         side = pts[hi] - pts[lo]
         out = np.array([side[1], -side[0]]) / max(np.hypot(*side), 1e-9)
         if np.dot(out, pts[lo] - centre) < 0:

@@ -42,8 +42,8 @@ STAND_MARGIN = 0.15  # m added to a standing member's ORCA radius: it does not r
 def ring_offsets(size: int, spacing: float, angle: float) -> np.ndarray:
     """Offsets [size, 2] of `size` points on a circle, neighbours `spacing` apart, the first at `angle`."""
     rho = spacing / 2.0 if size == 2 else spacing / (2.0 * np.sin(np.pi / size))
-    a = angle + 2.0 * np.pi * np.arange(size) / size
-    return rho * np.stack([np.cos(a), np.sin(a)], 1)
+    angles = angle + 2.0 * np.pi * np.arange(size) / size
+    return rho * np.stack([np.cos(angles), np.sin(angles)], 1)
 
 
 def ring_spacing(radius: np.ndarray, safety_margin: float, members: np.ndarray) -> float:
@@ -123,29 +123,28 @@ class Groups:
 
         Rings stand on sidewalk planning cells inside `area` (None: anywhere), outside the `clear` discs (x, y, r).
         """
-        c, s = config, state
-        self.of = np.full(s.n, -1, dtype=np.int64)
-        self.spot = np.full((s.n, 2), np.nan)
+        self.of = np.full(state.n, -1, dtype=np.int64)
+        self.spot = np.full((state.n, 2), np.nan)
         self.members, self.walking = {}, {}
         self.formed = self.stands = self.dispersed = self.walks = 0
-        if c["group_prob"] <= 0 or s.n < 2:
+        if config["group_prob"] <= 0 or state.n < 2:
             return
-        kinds = np.array([KIND_NAMES[k] for k in s.kind_idx])
+        kinds = np.array([KIND_NAMES[k] for k in state.kind_idx])
         order = rng.permutation(np.flatnonzero(np.isin(kinds, GROUP_KINDS)))
-        target = round(c["group_prob"] * s.n)
-        lo, hi = (int(v) for v in c["group_size"])
+        target = round(config["group_prob"] * state.n)
+        lo, hi = (int(bound) for bound in config["group_size"])
         k = placed = 0
         while placed < target and len(order) - k >= lo:
             size = min(int(rng.integers(lo, hi + 1)), len(order) - k)
             members = order[k : k + size]
             k += size
-            if self._place(s, grid, area, c, members, rng, clear):
+            if self._place(state, grid, area, config, members, rng, clear):
                 gid = len(self.members)
                 self.members[gid], self.walking[gid] = members, False
                 self.of[members] = gid
-                s.movement[members] = IDLE
-                s.idle_left[members] = rng.uniform(*c["group_time"])
-                self.spot[members] = s.pos[members]
+                state.movement[members] = IDLE
+                state.idle_left[members] = rng.uniform(*config["group_time"])
+                self.spot[members] = state.pos[members]
                 placed += size
                 self.formed += 1
                 self.stands += 1
@@ -161,36 +160,39 @@ class Groups:
         clear: list[tuple[float, float, float]],
     ) -> bool:
         """Move `members` into a ring on a sidewalk near the first one's spawn point; False if none fits nearby."""
-        g, c, s = grid, config, state
-        spacing = ring_spacing(s.radius, c["safety_margin"], members)
+        spacing = ring_spacing(state.radius, config["safety_margin"], members)
         offsets = ring_offsets(len(members), spacing, float(rng.uniform(0.0, 2.0 * np.pi)))
-        centres = g.node_xy(np.arange(g.n_nodes))
-        d = np.hypot(*(centres - s.pos[members[0]]).T)
-        cand = np.flatnonzero(d < 15.0)
-        cand = cand[np.argsort(d[cand], kind="stable")][:CENTRE_TRIES]
+        centres = grid.node_xy(np.arange(grid.n_nodes))
+        dist = np.hypot(*(centres - state.pos[members[0]]).T)
+        cand = np.flatnonzero(dist < 15.0)
+        cand = cand[np.argsort(dist[cand], kind="stable")][:CENTRE_TRIES]
         if area is not None:
             import shapely
 
             cand = cand[shapely.contains_xy(area, centres[cand, 0], centres[cand, 1])]
         spread = float(np.hypot(*offsets.T).max())
-        for x, y, r in clear:
-            cand = cand[np.hypot(centres[cand, 0] - x, centres[cand, 1] - y) > r + spread]
+        for x, y, radius in clear:
+            cand = cand[np.hypot(centres[cand, 0] - x, centres[cand, 1] - y) > radius + spread]
         if not len(cand):
             return False
         slots = centres[cand][:, None, :] + offsets[None]  # [k, size, 2]
         flat = slots.reshape(-1, 2)
-        i, j = g.cell_of(flat)
-        ok = (g.is_free(flat) & (g.cells[i, j] == SIDEWALK)).reshape(len(cand), -1).all(1)
-        others = np.setdiff1d(np.arange(s.n), members)
+        i, j = grid.cell_of(flat)
+        ok = (grid.is_free(flat) & (grid.cells[i, j] == SIDEWALK)).reshape(len(cand), -1).all(1)
+        others = np.setdiff1d(np.arange(state.n), members)
         if len(others):
             # Other agents (groups placed earlier included) keep the spawn clearance from every slot.
-            gap = np.linalg.norm(flat[:, None, :] - s.pos[others][None], axis=2)
-            need = np.tile(s.radius[members], len(cand))[:, None] + s.radius[others][None] + c["spawn_clearance"]
+            gap = np.linalg.norm(flat[:, None, :] - state.pos[others][None], axis=2)
+            need = (
+                np.tile(state.radius[members], len(cand))[:, None]
+                + state.radius[others][None]
+                + config["spawn_clearance"]
+            )
             ok &= (gap >= need).reshape(len(cand), -1, len(others)).all((1, 2))
         hit = np.flatnonzero(ok)
         if not len(hit):
             return False
-        s.pos[members] = slots[hit[0]]
+        state.pos[members] = slots[hit[0]]
         return True
 
     def stand_over(
@@ -203,40 +205,38 @@ class Groups:
         set_goal: GoalSetter,
     ) -> None:
         """Agent i's group has stood long enough: it disperses or walks on together to a shared goal."""
-        s = state
         gid = int(self.of[i])
         members = self.members[gid]
         self.spot[members] = np.nan
         if rng.random() < config["group_disperse_prob"]:
-            self.dissolve(s, gid)
+            self.dissolve(state, gid)
             self.dispersed += 1
             for k in members.tolist():
                 set_goal(k, int(nodes[k]))
             return
         lead = int(members[0])
         set_goal(lead, int(nodes[lead]))
-        crossing = bool(s.crossing[lead])
-        speed = min(float(s.speed[lead]), *(walking_speed(s, int(k), rng) for k in members[1:]))
-        spacing = ring_spacing(s.radius, config["safety_margin"], members)
-        ring = s.goal[lead] + ring_offsets(len(members), spacing, float(rng.uniform(0.0, 2.0 * np.pi)))
+        crossing = bool(state.crossing[lead])
+        speed = min(float(state.speed[lead]), *(walking_speed(state, int(k), rng) for k in members[1:]))
+        spacing = ring_spacing(state.radius, config["safety_margin"], members)
+        ring = state.goal[lead] + ring_offsets(len(members), spacing, float(rng.uniform(0.0, 2.0 * np.pi)))
         for k, xy in zip(members.tolist(), ring):
-            set_goal(k, int(nodes[k]), site=int(s.site[lead]), goal_xy=xy, speed=speed)
-        s.crossing[members] = crossing
+            set_goal(k, int(nodes[k]), site=int(state.site[lead]), goal_xy=xy, speed=speed)
+        state.crossing[members] = crossing
         if crossing:
-            s.cross_counts["started"] += len(members) - 1  # the lead's crossing was counted when it was drawn
+            state.cross_counts["started"] += len(members) - 1  # the lead's crossing was counted when it was drawn
         self.walking[gid] = True
         self.walks += 1
 
     def arrived(self, state: CrowdState, rng: np.random.Generator, config: Mapping[str, Any], i: int) -> None:
         """A walking member reached its goal: it waits; once all have, the group stands again."""
-        s = state
         gid = int(self.of[i])
-        s.movement[i] = IDLE
-        s.idle_left[i] = np.inf
+        state.movement[i] = IDLE
+        state.idle_left[i] = np.inf
         members = self.members[gid]
-        if (s.movement[members] == IDLE).all():
-            s.idle_left[members] = rng.uniform(*config["group_time"])
-            self.spot[members] = s.pos[members]
+        if (state.movement[members] == IDLE).all():
+            state.idle_left[members] = rng.uniform(*config["group_time"])
+            self.spot[members] = state.pos[members]
             self.walking[gid] = False
             self.stands += 1
 

@@ -83,43 +83,42 @@ def new_goal(
     A random goal lies across a road (over `crossings`) with chance `cross_prob`; `abandon` counts the goal it
     leaves as abandoned. The goal's time budget starts now.
     """
-    c, g, s = config, grid, state
-    spread = c["goal_spread"]
-    s.crossing[i] = False
+    spread = config["goal_spread"]
+    state.crossing[i] = False
     # cross_prob 0 draws nothing, so runs without crossings keep their random stream.
-    if site is None and c["cross_prob"] > 0 and rng.random() < c["cross_prob"]:
-        site = crossings.pick(s.pos[i])
+    if site is None and config["cross_prob"] > 0 and rng.random() < config["cross_prob"]:
+        site = crossings.pick(state.pos[i])
         if site is not None:
-            s.crossing[i] = True
-            s.cross_counts["started"] += 1
+            state.crossing[i] = True
+            state.cross_counts["started"] += 1
             spread = min(spread, 1.0)  # stay by the crosswalk's far end, not 2.5 m around it
     if site is None:
-        spread_sites = g.sites[: g.n_spread]  # crossing sites are goals of crossings only
-        here = int(np.argmin(np.linalg.norm(g.node_xy(spread_sites) - s.pos[i], axis=1)))
+        spread_sites = grid.sites[: grid.n_spread]  # crossing sites are goals of crossings only
+        here = int(np.argmin(np.linalg.norm(grid.node_xy(spread_sites) - state.pos[i], axis=1)))
         choices = np.delete(np.arange(len(spread_sites)), here) if len(spread_sites) > 1 else np.arange(1)
         site = int(rng.choice(choices))
     if abandon:
-        s.counts["abandoned"] += 1
+        state.counts["abandoned"] += 1
     if speed is None:
-        kind = AGENT_KINDS[KIND_NAMES[s.kind_idx[i]]]
-        run = kind.run_speed is not None and rng.random() < c["run_prob"]
-        s.movement[i] = RUNNING if run else WALKING
-        s.speed[i] = kind.sample_speed(rng, "running" if run else "walking")
+        kind = AGENT_KINDS[KIND_NAMES[state.kind_idx[i]]]
+        run = kind.run_speed is not None and rng.random() < config["run_prob"]
+        state.movement[i] = RUNNING if run else WALKING
+        state.speed[i] = kind.sample_speed(rng, "running" if run else "walking")
     else:
-        s.movement[i], s.speed[i] = WALKING, speed
-    dist = g.field(site)
+        state.movement[i], state.speed[i] = WALKING, speed
+    dist = grid.field(site)
     if goal_xy is None:
-        near_nodes = cells.near(g, site, spread, dist)
-        goal_node = int(rng.choice(near_nodes)) if len(near_nodes) else int(g.sites[site])
+        near_nodes = cells.near(grid, site, spread, dist)
+        goal_node = int(rng.choice(near_nodes)) if len(near_nodes) else int(grid.sites[site])
     else:
-        goal_node = int(g.nearest_node(np.asarray(goal_xy, dtype=np.float64)[None])[0])
-    s.site[i] = site
-    s.goal[i] = g.node_xy(np.array([goal_node]))[0]
-    length = float(dist[node]) + c["goal_spread"]
-    s.goal_t0[i] = s.time
-    s.budget[i] = c["budget_factor"] * length / max(s.speed[i], 0.1) + c["budget_slack"]
-    s.best[i] = np.inf
-    s.stall[i] = 0
+        goal_node = int(grid.nearest_node(np.asarray(goal_xy, dtype=np.float64)[None])[0])
+    state.site[i] = site
+    state.goal[i] = grid.node_xy(np.array([goal_node]))[0]
+    length = float(dist[node]) + config["goal_spread"]
+    state.goal_t0[i] = state.time
+    state.budget[i] = config["budget_factor"] * length / max(state.speed[i], 0.1) + config["budget_slack"]
+    state.best[i] = np.inf
+    state.stall[i] = 0
 
 
 def update_goals(
@@ -137,48 +136,47 @@ def update_goals(
     An idle agent whose time is up leaves for a new goal (a group member: its group decides); one that arrived
     idles with chance `idle_prob` or takes a new goal; one stuck for `regoal_steps` abandons its goal.
     """
-    c, g, s = config, grid, state
-    for i in idle_tick(s.movement, s.idle_left, float(dt), IDLE).tolist():
-        if s.movement[i] != IDLE:
+    for i in idle_tick(state.movement, state.idle_left, float(dt), IDLE).tolist():
+        if state.movement[i] != IDLE:
             continue  # its group's decision already sent it off
         if groups.of[i] >= 0:
-            groups.stand_over(s, rng, c, i, nodes, set_goal)
+            groups.stand_over(state, rng, config, i, nodes, set_goal)
         else:
             set_goal(i, int(nodes[i]))
-    moving = np.flatnonzero(s.movement != IDLE)
+    moving = np.flatnonzero(state.movement != IDLE)
     if not len(moving):
         return
     arrived, abandon = progress(
         moving,
-        s.pos,
-        s.goal,
+        state.pos,
+        state.goal,
         nodes,
-        s.site,
-        g.dist_table,
-        s.stall,
-        s.best,
-        float(c["arrive_radius"]),
-        float(c["crowded_arrive_radius"]),
-        int(c["stuck_steps"]),
-        float(c["stuck_progress"]),
-        int(c["regoal_steps"]),
+        state.site,
+        grid.dist_table,
+        state.stall,
+        state.best,
+        float(config["arrive_radius"]),
+        float(config["crowded_arrive_radius"]),
+        int(config["stuck_steps"]),
+        float(config["stuck_progress"]),
+        int(config["regoal_steps"]),
     )  # new_goal planned every field
     if arrived.any():
         for i in moving[arrived].tolist():
-            late = s.time - s.goal_t0[i] > s.budget[i]
-            s.counts["late" if late else "in_time"] += 1
-            s.cross_counts["done"] += int(s.crossing[i])
-            s.crossing[i] = False
+            late = state.time - state.goal_t0[i] > state.budget[i]
+            state.counts["late" if late else "in_time"] += 1
+            state.cross_counts["done"] += int(state.crossing[i])
+            state.crossing[i] = False
             if groups.of[i] >= 0:
-                groups.arrived(s, rng, c, i)
-            elif rng.random() < c["idle_prob"]:
-                s.movement[i] = IDLE
-                s.idle_left[i] = rng.uniform(*c["idle_time"])
+                groups.arrived(state, rng, config, i)
+            elif rng.random() < config["idle_prob"]:
+                state.movement[i] = IDLE
+                state.idle_left[i] = rng.uniform(*config["idle_time"])
             else:
                 set_goal(i, int(nodes[i]))
     for i in moving[abandon].tolist():
         if groups.of[i] >= 0:
-            groups.dissolve(s, int(groups.of[i]))
+            groups.dissolve(state, int(groups.of[i]))
         set_goal(i, int(nodes[i]), abandon=True)
 
 
@@ -195,35 +193,34 @@ def preferred(
     `visible(p, q, r)` says whether a disc of radius r sees q from p past the obstacles (ORCA's visibility query).
     An agent stalled for `stuck_steps` side-steps (the rotate half of push-and-rotate).
     """
-    g, c, s = grid, config, state
-    sites = s.site[idx]
-    pos = s.pos[idx]
-    steps = c["lookahead_cells"]
-    ox, oy = float(g.origin[0]), float(g.origin[1])
+    sites = state.site[idx]
+    pos = state.pos[idx]
+    steps = config["lookahead_cells"]
+    ox, oy = float(grid.origin[0]), float(grid.origin[1])
     # Keep right: shortest paths hug the same inner edges in both directions, so opposing flows would meet
     # head-on in one lane (ORCA then herds the weaker side backwards); a right offset forms two lanes.
-    jumps = g.jump_table
+    jumps = grid.jump_table
     carrot = carrots(
         idx,
         nodes,
-        s.pos,
-        s.site,
+        state.pos,
+        state.site,
         jumps[JUMPS.index(steps)],
-        g.centres,
-        float(c["keep_right"]),
+        grid.centres,
+        float(config["keep_right"]),
         ox,
         oy,
-        float(g.res),
-        g.free,
+        float(grid.res),
+        grid.free,
     )
     # A carrot behind a concave corner (a crosswalk mouth) would press the agent into the curb: fall back
     # to nearer points of the path (steps, steps/2, ..., 1 cells; the last without a check) until one is in
     # sight. The rungs are looked up at once for the few agents that need them.
-    pos_l, rad_l = pos.tolist(), s.radius[idx].tolist()
+    pos_l, rad_l = pos.tolist(), state.radius[idx].tolist()
     blocked = [k for k, (p, q, r) in enumerate(zip(pos_l, carrot.tolist(), rad_l)) if not visible(p, q, r)]
     if blocked:
-        b = np.asarray(blocked)
-        ladder = rungs(nodes[b], sites[b], jumps, g.centres, JUMPS.index(steps)).tolist()
+        blocked_idx = np.asarray(blocked)
+        ladder = rungs(nodes[blocked_idx], sites[blocked_idx], jumps, grid.centres, JUMPS.index(steps)).tolist()
         for m, k in enumerate(blocked):
             for rung in ladder[:-1]:
                 if visible(pos_l[k], rung[m], rad_l[k]):
@@ -233,18 +230,18 @@ def preferred(
                 carrot[k] = ladder[-1][m]
     # Close to the site the field's single target cell would pull everyone to one point: aim at the own goal.
     direction, speed = headings(
-        idx, nodes, s.pos, carrot, s.goal, s.site, g.dist_table, s.speed, 1.5 * c["goal_spread"]
+        idx, nodes, state.pos, carrot, state.goal, state.site, grid.dist_table, state.speed, 1.5 * config["goal_spread"]
     )
-    stall = s.stall[idx]
-    stuck = stall >= c["stuck_steps"]
+    stall = state.stall[idx]
+    stuck = stall >= config["stuck_steps"]
     if stuck.any():
         # Side-step (the rotate half of push-and-rotate): to the right when there is room, else to the left,
         # switching sides every `stuck_steps` so an agent pinned against a curb or a wall gets out.
         dx, dy = direction[stuck, 0].copy(), direction[stuck, 1].copy()
         right = np.stack([dy, -dx], 1)
         probe = pos[stuck] + right * 1.0
-        sign = np.where(g.is_free(probe), 1.0, -1.0)
-        phase = (stall[stuck] - c["stuck_steps"]) // c["stuck_steps"]
+        sign = np.where(grid.is_free(probe), 1.0, -1.0)
+        phase = (stall[stuck] - config["stuck_steps"]) // config["stuck_steps"]
         sign = np.where(phase % 2 == 1, -sign, sign)
         ang = -1.2 * sign
         cs, sn = np.cos(ang), np.sin(ang)

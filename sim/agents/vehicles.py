@@ -97,57 +97,59 @@ class VehicleManager:
 
     def _build_scene(self, scene: Scene) -> None:
         """The scene's lanes, crossings, crosswalks and the parts that use them (pure functions of the scene)."""
-        c = self.config
+        cfg = self.config
         road = build_lanes(scene)
-        lanes = road + (build_connectors(scene, road) if c["turning"] else [])
-        self.network = LaneNetwork.build(lanes, len(road), c["turn_accel"])
-        self.zones = build_conflict_zones(road, c["width"])
-        self.crosswalks = CrosswalkOccupancy(scene.crosswalks, c["crosswalk_margin"])
-        self.routing = LaneRouting(self.network, self.zones, c["length"], c["min_gap"], c["time_headway"])
-        compatible = connector_compatibility(lanes, c["width"])
+        lanes = road + (build_connectors(scene, road) if cfg["turning"] else [])
+        self.network = LaneNetwork.build(lanes, len(road), cfg["turn_accel"])
+        self.zones = build_conflict_zones(road, cfg["width"])
+        self.crosswalks = CrosswalkOccupancy(scene.crosswalks, cfg["crosswalk_margin"])
+        self.routing = LaneRouting(self.network, self.zones, cfg["length"], cfg["min_gap"], cfg["time_headway"])
+        compatible = connector_compatibility(lanes, cfg["width"])
         self.junctions = JunctionGrants(
-            self.network, compatible, c["length"], c["min_gap"], c["comfort_decel"], c["junction_stop"]
+            self.network, compatible, cfg["length"], cfg["min_gap"], cfg["comfort_decel"], cfg["junction_stop"]
         )
-        self.crossings = LaneCrossings(self.zones, c["length"], c["stop_gap"], c["comfort_decel"], c["max_hold"])
+        self.crossings = LaneCrossings(
+            self.zones, cfg["length"], cfg["stop_gap"], cfg["comfort_decel"], cfg["max_hold"]
+        )
         self._scene = scene
 
     def reset(self, scene: Scene | Mapping[str, Any], rng: np.random.Generator) -> np.ndarray:
         """Spawn `traffic_density` vehicles per 100 m of lane on `scene` (a dict is parsed), at least one IDM jam
         gap apart."""
-        c = self.config
+        cfg = self.config
         self._rng = rng
         scene = as_scene(scene, self._scene)
         if scene is not self._scene:  # lanes, crossings and zones are pure functions of the scene: build once
             self._build_scene(scene)
         z = self.zones
         lane_id, s = [], []
-        spacing = c["length"] + c["min_gap"] + 2.0
+        spacing = cfg["length"] + cfg["min_gap"] + 2.0
         for li, lane in enumerate(self.network.lanes[: self.network.n_road]):  # nobody starts inside a junction box
-            slots = np.arange(int(lane.length // spacing)) * spacing + 0.5 * c["length"]
+            slots = np.arange(int(lane.length // spacing)) * spacing + 0.5 * cfg["length"]
             # No vehicle starts inside a lane crossing: two axes could otherwise begin inside one.
             on = z.lane == li
             for lo, hi in zip(z.s_in[on], z.s_out[on]):
-                slots = slots[(slots + c["length"] < lo) | (slots - c["length"] > hi)]
-            want = c["traffic_density"] * lane.length / 100.0
-            n = min(int(want) + int(rng.random() < want - int(want)), len(slots))
-            if n <= 0:
+                slots = slots[(slots + cfg["length"] < lo) | (slots - cfg["length"] > hi)]
+            want = cfg["traffic_density"] * lane.length / 100.0
+            count = min(int(want) + int(rng.random() < want - int(want)), len(slots))
+            if count <= 0:
                 continue
-            lane_id += [li] * n
-            s += list(np.sort(rng.choice(slots, size=n, replace=False)) + rng.uniform(0.0, 1.0, n))
-        n = len(s)
-        lo, hi = c["desired_speed"]
-        desired_speed = rng.uniform(lo, hi, n)
-        speed = desired_speed * rng.uniform(0.5, 1.0, n)
+            lane_id += [li] * count
+            s += list(np.sort(rng.choice(slots, size=count, replace=False)) + rng.uniform(0.0, 1.0, count))
+        count = len(s)
+        lo, hi = cfg["desired_speed"]
+        desired_speed = rng.uniform(lo, hi, count)
+        speed = desired_speed * rng.uniform(0.5, 1.0, count)
         self.state = TrafficState(
             lane_id=np.asarray(lane_id, dtype=np.int64),
             s=np.asarray(s, dtype=np.float64),
             speed=speed,
             desired_speed=desired_speed,
             next_lane=np.array([self.routing.draw_next(li, rng) for li in lane_id], dtype=np.int64),
-            prev_lane=np.full(n, -1, dtype=np.int64),
-            granted=np.zeros(n, dtype=bool),
-            waited=np.zeros(n),
-            jumped=np.zeros(n, dtype=bool),
+            prev_lane=np.full(count, -1, dtype=np.int64),
+            granted=np.zeros(count, dtype=bool),
+            waited=np.zeros(count),
+            jumped=np.zeros(count, dtype=bool),
             occupied_crosswalks=np.zeros(len(self.crosswalks.polygons), dtype=bool),
             crossing_holder=np.full(z.n_zones, np.nan),
             crossing_held_for=np.zeros(z.n_zones),
@@ -166,7 +168,7 @@ class VehicleManager:
 
     def advance(self, dt: float, people_xy: np.ndarray | None = None) -> None:
         """step() without building its states (the env reads `poses()`)."""
-        c, st, net = self.config, self.state, self.network
+        cfg, st, net = self.config, self.state, self.network
         st.occupied_crosswalks = self.crosswalks.occupied(people_xy if st.n else None)
         if not st.n:
             return
@@ -185,11 +187,11 @@ class VehicleManager:
             cl,
             cc,
             cs,
-            float(c["length"]),
-            float(c["stop_gap"]),
+            float(cfg["length"]),
+            float(cfg["stop_gap"]),
             float(dt),
-            float(c["comfort_decel"]),
-            float(c["junction_stop"]),
+            float(cfg["comfort_decel"]),
+            float(cfg["junction_stop"]),
             len(net.lanes),
         )
         self.crossings.take_turns(st, dt, ls, ss, v, gap, dv)
@@ -220,30 +222,30 @@ class VehicleManager:
             cl,
             cc,
             cs,
-            float(c["length"]),
-            float(c["stop_gap"]),
-            float(c["junction_stop"]),
-            float(c["comfort_decel"]),
+            float(cfg["length"]),
+            float(cfg["stop_gap"]),
+            float(cfg["junction_stop"]),
+            float(cfg["comfort_decel"]),
         )
         st.speed, st.s = idm(
             order,
             v,
             gap,
             dv,
-            ratio ** c["delta"],
+            ratio ** cfg["delta"],
             st.speed,
             st.s,
-            float(c["min_gap"]),
-            float(c["time_headway"]),
-            float(c["max_accel"]),
-            float(c["comfort_decel"]),
-            float(c["max_decel"]),
+            float(cfg["min_gap"]),
+            float(cfg["time_headway"]),
+            float(cfg["max_accel"]),
+            float(cfg["comfort_decel"]),
+            float(cfg["max_decel"]),
             float(dt),
         )
         st.jumped = np.zeros(st.n, dtype=bool)
         for i in np.flatnonzero(st.s >= net.lane_len[st.lane_id]).tolist():
             self.routing.leave_lane(st, i, self._rng)
-        st.prev_lane[st.s >= c["length"]] = -1  # its rear has left the lane behind it
+        st.prev_lane[st.s >= cfg["length"]] = -1  # its rear has left the lane behind it
 
     def add(self, lane: int, s: float, speed: float = 0.0, next_lane: int | None = None) -> int:
         """Put one more vehicle on `lane` at arc length `s` (scripted scenarios); returns its index."""

@@ -28,8 +28,8 @@ def moved_rows(xyz: np.ndarray, last: np.ndarray):  # pragma: no cover - numba
             moved.append(k)
     idx = np.array(moved, dtype=np.int64)
     step = np.empty((idx.size, 2))
-    for m in range(idx.size):
-        step[m, 0], step[m, 1] = xyz[idx[m], 0] - last[idx[m], 0], xyz[idx[m], 1] - last[idx[m], 1]
+    for pos in range(idx.size):
+        step[pos, 0], step[pos, 1] = xyz[idx[pos], 0] - last[idx[pos], 0], xyz[idx[pos], 1] - last[idx[pos], 1]
     return idx, step
 
 
@@ -70,7 +70,7 @@ class CohabitantBodies:
         vehicles: tuple[np.ndarray, np.ndarray, np.ndarray],
     ) -> None:
         """Place the agent bodies at `pos` (on `base_heights`) and the vehicle bodies at `vehicles`' (x, y, yaw)."""
-        c = self.client
+        client = self.client
         self._ensure(kind_idx, len(vehicles[0]))
         if len(pos):
             xyz = np.empty((len(pos), 3))
@@ -82,17 +82,17 @@ class CohabitantBodies:
             self._yaw[moved[walking]] = np.arctan2(step[walking, 1], step[walking, 0])
             half = 0.5 * self._yaw[moved]
             for k, at, sz, cz in zip(moved.tolist(), xyz[moved].tolist(), np.sin(half).tolist(), np.cos(half).tolist()):
-                p.resetBasePositionAndOrientation(self.agents[k], at, (0, 0, sz, cz), physicsClientId=c)
+                p.resetBasePositionAndOrientation(self.agents[k], at, (0, 0, sz, cz), physicsClientId=client)
             self._xyz = xyz
         # The ray test's inputs: the shown vehicles' x, y and yaw (contiguous) and their body ids.
-        vx, vy, vyaw = (np.ascontiguousarray(v, dtype=np.float64) for v in vehicles)
+        vx, vy, vyaw = (np.ascontiguousarray(col, dtype=np.float64) for col in vehicles)
         self._vehicle_cols = (vx, vy, vyaw)
         self._vehicle_ids = np.asarray(self.vehicles[: len(vx)], dtype=np.int64)
         if len(vx):
             half_yaw = (0.5 * vyaw).tolist()
-            for body, x, y, h in zip(self.vehicles, vx.tolist(), vy.tolist(), half_yaw):
+            for body, x, y, half_h in zip(self.vehicles, vx.tolist(), vy.tolist(), half_yaw):
                 p.resetBasePositionAndOrientation(
-                    body, [x, y, VEHICLE_HEIGHT / 2], [0, 0, math.sin(h), math.cos(h)], physicsClientId=c
+                    body, [x, y, VEHICLE_HEIGHT / 2], [0, 0, math.sin(half_h), math.cos(half_h)], physicsClientId=client
                 )
 
     def _shape(self, key: Any, make: Any) -> tuple[int, int]:
@@ -111,12 +111,12 @@ class CohabitantBodies:
         return True
 
     def _ensure(self, kind_idx: np.ndarray, n_vehicles: int) -> None:
-        c = self.client
+        client = self.client
         if not self._match(kind_idx):
             kinds = [KIND_NAMES[k] for k in kind_idx]
-            for b in self.agents:
-                p.removeBody(b, physicsClientId=c)
-                self.collision_kinds.pop(b, None)
+            for old_body in self.agents:
+                p.removeBody(old_body, physicsClientId=client)
+                self.collision_kinds.pop(old_body, None)
             self.agents = []
             for k in kinds:
                 kind = AGENT_KINDS[k]
@@ -126,11 +126,13 @@ class CohabitantBodies:
                 col, vis = self._shape(
                     k,
                     lambda kind=kind, shaft=shaft, k=k: (
-                        p.createCollisionShape(p.GEOM_CAPSULE, radius=kind.radius, height=shaft, physicsClientId=c),
-                        figure_shape(c, k, max(kind.height, 2.0 * kind.radius), kind.radius, kind.color),
+                        p.createCollisionShape(
+                            p.GEOM_CAPSULE, radius=kind.radius, height=shaft, physicsClientId=client
+                        ),
+                        figure_shape(client, k, max(kind.height, 2.0 * kind.radius), kind.radius, kind.color),
                     ),
                 )
-                body = p.createMultiBody(0.0, col, vis, PARKED, physicsClientId=c)
+                body = p.createMultiBody(0.0, col, vis, PARKED, physicsClientId=client)
                 self.agents.append(body)
                 self.collision_kinds[body] = "agent"
             self._kind_idx = self._kind_src = kind_idx
@@ -145,18 +147,18 @@ class CohabitantBodies:
             col, vis = self._shape(
                 "vehicle",
                 lambda half=half: (
-                    p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c),
+                    p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=client),
                     p.createVisualShape(
-                        p.GEOM_BOX, halfExtents=half, rgbaColor=[0.25, 0.25, 0.65, 1.0], physicsClientId=c
+                        p.GEOM_BOX, halfExtents=half, rgbaColor=[0.25, 0.25, 0.65, 1.0], physicsClientId=client
                     ),
                 ),
             )
-            body = p.createMultiBody(0.0, col, vis, PARKED, physicsClientId=c)
+            body = p.createMultiBody(0.0, col, vis, PARKED, physicsClientId=client)
             self.vehicles.append(body)
             self.collision_kinds[body] = "vehicle"
         if n_vehicles != self._vehicles_shown:  # park unused bodies once, not every step
             for body in self.vehicles[n_vehicles:]:
-                p.resetBasePositionAndOrientation(body, PARKED, [0, 0, 0, 1], physicsClientId=c)
+                p.resetBasePositionAndOrientation(body, PARKED, [0, 0, 0, 1], physicsClientId=client)
             self._vehicles_shown = n_vehicles
 
     def ray_hits(

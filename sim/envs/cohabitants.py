@@ -77,9 +77,9 @@ class CrowdAdapter(Manager[AgentManager]):
         pos = self.crowd.pos
         if not len(pos):
             return math.inf
-        c, s = math.cos(ego.yaw), math.sin(ego.yaw)
+        cos_yaw, sin_yaw = math.cos(ego.yaw), math.sin(ego.yaw)
         # Agent centres in the ego frame, then the distance to the footprint box (0 inside it).
-        ex, ey = box_gaps(pos, ego.x, ego.y, c, s, 0.5 * ego.length, 0.5 * ego.width)
+        ex, ey = box_gaps(pos, ego.x, ego.y, cos_yaw, sin_yaw, 0.5 * ego.length, 0.5 * ego.width)
         return float(np.min(np.hypot(ex, ey) - self.crowd.radius))
 
 
@@ -184,8 +184,8 @@ class BodyAdapter(Manager[WorldBodies]):
         xy = crowd.pos
         if not len(xy):
             return np.zeros(0)
-        g = crowd.grid
-        assert g is not None  # the crowd's reset built its grid; only then are there agents
-        codes = cell_values(xy, float(g.origin[0]), float(g.origin[1]), float(g.res), g.cells)
+        grid = crowd.grid
+        assert grid is not None  # the crowd's reset built its grid; only then are there agents
+        codes = cell_values(xy, float(grid.origin[0]), float(grid.origin[1]), float(grid.res), grid.cells)
         # Legend: sidewalk on the curb, crosswalk on the road, ramps half way.
         return np.array([curb, curb, 0.0, curb / 2])[np.minimum(codes, 3)]

@@ -39,24 +39,28 @@ class EgoObservation:
         lid = cfg["lidar"]
         self.num_beams = int(lid["beams"])
         self.num_low_beams = int(lid["low_beams"])
-        self.num_waypoints = w = int(cfg["num_waypoints"])
+        self.num_waypoints = num_wp = int(cfg["num_waypoints"])
         self.names = (
             [f"lidar_{k}" for k in range(self.num_beams)]
             + [f"low_{k}" for k in range(self.num_low_beams)]
             + ["speed", "yaw_rate", "heading_error", "lateral_offset", "last_steering", "last_throttle"]
-            + [f"wp{i}_{a}" for i in range(w) for a in "xy"]
+            + [f"wp{i}_{axis}" for i in range(num_wp) for axis in "xy"]
             + ["goal_distance", "goal_heading_sin", "goal_heading_cos"]
         )
-        n = len(self.names)
-        low = -np.ones(n, dtype=np.float32)
+        num_obs = len(self.names)
+        low = -np.ones(num_obs, dtype=np.float32)
         low[: self.num_beams + self.num_low_beams] = 0.0
         self.space: gym.spaces.Box | gym.spaces.Dict = gym.spaces.Box(
-            low, np.ones(n, dtype=np.float32), dtype=np.float32
+            low, np.ones(num_obs, dtype=np.float32), dtype=np.float32
         )
         self.mode = observation_mode(cfg)
         self.last_images: dict[str, np.ndarray] = {}  # the camera's latest images (the dashboard shows them)
-        b = self.num_beams + self.num_low_beams
-        self._parts = {"lidar": slice(0, b), "state": slice(b, b + 6), "nav": slice(b + 6, n)}
+        num_rays = self.num_beams + self.num_low_beams
+        self._parts = {
+            "lidar": slice(0, num_rays),
+            "state": slice(num_rays, num_rays + 6),
+            "nav": slice(num_rays + 6, num_obs),
+        }
         if self.mode == "dict":
             self.space = gym.spaces.Dict(
                 {
@@ -64,7 +68,7 @@ class EgoObservation:
                     **camera_spaces(cfg["camera"]),
                 }
             )
-        self._wp_offsets = np.arange(1, w + 1, dtype=np.float64) * float(cfg["waypoint_spacing"])
+        self._wp_offsets = np.arange(1, num_wp + 1, dtype=np.float64) * float(cfg["waypoint_spacing"])
         self._wp_scale = 1.0 / (self._wp_offsets[-1])
         self.speed_scale = float(cfg["speed_scale"])
         self.lateral_scale = float(cfg["out_of_route_distance"])
@@ -83,24 +87,23 @@ class EgoObservation:
     ) -> Observation:
         """The observation of `machine` at arc length `progress` and offset `lateral` on `route` (scans now; the
         camera renders when the observation is a Dict, `extra_kinds` naming the bodies the world does not hold)."""
-        m = machine
-        x, y, z = m.position
-        yaw = m.yaw
+        x, y, z = machine.position
+        yaw = machine.yaw
         lidar.scan(x, y, z, yaw)
         parts = [lidar.encoded()]
         if low_lidar is not None:
             parts.append(low_lidar.scan(x, y, z, yaw))
         heading_err = _wrap(yaw - route.heading_at(progress))
-        c, s = math.cos(yaw), math.sin(yaw)
+        cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
         wp = route.point_at(progress + self._wp_offsets)
         dx, dy = wp[:, 0] - x, wp[:, 1] - y
         scale = self._wp_scale
-        ego = np.stack([(c * dx + s * dy) * scale, (-s * dx + c * dy) * scale], 1).ravel()
+        ego = np.stack([(cos_yaw * dx + sin_yaw * dy) * scale, (-sin_yaw * dx + cos_yaw * dy) * scale], 1).ravel()
         gx, gy = route.goal[0] - x, route.goal[1] - y
         bearing = math.atan2(gy, gx) - yaw
         state = [
-            m.speed / self.speed_scale,
-            m.yaw_rate / 2.0,
+            machine.speed / self.speed_scale,
+            machine.yaw_rate / 2.0,
             heading_err / math.pi,
             lateral / self.lateral_scale,
             last_action[0],

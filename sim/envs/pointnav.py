@@ -186,22 +186,22 @@ class PointNavEnv(gym.Env):
     # -- managers and measures --------------------------------------------------------------------
     def _ego(self) -> EgoPose:
         """The machine as the managers see it."""
-        m = self.machine
-        assert m is not None  # the managers run once reset has placed the machine
-        x, y, _ = m.position
-        return EgoPose(float(x), float(y), m.yaw, m.speed, m.spec.length, m.spec.width)
+        machine = self.machine
+        assert machine is not None  # the managers run once reset has placed the machine
+        x, y, _ = machine.position
+        return EgoPose(float(x), float(y), machine.yaw, machine.speed, machine.spec.length, machine.spec.width)
 
     def _episode_metrics(self) -> dict[str, float]:
         """The metrics of the finished episode, from the configured measures in order."""
         metrics: dict[str, float] = {}
-        for m in self.measures:
-            metrics.update(m.value(self.measure_view, metrics))
+        for measure in self.measures:
+            metrics.update(measure.value(self.measure_view, metrics))
         return metrics
 
     def _measure_view(self) -> EpisodeView:
         """What the measures read of the episode just reset, with the fields the managers supply."""
-        route, m = self.route, self.machine
-        assert route is not None and m is not None  # reset calls this once it has placed the machine on a route
+        route, machine = self.route, self.machine
+        assert route is not None and machine is not None  # reset calls this once it has placed the machine on a route
         fields: dict[str, Any] = {}
         for mg in self.managers:
             fields.update(mg.view_fields())
@@ -209,7 +209,7 @@ class PointNavEnv(gym.Env):
             episode=self.episode,
             route_length=float(route.length),
             dt=self.dt,
-            cruise_speed=min(float(self.config["stl_cruise_speed"]), m.spec.v_max),
+            cruise_speed=min(float(self.config["stl_cruise_speed"]), machine.spec.v_max),
             collision_kinds=tuple(self.collision_kinds_all),
             reference_length=self.reference_length,
             **fields,
@@ -236,7 +236,7 @@ class PointNavEnv(gym.Env):
         self.route = None  # a reset that fails leaves no episode to step
         super().reset(seed=seed)
         rng = self.np_random
-        lo, hi = (float(v) for v in self.config["route_length"])
+        lo, hi = (float(bound) for bound in self.config["route_length"])
         for attempt in range(ROUTE_REDRAWS):
             self._ensure_scene(rng)
             planner = self.planner
@@ -247,19 +247,19 @@ class PointNavEnv(gym.Env):
             except RouteError:
                 if route_points or attempt == ROUTE_REDRAWS - 1:
                     raise
-        route, m, world = self.route, self.machine, self.world
-        assert route is not None and m is not None and world is not None  # the last redraw's RouteError is raised
+        route, machine, world = self.route, self.machine, self.world
+        assert route is not None and machine is not None and world is not None  # the last redraw's RouteError is raised
         start = route.start
         yaw = route.heading_at(0.0)
         # Park the machine (and the managers' bodies) far away so the height probe sees the surface only.
-        p.resetBasePositionAndOrientation(m.body, [0, 0, -50], [0, 0, 0, 1], physicsClientId=self.client)
+        p.resetBasePositionAndOrientation(machine.body, [0, 0, -50], [0, 0, 0, 1], physicsClientId=self.client)
         for mg in self.managers:
             mg.park()
         # With the machine away from everything, Bullet drops its cached contacts (warm-start impulses):
         # an episode then does not depend on the episodes before it.
         p.performCollisionDetection(physicsClientId=self.client)
         z = world.surface_height(float(start[0]), float(start[1]))
-        m.reset(float(start[0]), float(start[1]), z, yaw, rng)
+        machine.reset(float(start[0]), float(start[1]), z, yaw, rng)
         cfg = self.config
         horizon = int(cfg["horizon"])
         if cfg["horizon_min_speed"] is not None:
@@ -283,31 +283,31 @@ class PointNavEnv(gym.Env):
             raise RuntimeError("call reset() before step() (no reset yet, or the last one failed)")
         if np.iscomplexobj(action):
             raise ValueError("the action holds complex numbers; pass [steering, throttle_brake] as real numbers")
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != (2,):
+        act = np.asarray(action, dtype=np.float64).reshape(-1)
+        if act.shape != (2,):
             raise ValueError(f"action must hold 2 values [steering, throttle_brake], got shape {np.shape(action)}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"action {a.tolist()} holds NaN or inf; policies must output finite values in [-1, 1]")
-        a = np.clip(a, -1.0, 1.0)
-        steer, throttle = float(a[0]), float(a[1])
-        m, c, planner = self.machine, self.client, self.planner
-        assert m is not None and planner is not None  # placed with the route by the reset
-        x0, y0 = m.position[0], m.position[1]
+        if not np.isfinite(act).all():
+            raise ValueError(f"action {act.tolist()} holds NaN or inf; policies must output finite values in [-1, 1]")
+        act = np.clip(act, -1.0, 1.0)
+        steer, throttle = float(act[0]), float(act[1])
+        machine, client, planner = self.machine, self.client, self.planner
+        assert machine is not None and planner is not None  # placed with the route by the reset
+        x0, y0 = machine.position[0], machine.position[1]
         if self.managers:  # PointNav has none: its steps build no contexts
             tick = TickContext(self.dt, self._ego(), (steer, throttle))
             for mg in self.managers:
                 mg.before_step(tick)
         hits: set[str] = set()
         for _ in range(self.substeps):
-            m.command(steer, throttle, self.dt / self.substeps)
-            p.stepSimulation(physicsClientId=c)
-            m.sync()
+            machine.command(steer, throttle, self.dt / self.substeps)
+            p.stepSimulation(physicsClientId=client)
+            machine.sync()
             self._contacts(hits)
         if self.managers:
             tick = TickContext(self.dt, self._ego(), (steer, throttle))
             for mg in self.managers:
                 mg.after_step(tick)
-        x, y = m.position[0], m.position[1]
+        x, y = machine.position[0], machine.position[1]
         ep = self.episode
         s, lat = self.route.locate(x, y, ep.progress)
         collided = bool(hits & self.cost_kinds)
@@ -320,8 +320,8 @@ class PointNavEnv(gym.Env):
             self.route.length,
             lat,
             steer - ep.last_action[0],
-            m.speed,
-            max(abs(m.roll), abs(m.pitch)),
+            machine.speed,
+            max(abs(machine.roll), abs(machine.pitch)),
             collided,
             bool(hits),
             ep.cost_total,
@@ -331,7 +331,7 @@ class PointNavEnv(gym.Env):
         ep.succeeded, ep.out_of_route, ep.stuck = end.succeeded, end.out_of_route, end.stuck
         ep.toppled, ep.cost_exceeded = end.toppled, end.cost_exceeded
         reward = self.reward_fn(step, end)
-        ep.last_action = a
+        ep.last_action = act
         terminated = end.terminated
         truncated = (not terminated) and ep.steps >= ep.horizon
         for meas in self.measures:
@@ -349,9 +349,9 @@ class PointNavEnv(gym.Env):
         return obs, reward, terminated, truncated, info
 
     def _contacts(self, hits: set[str]) -> None:
-        m = self.machine
-        assert m is not None  # step runs only after a reset placed the machine
-        touching(self.client, m.body, self.kinds, self._collision_kinds, hits)
+        machine = self.machine
+        assert machine is not None  # step runs only after a reset placed the machine
+        touching(self.client, machine.body, self.kinds, self._collision_kinds, hits)
 
     def _observe(self) -> Observation:
         ep = self.episode

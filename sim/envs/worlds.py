@@ -65,9 +65,11 @@ class SceneSource:
 
     def __init__(self, config: Mapping[str, Any]) -> None:
         self.config = config
-        n = config["num_scenes"]
-        if n is not None and (not isinstance(n, int) or isinstance(n, bool) or n < 1):
-            raise ConfigError(f"config.num_scenes must be an integer >= 1 (or None), got {n!r}")
+        num_scenes = config["num_scenes"]
+        if num_scenes is not None and (
+            not isinstance(num_scenes, int) or isinstance(num_scenes, bool) or num_scenes < 1
+        ):
+            raise ConfigError(f"config.num_scenes must be an integer >= 1 (or None), got {num_scenes!r}")
         seed = config["scene_seed"]
         if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < MAX_SEED:
             raise ConfigError(f"config.scene_seed must be an integer in [0, {MAX_SEED}), got {seed!r}")
@@ -88,17 +90,17 @@ class SceneSource:
         elif config["scene_dir"] is not None:
             self.kind = "dir"
             self.files = dataset_scenes(config["scene_dir"], config["split"])
-            if n is not None:
-                self.files = self.files[seed : seed + n]
+            if num_scenes is not None:
+                self.files = self.files[seed : seed + num_scenes]
                 if not self.files:
                     raise ConfigError(f"config.scene_seed {seed} is past the {config['scene_dir']} split's scenes")
         else:
             self.kind = "generated"
-            if n is None:
+            if num_scenes is None:
                 raise ConfigError(
                     "config.num_scenes must be an integer for generated scenes (None means all of scene_dir)"
                 )
-            if seed + n > MAX_SEED:
+            if seed + num_scenes > MAX_SEED:
                 raise ConfigError(
                     f"config.scene_seed + num_scenes must stay <= {MAX_SEED} so splits never share a scene"
                 )
@@ -162,16 +164,16 @@ class SceneCache:
 
     def clients(self) -> list[int]:
         """Every Bullet client the cache holds."""
-        return [s.client for s in self.slots.values()] + list(self._spare)
+        return [slot.client for slot in self.slots.values()] + list(self._spare)
 
     def close(self) -> None:
         """Disconnect every client."""
-        for c in self.clients():
+        for client in self.clients():
             try:
-                p.disconnect(physicsClientId=c)
+                p.disconnect(physicsClientId=client)
             except p.error:
                 pass
-            forget_egl(c)
+            forget_egl(client)
         self.slots.clear()
         self._spare = []
 

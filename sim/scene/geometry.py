@@ -30,34 +30,34 @@ def straight(p: np.ndarray, h: float, length: float) -> Polyline:
 
 def arc_about(c: np.ndarray, radius: float, a0: float, a1: float, step: float = 2.0) -> Polyline:
     """Circular arc about centre `c` from polar angle a0 to a1 (counter-clockwise when a1 > a0)."""
-    n = max(8, int(math.ceil(abs(a1 - a0) * radius / step)) + 1)
-    a = np.linspace(a0, a1, n)
-    return Polyline(c + radius * np.stack([np.cos(a), np.sin(a)], axis=1))
+    num_pts = max(8, int(math.ceil(abs(a1 - a0) * radius / step)) + 1)
+    angles = np.linspace(a0, a1, num_pts)
+    return Polyline(c + radius * np.stack([np.cos(angles), np.sin(angles)], axis=1))
 
 
 def arc(p: np.ndarray, h: float, radius: float, angle: float) -> Polyline:
     """Arc leaving `p` at heading `h`, turning by signed `angle` (positive: left) on `radius`."""
     sign = 1.0 if angle > 0 else -1.0
-    c = p + sign * radius * unit(h + math.pi / 2)
+    centre = p + sign * radius * unit(h + math.pi / 2)
     a0 = h - sign * math.pi / 2
-    return arc_about(c, radius, a0, a0 + angle)
+    return arc_about(centre, radius, a0, a0 + angle)
 
 
 def strip(cl: Polyline, d0: float, d1: float, s0: float | None = None, s1: float | None = None) -> Polygon:
     """Polygon between lateral offsets d0 and d1, optionally restricted to arc lengths [s0, s1]."""
     if s0 is None and s1 is None:
-        a, b = cl.offset(d0), cl.offset(d1)
+        edge0, edge1 = cl.offset(d0), cl.offset(d1)
     else:
         s0 = 0.0 if s0 is None else s0
         s1 = cl.length if s1 is None else s1
         inner = cl.s[(cl.s > s0) & (cl.s < s1)]
         s = np.concatenate([[s0], inner, [s1]])
         # to_world(s, d0) and to_world(s, d1), sharing the frame and the normals (the same elementwise math).
-        p, h = cl.frame(s)
-        n = np.stack([-np.sin(h), np.cos(h)], axis=1)
-        a = p + np.full(len(s), d0, dtype=np.float64)[:, None] * n
-        b = p + np.full(len(s), d1, dtype=np.float64)[:, None] * n
-    ring = np.concatenate([a, b[::-1]])
+        points, headings = cl.frame(s)
+        normal = np.stack([-np.sin(headings), np.cos(headings)], axis=1)
+        edge0 = points + np.full(len(s), d0, dtype=np.float64)[:, None] * normal
+        edge1 = points + np.full(len(s), d1, dtype=np.float64)[:, None] * normal
+    ring = np.concatenate([edge0, edge1[::-1]])
     x, y = ring[:, 0], ring[:, 1]
     # Shoelace sign instead of shapely's orient(): one polygon construction per strip, not two.
     if float(x[:-1] @ y[1:] - y[:-1] @ x[1:] + x[-1] * y[0] - y[-1] * x[0]) < 0:
@@ -72,9 +72,11 @@ def largest(geom: shapely.Geometry) -> Polygon | None:
         return None
     if isinstance(geom, Polygon):
         return geom if geom.area > 1e-6 else None
-    parts = [g for g in getattr(geom, "geoms", []) if isinstance(g, (Polygon, MultiPolygon)) and g.area > 1e-6]
-    polys = [p for g in parts for p in (g.geoms if isinstance(g, MultiPolygon) else [g])]
-    return max(polys, key=lambda p: p.area) if polys else None
+    parts = [
+        part for part in getattr(geom, "geoms", []) if isinstance(part, (Polygon, MultiPolygon)) and part.area > 1e-6
+    ]
+    polys = [poly for part in parts for poly in (part.geoms if isinstance(part, MultiPolygon) else [part])]
+    return max(polys, key=lambda poly: poly.area) if polys else None
 
 
 def clean(geom: shapely.Geometry, eps: float = 0.005) -> Polygon | None:
@@ -92,13 +94,13 @@ def longest_line(geom: shapely.Geometry) -> LineString | None:
         return None
     if isinstance(geom, LineString):
         return geom
-    lines = [g for g in getattr(geom, "geoms", []) if isinstance(g, LineString)]
+    lines = [part for part in getattr(geom, "geoms", []) if isinstance(part, LineString)]
     if not lines:
         return None
     merged = shapely.line_merge(shapely.MultiLineString(lines))
     if isinstance(merged, LineString):
         return merged
-    return max(merged.geoms, key=lambda g: g.length)
+    return max(merged.geoms, key=lambda part: part.length)
 
 
 def ring_coords(poly: Polygon) -> list[list[float]]:

@@ -89,7 +89,7 @@ def grid_frame(bounds: Sequence[float], resolution: float) -> tuple[tuple[float,
 
 
 def _rings(poly: Polygon) -> list[np.ndarray]:
-    return [np.asarray(poly.exterior.coords)] + [np.asarray(r.coords) for r in poly.interiors]
+    return [np.asarray(poly.exterior.coords)] + [np.asarray(ring.coords) for ring in poly.interiors]
 
 
 def paint(mask: np.ndarray, origin: tuple[float, float], resolution: float, poly: Polygon, value: int | bool) -> None:
@@ -208,19 +208,19 @@ def encode_walkable(mask: np.ndarray, origin: tuple[float, float], resolution: f
 
 def decode_walkable(spec: Mapping[str, Any]) -> WalkableGrid:
     """Decode the `walkable` grid of a scene spec (or of its `walkable` object itself)."""
-    w = spec.get("walkable", spec)
-    if w.get("encoding") != ENCODING:
-        raise ValueError(f"walkable grid encoding {w.get('encoding')!r} is not supported; expected {ENCODING!r}")
-    missing = [k for k in ("shape", "cells", "origin", "resolution") if k not in w]
+    walk = spec.get("walkable", spec)
+    if walk.get("encoding") != ENCODING:
+        raise ValueError(f"walkable grid encoding {walk.get('encoding')!r} is not supported; expected {ENCODING!r}")
+    missing = [k for k in ("shape", "cells", "origin", "resolution") if k not in walk]
     if missing:
         raise ValueError(f"scene spec lacks walkable.{missing[0]}; regenerate it with `curbside scenes generate`")
-    rows, cols = (int(v) for v in w["shape"])
-    raw = zlib.decompress(base64.b64decode(w["cells"]))
+    rows, cols = (int(dim) for dim in walk["shape"])
+    raw = zlib.decompress(base64.b64decode(walk["cells"]))
     if len(raw) != rows * cols:
         raise ValueError(f"walkable grid holds {len(raw)} cells but its shape says {rows}x{cols}; regenerate the scene")
     mask = np.frombuffer(raw, dtype=np.uint8).reshape(rows, cols).copy()
     return WalkableGrid(
-        mask=mask, origin=(float(w["origin"][0]), float(w["origin"][1])), resolution=float(w["resolution"])
+        mask=mask, origin=(float(walk["origin"][0]), float(walk["origin"][1])), resolution=float(walk["resolution"])
     )
 
 
@@ -250,25 +250,25 @@ def obstacle_mask(
     polys = [_footprint(obj) for obj in objects]
     if inflate > 0:
         join = join_style or ("mitre" if inflate < 0.05 else "round")
-        polys = [p.buffer(inflate, join_style=join, quad_segs=4) for p in polys]
+        polys = [polygon.buffer(inflate, join_style=join, quad_segs=4) for polygon in polys]
     if not cover_thin:
         paint_many(out, grid.origin, grid.resolution, polys, True)
         return out
-    (x0, y0), res, (h, w) = grid.origin, grid.resolution, grid.shape
+    (x0, y0), res, (n_rows, n_cols) = grid.origin, grid.resolution, grid.shape
     for poly in polys:
         if poly.is_empty:
             continue
         # Painting sets only cells whose centres lie in the polygon, all inside its bounds: count there, not grid-wide.
         bx0, by0, bx1, by1 = poly.bounds
         win = (
-            slice(max(int(math.floor((by0 - y0) / res)), 0), min(int(math.ceil((by1 - y0) / res)) + 1, h)),
-            slice(max(int(math.floor((bx0 - x0) / res)), 0), min(int(math.ceil((bx1 - x0) / res)) + 1, w)),
+            slice(max(int(math.floor((by0 - y0) / res)), 0), min(int(math.ceil((by1 - y0) / res)) + 1, n_rows)),
+            slice(max(int(math.floor((bx0 - x0) / res)), 0), min(int(math.ceil((bx1 - x0) / res)) + 1, n_cols)),
         )
         before = int(out[win].sum())
         paint(out, grid.origin, res, poly, True)
         if int(out[win].sum()) == before:
-            i, j = (int(v) for v in grid.world_to_cell((poly.centroid.x, poly.centroid.y)))
-            if 0 <= i < h and 0 <= j < w:
+            i, j = (int(coord) for coord in grid.world_to_cell((poly.centroid.x, poly.centroid.y)))
+            if 0 <= i < n_rows and 0 <= j < n_cols:
                 out[i, j] = True
     return out
 
@@ -287,23 +287,24 @@ def grid_graph(
     rows, cols = free.shape
     node = np.full(free.shape, -1, dtype=np.int64)
     node[free] = np.arange(int(free.sum()))
-    src, dst, w = [], [], []
+    src, dst, weights = [], [], []
     for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
         j0, j1 = max(0, -dj), cols - max(0, dj)
-        a = node[0 : rows - di, j0:j1]
-        b = node[di:rows, j0 + dj : j1 + dj]
-        ok = (a >= 0) & (b >= 0)
+        node_a = node[0 : rows - di, j0:j1]
+        node_b = node[di:rows, j0 + dj : j1 + dj]
+        ok = (node_a >= 0) & (node_b >= 0)
         if di and dj and not corner_cutting:
             ok &= (node[di:rows, j0:j1] >= 0) & (node[0 : rows - di, j0 + dj : j1 + dj] >= 0)
-        src.append(a[ok])
-        dst.append(b[ok])
+        src.append(node_a[ok])
+        dst.append(node_b[ok])
         length = resolution * math.hypot(di, dj)
         if cost is None:
-            w.append(np.full(int(ok.sum()), length))
+            weights.append(np.full(int(ok.sum()), length))
         else:
-            w.append(length * (0.5 * (cost[0 : rows - di, j0:j1][ok] + cost[di:rows, j0 + dj : j1 + dj][ok])))
-    src_a, dst_a, w_a = np.concatenate(src), np.concatenate(dst), np.concatenate(w)
-    n = int(free.sum())
+            weights.append(length * (0.5 * (cost[0 : rows - di, j0:j1][ok] + cost[di:rows, j0 + dj : j1 + dj][ok])))
+    src_a, dst_a, w_a = np.concatenate(src), np.concatenate(dst), np.concatenate(weights)
+    num_nodes = int(free.sum())
     return coo_matrix(
-        (np.concatenate([w_a, w_a]), (np.concatenate([src_a, dst_a]), np.concatenate([dst_a, src_a]))), shape=(n, n)
+        (np.concatenate([w_a, w_a]), (np.concatenate([src_a, dst_a]), np.concatenate([dst_a, src_a]))),
+        shape=(num_nodes, num_nodes),
     ).tocsr()

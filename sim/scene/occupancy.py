@@ -62,10 +62,10 @@ def rects(
 def corridor(sw: Sidewalk, width: float, extend: float = 4.0) -> Polygon:
     """Keep-out band of `width` along the clear path, extended past both ends so corners stay open."""
     pts = np.asarray(sw.clear_path.coords)
-    a, b = pts[1] - pts[0], pts[-1] - pts[-2]
-    a /= max(np.hypot(*a), 1e-9)
-    b /= max(np.hypot(*b), 1e-9)
-    ext = np.concatenate([[pts[0] - extend * a], pts, [pts[-1] + extend * b]])
+    dir0, dir1 = pts[1] - pts[0], pts[-1] - pts[-2]
+    dir0 /= max(np.hypot(*dir0), 1e-9)
+    dir1 /= max(np.hypot(*dir1), 1e-9)
+    ext = np.concatenate([[pts[0] - extend * dir0], pts, [pts[-1] + extend * dir1]])
     return LineString(ext).buffer(width / 2, cap_style="flat", quad_segs=2)
 
 
@@ -102,8 +102,8 @@ class Occupancy:
         )
         self.keep_cells = {}
         self.keep_tree = shapely.STRtree(polys) if polys else None
-        for k, b in enumerate(self.keep_bounds):
-            for cell in _cells(b):
+        for k, box in enumerate(self.keep_bounds):
+            for cell in _cells(box):
                 self.keep_cells.setdefault(cell, []).append(k)
 
     def add(self, check: list[list[float]], cb: Bounds) -> None:
@@ -116,10 +116,10 @@ class Occupancy:
             self.cells.setdefault(cell, []).append(k)
 
     def _poly(self, k: int) -> Polygon:
-        p = self.polys[k]
-        if p is None:
-            p = self.polys[k] = quad_polygon(self.corners[k])
-        return p
+        poly = self.polys[k]
+        if poly is None:
+            poly = self.polys[k] = quad_polygon(self.corners[k])
+        return poly
 
     def keep_out_hits(self, polys: np.ndarray) -> np.ndarray:
         """Which of the footprints `polys` meet a keep-out (one bulk query; the predicate `free` applies one by one)."""
@@ -139,9 +139,11 @@ class Occupancy:
         for i in range(int(x0 // CELL), int(x1 // CELL) + 1):
             for j in range(int(y0 // CELL), int(y1 // CELL) + 1):
                 for k in kc.get((i, j), ()):
-                    b = kb[k]
+                    box = kb[k]
                     # Keep-outs whose bounds meet the footprint's get the exact (prepared) GEOS predicate.
-                    if not (b[2] < x0 or b[0] > x1 or b[3] < y0 or b[1] > y1) and _intersects_scalar(kp[k], poly):
+                    if not (box[2] < x0 or box[0] > x1 or box[3] < y0 or box[1] > y1) and _intersects_scalar(
+                        kp[k], poly
+                    ):
                         return False
         return True
 
@@ -157,8 +159,8 @@ class Occupancy:
                     if k in seen:
                         continue
                     seen.add(k)
-                    b = bounds[k]
-                    if b[2] < x0 or b[0] > x1 or b[3] < y0 or b[1] > y1:
+                    box = bounds[k]
+                    if box[2] < x0 or box[0] > x1 or box[3] < y0 or box[1] > y1:
                         continue
                     # Bounds meet: the exact GEOS predicate decides; any hit refuses, so the order is moot.
                     if cp is None:

@@ -34,8 +34,8 @@ class Placer:
         self.refused: Counter[str] = Counter()
         self.fallback: list[str] = []
         self.z = round_value(float(cfg["curb_height"]))  # objects stand on the curb, stored at 0.1 mm
-        self._has = {c: catalog is not None and len(catalog.candidates(c)) > 0 for c in CATEGORIES}
-        self.min_depth = {c: self._min_depth(c) for c in CATEGORIES}
+        self._has = {cat: catalog is not None and len(catalog.candidates(cat)) > 0 for cat in CATEGORIES}
+        self.min_depth = {cat: self._min_depth(cat) for cat in CATEGORIES}
         self._zones: dict[int, tuple[Polygon, tuple[float, float, float, float]]] = {}
 
     def in_catalog(self, category: str) -> bool:
@@ -59,7 +59,7 @@ class Placer:
             rec = self.catalog.sample(self.rng, category, zone=zone, max_depth=max_depth, max_width=max_width)
             if rec is None:
                 rec = self.catalog.sample(self.rng, category, max_depth=max_depth, max_width=max_width)
-            return None if rec is None else (rec.asset_id, [float(v) for v in rec.size])
+            return None if rec is None else (rec.asset_id, [float(value) for value in rec.size])
         self._note_fallback(category)
         size = list(CATEGORIES[category].size)
         return None if size[0] > max_depth or (max_width is not None and size[1] > max_width) else (None, size)
@@ -104,8 +104,8 @@ class Placer:
         """Place one object if its footprint lies in `zone`, overlaps nothing and (optionally) avoids keep-outs."""
         depth, width, height = asset[1]
         x, y = float(center[0]), float(center[1])
-        c, sn = math.cos(yaw), math.sin(yaw)
-        corners, pb = rect(x, y, c, sn, depth, width)
+        cos_yaw, sn = math.cos(yaw), math.sin(yaw)
+        corners, pb = rect(x, y, cos_yaw, sn, depth, width)
         ent = self._zones.get(id(zone.polygon))
         if ent is None or ent[0] is not zone.polygon:
             ent = self.zone_shape(zone)
@@ -117,7 +117,7 @@ class Placer:
         poly = quad_polygon(corners)
         if not _contains_scalar(zp, poly):  # zp.contains(poly), minus shapely's argument handling
             return False
-        check, cb = rect(x, y, c, sn, depth + GAP, width + GAP)
+        check, cb = rect(x, y, cos_yaw, sn, depth + GAP, width + GAP)
         if not self.occupied.free(poly, pb, check, cb, keep_out):
             return False
         self.occupied.add(check, cb)
@@ -154,18 +154,18 @@ class Placer:
         spacing = float(self.cfg["standard_spacing"]) / rho
         s0, s1 = sw.s_range
         stations = np.arange(s0 + 1.0 + self.rng.uniform(0, min(spacing, s1 - s0)), s1 - 1.0, spacing)
-        allowed = [c for c in of_class("standard") if self.min_depth[c] <= zone.width - 0.05]
+        allowed = [category for category in of_class("standard") if self.min_depth[category] <= zone.width - 0.05]
         cl, side = sw.roadway.centerline, sw.side
-        for s in stations:
+        for station in stations:
             cat = self.sampler.draw(self.rng, "standard", allowed)
             if cat is None:
                 return
-            a = self.asset(cat, "furnishing", zone.width - 0.05)
+            asset = self.asset(cat, "furnishing", zone.width - 0.05)
             ok = False
-            if a is not None:
+            if asset is not None:
                 for ds in (0.0, 0.8, -0.8, 1.6)[: max(1, int(self.cfg["placement_tries"]))]:
-                    x, y, h = cl.point_xy(s + ds, side * (zone.d0 + zone.d1) / 2)
-                    if self.try_place(sw, zone, cat, a, (x, y), h + side * math.pi / 2):
+                    x, y, heading = cl.point_xy(station + ds, side * (zone.d0 + zone.d1) / 2)
+                    if self.try_place(sw, zone, cat, asset, (x, y), heading + side * math.pi / 2):
                         ok = True
                         break
             if not ok:
@@ -183,12 +183,12 @@ class Placer:
         for _ in range(max(1, int(self.cfg["placement_tries"]))):
             s = self.rng.uniform(*sw.s_range)
             d = self.rng.uniform(lo, hi)
-            x, y, h = cl.point_xy(s, side * d)
+            x, y, heading = cl.point_xy(s, side * d)
             if yaw_mode == "random":
                 yaw = float(self.rng.uniform(-math.pi, math.pi))
             else:
                 # Furnishing objects face the walkway (away from the road); frontage objects face the road.
-                yaw = h + side * math.pi / 2 * (1 if zone.kind == "furnishing" else -1)
+                yaw = heading + side * math.pi / 2 * (1 if zone.kind == "furnishing" else -1)
             if self.try_place(sw, zone, category, asset, (x, y), yaw):
                 return True
         return False
@@ -199,9 +199,11 @@ class Placer:
         length = sw.s_range[1] - sw.s_range[0]
         for _ in range(self._count(float(self.cfg["non_standard_per_100m"]), length)):
             allowed = [
-                c
-                for c in of_class("non_standard")
-                if any(z in present and self.min_depth[c] <= present[z].width for z in CATEGORIES[c].zones)
+                category
+                for category in of_class("non_standard")
+                if any(
+                    z in present and self.min_depth[category] <= present[z].width for z in CATEGORIES[category].zones
+                )
             ]
             cat = self.sampler.draw(self.rng, "non_standard", allowed)
             if cat is None:
@@ -210,8 +212,8 @@ class Placer:
                 present[z] for z in CATEGORIES[cat].zones if z in present and self.min_depth[cat] <= present[z].width
             ]
             zone = zones[int(self.rng.integers(len(zones)))]
-            a = self.asset(cat, zone.kind, zone.width)
-            if a is None or not self._random_in(sw, zone, cat, a, "aligned"):
+            asset = self.asset(cat, zone.kind, zone.width)
+            if asset is None or not self._random_in(sw, zone, cat, asset, "aligned"):
                 self.refused[cat] += 1
 
     def clutter(self, sw: Sidewalk) -> None:
@@ -223,8 +225,8 @@ class Placer:
             cat = self.sampler.draw(self.rng, "clutter")
             if cat is None:
                 return
-            a = self.asset(cat, zone.kind, zone.width)
-            if a is None or not self._random_in(sw, zone, cat, a, "random"):
+            asset = self.asset(cat, zone.kind, zone.width)
+            if asset is None or not self._random_in(sw, zone, cat, asset, "random"):
                 self.refused[cat] += 1
 
     def fill(self, sw: Sidewalk, gap_scale: float = 1.0) -> None:
@@ -256,9 +258,12 @@ class Placer:
             if zone.kind not in FILL_ZONES:
                 continue
             # Wide zones (frontage of commercial templates) hold several rows, as cafe seating and displays do.
-            n = max(1, int(zone.width // float(self.cfg["fill_row_width"])))
-            band = zone.width / n
-            rows += [Row(zone, zone.d0 + r * band, zone.d0 + (r + 1) * band, gap_mean, p_clutter) for r in range(n)]
+            num_bands = max(1, int(zone.width // float(self.cfg["fill_row_width"])))
+            band = zone.width / num_bands
+            rows += [
+                Row(zone, zone.d0 + band_idx * band, zone.d0 + (band_idx + 1) * band, gap_mean, p_clutter)
+                for band_idx in range(num_bands)
+            ]
         fill_rows(self, sw, rows)
 
     def buildings(self, sw: Sidewalk) -> int:
@@ -277,31 +282,33 @@ class Placer:
         fill = self.cfg["density_model"] == "paper"
         while s < s_end - 4.0:
             want = float(self.rng.uniform(8.0, 20.0))
-            a = (
+            asset = (
                 None
                 if fill and not self.in_catalog("building_facade")
                 else self.asset("building_facade", "building", zone.width, want)
             )
             if fill:
-                height = a[1][2] if a is not None and a[0] is not None else float(self.rng.uniform(6.0, 30.0))
-                a = (None if a is None else a[0], [zone.width, want, height])
-            elif a is None:
+                height = (
+                    asset[1][2] if asset is not None and asset[0] is not None else float(self.rng.uniform(6.0, 30.0))
+                )
+                asset = (None if asset is None else asset[0], [zone.width, want, height])
+            elif asset is None:
                 skipped += 1
                 s += 3.0
                 continue
-            elif a[0] is None:
-                a = (None, [zone.width, want, float(self.rng.uniform(6.0, 30.0))])
+            elif asset[0] is None:
+                asset = (None, [zone.width, want, float(self.rng.uniform(6.0, 30.0))])
             placed = False
             # Outside the paper model only fallback boxes may be narrowed; a catalog mesh keeps its real size.
-            shapes = [(1.0, 1.0), (1.0, 0.6), (1.0, 0.35)] if fill or a[0] is None else [(1.0, 1.0)]
+            shapes = [(1.0, 1.0), (1.0, 0.6), (1.0, 0.35)] if fill or asset[0] is None else [(1.0, 1.0)]
             if fill:
                 shapes += [(0.8, 0.6), (0.8, 0.35), (0.6, 0.35), (0.6, 0.2)]
             for deep, shrink in shapes:
-                size = [a[1][0] * deep, max(a[1][1] * shrink, 3.0), a[1][2]]
+                size = [asset[1][0] * deep, max(asset[1][1] * shrink, 3.0), asset[1][2]]
                 sc = s + size[1] / 2 + 0.1
-                x, y, h = cl.point_xy(sc, side * (zone.d0 + size[0] / 2))
+                x, y, heading = cl.point_xy(sc, side * (zone.d0 + size[0] / 2))
                 if self.try_place(
-                    sw, zone, "building_facade", (a[0], size), (x, y), h - side * math.pi / 2, keep_out=False
+                    sw, zone, "building_facade", (asset[0], size), (x, y), heading - side * math.pi / 2, keep_out=False
                 ):
                     s = sc + size[1] / 2 + 0.1
                     placed = True

@@ -76,15 +76,15 @@ def build_block(code: str, bid: str, p: np.ndarray, h: float, rng: np.random.Gen
     elif code in ("X", "T"):
         la = _u(rng, cfg["arm_length"])
         ways.append(_arm(bid, 0, p, h, la, hw))
-        c = p + (la + hw) * unit(h)
+        centre = p + (la + hw) * unit(h)
         outs = (h, h + HALF_PI, h - HALF_PI) if code == "X" else (h + HALF_PI, h - HALF_PI)
-        for k, a in enumerate(outs, start=1):
-            start = c + hw * unit(a)
-            ways.append(_arm(bid, k, start, a, la, hw))
-            sockets.append((start + la * unit(a), a))
+        for k, out_h in enumerate(outs, start=1):
+            start = centre + hw * unit(out_h)
+            ways.append(_arm(bid, k, start, out_h, la, hw))
+            sockets.append((start + la * unit(out_h), out_h))
         if code == "T":
             # The far side of the junction core carries the sidewalk that joins the two arms' far sidewalks.
-            a0 = c + hw * unit(h + HALF_PI)
+            a0 = centre + hw * unit(h + HALF_PI)
             ways.append(Roadway(f"{bid}.3", straight(a0, h - HALF_PI, 2 * hw), hw, sides=(1,), crosswalk_ends=()))
         through = 2 * la + 2 * hw
     elif code == "O":
@@ -92,25 +92,27 @@ def build_block(code: str, bid: str, p: np.ndarray, h: float, rng: np.random.Gen
         ri = _u(rng, cfg["roundabout_radius"])
         ro = ri + 2 * hw
         r0 = math.sqrt(ro * ro - hw * hw)
-        c = p + (la + ro) * unit(h)
+        centre = p + (la + ro) * unit(h)
         ways.append(_arm(bid, 0, p, h, la + ro - r0, hw))
         angles = (h + math.pi, h - HALF_PI, h, h + HALF_PI)  # polar angles of the arms, counter-clockwise
-        for k, a in enumerate(angles[1:], start=1):
-            start = c + r0 * unit(a)
-            ways.append(_arm(bid, k, start, a, la + ro - r0, hw))
-            sockets.append((c + (ro + la) * unit(a), a))
+        for k, out_h in enumerate(angles[1:], start=1):
+            start = centre + r0 * unit(out_h)
+            ways.append(_arm(bid, k, start, out_h, la + ro - r0, hw))
+            sockets.append((centre + (ro + la) * unit(out_h), out_h))
         for k in range(4):
             # Counter-clockwise ring: its right side faces outward, the left side is the central island.
-            ring = arc_about(c, ri + hw, angles[k], angles[k] + HALF_PI)
+            ring = arc_about(centre, ri + hw, angles[k], angles[k] + HALF_PI)
             ways.append(Roadway(f"{bid}.{4 + k}", ring, hw, sides=(-1,), crosswalk_ends=()))
-        island = Point(c).buffer(ri, quad_segs=16)
+        island = Point(centre).buffer(ri, quad_segs=16)
         through = 2 * la + 2 * ro
     else:
         raise ConfigError(f"unknown block code {code!r}")
-    parts = [strip(w.centerline, -w.half_width, w.half_width) for w in ways if w.sides != (1,)]
+    parts = [strip(way.centerline, -way.half_width, way.half_width) for way in ways if way.sides != (1,)]
     if code in ("X", "T"):
-        c = p + (ways[0].centerline.length + hw) * unit(h)
-        parts.append(Polygon([c + hw * unit(h + q * HALF_PI + math.pi / 4) * math.sqrt(2) for q in range(4)]))
+        centre = p + (ways[0].centerline.length + hw) * unit(h)
+        parts.append(
+            Polygon([centre + hw * unit(h + quarter * HALF_PI + math.pi / 4) * math.sqrt(2) for quarter in range(4)])
+        )
     poly = shapely.union_all(parts)
     if island is not None:
         poly = poly.difference(island)
@@ -124,26 +126,26 @@ def _claim(block: Block, margin: float) -> Polygon:
     The island hole is left out: no other block can reach inside a ring road without crossing it, and buffering a
     polygon with a finely curved hole costs ~15x more (GEOS), most of a scene's road-network time.
     """
-    p = block.polygon
-    return (Polygon(p.exterior) if isinstance(p, Polygon) else p).buffer(margin, quad_segs=2)
+    poly = block.polygon
+    return (Polygon(poly.exterior) if isinstance(poly, Polygon) else poly).buffer(margin, quad_segs=2)
 
 
 def _overlaps(new: Block, blocks: list[Block], socket: np.ndarray, margin: float) -> bool:
     """Whether `new` comes too close to earlier blocks (its parent only near the joint is allowed)."""
     claim = new.claim = _claim(new, margin)
-    for i, b in enumerate(blocks):
-        assert b.claim is not None  # set on every placed block: the first by generate_network, the rest here
+    for i, other in enumerate(blocks):
+        assert other.claim is not None  # set on every placed block: the first by generate_network, the rest here
         if i == new.parent:
-            inter = new.polygon.intersection(b.polygon).area
+            inter = new.polygon.intersection(other.polygon).area
             if inter > 2.0:
                 return True
             # Near the shared socket the claims overlap by construction; elsewhere they must not.
             keep_out = Point(socket).buffer(
-                2 * margin + 2 * max(b.lanes * b.lane_width, new.lanes * new.lane_width), quad_segs=4
+                2 * margin + 2 * max(other.lanes * other.lane_width, new.lanes * new.lane_width), quad_segs=4
             )
-            if claim.difference(keep_out).intersects(b.claim.difference(keep_out)):
+            if claim.difference(keep_out).intersects(other.claim.difference(keep_out)):
                 return True
-        elif claim.intersects(b.claim):
+        elif claim.intersects(other.claim):
             return True
     return False
 
@@ -152,12 +154,12 @@ def generate_network(cfg: dict[str, Any], rng: np.random.Generator) -> list[Bloc
     """Grow blocks one by one on free sockets, retrying other shapes and parameters on overlap (BIG)."""
     blocks_cfg = cfg["blocks"]
     explicit = isinstance(blocks_cfg, str)
-    n = len(blocks_cfg) if explicit else int(blocks_cfg)
+    num_blocks = len(blocks_cfg) if explicit else int(blocks_cfg)
     margin = max_sidewalk_width(cfg["templates"]) + 0.5
     first = build_block("S" if not explicit else blocks_cfg[0], "r0", np.zeros(2), 0.0, rng, cfg)
     first.claim = _claim(first, margin)
     blocks = [first]
-    for i in range(1, n):
+    for i in range(1, num_blocks):
         placed = None
         for attempt in range(cfg["block_tries"]):
             code = blocks_cfg[i] if explicit else cfg["block_types"][int(rng.integers(len(cfg["block_types"])))]
@@ -189,4 +191,4 @@ def lane_lines(w: Roadway, lanes: int, lane_width: float) -> list[list[list[floa
     if w.sides == (1,):
         return []
     offs = [k * lane_width for k in range(-lanes + 1, lanes)]
-    return [np.round(w.centerline.offset(o), 4).tolist() for o in offs]
+    return [np.round(w.centerline.offset(off), 4).tolist() for off in offs]

@@ -39,16 +39,16 @@ class Fits:
     fallback box (index -1). Built once per catalog and zone kind (`fits_for`)."""
 
     def __init__(self, catalog: CatalogReader | None, zone: str) -> None:
-        n = len(NAMES)
+        num_cats = len(NAMES)
         if catalog is None:
-            self.zone_index = self.any_index = np.full((n, 1), -1, dtype=np.int64)
+            self.zone_index = self.any_index = np.full((num_cats, 1), -1, dtype=np.int64)
             self.zone_size = self.any_size = _FALLBACK[:, None, :].copy()
             return
         zi, zs = catalog.by_depth(NAMES, zone)
         ai, as_ = catalog.by_depth(NAMES, None)
-        m = max(zi.shape[1], ai.shape[1])
-        self.zone_index, self.zone_size = _pad(zi, zs, m)
-        self.any_index, self.any_size = _pad(ai, as_, m)
+        num_cols = max(zi.shape[1], ai.shape[1])
+        self.zone_index, self.zone_size = _pad(zi, zs, num_cols)
+        self.any_index, self.any_size = _pad(ai, as_, num_cols)
         for k in np.flatnonzero(self.any_index[:, 0] < 0).tolist():  # not in the catalog: the fallback box
             for index, size in ((self.zone_index, self.zone_size), (self.any_index, self.any_size)):
                 index[k] = -1
@@ -77,12 +77,12 @@ _FITS_NO_CATALOG: dict[str, Fits] = {}
 def fits_for(catalog: CatalogReader | None, zone: str) -> Fits:
     """The `Fits` of `catalog` (None: fallback boxes only) for `zone`, built on first use and kept with the catalog."""
     per_zone = _FITS_NO_CATALOG if catalog is None else _FITS.setdefault(catalog, {})
-    f = per_zone.get(zone)
-    if f is None:
-        f = per_zone[zone] = Fits(catalog, zone)
-        for a in (f.zone_index, f.zone_size, f.any_index, f.any_size):
-            a.setflags(write=False)  # shared by every scene drawn from this catalog
-    return f
+    fits = per_zone.get(zone)
+    if fits is None:
+        fits = per_zone[zone] = Fits(catalog, zone)
+        for table in (fits.zone_index, fits.zone_size, fits.any_index, fits.any_size):
+            table.setflags(write=False)  # shared by every scene drawn from this catalog
+    return fits
 
 
 def _pad(index: np.ndarray, size: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -97,7 +97,7 @@ def _cdf(placer: Placer, object_class: str, allowed: tuple[str, ...] | None) -> 
     made = placer.sampler.cdf(object_class, allowed)
     if made is None:
         return None
-    return np.array([_INDEX[c] for c in made[0]], dtype=np.int64), made[1]
+    return np.array([_INDEX[name] for name in made[0]], dtype=np.int64), made[1]
 
 
 @dataclass(frozen=True)
@@ -117,28 +117,28 @@ def fill_rows(placer: Placer, sw: Sidewalk, rows: list[Row]) -> None:
         return
     rng, cl, side = placer.rng, sw.roadway.centerline, sw.side
     n_rows = len(rows)
-    d0 = np.array([r.d0 for r in rows])
-    d1 = np.array([r.d1 for r in rows])
-    gap = np.array([r.gap_mean for r in rows])
-    p_clutter = np.array([r.p_clutter for r in rows])
+    d0 = np.array([row_spec.d0 for row_spec in rows])
+    d1 = np.array([row_spec.d1 for row_spec in rows])
+    gap = np.array([row_spec.gap_mean for row_spec in rows])
+    p_clutter = np.array([row_spec.p_clutter for row_spec in rows])
     max_depth = d1 - d0 - 0.05
-    kinds = [r.zone.kind for r in rows]
+    kinds = [row_spec.zone.kind for row_spec in rows]
     # Per row: the CDF its non-clutter steps are drawn from (rows with none draw clutter only).
     mains: dict[tuple[str, ...], int] = {}
     main_of = np.full(n_rows, -1, dtype=np.int64)
     faces = np.empty(n_rows)
-    for k, r in enumerate(rows):
-        zkind = "furnishing" if r.zone.kind == "near_road_buffer" else r.zone.kind
+    for k, row_spec in enumerate(rows):
+        zkind = "furnishing" if row_spec.zone.kind == "near_road_buffer" else row_spec.zone.kind
         faces[k] = side * math.pi / 2 * (1 if zkind == "furnishing" else -1)  # furnishing faces the walkway
         allowed = tuple(
-            c
-            for c, row in CATEGORIES.items()
+            cat_idx
+            for cat_idx, row in CATEGORIES.items()
             if row.object_class != "clutter"
             and zkind in row.zones
-            and c != "building_facade"
-            and placer.min_depth[c] <= max_depth[k]
+            and cat_idx != "building_facade"
+            and placer.min_depth[cat_idx] <= max_depth[k]
         )
-        ns = tuple(c for c in allowed if CATEGORIES[c].object_class == "non_standard")
+        ns = tuple(cat_idx for cat_idx in allowed if CATEGORIES[cat_idx].object_class == "non_standard")
         if allowed:
             main_of[k] = mains.setdefault(ns or allowed, len(mains))
     p_clutter[main_of < 0] = 1.0
@@ -151,13 +151,13 @@ def fill_rows(placer: Placer, sw: Sidewalk, rows: list[Row]) -> None:
     at = s0 + gap * rng.random(n_rows)
     active = at < s1
     while active.any():
-        n = np.where(active, np.minimum(((s1 - at) / (gap + 0.3)).astype(np.int64) + 4, _MAX_BATCH), 0)
-        row = np.repeat(np.arange(n_rows), n)
-        u = rng.random((5, len(row)))
+        batch = np.where(active, np.minimum(((s1 - at) / (gap + 0.3)).astype(np.int64) + 4, _MAX_BATCH), 0)
+        row = np.repeat(np.arange(n_rows), batch)
+        draws = rng.random((5, len(row)))
         gaps = rng.gamma(2.0, gap[row] / 2.0)
-        clutter = u[0] < p_clutter[row]
-        cat, drawn = _draw(clutter, u[1], main_of[row], main_cdfs, clutter_cdf)
-        found, index, size = _pick(placer, kinds, row, cat, u[2], max_depth[row])
+        clutter = draws[0] < p_clutter[row]
+        cat, drawn = _draw(clutter, draws[1], main_of[row], main_cdfs, clutter_cdf)
+        found, index, size = _pick(placer, kinds, row, cat, draws[2], max_depth[row])
         found &= drawn
         depth, wid = size[:, 0], size[:, 1]
         big = np.maximum(depth, wid)
@@ -166,22 +166,22 @@ def fill_rows(placer: Placer, sw: Sidewalk, rows: list[Row]) -> None:
         step = np.where(found, along + gaps, gap[row])  # a step with nothing that fits moves on by gap_mean (> 0)
         ends = np.cumsum(step)
         before = ends - step
-        first = np.minimum(np.concatenate([[0], np.cumsum(n)[:-1]]), len(row) - 1)  # rows without steps: unused
-        start = at[row] + before - np.repeat(before[first], n)  # each row's steps from its own position
+        first = np.minimum(np.concatenate([[0], np.cumsum(batch)[:-1]]), len(row) - 1)  # rows without steps: unused
+        start = at[row] + before - np.repeat(before[first], batch)  # each row's steps from its own position
         inside = start < s1
-        last = np.maximum(first + n - 1, 0)
-        done = (n == 0) | ~inside[last]
+        last = np.maximum(first + batch - 1, 0)
+        done = (batch == 0) | ~inside[last]
         at = np.where(done, s1, start[last] + step[last])
         active = at < s1  # a row whose last step started inside but ended past its end is done too
         lo, hi = d0[row] + half + 0.02, d1[row] - half - 0.02
         ok = np.flatnonzero(inside & found & (hi >= lo))
         if not len(ok):
             continue
-        off = lo[ok] + (hi[ok] - lo[ok]) * u[3, ok]
-        x, y, h = cl.points_xy(start[ok] + along[ok] / 2, side * off)
-        yaw = np.where(clutter[ok], -math.pi + 2 * math.pi * u[4, ok], h + faces[row[ok]])
+        off = lo[ok] + (hi[ok] - lo[ok]) * draws[3, ok]
+        x, y, heading = cl.points_xy(start[ok] + along[ok] / 2, side * off)
+        yaw = np.where(clutter[ok], -math.pi + 2 * math.pi * draws[4, ok], heading + faces[row[ok]])
         placer.note_fallback(cat[ok][index[ok] < 0])  # found, with no catalog index: a fallback box
-        place_many(placer, sw, [r.zone for r in rows], row[ok], cat[ok], index[ok], size[ok], x, y, yaw)
+        place_many(placer, sw, [row_spec.zone for row_spec in rows], row[ok], cat[ok], index[ok], size[ok], x, y, yaw)
 
 
 def _pick(
@@ -192,9 +192,9 @@ def _pick(
     index = np.full(len(row), -1, dtype=np.int64)
     size = np.zeros((len(row), 3))
     kind_of = np.array([sorted(set(kinds)).index(k) for k in kinds], dtype=np.int64)[row]
-    for g, kind in enumerate(sorted(set(kinds))):
-        m = kind_of == g
-        found[m], index[m], size[m] = fits_for(placer.catalog, kind).pick(cat[m], u[m], max_depth[m])
+    for kind_idx, kind in enumerate(sorted(set(kinds))):
+        mask = kind_of == kind_idx
+        found[mask], index[mask], size[mask] = fits_for(placer.catalog, kind).pick(cat[mask], u[mask], max_depth[mask])
     return found, index, size
 
 
@@ -208,7 +208,9 @@ def _draw(
     """(category index, drawn) per step: clutter steps from the clutter CDF, the others from their row's CDF."""
     cat = np.zeros(len(u), dtype=np.int64)
     drawn = np.zeros(len(u), dtype=bool)
-    for mask, cdf in [(clutter, clutter_cdf)] + [(~clutter & (main_of == g), c) for g, c in enumerate(mains)]:
+    for mask, cdf in [(clutter, clutter_cdf)] + [
+        (~clutter & (main_of == main_idx), main_cdf) for main_idx, main_cdf in enumerate(mains)
+    ]:
         if cdf is not None and mask.any():
             cat[mask] = cdf[0][np.searchsorted(cdf[1], u[mask], side="right")]
             drawn |= mask
@@ -230,22 +232,22 @@ def place_many(
     """`Placer.try_place` for a batch in order (object k in zones[zone_of[k]]): the zone and keep-out tests run on
     all at once, the overlap test against the objects placed so far (earlier ones of the batch too) one by one."""
     yl = yaw.tolist()
-    c = np.array([math.cos(v) for v in yl])
-    sn = np.array([math.sin(v) for v in yl])
+    cos_yaw = np.array([math.cos(yaw_k) for yaw_k in yl])
+    sn = np.array([math.sin(yaw_k) for yaw_k in yl])
     depth, width = size[:, 0], size[:, 1]
-    corners, pb = rects(x, y, c, sn, depth, width)
+    corners, pb = rects(x, y, cos_yaw, sn, depth, width)
     shapes = [placer.zone_shape(z) for z in zones]
-    zb = np.array([b for _, b in shapes])[zone_of]
+    zb = np.array([box for _, box in shapes])[zone_of]
     cand = np.flatnonzero(
         (pb[:, 0] >= zb[:, 0]) & (pb[:, 1] >= zb[:, 1]) & (pb[:, 2] <= zb[:, 2]) & (pb[:, 3] <= zb[:, 3])
     )
     ok = np.zeros(len(x), dtype=bool)
     if len(cand):
         polys = shapely.polygons(corners[cand])
-        zp = np.array([p for p, _ in shapes], dtype=object)[zone_of[cand]]
+        zp = np.array([placed_idx for placed_idx, _ in shapes], dtype=object)[zone_of[cand]]
         inside = shapely.contains(zp, polys) & ~placer.occupied.keep_out_hits(polys)
         ok[cand[inside]] = True
-    check, cb = rects(x, y, c, sn, depth + GAP, width + GAP)
+    check, cb = rects(x, y, cos_yaw, sn, depth + GAP, width + GAP)
     keep = np.flatnonzero(ok)
     checks, cbs = check[keep].tolist(), cb[keep].tolist()
     occupied, placed = placer.occupied, []
@@ -259,16 +261,20 @@ def place_many(
         placer.refused[NAMES[k]] += 1
     if not placed:
         return
-    p = np.array(placed, dtype=np.int64)
-    for z, d, w in zip(zone_of[p].tolist(), depth[p].tolist(), width[p].tolist()):
+    placed_idx = np.array(placed, dtype=np.int64)
+    for z, depth_k, width_k in zip(
+        zone_of[placed_idx].tolist(), depth[placed_idx].tolist(), width[placed_idx].tolist()
+    ):
         if zones[z].kind != "building":
-            placer.object_area += d * w
-    wrapped = [math.atan2(math.sin(v), math.cos(v)) for v in yaw[p].tolist()]  # (-pi, pi]
-    pos, yw = round_array(np.stack([x[p], y[p]], axis=1)), round_array(np.array(wrapped))
-    sz, fp = round_array(size[p]), round_array(corners[p], rows=True)
+            placer.object_area += depth_k * width_k
+    wrapped = [math.atan2(math.sin(yaw_k), math.cos(yaw_k)) for yaw_k in yaw[placed_idx].tolist()]  # (-pi, pi]
+    pos, yw = round_array(np.stack([x[placed_idx], y[placed_idx]], axis=1)), round_array(np.array(wrapped))
+    sz, fp = round_array(size[placed_idx]), round_array(corners[placed_idx], rows=True)
     ids = placer.catalog.table.asset_id if placer.catalog is not None else _NO_ASSETS
     objects, z, sid = placer.objects, placer.z, sw.id
-    for k, (i, ci, zi) in enumerate(zip(index[p].tolist(), cat[p].tolist(), zone_of[p].tolist())):
+    for k, (i, ci, zi) in enumerate(
+        zip(index[placed_idx].tolist(), cat[placed_idx].tolist(), zone_of[placed_idx].tolist())
+    ):
         objects.append(
             {
                 "id": f"o{len(objects)}",

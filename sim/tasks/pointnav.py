@@ -115,15 +115,15 @@ class Reward:
         scalars, for the env's every step (tests/sim/agents/test_socialnav_golden.py checks the two bit for bit)."""
         disp = step.new_progress if self.progress == "max" else step.progress
         over = abs(step.lateral) - self.lateral_free
-        r = self.disp * disp - self.lateral * max(0.0, over) - self.steering * abs(step.d_steer) * abs(step.speed)
+        reward = self.disp * disp - self.lateral * max(0.0, over) - self.steering * abs(step.d_steer) * abs(step.speed)
         if step.collided:
-            r = r - self.crash
-        if self.floor and 0.0 > r:
-            r = 0.0
+            reward = reward - self.crash
+        if self.floor and 0.0 > reward:
+            reward = 0.0
         stuck = end.failed_in_place
         if end.succeeded or end.out_of_route or stuck:
-            r = r + (self.success if end.succeeded else self.out_of_route if end.out_of_route else self.stuck)
-        return float(r)
+            reward = reward + (self.success if end.succeeded else self.out_of_route if end.out_of_route else self.stuck)
+        return float(reward)
 
     def batch(
         self,
@@ -141,16 +141,16 @@ class Reward:
         branch is an np.where that picks what the scalar max/if would, so one step's double is the same either way."""
         disp = new_progress if self.progress == "max" else progress
         over = np.abs(lateral) - self.lateral_free
-        r = (
+        reward = (
             self.disp * disp
             - self.lateral * np.where(over > 0.0, over, 0.0)
             - self.steering * np.abs(d_steer) * np.abs(speed)
         )
-        r = np.where(collided, r - self.crash, r)
+        reward = np.where(collided, reward - self.crash, reward)
         if self.floor:
-            r = np.where(0.0 > r, 0.0, r)
+            reward = np.where(0.0 > reward, 0.0, reward)
         bonus = np.where(succeeded, self.success, np.where(out_of_route, self.out_of_route, self.stuck))
-        return np.where(np.logical_or(np.logical_or(succeeded, out_of_route), stuck), r + bonus, r)
+        return np.where(np.logical_or(np.logical_or(succeeded, out_of_route), stuck), reward + bonus, reward)
 
 
 # The Keys of the Reward fields; a config's `reward` overrides some of a preset's terms.
@@ -312,7 +312,9 @@ def check_machine(machine: Any, name: str = "config.machine") -> None:
             check_machine(value, f"{name}.base")
             continue
         if key == "color" and not (
-            isinstance(value, (list, tuple)) and len(value) == 4 and all(_number(c) and 0.0 <= c <= 1.0 for c in value)
+            isinstance(value, (list, tuple))
+            and len(value) == 4
+            and all(_number(channel) and 0.0 <= channel <= 1.0 for channel in value)
         ):
             raise ConfigError(f"{name}.color must be [r, g, b, a], each in [0, 1], got {excerpt(value)}")
         rule = MACHINE_TABLE.get(key)

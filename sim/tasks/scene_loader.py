@@ -58,15 +58,17 @@ def dataset_scenes(scene_dir: str | Path, split: str | None) -> list[Path]:
     """Scene files of `split` in a dataset folder (its index.jsonl), sorted; a clear error when there are none."""
     from sim.scene.dataset import read_index
 
-    d = Path(scene_dir)
-    if not d.is_dir():
-        raise ConfigError(f"config.scene_dir {d} is not a folder; create it with `curbside scenes dataset --out {d}`")
-    rows = read_index(d)
-    files = sorted(d / r["file"] for r in rows if split is None or r.get("split") == split)
-    if not files:
-        have = sorted({str(r.get("split")) for r in rows}) or ["none"]
+    root = Path(scene_dir)
+    if not root.is_dir():
         raise ConfigError(
-            f"split {split!r} has no scenes in {d} (it holds: {', '.join(have)}); "
-            f"create them with `curbside scenes dataset --split {split} --out {d}`"
+            f"config.scene_dir {root} is not a folder; create it with `curbside scenes dataset --out {root}`"
+        )
+    rows = read_index(root)
+    files = sorted(root / row["file"] for row in rows if split is None or row.get("split") == split)
+    if not files:
+        have = sorted({str(row.get("split")) for row in rows}) or ["none"]
+        raise ConfigError(
+            f"split {split!r} has no scenes in {root} (it holds: {', '.join(have)}); "
+            f"create them with `curbside scenes dataset --split {split} --out {root}`"
         )
     return files

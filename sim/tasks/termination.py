@@ -166,4 +166,4 @@ class Termination:
             step.tilt,
             step.cost_total,
         )
-        return StepEnd(*(bool(e) for e in ends))
+        return StepEnd(*(bool(end) for end in ends))
