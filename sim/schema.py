@@ -20,12 +20,9 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
-from typing import TYPE_CHECKING, Any, Union
+from typing import Any, Union
 
 from kernel.config import ConfigError, excerpt
-
-if TYPE_CHECKING:
-    from _typeshed import DataclassInstance
 
 
 def _num(v: Any) -> bool:
@@ -272,6 +269,6 @@ def key_field(default: Any, rule: Rule, doc: str) -> Any:
     return field(default=default, metadata={"key": Key(default, rule, doc)})
 
 
-def dataclass_keys(cls: type[DataclassInstance]) -> dict[str, Key]:
+def dataclass_keys(cls: type[Any]) -> dict[str, Key]:
     """The Keys of a dataclass's fields declared with `key_field`, in field order."""
     return {f.name: f.metadata["key"] for f in fields(cls) if "key" in f.metadata}

@@ -37,7 +37,7 @@ def test_ray_executor_gives_the_local_catalog(mesh_folder, tmp_path):
     local = tmp_path / "local" / "c.duckdb"
     remote = tmp_path / "ray" / "c.duckdb"
     ingest(LocalSource(mesh_folder["root"]), local, config, progress=False, limit=3)
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         ingest(LocalSource(mesh_folder["root"]), remote, config, executor="ray", progress=False, limit=3)
     finally:
