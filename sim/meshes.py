@@ -81,6 +81,26 @@ def extrusion_mesh(poly: Polygon, z0: float, z1: float, *, walls: bool = True) -
     return verts, idx
 
 
+def welded(vertices: Sequence, indices: Sequence[int]) -> tuple[list[list[float]], list[int]]:
+    """The same triangles over shared vertices: each distinct point once, the indices pointing into that list.
+
+    Bullet finds a triangle's neighbours through shared vertex indices; `GEOM_CONCAVE_INTERNAL_EDGE` (its internal
+    edge utility) needs them to tell an edge between two coplanar triangles from a real one. Without it, a wheel
+    rolling over a flat triangulated slab at 8 m/s meets the edges as steps: tilts of 30 degrees and 7.5 cm of
+    bounce, against 0.1 degrees and 0.1 mm welded (`tests/sim/test_world.py`)."""
+    index: dict[tuple[float, ...], int] = {}
+    points: list[list[float]] = []
+    out: list[int] = []
+    for i in indices:
+        key = tuple(float(c) for c in vertices[i])
+        k = index.get(key)
+        if k is None:
+            k = index[key] = len(points)
+            points.append(list(key))
+        out.append(k)
+    return points, out
+
+
 def polygons(geom: Any) -> list[Polygon]:
     """The non-empty polygons of a (multi)polygon or collection."""
     if geom.is_empty:

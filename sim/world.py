@@ -20,7 +20,7 @@ from shapely.geometry import LineString, Point, Polygon
 from shapely.geometry.polygon import orient
 
 from kernel.quiet import pybullet as p
-from sim.meshes import extrusion_mesh, mesh_shape, polygons
+from sim.meshes import extrusion_mesh, mesh_shape, polygons, welded
 from sim.palette import SURFACE, category_color, terrain_colour
 from sim.scene.scene import Scene, SceneError, as_scene
 from sim.terrain import patches
@@ -94,7 +94,7 @@ class World:
         self._build()
 
     # -- building -----------------------------------------------------------------------------------
-    def _add(self, kind: str, col: int, vis: int, pos=(0, 0, 0), orn=(0, 0, 0, 1)) -> int:
+    def _add(self, kind: str, col: int, vis: int, pos=(0, 0, 0), orn=(0, 0, 0, 1), maximal: bool = True) -> int:
         # Maximal coordinates: a static btRigidBody instead of a fixed-base btMultiBody, which Bullet visits every
         # substep (250 static bodies: 98 -> 25 us a substep; a SocialNav step's Bullet time halves).
         body = p.createMultiBody(
@@ -103,7 +103,7 @@ class World:
             vis,
             basePosition=list(pos),
             baseOrientation=list(orn),
-            useMaximalCoordinates=True,
+            useMaximalCoordinates=maximal,
             physicsClientId=self.client,
         )
         self.kinds[body] = kind
@@ -113,9 +113,17 @@ class World:
         if not idx:
             return None
         client = self.client
-        col = mesh_shape(p.createCollisionShape, verts, idx, physicsClientId=client) if collide else -1
+        if not collide:
+            vis = mesh_shape(p.createVisualShape, verts, idx, rgbaColor=list(color), physicsClientId=client)
+            return self._add(kind, -1, vis)
+        # Welded, with Bullet's internal-edge correction, on a fixed-base multibody (the correction does not run
+        # for a maximal-coordinates body): a wheel crossing an edge between two triangles of one flat surface rolls
+        # on instead of bouncing off it (sim.meshes.welded).
+        col = mesh_shape(
+            p.createCollisionShape, *welded(verts, idx), flags=p.GEOM_CONCAVE_INTERNAL_EDGE, physicsClientId=client
+        )
         vis = mesh_shape(p.createVisualShape, verts, idx, rgbaColor=list(color), physicsClientId=client)
-        return self._add(kind, col, vis)
+        return self._add(kind, col, vis, maximal=False)
 
     def _build(self) -> None:
         scene, client, curb_h = self.scene, self.client, self.curb_height
