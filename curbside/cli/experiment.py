@@ -36,6 +36,9 @@ def run_cmd(
     root: Path = typer.Option(Path("outputs/experiments"), help="Where runs train and keep their results."),
     only: str | None = typer.Option(None, help="Comma-separated run ids to run (default: all)."),
     seeds: str | None = typer.Option(None, help="Comma-separated seeds to run (default: each run's)."),
+    reevaluate: bool = typer.Option(
+        False, help="Evaluate the finished runs again with the simulator as it is now (their training untouched)."
+    ),
 ) -> None:
     """Train and evaluate every run of the experiment that has no result yet; a killed run resumes from its checkpoint."""
     require("train", "experiment run")
@@ -49,10 +52,13 @@ def run_cmd(
             seed_list = [int(s) for s in seeds.split(",") if s.strip()] if seeds else None
         except ValueError:
             raise ConfigError(f"--seeds must be comma-separated integers such as 0,1,2, got {seeds!r}") from None
-        results = run_experiment(name, budget, root=root, only=ids, seeds=seed_list, log=typer.echo)
+        results = run_experiment(
+            name, budget, root=root, only=ids, seeds=seed_list, reevaluate=reevaluate, log=typer.echo
+        )
     except (ConfigError, FileNotFoundError) as e:
         raise fail(str(e)) from None
-    typer.echo(f"{len(results)} runs finished; report them with `curbside experiment report {name} --budget {budget}`")
+    done = "evaluated again" if reevaluate else "finished"
+    typer.echo(f"{len(results)} runs {done}; report them with `curbside experiment report {name} --budget {budget}`")
 
 
 @app.command("report")

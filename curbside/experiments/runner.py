@@ -1,8 +1,9 @@
 """Run an experiment: train every (run, seed) that has no result yet, evaluate it on its splits, write result.json.
 
 Layout: ROOT/<experiment>/<budget>/<run id>/seed_<s>/ holds the training run (run.json, checkpoints, policy) and
-result.json (written last, atomically): a run with a result.json is finished and never redone; a run without one
-resumes from its latest checkpoint. Demonstrations for offline and imitation runs are collected once per task under
+result.json (written last, atomically): a run with a result.json is finished and never trained again; a run without
+one resumes from its latest checkpoint. `reevaluate` evaluates finished runs again with the simulator as it is (after
+a physics fix, say) and rewrites their result.json, training nothing. Demonstrations for offline and imitation runs are collected once per task under
 ROOT/<experiment>/<budget>/demos/<task>/.
 """
 
@@ -94,20 +95,21 @@ def run_experiment(
     root: Path = DEFAULT_ROOT,
     only: list[str] | None = None,
     seeds: list[int] | None = None,
+    reevaluate: bool = False,
     progress: bool = True,
     log: Callable[[str], None] = print,
 ) -> list[dict[str, Any]]:
     """Train and evaluate every (run, seed) of experiment `name` at `budget` that has no result (of the runs in
-    `only` and the seeds in `seeds`, when given); return all results."""
-    from curbside.train.evaluate import evaluate_run
-    from curbside.train.policies import read_run
-    from curbside.train.protocols import deep_merge, protocol
+    `only` and the seeds in `seeds`, when given); with `reevaluate`, evaluate the finished ones again instead (their
+    training untouched) and leave the unfinished alone. Return all results."""
+    from curbside.train.protocols import protocol
     from curbside.train.run import train
 
     exp = load_experiment(name)
     b = budget_of(exp, budget)
     proto = protocol(exp.protocol)
     check_run_ids(exp, only)
+    run_by_id = {r.id: r for r in exp.runs}
     results = []
     for run in exp.runs:
         if only and run.id not in only:
@@ -118,7 +120,18 @@ def run_experiment(
             out = run_dir(root, exp, budget, run, seed)
             done = out / "result.json"
             if done.is_file():
-                results.append(json.loads(done.read_text()))
+                result = json.loads(done.read_text())
+                if reevaluate:
+                    policy_dir = out
+                    if not run.train:  # it evaluates the policy of the run it starts from
+                        assert run.init is not None
+                        policy_dir = run_dir(root, exp, budget, run_by_id[run.init], seed)
+                    log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating again")
+                    result["evals"] = _evaluate(run, policy_dir, b, proto.eval_scenes, progress, log)
+                    _write_json(done, result)
+                results.append(result)
+                continue
+            if reevaluate:
                 continue
             online = run.method in ONLINE
             backend = run.backend or b["backend"]
@@ -126,9 +139,7 @@ def run_experiment(
                 backend = "pybullet"
             if run.method == "gail":
                 backend = "pybullet"  # GAIL's generator steps an SB3 VecEnv of the PyBullet envs
-            init_from = (
-                run_dir(root, exp, budget, next(r for r in exp.runs if r.id == run.init), seed) if run.init else None
-            )
+            init_from = run_dir(root, exp, budget, run_by_id[run.init], seed) if run.init else None
             demos = _demos(root, exp, budget, run, b) if not online and run.train else None
             steps = _steps(b, run.method)
             # A budget's hparams are PPO's (the generator's for GAIL); the other learners take its network alone.
@@ -171,23 +182,7 @@ def run_experiment(
                 policy_dir, steps = init_from, 0
                 log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating the policy of {run.init}")
             train_s = time.time() - t0
-            evals = {}
-            for split in run.evaluate:
-                cfg = deep_merge(deep_merge(read_run(policy_dir).get("env_config", {}), run.env), run.eval_env)
-                evals[split] = evaluate_run(
-                    policy_dir,
-                    run.task,
-                    cfg,
-                    split=split,
-                    episodes=int(b["episodes"]),
-                    num_scenes=proto.eval_scenes,
-                    workers=int(b["eval_workers"]),
-                    progress=progress,
-                )
-                log(
-                    f"    {split}: SR {evals[split]['sr']:.2f}  SPL {evals[split]['spl']:.2f}  "
-                    f"Cost {evals[split]['cost']:.2f}"
-                )
+            evals = _evaluate(run, policy_dir, b, proto.eval_scenes, progress, log)
             result = {
                 "experiment": exp.name,
                 "budget": budget,
@@ -207,3 +202,28 @@ def run_experiment(
             _write_json(done, result)
             results.append(result)
     return results
+
+
+def _evaluate(
+    run: Run, policy_dir: Path, b: dict[str, Any], eval_scenes: int, progress: bool, log: Callable[[str], None]
+) -> dict[str, dict[str, Any]]:
+    """The policy in `policy_dir` evaluated on each of the run's splits, under its training config plus the run's."""
+    from curbside.train.evaluate import evaluate_run
+    from curbside.train.policies import read_run
+    from curbside.train.protocols import deep_merge
+
+    evals = {}
+    for split in run.evaluate:
+        cfg = deep_merge(deep_merge(read_run(policy_dir).get("env_config", {}), run.env), run.eval_env)
+        evals[split] = evaluate_run(
+            policy_dir,
+            run.task,
+            cfg,
+            split=split,
+            episodes=int(b["episodes"]),
+            num_scenes=eval_scenes,
+            workers=int(b["eval_workers"]),
+            progress=progress,
+        )
+        log(f"    {split}: SR {evals[split]['sr']:.2f}  SPL {evals[split]['spl']:.2f}  Cost {evals[split]['cost']:.2f}")
+    return evals

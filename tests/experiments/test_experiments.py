@@ -105,6 +105,17 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     assert first.stat().st_mtime_ns == stamp and len(results) == 4
     assert {r["run"]: r["steps"] for r in results} == {"a": 128, "b": 0}
 
+    # Evaluated again (after a simulator fix, say): every finished run's figures measured anew, nothing trained.
+    tampered = json.loads(first.read_text())
+    measured = tampered["evals"]["test"]["sr"]
+    tampered["evals"]["test"]["sr"] = 9.0
+    first.write_text(json.dumps(tampered))
+    calls.clear()
+    again = run_experiment(str(exp), "smoke", root=root, reevaluate=True, progress=False, log=lambda s: None)
+    assert calls == [] and len(again) == 4
+    assert json.loads(first.read_text())["evals"]["test"]["sr"] == measured
+    assert {r["run"]: r["train_s"] for r in again} == {r["run"]: r["train_s"] for r in results}
+
     out = write_report(str(exp), "smoke", root=root, out_root=tmp_path / "report")
     with open(out, newline="") as f:
         rows = list(csv.DictReader(f))
