@@ -4,9 +4,9 @@ PyBullet's path (the reference) runs `Machine.command` at every physics substep,
 which integrates the body explicitly (position += velocity dt along the old heading, yaw += yaw rate dt) and
 resolves contacts, and reads the speed back along the new heading (so a turning machine reads back
 v cos(yaw_rate dt)). Here the same update runs on arrays of envs with no contact solver: the grade term is zero
-(flat ground), and a substep whose new footprint overlaps an obstacle ends where the footprint meets it and stops
-the machine (`Drive.store` with `blocked`), where Bullet would slide it along the obstacle. `tests/sim/test_batched.py` checks the two
-against each other on the same actions.
+(flat ground); a substep whose new footprint overlaps an obstacle ends where the footprint meets it, and the env
+slides the machine along the obstacle or stops it (`BatchedPointNav._slide`, `Drive.store` with `blocked`).
+`tests/sim/test_batched.py` checks the two against each other on the same actions.
 
 `Machine.command` stays the scalar reference (its doubles make the PyBullet episodes' hashes): this file restates
 its formulas once for arrays (np.where for its branches), as docs/batched.md says.
