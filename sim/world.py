@@ -110,19 +110,22 @@ class World:
         return body
 
     def _mesh_body(self, kind: str, verts: list, idx: list, color, collide: bool = True) -> int | None:
+        """A static triangle-mesh body; `kind` "sidewalk" (the slabs and terrain patches wheels roll on) gets Bullet's
+        internal-edge correction."""
         if not idx:
             return None
         client = self.client
+        vis = mesh_shape(p.createVisualShape, verts, idx, rgbaColor=list(color), physicsClientId=client)
         if not collide:
-            vis = mesh_shape(p.createVisualShape, verts, idx, rgbaColor=list(color), physicsClientId=client)
             return self._add(kind, -1, vis)
-        # Welded, with Bullet's internal-edge correction, on a fixed-base multibody (the correction does not run
-        # for a maximal-coordinates body): a wheel crossing an edge between two triangles of one flat surface rolls
-        # on instead of bouncing off it (sim.meshes.welded).
+        if kind != "sidewalk":
+            return self._add(kind, mesh_shape(p.createCollisionShape, verts, idx, physicsClientId=client), vis)
+        # Welded, with the internal-edge correction, on a fixed-base multibody (the correction does not run for a
+        # maximal-coordinates body): a wheel crossing an edge between two triangles of one flat surface rolls on
+        # instead of bouncing off it (sim.meshes.welded).
         col = mesh_shape(
             p.createCollisionShape, *welded(verts, idx), flags=p.GEOM_CONCAVE_INTERNAL_EDGE, physicsClientId=client
         )
-        vis = mesh_shape(p.createVisualShape, verts, idx, rgbaColor=list(color), physicsClientId=client)
         return self._add(kind, col, vis, maximal=False)
 
     def _build(self) -> None:
