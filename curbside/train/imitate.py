@@ -125,13 +125,28 @@ class Discriminator:
         return {"disc_loss": float(loss.detach()), "disc_acc_expert": acc_expert, "disc_acc_generated": acc_gen}
 
 
+GAIL_GENERATOR = "gail_generator.zip"  # out/checkpoints/: the latest round's generator (SB3 PPO, optimizer included)
+GAIL_DISCRIMINATOR = "gail_discriminator.pt"  # and its discriminator: weights, optimizer, minibatch generator
+
+
 def train_gail(
-    demos: Transitions, out: Path, *, steps: int, venv: Any, hparams: Mapping[str, Any], seed: int = 0
+    demos: Transitions,
+    out: Path,
+    *,
+    steps: int,
+    venv: Any,
+    hparams: Mapping[str, Any],
+    seed: int = 0,
+    resume: bool = False,
 ) -> Path:
     """GAIL for `steps` env steps: an SB3 PPO generator rewarded by the discriminator (the env's reward is kept
     in the logs only), the discriminator trained `disc_updates_per_round` minibatches after every rollout on
     `demo_batch_size` demonstrated and as many generated pairs. The generator goes to `policy.zip`, the
-    discriminator's weights to `discriminator.pt`."""
+    discriminator's weights to `discriminator.pt`.
+
+    After every round both are checkpointed to `out/checkpoints/` (the generator with its optimizer, the
+    discriminator with its optimizer and minibatch generator): a round is 12,800 env steps under `paper`, minutes of
+    work, and `resume` continues from the last one to `steps` in all."""
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
@@ -196,9 +211,38 @@ def train_gail(
         def _on_step(self) -> bool:
             return True
 
-    learner = PPO("MlpPolicy", DiscriminatorReward(venv), seed=seed, device="cpu", **ppo_kwargs(hparams))
+    ckpt = out / "checkpoints"
+    resumed = resume and (ckpt / GAIL_GENERATOR).is_file() and (ckpt / GAIL_DISCRIMINATOR).is_file()
+    if resumed:
+        learner = PPO.load(ckpt / GAIL_GENERATOR, env=DiscriminatorReward(venv), device="cpu")
+        state = torch.load(ckpt / GAIL_DISCRIMINATOR, weights_only=True)
+        disc.net.load_state_dict(state["net"])
+        disc.opt.load_state_dict(state["opt"])
+        gen.set_state(state["generator"])
+    else:
+        learner = PPO("MlpPolicy", DiscriminatorReward(venv), seed=seed, device="cpu", **ppo_kwargs(hparams))
     learner.set_logger(configure(str(out / "logs"), ["csv"]))
-    learner.learn(total_timesteps=steps, callback=TrainDiscriminator())
+
+    class Checkpoint(BaseCallback):
+        """After each round (the discriminator's update runs first): generator and discriminator, each written
+        beside its old copy and swapped in."""
+
+        def _on_rollout_end(self) -> None:
+            ckpt.mkdir(exist_ok=True)
+            self.model.save(ckpt / f"tmp_{GAIL_GENERATOR}")
+            (ckpt / f"tmp_{GAIL_GENERATOR}").replace(ckpt / GAIL_GENERATOR)
+            state = {"net": disc.net.state_dict(), "opt": disc.opt.state_dict(), "generator": gen.get_state()}
+            torch.save(state, ckpt / f"tmp_{GAIL_DISCRIMINATOR}")
+            (ckpt / f"tmp_{GAIL_DISCRIMINATOR}").replace(ckpt / GAIL_DISCRIMINATOR)
+
+        def _on_step(self) -> bool:
+            return True
+
+    learner.learn(
+        total_timesteps=max(steps - learner.num_timesteps, 0) if resumed else steps,
+        callback=[TrainDiscriminator(), Checkpoint()],
+        reset_num_timesteps=not resumed,
+    )
     torch.save(disc.net.state_dict(), out / "discriminator.tmp.pt")
     (out / "discriminator.tmp.pt").replace(out / "discriminator.pt")
     return save_policy(learner, out / "policy.zip")

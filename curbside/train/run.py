@@ -273,6 +273,6 @@ def train(
 
     vec = make_vec_env(task, cfg, envs, scenes, split=split, subprocess=subprocess, seed=seed)
     try:
-        return train_gail(transitions, out, steps=steps, venv=vec, hparams=h, seed=seed)
+        return train_gail(transitions, out, steps=steps, venv=vec, hparams=h, seed=seed, resume=resume)
     finally:
         vec.close()

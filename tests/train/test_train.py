@@ -105,6 +105,36 @@ def test_each_algorithm_trains_saves_reloads_and_evaluates(algo, demos, tmp_path
         assert {"gail/disc_loss", "gail/disc_acc_expert"} <= set(header) and (out / "discriminator.pt").is_file()
 
 
+def test_a_killed_gail_run_resumes_from_its_last_round(demos, tmp_path, monkeypatch) -> None:
+    from stable_baselines3 import PPO
+
+    import curbside.train.imitate as imitate
+
+    out = tmp_path / "gail"
+    kw = dict(env_config=CFG, n_envs=2, num_scenes=2, demos=Path(demos["path"]), hparams=TINY_PPO, progress=False)
+    real = imitate.Discriminator.train
+    rounds: list[int] = []
+
+    def killed_in_third_round(self, *a, **k):
+        rounds.append(1)
+        if len(rounds) == 3:
+            raise KeyboardInterrupt  # killed before the third round's checkpoint
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(imitate.Discriminator, "train", killed_in_third_round)
+    with pytest.raises(KeyboardInterrupt):
+        train("gail", "PointNav", out, steps=512, subprocess=False, **kw)
+    saved = PPO.load(out / "checkpoints" / imitate.GAIL_GENERATOR, device="cpu")
+    assert saved.num_timesteps == 256 and not (out / "policy.zip").exists()  # two rounds of 2 envs x 64 steps
+    disc = torch.load(out / "checkpoints" / imitate.GAIL_DISCRIMINATOR, weights_only=True)
+    assert set(disc) == {"net", "opt", "generator"}
+
+    rounds.clear()
+    train("gail", "PointNav", out, steps=512, resume=True, subprocess=False, **kw)
+    assert len(rounds) == 2  # the two rounds left, not four
+    assert PPO.load(out / "policy.zip", device="cpu").num_timesteps == 512
+
+
 def test_ppo_lag_raises_lambda_when_cost_exceeds_the_limit(tmp_path) -> None:
     # cost_limit -1 can never be met: lambda must grow from its start after every rollout with an episode end.
     h = {**TINY_PPO, "cost_limit": -1.0, "lag_lr": 0.5, "lag_init": 0.0}
