@@ -52,7 +52,6 @@ BATCHED_KEYS: dict[str, Key | dict[str, Key]] = {
 }
 BATCHED_DEFAULTS: dict[str, Any] = defaults_of(BATCHED_KEYS)
 BATCHED_TABLE: dict[str, Rule | Table] = table_of(BATCHED_KEYS)
-# PointNav keys the batched env cannot honour: (key, the value it needs, why).
 # Contacts (`BatchedPointNav._slide`): Bullet's frictionless contacts let a machine that runs into a wall at an angle
 # slide along it, and the push on its front corner turns it parallel to the wall. Measured in the PyBullet env on the
 # test street: the delivery robot into a building wall at 48 degrees turns parallel in ~3.2 s, at ~15 degrees a second
@@ -61,6 +60,7 @@ ALIGN_RATE = math.radians(16.0)  # rad/s: how fast a contact turns the machine t
 RING_DIRS = np.stack([np.cos(np.arange(16) * np.pi / 8), np.sin(np.arange(16) * np.pi / 8)], 1)
 RING_RADIUS_CELLS = 3  # the ring around a contact whose occupied cells give the surface's normal
 
+# PointNav keys the batched env cannot honour: (key, the value it needs, why).
 PYBULLET_ONLY = (
     ("gui", False, "there is no PyBullet world to show"),
     ("collision", "box", "objects are their spec boxes; convex hulls need the PyBullet env"),
