@@ -38,7 +38,8 @@ def test_keyboard_episodes_are_recorded_as_a_minari_dataset(tmp_path) -> None:
             kind, key = script[k]
             pg.event.post(pg.event.Event(kind, key=key))
 
-    # Episodes end only when the user says so: no out-of-route, off-walkable or collision ends.
+    # Episodes end only when the user says so: no out-of-route, off-walkable, collision or topple ends (the scripted
+    # turn runs the machine into a building at 4.5 m/s, which pitches it up 20-60 degrees).
     # No terrain: the script's key presses were written for this seed's route in a scene without it (entrance steps
     # change the planner's routes, and on the new one the scripted turn drives into an obstacle and topples). Seed 0:
     # since routes are planned by A*, seed 3's route has the scripted turn end an episode early too.
@@ -47,6 +48,7 @@ def test_keyboard_episodes_are_recorded_as_a_minari_dataset(tmp_path) -> None:
         "out_of_route_distance": 100.0,
         "terminate_off_walkable": False,
         "collision_steps": 0,
+        "topple_angle": 180.0,
         "scene": {"terrain": {"density": 0.0}},
     }
     summary = teleop("PointNav", tmp_path, env_config=loose, max_steps=100, seed=0, before_step=press)
