@@ -109,16 +109,18 @@ class World:
         self.kinds[body] = kind
         return body
 
-    def _mesh_body(self, kind: str, verts: list, idx: list, color, collide: bool = True) -> int | None:
-        """A static triangle-mesh body; `kind` "sidewalk" (the slabs and terrain patches wheels roll on) gets Bullet's
-        internal-edge correction."""
+    def _mesh_body(
+        self, kind: str, verts: list, idx: list, color, collide: bool = True, rolled_on: bool = False
+    ) -> int | None:
+        """A static triangle-mesh body; one that wheels roll on (`rolled_on`: sidewalk slabs, terrain patches) gets
+        Bullet's internal-edge correction."""
         if not idx:
             return None
         client = self.client
         vis = mesh_shape(p.createVisualShape, verts, idx, rgbaColor=list(color), physicsClientId=client)
         if not collide:
             return self._add(kind, -1, vis)
-        if kind != "sidewalk":
+        if not rolled_on:
             return self._add(kind, mesh_shape(p.createCollisionShape, verts, idx, physicsClientId=client), vis)
         # Welded, with the internal-edge correction, on a fixed-base multibody (the correction does not run for a
         # maximal-coordinates body): a wheel crossing an edge between two triangles of one flat surface rolls on
@@ -153,7 +155,7 @@ class World:
         rng = np.random.default_rng(scene.seed)
         for sw, sw_slabs in zip(scene.sidewalks, slabs):
             for poly in sw_slabs:
-                self._mesh_body("sidewalk", *extrusion_mesh(poly, 0.0, curb_h), SURFACE["sidewalk"])
+                self._mesh_body("sidewalk", *extrusion_mesh(poly, 0.0, curb_h), SURFACE["sidewalk"], rolled_on=True)
             for zone in sw.get("zones", []):
                 if zone.get("kind") == "building":
                     height = float(rng.uniform(6.0, 18.0))
@@ -161,7 +163,9 @@ class World:
                         self._mesh_body("building", *extrusion_mesh(poly, 0.0, height), SURFACE["building"])
         self.patch_index: dict[int, int] = {}  # body id -> index into scene.terrain
         for k, rec in enumerate(scene.terrain):
-            body = self._mesh_body("sidewalk", *patches.mesh(rec), terrain_colour(rec["kind"], rec["surface"]))
+            body = self._mesh_body(
+                "sidewalk", *patches.mesh(rec), terrain_colour(rec["kind"], rec["surface"]), rolled_on=True
+            )
             assert body is not None  # a patch's mesh always has triangles (its skirt's at least)
             p.changeDynamics(body, -1, lateralFriction=patches.friction(rec), physicsClientId=client)
             self.patch_index[body] = k

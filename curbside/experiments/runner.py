@@ -3,8 +3,8 @@
 Layout: ROOT/<experiment>/<budget>/<run id>/seed_<s>/ holds the training run (run.json, checkpoints, policy) and
 result.json (written last, atomically): a run with a result.json is finished and never trained again; a run without
 one resumes from its latest checkpoint. `reevaluate` evaluates finished runs again with the simulator as it is (after
-a physics fix, say) and rewrites their result.json, training nothing. Demonstrations for offline and imitation runs are collected once per task under
-ROOT/<experiment>/<budget>/demos/<task>/.
+a physics fix, say) and rewrites their result.json, training nothing. Demonstrations for offline and imitation runs
+are collected once per task under ROOT/<experiment>/<budget>/demos/<task>/.
 """
 
 from __future__ import annotations
@@ -118,14 +118,13 @@ def run_experiment(
             if seeds is not None and seed not in seeds:
                 continue
             out = run_dir(root, exp, budget, run, seed)
+            init_from = run_dir(root, exp, budget, run_by_id[run.init], seed) if run.init else None
+            policy_dir = out if run.train else init_from  # a run that trains nothing evaluates the one it starts from
+            assert policy_dir is not None
             done = out / "result.json"
             if done.is_file():
                 result = json.loads(done.read_text())
                 if reevaluate:
-                    policy_dir = out
-                    if not run.train:  # it evaluates the policy of the run it starts from
-                        assert run.init is not None
-                        policy_dir = run_dir(root, exp, budget, run_by_id[run.init], seed)
                     log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating again")
                     result["evals"] = _evaluate(run, policy_dir, b, proto.eval_scenes, progress, log)
                     _write_json(done, result)
@@ -139,7 +138,6 @@ def run_experiment(
                 backend = "pybullet"
             if run.method == "gail":
                 backend = "pybullet"  # GAIL's generator steps an SB3 VecEnv of the PyBullet envs
-            init_from = run_dir(root, exp, budget, run_by_id[run.init], seed) if run.init else None
             demos = _demos(root, exp, budget, run, b) if not online and run.train else None
             steps = _steps(b, run.method)
             # A budget's hparams are PPO's (the generator's for GAIL); the other learners take its network alone.
@@ -151,7 +149,6 @@ def run_experiment(
             t0 = time.time()
             resumed = (out / "run.json").is_file()  # then train_s holds this call's part of the training alone
             out.mkdir(parents=True, exist_ok=True)
-            policy_dir = out
             if run.train:
                 log(
                     f"[{exp.name} {budget}] {run.id} seed {seed}: training {run.method} on {run.task} {run.split} "
@@ -178,8 +175,7 @@ def run_experiment(
                     progress=progress,
                 )
             else:
-                assert init_from is not None
-                policy_dir, steps = init_from, 0
+                steps = 0
                 log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating the policy of {run.init}")
             train_s = time.time() - t0
             evals = _evaluate(run, policy_dir, b, proto.eval_scenes, progress, log)
@@ -212,9 +208,9 @@ def _evaluate(
     from curbside.train.policies import read_run
     from curbside.train.protocols import deep_merge
 
+    cfg = deep_merge(deep_merge(read_run(policy_dir).get("env_config", {}), run.env), run.eval_env)
     evals = {}
     for split in run.evaluate:
-        cfg = deep_merge(deep_merge(read_run(policy_dir).get("env_config", {}), run.env), run.eval_env)
         evals[split] = evaluate_run(
             policy_dir,
             run.task,

@@ -251,10 +251,9 @@ class BatchedPointNav(VectorEnv):
             if blocked.any():
                 envs = np.nonzero(blocked)[0]
                 normals = self._contact_normals(envs, x, y, yaw)
-                rest = (x[envs] - drive.x[envs], y[envs] - drive.y[envs])
-                done = self._back_off(envs, x, y, yaw)
+                rest_x, rest_y = self._back_off(envs, x, y, yaw)
                 stopped = np.zeros(self.num_envs, dtype=bool)
-                stopped[envs] = self._slide(envs, normals, (1.0 - done) * rest[0], (1.0 - done) * rest[1], x, y, yaw, v)
+                stopped[envs] = self._slide(envs, normals, rest_x, rest_y, x, y, yaw, v, sub_dt)
             drive.store(x, y, yaw, v, w, sub_dt, stopped)
         arclen, lat = self.routes.locate(drive.x, drive.y, ep.progress)
         progress, new_progress, collided = ep.advance(drive.x - x0, drive.y - y0, arclen, lat, hits)
@@ -345,9 +344,12 @@ class BatchedPointNav(VectorEnv):
             blocked[near] = hit
         return blocked, bits
 
-    def _back_off(self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray, rounds: int = 5) -> np.ndarray:
+    def _back_off(
+        self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray, rounds: int = 5
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Move blocked envs' new poses (in place) back along the substep to the last free fraction of it (bisection:
-        within 1/32 of the substep's motion), where the machine meets what it ran into; return those fractions."""
+        within 1/32 of the substep's motion), where the machine meets what it ran into; return the motion (x, y) the
+        substep had left."""
         drive = self.drive
         x0, y0, yaw0 = drive.x[envs], drive.y[envs], drive.yaw[envs]
         dx, dy = x[envs] - x0, y[envs] - y0
@@ -359,7 +361,7 @@ class BatchedPointNav(VectorEnv):
             hi = np.where(blocked, mid, hi)
             lo = np.where(blocked, lo, mid)
         x[envs], y[envs], yaw[envs] = x0 + lo * dx, y0 + lo * dy, yaw0 + lo * dyaw
-        return lo
+        return (1.0 - lo) * dx, (1.0 - lo) * dy
 
     def _contact_normals(self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray) -> np.ndarray:
         """Unit normals [len(envs), 2] of the obstacle surfaces that envs `envs` run into at poses (x, y, yaw): away
@@ -394,6 +396,7 @@ class BatchedPointNav(VectorEnv):
         y: np.ndarray,
         yaw: np.ndarray,
         v: np.ndarray,
+        dt: float,
     ) -> np.ndarray:
         """Blocked envs `envs`, at their contact poses (x, y, yaw), slide along the surface for the rest of the
         substep (rest_x, rest_y) and turn towards it, as a machine on Bullet's frictionless contacts does: the
@@ -404,16 +407,13 @@ class BatchedPointNav(VectorEnv):
         into = np.minimum(rest_x * nx + rest_y * ny, 0.0)
         sx, sy = rest_x - into * nx, rest_y - into * ny
         heading = yaw[envs]
-        hn = np.cos(heading) * nx + np.sin(heading) * ny
-        # The tangent nearer the heading, and the turn towards it this substep.
-        tx, ty = -ny, nx
-        side = np.where(np.cos(heading) * tx + np.sin(heading) * ty >= 0.0, 1.0, -1.0)
-        gap = np.arctan2(
-            np.cos(heading) * side * ty - np.sin(heading) * side * tx,
-            np.cos(heading) * side * tx + np.sin(heading) * side * ty,
-        )
-        step = self.dt / self.substeps
-        turn = np.where(hn < 0.0, np.clip(gap, -ALIGN_RATE * step, ALIGN_RATE * step), 0.0)
+        hx, hy = np.cos(heading), np.sin(heading)
+        hn = hx * nx + hy * ny
+        # The tangent nearer the heading, and the turn towards it this substep (at most ALIGN_RATE dt).
+        side = np.where(hy * nx - hx * ny >= 0.0, 1.0, -1.0)
+        tx, ty = -side * ny, side * nx
+        gap = np.arctan2(hx * ty - hy * tx, hx * tx + hy * ty)
+        turn = np.where(hn < 0.0, np.clip(gap, -ALIGN_RATE * dt, ALIGN_RATE * dt), 0.0)
         moved = np.zeros(envs.size, dtype=bool)
         for dyaw in (turn, np.zeros_like(turn)):  # with the turn; else straight (the turned body does not fit)
             todo = np.nonzero(~moved)[0]
