@@ -4,8 +4,9 @@ Usage: python benchmarks/scene_memory.py [--scenes 1000] [--envs 64] [--out benc
 
 The env is the one `curbside train run --protocol paper --backend batched` trains on (64 envs, the metaurban12k
 preset, 0.1 m grids) with `num_scenes` N, `scene_steps` 1 (every reset draws a scene) and the default LRU of built
-scenes (`scene_cache`, 2 x envs): episodes are reset until every one of the N scenes has been built once, and the
-process's RSS is sampled after every round of resets. Scenes are generated lazily from their seeds (a scene spec
+scenes (`scene_cache`, 2 x envs): one env at a time is reset into the next scene of the N, in order, until every one
+has been built once (random draws would need ~N ln N resets to visit them all), and the process's RSS is sampled
+after every reset. Scenes are generated lazily from their seeds (a scene spec
 costs nothing until drawn); a built scene (distance grids, planner) lives while an env uses it or while it is among
 the most recently used. Writes summary.json (peak RSS, RSS after each 100 scenes, build time) and a PNG.
 """
@@ -18,7 +19,9 @@ import resource
 import shlex
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -38,6 +41,27 @@ def rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
+class InOrder:
+    """A scene source that hands out its scenes in order, the next unbuilt one at every draw."""
+
+    def __init__(self, source: Any) -> None:
+        self.source, self.next = source, 0
+
+    def draw(self, rng: np.random.Generator) -> tuple[Any, Callable[[], Any]]:
+        k, self.next = self.next % self.source.count, self.next + 1
+        return self.source.draw(Fixed(k))
+
+
+class Fixed:
+    """An rng stand-in whose only draw is a given index (SceneSource.draw asks for one integer)."""
+
+    def __init__(self, k: int) -> None:
+        self.k = k
+
+    def integers(self, n: int) -> int:
+        return self.k
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenes", type=int, default=1000)
@@ -54,6 +78,7 @@ def main() -> None:
     cfg["scene_cache"] = 2 * args.envs
     t0 = time.perf_counter()
     env = BatchedPointNav(args.envs, config=cfg)
+    env.sources = InOrder(env.sources)  # type: ignore[assignment]
     env.reset(seed=0)
     built: set = {b.key for b in env.store.built.values()}
     samples = [(len(built), rss_mb(), time.perf_counter() - t0)]
@@ -80,7 +105,7 @@ def main() -> None:
         return summary
 
     while len(built) < args.scenes:
-        # One env at a time draws a fresh scene: its old one is released to the LRU.
+        # One env at a time moves to the next scene: its old one is released to the LRU.
         k = int(rng.integers(args.envs))
         env._reset_envs(np.array([k]), None)
         built.add(env.built[k].key)

@@ -48,7 +48,7 @@ def measure(task: str, backend: str, protocol: str, iterations: int) -> dict[str
     proto = get_protocol(protocol)
     n_envs = proto.n_envs if backend == "batched" else PYBULLET_ENVS
     run = resolve_run("ppo", task, protocol=protocol, n_envs=n_envs)
-    extra = dict(proto.batched_config) if backend == "batched" else {}
+    extra = proto.backend_config(backend)
     torch.set_num_threads(2 if backend == "batched" else 1)
     t0 = time.perf_counter()
     vec = make_training_vec(task, {**run["env_config"], **extra}, n_envs, run["num_scenes"], backend=backend)

@@ -54,6 +54,7 @@ def episode_rows(
 
     cfg = split_config(env_config, split, num_scenes)
     cfg["scene_cache"] = 1  # evaluation visits each scene about once: no point keeping worlds
+    cfg["scene_steps"] = 0  # every episode draws its scene from its seed, whatever the training envs reused
     env = gym.make(env_id(task), config=cfg)
     rows = []
     seeds: Iterable[int] = range(seed, seed + episodes)

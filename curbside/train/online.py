@@ -101,7 +101,7 @@ def train_online(
     """Train `algo` on `split` for `steps` env steps; checkpoints, CSV/TensorBoard logs and the final policy
     (`policy.zip`) go to `out`; returns the policy path. `resume` continues from `out/checkpoints`; `init_from`
     starts from another run's policy (its evaluation is the curve's first row when `eval_every` > 0).
-    `backend_config` holds env keys of the training backend alone (sim.batched's scene_steps, route_pool): the
+    `backend_config` holds env keys of the training backend alone (scene_steps; sim.batched's route_pool): the
     evaluations and run.json's env_config leave them out."""
     import torch
     from stable_baselines3 import PPO

@@ -52,8 +52,13 @@ class Protocol:
     eval_episodes: int  # episodes per split in an evaluation
     eval_scenes: int = 50  # scenes of the split an evaluation draws from
     curve_episodes: int = 20  # episodes per point of a learning curve
-    batched_config: Mapping[str, Any] = field(default_factory=dict)  # extra env config of the batched backend
+    # Extra env config of each training backend (scene reuse): the evaluations and run.json's env_config leave it out.
+    training_config: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     sources: Mapping[str, str] = field(default_factory=dict)  # where each value comes from
+
+    def backend_config(self, backend: str) -> dict[str, Any]:
+        """The env keys `backend`'s training envs add to the protocol's env_config (a copy; empty if none)."""
+        return dict(self.training_config.get(backend, {}))
 
     def algo_hparams(self, algo: str) -> dict[str, Any]:
         """The hyper-parameters of `algo` under this protocol (a copy)."""
@@ -163,9 +168,12 @@ PROTOCOLS: dict[str, Protocol] = {
         pybullet_envs=8,
         eval_episodes=200,
         eval_scenes=100,
-        # A paper-scale scene costs ~2 s to build and a long route ~0.1 s to plan: each env keeps its scene for 20,000
-        # steps and each scene a pool of 16 routes (docs/protocols.md).
-        batched_config=_frozen({"scene_steps": 20_000, "route_pool": 16}),
+        # A paper-scale scene costs ~2 s to build and a long route ~0.1 s to plan: each batched env keeps its scene for
+        # 20,000 steps and each scene a pool of 16 routes. A PyBullet env's new scene costs ~2.8 s (world and
+        # pedestrians included), about 500 of its steps: it keeps its scene for 2,000 steps (docs/protocols.md).
+        training_config=_frozen(
+            {"batched": _frozen({"scene_steps": 20_000, "route_pool": 16}), "pybullet": _frozen({"scene_steps": 2_000})}
+        ),
         sources=_frozen(
             {
                 "split_scenes": "MetaUrban, ICLR 2025, Sec. 4 (MetaUrban-12K: train 12,800, test 1,000, unseen 100, "

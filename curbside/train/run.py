@@ -203,7 +203,7 @@ def train(
             subprocess=subprocess,
             split=split,
             backend=backend,
-            backend_config=proto.batched_config if backend == "batched" else {},
+            backend_config=proto.backend_config(backend),
             init_from=init_from,
             meta=meta,
         )
@@ -271,7 +271,9 @@ def train(
         )
     from curbside.train.imitate import train_gail
 
-    vec = make_vec_env(task, cfg, envs, scenes, split=split, subprocess=subprocess, seed=seed)
+    # GAIL's generator steps the PyBullet envs, with that backend's scene reuse (run.json keeps the env_config alone).
+    train_cfg = {**cfg, **proto.backend_config("pybullet")}
+    vec = make_vec_env(task, train_cfg, envs, scenes, split=split, subprocess=subprocess, seed=seed)
     try:
         return train_gail(transitions, out, steps=steps, venv=vec, hparams=h, seed=seed, resume=resume)
     finally:

@@ -46,9 +46,6 @@ BATCHED_KEYS: dict[str, Key | dict[str, Key]] = {
     "route_pool": Key(
         0, Int(0, 1_000_000), "routes kept per scene and drawn from once full (0: plan every reset, as PointNav)"
     ),
-    "scene_steps": Key(
-        0, Int(0, 10**9), "an env keeps its scene until it has stepped this many steps there (0: a draw every reset)"
-    ),
 }
 BATCHED_DEFAULTS: dict[str, Any] = defaults_of(BATCHED_KEYS)
 BATCHED_TABLE: dict[str, Rule | Table] = table_of(BATCHED_KEYS)

@@ -131,10 +131,16 @@ class PointNavEnv(gym.Env):
         self.managers: list[Manager[Any]] = []  # called in this order by every hook (sim.envs.managers)
         self.route: Route | None = None  # None: no episode to step (no reset yet, or the last one failed)
         self._reference_length: float | None = None  # the episode's SPL geodesic, planned on first use
+        self.scene_steps_left = 0  # steps this env may still take in its scene before a reset draws another
 
     # -- scene -------------------------------------------------------------------------------------
-    def _ensure_scene(self, rng: np.random.Generator) -> None:
+    def _ensure_scene(self, rng: np.random.Generator, redraw: bool) -> None:
+        """Put the env in its episode's scene: the current one while its `scene_steps` last (and no `redraw` is
+        asked), else a new draw from the scene source."""
+        if self.slot is not None and self.scene_steps_left > 0 and not redraw:
+            return
         key, load = self.scenes.draw(rng)
+        self.scene_steps_left = int(self.config["scene_steps"])
         if self.slot is not None and key == self.slot.key:
             return  # same scene: keep every static body, only the machine moves
         if self.slot is not None:
@@ -238,7 +244,7 @@ class PointNavEnv(gym.Env):
         rng = self.np_random
         lo, hi = (float(bound) for bound in self.config["route_length"])
         for attempt in range(ROUTE_REDRAWS):
-            self._ensure_scene(rng)
+            self._ensure_scene(rng, redraw=attempt > 0)
             planner = self.planner
             assert planner is not None  # _ensure_scene has put the env in a built scene slot
             try:
@@ -312,6 +318,7 @@ class PointNavEnv(gym.Env):
         s, lat = self.route.locate(x, y, ep.progress)
         collided = bool(hits & self.cost_kinds)
         progress, new_progress = ep.advance((x0, y0), (x, y), s, lat, hits, collided)
+        self.scene_steps_left -= 1
         step = StepContext(
             ep.steps,
             progress,

@@ -205,6 +205,9 @@ CONFIG_KEYS: dict[str, Key | dict[str, Key]] = {
     "scene_cache": Key(
         8, Int(1, 1024), "built worlds kept (LRU), each in its own Bullet client: a repeat costs no build"
     ),
+    "scene_steps": Key(
+        0, Int(0, 10**9), "an env keeps its scene until it has stepped this many steps there (0: a draw every reset)"
+    ),
     "scene_spec": Key(None, Rule("mapping", none=True), "an explicit scene spec (dict) instead of the generator"),
     "scene_path": Key(None, Rule("path", none=True), "or a path to a scene spec JSON file"),
     "catalog": Key(

@@ -211,6 +211,34 @@ def test_socialnav_cache_keeps_each_worlds_agents():
     env.close()
 
 
+def test_scene_steps_keep_a_scene_for_that_many_steps_then_draw_another():
+    """scene_steps 10, episodes of 4 steps: the resets at 0, 4 and 8 steps share a scene (and its world and crowd), the
+    one at 12 draws the next; every reset plans a new route. Evaluation's scene_steps 0 draws at every reset."""
+    cfg = {"num_scenes": 50, "scene_cache": 1, "route_length": [5.0, 30.0], "traffic": False}
+    env = SocialNavEnv({**cfg, "scene_steps": 10})
+    keys, worlds, starts = [], [], []
+    env.reset(seed=3)
+    for _ in range(6):
+        keys.append(env.slot.key)
+        worlds.append(id(env.world))
+        starts.append(tuple(np.round(env.route.start, 3)))
+        assert len(env.bodies.agents) == env.crowd.n
+        for _ in range(4):
+            env.step([0.0, 0.3])
+        env.reset()
+    env.close()
+    assert len(set(keys[:3])) == 1 and len(set(worlds[:3])) == 1
+    assert len(set(keys[3:])) == 1 and keys[2] != keys[3]
+    assert len(set(starts)) == 6
+    every = SocialNavEnv(cfg)
+    drawn = set()
+    for s in range(4):
+        every.reset(seed=s)
+        drawn.add(every.slot.key)
+    every.close()
+    assert len(drawn) > 1
+
+
 def test_dataset_folder_split_with_no_scenes_is_a_clear_error(tmp_path):
     from sim.scene.dataset import build_dataset
 

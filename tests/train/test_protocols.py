@@ -82,6 +82,11 @@ def test_protocol_envs_follow_the_backend_and_configs_merge_key_by_key() -> None
         "lidar"
     ]
     assert lidar == {"resolution": 0.1, "beams": 120}  # the protocol's grid resolution survives a partial override
+    # Scene reuse is the training envs' alone: each backend's own, none under curbside, none in the run's env_config.
+    paper = protocol("paper")
+    assert paper.backend_config("batched")["scene_steps"] > paper.backend_config("pybullet")["scene_steps"] > 0
+    assert protocol("curbside").backend_config("pybullet") == {}
+    assert "scene_steps" not in pybullet["env_config"]
 
 
 def test_curbside_protocol_keeps_the_learnable_defaults() -> None:
