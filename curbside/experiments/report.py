@@ -56,15 +56,37 @@ def paper_cell(exp: Experiment, task: str, method: str, split: str, setting: str
     return {}
 
 
+def stale_runs(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> dict[str, list[str]]:
+    """ "<run id> seed <s>" -> the env keys it trained with that differ from its protocol's now, for every finished
+    run trained under another env config (`curbside experiment run` trains those again)."""
+    from curbside.experiments.runner import run_dir, stale_keys
+    from curbside.train.run import resolve_run
+
+    stale = {}
+    for run in exp.runs:
+        if not run.train:
+            continue
+        expected = resolve_run(run.method, run.task, protocol=exp.protocol, env_config=run.env, split=run.split)
+        for seed in run.seeds:
+            out = run_dir(root, exp, budget, run, seed)
+            changed = stale_keys(out, expected["env_config"]) if (out / "result.json").is_file() else []
+            if changed:
+                stale[f"{run.id} seed {seed}"] = changed
+    return stale
+
+
 def rows_of(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> list[dict[str, Any]]:
-    """The rows of every finished (run, seed) of `exp` at `budget`."""
+    """The rows of every finished (run, seed) of `exp` at `budget`, stale ones (`stale_runs`) left out."""
     from curbside.experiments.runner import run_dir
 
+    stale = stale_runs(exp, budget, root)
+    by_id = {r.id: r for r in exp.runs}
     rows = []
     for run in exp.runs:
         for seed in run.seeds:
             f = run_dir(root, exp, budget, run, seed) / "result.json"
-            if not f.is_file():
+            source = by_id[run.init] if not run.train and run.init else run
+            if not f.is_file() or f"{source.id} seed {seed}" in stale:
                 continue
             result = json.loads(f.read_text())
             for split, ev in result["evals"].items():
@@ -103,6 +125,7 @@ def write_report(
 
     expected = sum(len(r.seeds) for r in exp.runs)
     finished = sum((run_dir(root, exp, budget, r, s) / "result.json").is_file() for r in exp.runs for s in r.seeds)
+    stale = stale_runs(exp, budget, root)
     (out / "report.json").write_text(
         json.dumps(
             {
@@ -112,6 +135,7 @@ def write_report(
                 "protocol": exp.protocol,
                 "runs_finished": finished,
                 "runs_declared": expected,
+                "runs_stale": stale,  # finished under another env config: left out of results.csv until trained again
                 "command": f"curbside experiment run {exp.name} --budget {budget} && curbside experiment report {exp.name} "
                 f"--budget {budget}",
             },

@@ -2,7 +2,9 @@
 
 Layout: ROOT/<experiment>/<budget>/<run id>/seed_<s>/ holds the training run (run.json, checkpoints, policy) and
 result.json (written last, atomically): a run with a result.json is finished and never trained again; a run without
-one resumes from its latest checkpoint. `reevaluate` evaluates finished runs again with the simulator as it is (after
+one resumes from its latest checkpoint. A run whose run.json records another env config than the one it would train
+with now (its protocol has changed: a new catalog, say) is stale: it moves to ROOT/<experiment>/<budget>/stale/ and
+trains again from scratch. `reevaluate` evaluates finished runs again with the simulator as it is (after
 a physics fix, say) and rewrites their result.json, training nothing. Demonstrations for offline and imitation runs
 are collected once per task under ROOT/<experiment>/<budget>/demos/<task>/.
 """
@@ -11,8 +13,9 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +42,32 @@ def _write_json(path: Path, data: dict[str, Any]) -> None:
     os.replace(tmp, path)
 
 
+def _plain(value: Any) -> Any:
+    """`value` as JSON reads it back (tuples as lists, mapping proxies as dicts): run.json's form."""
+    return json.loads(json.dumps(value, default=lambda o: dict(o) if isinstance(o, Mapping) else list(o)))
+
+
+def stale_keys(out: Path, env_config: Mapping[str, Any]) -> list[str]:
+    """The env config keys whose value in the run.json at `out` differs from `env_config` (empty when it matches or
+    there is no run.json)."""
+    path = out / "run.json"
+    if not path.is_file():
+        return []
+    have, want = _plain(json.loads(path.read_text()).get("env_config", {})), _plain(env_config)
+    return sorted(k for k in {*have, *want} if have.get(k) != want.get(k))
+
+
+def _set_aside(root: Path, exp: Experiment, budget: str, run: Run, seed: int) -> Path:
+    """Move (run, seed)'s folder to ROOT/<experiment>/<budget>/stale/<run id>/seed_<s> (replacing an older one)."""
+    out = run_dir(root, exp, budget, run, seed)
+    dest = Path(root) / exp.name / budget / "stale" / run.id / f"seed_{seed}"
+    if dest.exists():
+        shutil.rmtree(dest)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    os.replace(out, dest)
+    return dest
+
+
 def _demo_policy(root: Path, exp: Experiment, task: str) -> Path | None:
     """The trained PPO that drives the protocol's policy share of `task`'s demonstrations: this experiment's PPO run of
     the task (its first seed) at the largest budget that has finished (paper, then small, then smoke), or None."""
@@ -54,7 +83,7 @@ def _demo_policy(root: Path, exp: Experiment, task: str) -> Path | None:
 
 def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]) -> Path:
     """The task's demonstrations for this experiment and budget (collected on first use, and again when the policy
-    that should drive them or the expert's noise has changed since)."""
+    that should drive them, the expert's noise or the scenes' catalog has changed since)."""
     from curbside.train.demos import collect_demos, dataset_id
     from curbside.train.protocols import deep_merge, protocol
 
@@ -66,10 +95,12 @@ def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]
     # drives the rest (or all, without one).
     source = _demo_policy(root, exp, run.task) if proto.demos.policy_fraction > 0 else None
     fraction = proto.demos.policy_fraction if source is not None else 0.0
+    env_config = deep_merge(proto.env_config, run.env)
     want: dict[str, Any] = {
         "policy": str(source) if source is not None else None,
         "policy_fraction": fraction,
         "noise": proto.demos.expert_noise,
+        "catalog": env_config.get("catalog"),
     }
     meta = path / "curbside.json"
     have = json.loads(meta.read_text()) if meta.is_file() else None
@@ -79,7 +110,7 @@ def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]
             base,
             steps=int(b["demos_steps"]),
             noise=proto.demos.expert_noise,
-            env_config=deep_merge(proto.env_config, run.env),
+            env_config=env_config,
             num_scenes=int(b["scenes"] or 64),
             progress=False,
             policy=source,
@@ -103,7 +134,7 @@ def run_experiment(
     `only` and the seeds in `seeds`, when given); with `reevaluate`, evaluate the finished ones again instead (their
     training untouched) and leave the unfinished alone. Return all results."""
     from curbside.train.protocols import protocol
-    from curbside.train.run import train
+    from curbside.train.run import resolve_run, train
 
     exp = load_experiment(name)
     b = budget_of(exp, budget)
@@ -122,6 +153,20 @@ def run_experiment(
             policy_dir = out if run.train else init_from  # a run that trains nothing evaluates the one it starts from
             assert policy_dir is not None
             done = out / "result.json"
+            if run.train and not reevaluate:
+                expected = resolve_run(
+                    run.method, run.task, protocol=exp.protocol, env_config=run.env, split=run.split
+                )["env_config"]
+                changed = stale_keys(out, expected)
+                if changed:
+                    moved = _set_aside(root, exp, budget, run, seed)
+                    for dependent in exp.runs:  # runs that start from this one are measured again too
+                        if dependent.init == run.id and run_dir(root, exp, budget, dependent, seed).exists():
+                            _set_aside(root, exp, budget, dependent, seed)
+                    log(
+                        f"[{exp.name} {budget}] {run.id} seed {seed}: trained with another env config "
+                        f"({', '.join(changed)}); moved to {moved}, training again"
+                    )
             if done.is_file():
                 result = json.loads(done.read_text())
                 if reevaluate:

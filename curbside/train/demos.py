@@ -132,6 +132,7 @@ def collect_demos(
             "policy": None if policy is None else str(policy),
             "policy_fraction": policy_fraction,
             "policy_episodes": by_policy,
+            "catalog": cfg.get("catalog"),  # the scenes' assets (a protocol's catalog, or None: fallback boxes)
         }
         return write_dataset(
             buffers,

