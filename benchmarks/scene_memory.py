@@ -90,6 +90,7 @@ def main() -> None:
         """summary.json after every sample: a stopped run leaves what it measured."""
         summary = {
             "command": "python benchmarks/" + " ".join(shlex.quote(a) for a in [Path(__file__).name, *sys.argv[1:]]),
+            "env_config": {k: v for k, v in cfg.items() if k not in ("split", "scene_seed", "num_scenes")},
             "scenes_target": args.scenes,
             "envs": args.envs,
             "scene_cache": cfg["scene_cache"],
