@@ -54,6 +54,12 @@ BATCHED_TABLE: dict[str, Rule | Table] = table_of(BATCHED_KEYS)
 # test street: the delivery robot into a building wall at 48 degrees turns parallel in ~3.2 s, at ~15 degrees a second
 # whatever its speed (`tests/sim/test_batched.py`).
 ALIGN_RATE = math.radians(16.0)  # rad/s: how fast a contact turns the machine towards the surface's tangent
+# Past a critical angle between the heading and the surface the push on the front corner turns the machine the other
+# way, to face the surface, and it stands: measured in the PyBullet env on the test street with the delivery robot at
+# 2 and 5 m/s, into a building wall it slides at 50 degrees and faces the wall at 55 and more; into a curb from the
+# road it slides at 45 and faces the curb at 50 and more, at any speed (`tests/sim/test_batched.py`).
+STEEP_WALL = math.radians(52.5)  # buildings and objects
+STEEP_CURB = math.radians(47.5)  # a curb alone
 RING_DIRS = np.stack([np.cos(np.arange(16) * np.pi / 8), np.sin(np.arange(16) * np.pi / 8)], 1)
 RING_RADIUS_CELLS = 3  # the ring around a contact whose occupied cells give the surface's normal
 
@@ -250,7 +256,8 @@ class BatchedPointNav(VectorEnv):
                 normals = self._contact_normals(envs, x, y, yaw)
                 rest_x, rest_y = self._back_off(envs, x, y, yaw)
                 stopped = np.zeros(self.num_envs, dtype=bool)
-                stopped[envs] = self._slide(envs, normals, rest_x, rest_y, x, y, yaw, v, sub_dt)
+                steep = np.where(kinds[envs] == KIND_BITS["curb"], STEEP_CURB, STEEP_WALL)
+                stopped[envs] = self._slide(envs, normals, steep, rest_x, rest_y, x, y, yaw, v, sub_dt)
             drive.store(x, y, yaw, v, w, sub_dt, stopped)
         arclen, lat = self.routes.locate(drive.x, drive.y, ep.progress)
         progress, new_progress, collided = ep.advance(drive.x - x0, drive.y - y0, arclen, lat, hits)
@@ -387,6 +394,7 @@ class BatchedPointNav(VectorEnv):
         self,
         envs: np.ndarray,
         normals: np.ndarray,
+        steep: np.ndarray,
         rest_x: np.ndarray,
         rest_y: np.ndarray,
         x: np.ndarray,
@@ -398,17 +406,21 @@ class BatchedPointNav(VectorEnv):
         """Blocked envs `envs`, at their contact poses (x, y, yaw), slide along the surface for the rest of the
         substep (rest_x, rest_y) and turn towards it, as a machine on Bullet's frictionless contacts does: the
         motion into the surface is dropped, the speed read along the heading loses the part into it (v (1 - (h.n)^2)),
-        and the contact turns the heading towards the surface's tangent at ALIGN_RATE. Poses and `v` change in
-        place; returns the envs (of `envs`) that could not move at all, which stop."""
+        and the contact turns the heading towards the surface's tangent at ALIGN_RATE. A machine meeting the surface
+        at more than its `steep` angle (radians, per env) turns to face it instead, at the same rate, and stands.
+        Poses and `v` change in place; returns the envs (of `envs`) that could not move at all, which stop."""
         nx, ny = normals[:, 0], normals[:, 1]
-        into = np.minimum(rest_x * nx + rest_y * ny, 0.0)
-        sx, sy = rest_x - into * nx, rest_y - into * ny
         heading = yaw[envs]
         hx, hy = np.cos(heading), np.sin(heading)
         hn = hx * nx + hy * ny
-        # The tangent nearer the heading, and the turn towards it this substep (at most ALIGN_RATE dt).
+        head_on = -hn > np.sin(steep)
+        into = np.minimum(rest_x * nx + rest_y * ny, 0.0)
+        sx = np.where(head_on, 0.0, rest_x - into * nx)
+        sy = np.where(head_on, 0.0, rest_y - into * ny)
+        # The tangent nearer the heading (or, head on, the inward normal), and the turn towards it this substep (at
+        # most ALIGN_RATE dt).
         side = np.where(hy * nx - hx * ny >= 0.0, 1.0, -1.0)
-        tx, ty = -side * ny, side * nx
+        tx, ty = np.where(head_on, -nx, -side * ny), np.where(head_on, -ny, side * nx)
         gap = np.arctan2(hx * ty - hy * tx, hx * tx + hy * ty)
         turn = np.where(hn < 0.0, np.clip(gap, -ALIGN_RATE * dt, ALIGN_RATE * dt), 0.0)
         moved = np.zeros(envs.size, dtype=bool)
@@ -424,7 +436,7 @@ class BatchedPointNav(VectorEnv):
             x[k[free]], y[k[free]], yaw[k[free]] = new_x[free], new_y[free], new_yaw[free]
             moved[todo[free]] = True
         v[envs] = np.where(moved & (hn < 0.0), v[envs] * (1.0 - hn * hn), v[envs])
-        return ~moved
+        return ~moved | head_on
 
     # -- observation ---------------------------------------------------------------------------------
     def _observe(self) -> np.ndarray:

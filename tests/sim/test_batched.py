@@ -163,6 +163,39 @@ def test_running_into_a_wall_at_an_angle_slides_along_it_as_in_pybullet():
     ref.close()
 
 
+def test_meeting_a_wall_steeply_turns_the_machine_to_face_it_and_stops_it_as_in_pybullet():
+    """Past the critical angle the push on the front corner turns Bullet's machine to face the wall, where it stands
+    under full throttle; below it, it slides on. Both envs, from the same pose at 45 and 70 degrees to the building
+    wall (y = 9 m), 2 m/s held by the same speed controller."""
+    import pybullet as p
+
+    cfg = {"scene_spec": street(), "collision_steps": 0, "stuck_steps": 0}
+    route = {"start": [6.0, 7.0], "goal": [30.0, 7.0]}
+    ref, env = PointNavEnv({**cfg, "lidar": {"static": "bullet"}}), BatchedPointNav(1, cfg)
+    for degrees, slides in ((45.0, True), (70.0, False)):
+        ref.reset(seed=0, options=route)
+        env.reset(seed=0, options=route)
+        th = math.radians(degrees)
+        x, y = 12.0 - 3.0 * math.cos(th), 9.0 - 3.0 * math.sin(th)
+        p.resetBasePositionAndOrientation(ref.machine.body, [0, 0, -50], [0, 0, 0, 1], physicsClientId=ref.client)
+        ref.machine.reset(x, y, 0.15, th, np.random.default_rng(0))
+        env.drive.x[0], env.drive.y[0], env.drive.yaw[0] = x, y, th
+        for _ in range(60):
+            ref.step([0.0, float(np.clip((2.0 - ref.machine.speed) * 2.0, -1.0, 1.0))])
+            env.step(np.array([[0.0, float(np.clip((2.0 - env.drive.speed[0]) * 2.0, -1.0, 1.0))]]))
+        m, drive = ref.machine, env.drive
+        if slides:  # along the wall, parallel to it, ~1 m apart after 10 m
+            assert abs(math.degrees(m.yaw)) < 2.0 and abs(math.degrees(drive.yaw[0])) < 2.0
+            assert m.speed > 1.9 and drive.speed[0] > 1.9
+            assert m.position[0] > x + 8.0 and abs(drive.x[0] - m.position[0]) < 1.5
+        else:  # facing the wall, standing where they met it
+            assert abs(math.degrees(m.yaw) - 90.0) < 2.0 and abs(math.degrees(drive.yaw[0]) - 90.0) < 2.0
+            assert abs(m.speed) < 0.05 and abs(drive.speed[0]) < 0.05
+            assert abs(drive.x[0] - m.position[0]) < 0.3
+        assert abs(drive.y[0] - m.position[1]) < 0.2
+    ref.close()
+
+
 def test_vector_env_api_and_same_step_autoreset():
     env = BatchedPointNav(3, {"scene_spec": street(), "horizon": 6, "horizon_min_speed": None})
     assert env.metadata["autoreset_mode"] == gym.vector.AutoresetMode.SAME_STEP
