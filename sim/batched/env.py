@@ -28,7 +28,7 @@ from sim.envs.observation import GOAL_LOG_SCALE, EgoObservation
 from sim.envs.reset_options import check_reset_options
 from sim.envs.worlds import SceneSource
 from sim.machines import machine_spec
-from sim.raycast.grids import CROSSWALK, KIND_NAMES, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
+from sim.raycast.grids import CROSSWALK, KIND_NAMES, LOW_RAMP, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
 from sim.route import ROUTE_REDRAWS, Route, RouteError
 from sim.schema import Int, Key, Rule, Table, defaults_of, table_of
 from sim.tasks.pointnav import (
@@ -135,6 +135,7 @@ class BatchedPointNav(VectorEnv):
         self.slots = np.zeros(n_envs, dtype=np.int64)
         self.scene_steps_left = np.zeros(n_envs, dtype=np.int64)
         self.level = np.zeros(n_envs, dtype=np.int64)
+        self.body_level = np.zeros(n_envs, dtype=np.int64)  # the level the body collides at (`_locate_level`)
         self.reference = np.zeros(n_envs)  # SPL's reference length of each env's route
         self.labels = np.zeros(n_envs, dtype=np.int64)
         self._started = False
@@ -185,6 +186,7 @@ class BatchedPointNav(VectorEnv):
             self.routes.set(k, route)
             self.reference[k] = self.store.reference_length(built, route)
             lengths[k], horizons[k] = route.length, horizon
+        self.body_level[envs] = SIDEWALK_LEVEL  # a new episode's body level follows from its start alone
         self._locate_level(envs)
         mask = np.zeros(self.num_envs, dtype=bool)
         mask[envs] = True
@@ -219,6 +221,20 @@ class BatchedPointNav(VectorEnv):
                 k = np.intersect1d(k, envs)
             self.labels[k] = walkable_labels(built.scene.walkable, drive.x[k], drive.y[k])
         self.level = np.where(self.labels == CROSSWALK, ROAD_LEVEL, SIDEWALK_LEVEL)
+        # The body's level: the road's on the lower half of a curb ramp as well, where Bullet's wedge is low enough
+        # that the sidewalk beside it is a curb to climb (the LiDAR keeps `level`, as the PyBullet env's grid LiDAR
+        # does). A machine that comes down onto it from the sidewalk, part of its body still over the sidewalk, keeps
+        # the sidewalk's level until its body is clear of it: dropping off a flank is free, climbing one is not.
+        drive = self.drive
+        kinds = self.atlas.frames(self.slots, np.zeros(self.num_envs, dtype=np.int64), "kinds")
+        low_ramp = self.atlas.lookup(kinds, drive.x[:, None], drive.y[:, None])[:, 0] == LOW_RAMP
+        was = self.body_level
+        self.body_level = np.where(low_ramp & (was == ROAD_LEVEL), ROAD_LEVEL, self.level)
+        entering = np.nonzero(low_ramp & (self.body_level == SIDEWALK_LEVEL))[0]
+        if entering.size:
+            self.body_level[entering] = ROAD_LEVEL
+            over_sidewalk, _ = self._collide(entering, drive.x[entering], drive.y[entering], drive.yaw[entering])
+            self.body_level[entering[over_sidewalk]] = SIDEWALK_LEVEL
 
     # -- stepping ------------------------------------------------------------------------------------
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
@@ -329,7 +345,7 @@ class BatchedPointNav(VectorEnv):
         point of the footprint lies on an occupied cell of the body grid; the bits say what those cells hold."""
         blocked = np.zeros(envs.size, dtype=bool)
         bits = np.zeros(envs.size, dtype=np.int64)
-        frame = self.atlas.frames(self.slots[envs], self.level[envs], "body")
+        frame = self.atlas.frames(self.slots[envs], self.body_level[envs], "body")
         centre = self.atlas.lookup(frame, x[:, None], y[:, None])[:, 0].astype(np.float64)
         near = np.nonzero(centre * self.atlas.resolution <= self.drive.bounding_radius + 2.0 * self.atlas.resolution)[0]
         if near.size == 0:
@@ -341,7 +357,7 @@ class BatchedPointNav(VectorEnv):
         hit = occupied.any(axis=1)
         if hit.any():
             kinds = self.atlas.lookup(
-                self.atlas.frames(self.slots[envs[near]], self.level[envs[near]], "kinds"), px, py
+                self.atlas.frames(self.slots[envs[near]], self.body_level[envs[near]], "kinds"), px, py
             )
             for code, name in KIND_NAMES.items():
                 bits[near] |= np.where((occupied & (kinds == code)).any(axis=1), KIND_BITS[name], 0)
@@ -371,7 +387,7 @@ class BatchedPointNav(VectorEnv):
         """Unit normals [len(envs), 2] of the obstacle surfaces that envs `envs` run into at poses (x, y, yaw): away
         from the occupied cells around the centroid of the footprint's points inside the obstacle (a flat wall
         occupies half the ring around that point, so the sum of the occupied directions is its inward normal)."""
-        frame = self.atlas.frames(self.slots[envs], self.level[envs], "body")
+        frame = self.atlas.frames(self.slots[envs], self.body_level[envs], "body")
         cos, sin = np.cos(yaw[envs])[:, None], np.sin(yaw[envs])[:, None]
         px = x[envs, None] + cos * self._body_u - sin * self._body_w
         py = y[envs, None] + sin * self._body_u + cos * self._body_w

@@ -58,6 +58,7 @@ class SceneStore:
                 resolution=float(self.cfg["lidar"]["resolution"]),
                 lidar=self.cfg["lidar"],
                 body_height=self.spec.height,
+                step_max=self.spec.wheel_radius,  # a step up to the wheels' axle height is climbed
             )
             planner = RoutePlanner(scene, self.spec.half_width, margin=float(self.cfg["route_margin"]))
             b = BuiltScene(key=key, scene=scene, slot=self.atlas.add(grids), planner=planner)

@@ -33,6 +33,10 @@ from sim.terrain import patches
 from sim.world import sidewalk_solids
 
 FREE, OBJECT, BUILDING, CURB = 0, 1, 2, 3
+# A free cell of a curb ramp whose surface lies more than the machine's wheel radius below the sidewalk top: from
+# there the raised sidewalk beside the ramp (Bullet's wedge has flanks) is a step the wheels cannot climb, a curb as
+# from the road (`build_grids`' step_max).
+LOW_RAMP = 4
 KIND_NAMES = {OBJECT: "object", BUILDING: "building", CURB: "curb"}
 SIDEWALK_LEVEL, ROAD_LEVEL = 0, 1
 WHAT = ("high", "low", "body")  # the grids of one level: high scan, low scan, the machine's body
@@ -48,7 +52,7 @@ class SceneGrids:
     origin: tuple[float, float]  # world (x, y) of the ring's lower-left corner
     shape: tuple[int, int]  # rows, cols, ring included
     resolution: float
-    kinds: np.ndarray  # FREE / OBJECT / BUILDING / CURB per cell (what a body contact there touches)
+    kinds: np.ndarray  # FREE / OBJECT / BUILDING / CURB per cell (what a body contact there touches), or LOW_RAMP
     tables: list[list[np.ndarray]]
     walkable: WalkableGrid  # the scene's walkable grid (level, off-walkable)
     curb_height: float
@@ -140,9 +144,16 @@ def _distance(occupied: np.ndarray) -> np.ndarray:
     return np.pad(d, RING, constant_values=FAR)
 
 
-def build_grids(scene: Scene, *, resolution: float, lidar: dict[str, Any], body_height: float | None) -> SceneGrids:
+def build_grids(
+    scene: Scene,
+    *,
+    resolution: float,
+    lidar: dict[str, Any],
+    body_height: float | None,
+    step_max: float | None = None,
+) -> SceneGrids:
     """The grids of `scene` for LiDAR heights `lidar["height"]`, `lidar["low_height"]` and (unless None) a body
-    `body_height` tall."""
+    `body_height` tall whose wheels climb steps up to `step_max` (None: no LOW_RAMP cells in `kinds`)."""
     xmin, ymin, xmax, ymax = scene.bounds
     x0 = math.floor((xmin - MARGIN) / resolution) * resolution
     y0 = math.floor((ymin - MARGIN) / resolution) * resolution
@@ -198,6 +209,8 @@ def build_grids(scene: Scene, *, resolution: float, lidar: dict[str, Any], body_
         tables.append(level)
     objects_mask = obstacle_mask(grid, objects) if objects else np.zeros(shape, dtype=bool)
     kinds[objects_mask] = OBJECT
+    if step_max is not None:
+        kinds[(ramp_top < curb - step_max) & (ramp_top > -np.inf) & (kinds == FREE)] = LOW_RAMP
     return SceneGrids(
         origin=(x0 - RING * resolution, y0 - RING * resolution),
         shape=(shape[0] + 2 * RING, shape[1] + 2 * RING),

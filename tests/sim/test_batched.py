@@ -196,6 +196,34 @@ def test_meeting_a_wall_steeply_turns_the_machine_to_face_it_and_stops_it_as_in_
     ref.close()
 
 
+def test_the_low_part_of_a_curb_ramp_puts_the_body_at_the_road_level():
+    """Where a ramp's surface lies more than the wheel radius below the sidewalk top (the first third of the test
+    street's 1.2 m ramps: under 5 cm for the delivery robot's 10 cm wheels), the sidewalk beside it is a curb to
+    climb: the batched body collides at the road level there, and at the sidewalk level higher up the ramp; a machine
+    that comes down onto the low part with its body still over the sidewalk keeps the sidewalk level."""
+    from sim.raycast.grids import LOW_RAMP, build_grids
+    from sim.scene.scene import Scene
+
+    scene = Scene.parse(street(), source="test street")
+    lidar = {"height": 0.4, "low_height": 0.1}
+    grids = build_grids(scene, resolution=0.05, lidar=lidar, body_height=0.55, step_max=0.10)
+    rows, cols = np.nonzero(grids.kinds == LOW_RAMP)
+    y = grids.origin[1] + (rows + 0.5) * grids.resolution
+    x = grids.origin[0] + (cols + 0.5) * grids.resolution
+    # the ramps span x 28-31 m; Bullet's wedges flare ~0.4 m to the sides
+    assert rows.size > 0 and np.all((np.abs(y) > 3.95) & (np.abs(y) < 4.45) & (x > 27.5) & (x < 31.5))
+    assert not (build_grids(scene, resolution=0.05, lidar=lidar, body_height=0.55).kinds == LOW_RAMP).any()
+
+    env = BatchedPointNav(3, {"scene_spec": street(), "horizon": 10_000, "horizon_min_speed": None})
+    env.reset(seed=0, options={"start": [6.0, 7.0], "goal": [50.0, 7.0]})
+    # low on the ramp; high on it; low on its flare, its body's front over the sidewalk beside the ramp
+    env.drive.x[:], env.drive.y[:], env.drive.yaw[:] = [29.5, 29.5, 31.3], [4.2, 4.9, 4.2], [0.0, 0.0, 0.0]
+    env.body_level[:] = 0
+    env._locate_level()
+    assert env.body_level.tolist() == [1, 0, 0] and env.level.tolist() == [0, 0, 0]  # ROAD_LEVEL is 1
+    env.close()
+
+
 def test_vector_env_api_and_same_step_autoreset():
     env = BatchedPointNav(3, {"scene_spec": street(), "horizon": 6, "horizon_min_speed": None})
     assert env.metadata["autoreset_mode"] == gym.vector.AutoresetMode.SAME_STEP
