@@ -1,4 +1,5 @@
-"""A periodic evaluation on a held-out split during training: the learning curve of SR, SPL and cost."""
+"""SB3 callbacks of a training run: whole checkpoints, and a periodic evaluation on a held-out split (the learning
+curve of SR, SPL and cost)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,32 @@ import csv
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
+
+
+def CheckpointEvery(directory: Path, every: int) -> Any:
+    """An SB3 callback that saves the model to `directory`/policy_<env steps>_steps.zip every `every` env steps,
+    each through a file beside it swapped in whole: a run killed while saving keeps its previous checkpoints
+    readable (SB3's CheckpointCallback writes in place and leaves half a zip)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from curbside.train.policies import save_policy
+
+    class _CheckpointEvery(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.next_at = every
+
+        def _on_training_start(self) -> None:
+            Path(directory).mkdir(parents=True, exist_ok=True)
+            self.next_at = (self.num_timesteps // every + 1) * every  # a resumed run goes on where it was
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= self.next_at:
+                self.next_at = (self.num_timesteps // every + 1) * every
+                save_policy(self.model, Path(directory) / f"policy_{self.num_timesteps}_steps.zip")
+            return True
+
+    return _CheckpointEvery()
 
 
 def SplitEvalCallback(

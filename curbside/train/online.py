@@ -11,6 +11,7 @@ PPO-Lag and PPO-ET are PPO with a small, explicit change each (Ray et al. 2019's
 from __future__ import annotations
 
 import json
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -105,10 +106,10 @@ def train_online(
     evaluations and run.json's env_config leave them out."""
     import torch
     from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
+    from stable_baselines3.common.callbacks import CallbackList
     from stable_baselines3.common.logger import configure
 
-    from curbside.train.callbacks import SplitEvalCallback
+    from curbside.train.callbacks import CheckpointEvery, SplitEvalCallback
     from curbside.train.envs import make_training_vec
 
     out.mkdir(parents=True, exist_ok=True)
@@ -142,7 +143,7 @@ def train_online(
     else:
         model = PPO("MlpPolicy", vec, seed=seed, device="cpu", verbose=0, **kwargs)
     model.set_logger(configure(str(out / "logs"), ["csv", "tensorboard"]))
-    callbacks: list = [CheckpointCallback(max(CHECKPOINT_EVERY // n_envs, 1), str(ckpt_dir), name_prefix="policy")]
+    callbacks: list = [CheckpointEvery(ckpt_dir, CHECKPOINT_EVERY)]
     if algo == "ppo_lag":
         state = out / "lagrange.json"
         if latest is None and state.exists():
@@ -237,5 +238,17 @@ def observation_shape(task: str, env_config: Mapping[str, Any]) -> tuple[int, ..
 
 
 def _latest_checkpoint(ckpt_dir: Path) -> Path | None:
+    """The newest whole checkpoint in `ckpt_dir`: one that is not a readable SB3 zip (a run killed while an older
+    trainer wrote it in place) is skipped with a warning, so the run resumes from the one before."""
+    import zipfile
+
     files = sorted(ckpt_dir.glob("policy_*_steps.zip"), key=lambda f: int(f.stem.split("_")[-2]))
-    return files[-1] if files else None
+    for path in reversed(files):
+        try:
+            with zipfile.ZipFile(path) as zf:
+                if "data" in zf.namelist() and zf.testzip() is None:
+                    return path
+        except (zipfile.BadZipFile, OSError):
+            pass
+        warnings.warn(f"checkpoint {path} is not a whole SB3 zip; resuming from the one before it", stacklevel=2)
+    return None

@@ -24,7 +24,7 @@ import numpy as np
 from kernel.config import ConfigError
 
 RLLIB_ALGOS = ("ppo", "ppo_et")  # PPO-Lag's multiplier update lives in an SB3 callback: --executor local
-CHECKPOINT_EVERY = 100_000  # env steps, as SB3's CheckpointCallback(100_000 // n_envs) in curbside.train.online
+CHECKPOINT_EVERY = 100_000  # env steps between RLlib checkpoints (each is a folder of several files)
 
 
 def rllib_env_name(task: str) -> str:

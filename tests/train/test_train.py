@@ -231,6 +231,28 @@ def test_resume_continues_from_the_latest_checkpoint(tmp_path) -> None:
     assert PPO.load(tmp_path / "policy.zip").num_timesteps == 256
 
 
+def test_checkpoints_are_whole_and_a_resume_skips_a_truncated_one(tmp_path, monkeypatch) -> None:
+    from stable_baselines3 import PPO
+
+    from curbside.train import online
+
+    monkeypatch.setattr(online, "CHECKPOINT_EVERY", 64)
+    kwargs = dict(env_config=CFG, n_envs=2, num_scenes=2, hparams=TINY_PPO, progress=False, subprocess=False)
+    train("ppo", "PointNav", tmp_path, steps=128, **kwargs)
+    ckpt = tmp_path / "checkpoints"
+    assert sorted(f.name for f in ckpt.iterdir()) == ["policy_128_steps.zip", "policy_64_steps.zip"]
+    assert PPO.load(ckpt / "policy_128_steps.zip").num_timesteps == 128
+    # A kill while a trainer wrote in place leaves the newest checkpoint cut short: resume from the one before.
+    whole = (ckpt / "policy_128_steps.zip").read_bytes()
+    (ckpt / "policy_192_steps.zip").write_bytes(whole[: len(whole) // 2])
+    with pytest.warns(UserWarning, match="policy_192_steps.zip is not a whole SB3 zip"):
+        assert online._latest_checkpoint(ckpt) == ckpt / "policy_128_steps.zip"
+    with pytest.warns(UserWarning, match="policy_192_steps.zip is not a whole SB3 zip"):
+        train("ppo", "PointNav", tmp_path, steps=256, resume=True, **kwargs)
+    assert PPO.load(tmp_path / "policy.zip").num_timesteps == 256
+    assert (ckpt / "policy_256_steps.zip").is_file() and not list(ckpt.glob("*.tmp*"))
+
+
 def test_unknown_algorithm_is_one_line_exit_2(tmp_path, capsys) -> None:
     line = one_error_line(*cli(["train", "run", "--algo", "dqn", "--out", str(tmp_path)], capsys))
     assert "unknown algorithm 'dqn'" in line and "ppo, ppo_lag" in line
