@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -59,27 +60,30 @@ def paper_cell(exp: Experiment, task: str, method: str, split: str, setting: str
 def stale_runs(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> dict[str, list[str]]:
     """ "<run id> seed <s>" -> the env keys it trained with that differ from its protocol's now, for every finished
     run trained under another env config (`curbside experiment run` trains those again)."""
-    from curbside.experiments.runner import run_dir, stale_keys
-    from curbside.train.run import resolve_run
+    from curbside.experiments.runner import expected_env_config, run_dir, stale_keys
 
     stale = {}
     for run in exp.runs:
         if not run.train:
             continue
-        expected = resolve_run(run.method, run.task, protocol=exp.protocol, env_config=run.env, split=run.split)
+        expected = expected_env_config(exp, run)
         for seed in run.seeds:
             out = run_dir(root, exp, budget, run, seed)
-            changed = stale_keys(out, expected["env_config"]) if (out / "result.json").is_file() else []
+            changed = stale_keys(out, expected) if (out / "result.json").is_file() else []
             if changed:
                 stale[f"{run.id} seed {seed}"] = changed
     return stale
 
 
-def rows_of(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> list[dict[str, Any]]:
-    """The rows of every finished (run, seed) of `exp` at `budget`, stale ones (`stale_runs`) left out."""
+def rows_of(
+    exp: Experiment, budget: str, root: Path = DEFAULT_ROOT, stale: Mapping[str, Any] | None = None
+) -> list[dict[str, Any]]:
+    """The rows of every finished (run, seed) of `exp` at `budget`, the `stale` ones (`stale_runs`, found when not
+    given) left out."""
     from curbside.experiments.runner import run_dir
 
-    stale = stale_runs(exp, budget, root)
+    if stale is None:
+        stale = stale_runs(exp, budget, root)
     by_id = {r.id: r for r in exp.runs}
     rows = []
     for run in exp.runs:
@@ -113,7 +117,8 @@ def write_report(
     """Write results.csv, results.png and report.json into out_root/<experiment>/ (the `small` budget, the one every
     experiment runs) or out_root/<experiment>/<budget>/ (another budget); return the CSV path."""
     exp = load_experiment(name)
-    rows = rows_of(exp, budget, root)
+    stale = stale_runs(exp, budget, root)
+    rows = rows_of(exp, budget, root, stale)
     out = Path(out_root) / exp.name if budget == "small" else Path(out_root) / exp.name / budget
     out.mkdir(parents=True, exist_ok=True)
     path = out / "results.csv"
@@ -125,7 +130,6 @@ def write_report(
 
     expected = sum(len(r.seeds) for r in exp.runs)
     finished = sum((run_dir(root, exp, budget, r, s) / "result.json").is_file() for r in exp.runs for s in r.seeds)
-    stale = stale_runs(exp, budget, root)
     (out / "report.json").write_text(
         json.dumps(
             {

@@ -47,6 +47,15 @@ def _plain(value: Any) -> Any:
     return json.loads(json.dumps(value, default=lambda o: dict(o) if isinstance(o, Mapping) else list(o)))
 
 
+def expected_env_config(exp: Experiment, run: Run) -> dict[str, Any]:
+    """The env config `run` of `exp` trains under now: its protocol's, with the run's own keys and split."""
+    from curbside.train.run import resolve_run
+
+    return dict(
+        resolve_run(run.method, run.task, protocol=exp.protocol, env_config=run.env, split=run.split)["env_config"]
+    )
+
+
 def stale_keys(out: Path, env_config: Mapping[str, Any]) -> list[str]:
     """The env config keys whose value in the run.json at `out` differs from `env_config` (empty when it matches or
     there is no run.json)."""
@@ -134,7 +143,7 @@ def run_experiment(
     `only` and the seeds in `seeds`, when given); with `reevaluate`, evaluate the finished ones again instead (their
     training untouched) and leave the unfinished alone. Return all results."""
     from curbside.train.protocols import protocol
-    from curbside.train.run import resolve_run, train
+    from curbside.train.run import train
 
     exp = load_experiment(name)
     b = budget_of(exp, budget)
@@ -154,10 +163,7 @@ def run_experiment(
             assert policy_dir is not None
             done = out / "result.json"
             if run.train and not reevaluate:
-                expected = resolve_run(
-                    run.method, run.task, protocol=exp.protocol, env_config=run.env, split=run.split
-                )["env_config"]
-                changed = stale_keys(out, expected)
+                changed = stale_keys(out, expected_env_config(exp, run))
                 if changed:
                     moved = _set_aside(root, exp, budget, run, seed)
                     for dependent in exp.runs:  # runs that start from this one are measured again too
