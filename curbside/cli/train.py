@@ -248,16 +248,24 @@ def eval_cmd(
     workers: int = typer.Option(
         1, min=1, max=64, help="Processes sharing the episodes (the same figures for any count)."
     ),
+    actions: str = typer.Option(
+        "mean",
+        help="mean (the policy's mean action, the protocols' rule) or sampled (drawn from its distribution, as "
+        "MetaUrban's evaluation script does; PPO family, BC and GAIL).",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Evaluate a trained policy on a split: SR, SPL, SNS (SocialNav), Cost."""
     require("train", "train eval")
-    from curbside.train.evaluate import evaluate_run
+    from curbside.train.evaluate import EVAL_ACTIONS, evaluate_run
     from curbside.train.policies import load_policy
     from curbside.train.protocols import protocol as get_protocol
 
     try:
-        _, run = load_policy(run_dir)  # a run that cannot be loaded fails here, before any worker starts
+        if actions not in EVAL_ACTIONS:
+            raise ConfigError(f"unknown --actions {actions!r}; valid: {', '.join(EVAL_ACTIONS)}")
+        # A run that cannot be loaded (or cannot sample) fails here, before any worker starts.
+        _, run = load_policy(run_dir, deterministic=actions == "mean")
         from curbside.train.protocols import deep_merge
 
         cfg = deep_merge(run.get("env_config", {}), parse_config_json(config))
@@ -276,8 +284,10 @@ def eval_cmd(
         progress=not as_json,
         num_scenes=proto.eval_scenes,
         workers=workers,
+        actions=actions,
     )
     summary["algo"] = run["algo"]
+    summary["actions"] = actions
     if as_json:
         typer.echo(json.dumps(summary, sort_keys=True))
         return

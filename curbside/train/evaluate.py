@@ -8,8 +8,10 @@ from typing import Any
 import numpy as np
 
 from curbside.train.envs import env_id, split_config
+from kernel.config import ConfigError
 
 EVAL_SCENES = 50  # scenes of the split an evaluation draws its episodes from
+EVAL_ACTIONS = ("mean", "sampled")  # how a policy acts in an evaluation: its mean action, or draws
 
 
 def evaluate_policy(
@@ -22,13 +24,24 @@ def evaluate_policy(
     seed: int = 0,
     num_scenes: int = EVAL_SCENES,
     progress: bool = True,
+    seed_torch: bool = False,
 ) -> dict[str, Any]:
-    """Mean metrics of `act(obs) -> action` over `episodes` episodes (seeds seed..seed+N-1) on `split`."""
+    """Mean metrics of `act(obs) -> action` over `episodes` episodes (seeds seed..seed+N-1) on `split`; with
+    `seed_torch`, torch's global generator is seeded with each episode's seed first (an `act` that samples its
+    actions then draws the same ones for an episode wherever it runs)."""
     from sim.eval import summarize
 
     summary = summarize(
         episode_rows(
-            act, task, env_config, split=split, episodes=episodes, seed=seed, num_scenes=num_scenes, progress=progress
+            act,
+            task,
+            env_config,
+            split=split,
+            episodes=episodes,
+            seed=seed,
+            num_scenes=num_scenes,
+            progress=progress,
+            seed_torch=seed_torch,
         )
     )
     summary["split"] = split
@@ -45,6 +58,7 @@ def episode_rows(
     seed: int,
     num_scenes: int,
     progress: bool,
+    seed_torch: bool = False,
 ) -> list[dict[str, float]]:
     """The metrics of each episode of `evaluate_policy`, in seed order."""
     import gymnasium as gym
@@ -65,23 +79,35 @@ def episode_rows(
     try:
         policy = lambda e, obs: np.asarray(act(obs), dtype=np.float32).reshape(2)  # noqa: E731
         for s in seeds:
+            if seed_torch:
+                import torch
+
+                torch.manual_seed(s)
             rows.append(rollout(env, policy, s))
     finally:
         env.close()
     return rows
 
 
-def _evaluate_shard(job: tuple[str, str, dict[str, Any], str, int, int, int]) -> list[dict[str, Any]]:
+def _evaluate_shard(job: tuple[str, str, dict[str, Any], str, int, int, int, str]) -> list[dict[str, Any]]:
     """The episode rows of one worker's seeds (a process of `evaluate_run`: it loads the policy itself)."""
     import torch
 
     from curbside.train.policies import load_policy
 
-    run_dir, task, cfg, split, seed, episodes, num_scenes = job
+    run_dir, task, cfg, split, seed, episodes, num_scenes, actions = job
     torch.set_num_threads(1)
-    act, _ = load_policy(run_dir)
+    act, _ = load_policy(run_dir, deterministic=actions == "mean")
     return episode_rows(
-        act, task, cfg, split=split, episodes=episodes, seed=seed, num_scenes=num_scenes, progress=False
+        act,
+        task,
+        cfg,
+        split=split,
+        episodes=episodes,
+        seed=seed,
+        num_scenes=num_scenes,
+        progress=False,
+        seed_torch=actions == "sampled",
     )
 
 
@@ -96,16 +122,28 @@ def evaluate_run(
     num_scenes: int = EVAL_SCENES,
     workers: int = 1,
     progress: bool = True,
+    actions: str = "mean",
 ) -> dict[str, Any]:
     """`evaluate_policy` of the policy saved in `run_dir`, its episodes shared among `workers` processes: the same
-    episodes in the same seed order, so the same figures whatever `workers` is."""
+    episodes in the same seed order, so the same figures whatever `workers` is. `actions` is "mean" (the policy's
+    mean action) or "sampled" (drawn from its distribution, torch seeded with each episode's seed)."""
+    if actions not in EVAL_ACTIONS:
+        raise ConfigError(f"unknown actions {actions!r}; valid: {', '.join(EVAL_ACTIONS)}")
     workers = max(1, min(int(workers), episodes))
     if workers == 1:
         from curbside.train.policies import load_policy
 
-        act, _ = load_policy(run_dir)
+        act, _ = load_policy(run_dir, deterministic=actions == "mean")
         return evaluate_policy(
-            act, task, env_config, split=split, episodes=episodes, seed=seed, num_scenes=num_scenes, progress=progress
+            act,
+            task,
+            env_config,
+            split=split,
+            episodes=episodes,
+            seed=seed,
+            num_scenes=num_scenes,
+            progress=progress,
+            seed_torch=actions == "sampled",
         )
     from concurrent.futures import ProcessPoolExecutor
 
@@ -113,7 +151,7 @@ def evaluate_run(
 
     bounds = np.linspace(seed, seed + episodes, workers + 1).astype(int)
     jobs = [
-        (str(run_dir), task, dict(env_config), split, int(a), int(b - a), num_scenes)
+        (str(run_dir), task, dict(env_config), split, int(a), int(b - a), num_scenes, actions)
         for a, b in zip(bounds[:-1], bounds[1:])
         if b > a
     ]

@@ -133,6 +133,24 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
         for w in (1, 2)
     )
     assert one == two and one["episodes"] == 3
+    # Sampled actions: torch is seeded with each episode's seed, so the split among processes changes nothing.
+    one, two = (
+        evaluate_run(
+            source,
+            "PointNav",
+            CFG,
+            split="test",
+            episodes=3,
+            num_scenes=2,
+            workers=w,
+            progress=False,
+            actions="sampled",
+        )
+        for w in (1, 2)
+    )
+    assert one == two and one["episodes"] == 3
+    with pytest.raises(ConfigError, match="unknown actions 'greedy'; valid: mean, sampled"):
+        evaluate_run(source, "PointNav", CFG, episodes=1, actions="greedy")
 
     # The zoo: run a's seed-0 policy (b only evaluates it), loadable as it is, with a card and no Adam moments.
     import numpy as np

@@ -283,6 +283,16 @@ def test_eval_of_a_folder_that_is_not_a_run_is_one_line_exit_2(tmp_path, capsys)
     assert "not a training run" in line and "curbside train run" in line
 
 
+def test_eval_with_unknown_actions_or_sampled_actions_of_a_deterministic_actor_is_one_line_exit_2(
+    demos, tmp_path, capsys
+) -> None:
+    train("td3bc", "PointNav", tmp_path, steps=5, env_config=CFG, demos=Path(demos["path"]), progress=False)
+    line = one_error_line(*cli(["train", "eval", str(tmp_path), "--actions", "greedy"], capsys))
+    assert "unknown --actions 'greedy'; valid: mean, sampled" in line
+    line = one_error_line(*cli(["train", "eval", str(tmp_path), "--actions", "sampled"], capsys))
+    assert "acts deterministically only" in line
+
+
 def test_bad_config_json_is_one_line_exit_2(tmp_path, capsys) -> None:
     line = one_error_line(*cli(["train", "run", "--config", "{bad", "--out", str(tmp_path)], capsys))
     assert "--config is not valid JSON" in line
