@@ -281,9 +281,11 @@ class RoutePlanner:
                 # A leg never starts back the way it came, and ends where the route can go on forwards (a dead end
                 # would need a U-turn, which a wheeled machine without reverse cannot make beside obstacles).
                 graph = self._without_recent(chain, cur) if len(chain) > 1 else self.graph
-                dist, pred = dijkstra(graph, indices=cur, return_predecessors=True)
                 # Costs grow up to 3x near obstacles: a leg's cost overstates its length, so aim a bit long.
                 hi = 1.3 * remaining
+                # Searched no further than `hi`: nodes beyond it cannot end the leg, and those within keep their
+                # exact costs and predecessors (Dijkstra settles them before any farther one).
+                dist, pred = dijkstra(graph, indices=cur, return_predecessors=True, limit=hi)
                 ok = np.isfinite(dist) & open_sidewalk & (dist >= min(0.5 * hi, 40.0)) & (dist <= hi)
                 if prev is not None:
                     ok &= prev > dist  # leads away from the previous leg's start

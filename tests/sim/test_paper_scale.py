@@ -54,6 +54,28 @@ def test_long_routes_are_in_range_and_never_turn_back() -> None:
         assert turn.max() < math.radians(120), f"U-turn of {math.degrees(turn.max()):.0f} deg"
 
 
+def test_long_route_legs_searched_within_their_reach_are_the_legs_of_a_full_search(monkeypatch) -> None:
+    import sim.route
+
+    spec = _scene(1)
+    limited = [RoutePlanner(spec, 0.3).sample(np.random.default_rng(s), 250.0, 650.0).points for s in range(3)]
+    full_search = sim.route.dijkstra
+
+    def unlimited(graph, indices, return_predecessors=False, limit=np.inf, **kw):
+        # A leg's search (the one that returns predecessors) runs over the whole graph; `_goes_on` keeps its limit.
+        return full_search(
+            graph,
+            indices=indices,
+            return_predecessors=return_predecessors,
+            limit=np.inf if return_predecessors else limit,
+            **kw,
+        )
+
+    monkeypatch.setattr(sim.route, "dijkstra", unlimited)
+    full = [RoutePlanner(spec, 0.3).sample(np.random.default_rng(s), 250.0, 650.0).points for s in range(3)]
+    assert all(np.array_equal(a, b) for a, b in zip(limited, full, strict=True))
+
+
 def test_task_preset_sets_routes_horizon_and_agents_and_the_expert_completes_a_long_route() -> None:
     env = PointNavEnv({"preset": "metaurban12k", "scene": {"blocks": 2}, "lidar": {"beams": 60}})
     assert env.config["route_length"] == [250.0, 650.0] and env.config["scene"]["preset"] == "metaurban12k"
