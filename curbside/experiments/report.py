@@ -75,15 +75,10 @@ def stale_runs(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> dict[
     return stale
 
 
-def rows_of(
-    exp: Experiment, budget: str, root: Path = DEFAULT_ROOT, stale: Mapping[str, Any] | None = None
-) -> list[dict[str, Any]]:
-    """The rows of every finished (run, seed) of `exp` at `budget`, the `stale` ones (`stale_runs`, found when not
-    given) left out."""
+def rows_of(exp: Experiment, budget: str, root: Path, stale: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """The rows of every finished (run, seed) of `exp` at `budget`, the `stale` ones (`stale_runs`) left out."""
     from curbside.experiments.runner import run_dir
 
-    if stale is None:
-        stale = stale_runs(exp, budget, root)
     by_id = {r.id: r for r in exp.runs}
     rows = []
     for run in exp.runs:

@@ -24,24 +24,13 @@ def evaluate_policy(
     seed: int = 0,
     num_scenes: int = EVAL_SCENES,
     progress: bool = True,
-    seed_torch: bool = False,
 ) -> dict[str, Any]:
-    """Mean metrics of `act(obs) -> action` over `episodes` episodes (seeds seed..seed+N-1) on `split`; with
-    `seed_torch`, torch's global generator is seeded with each episode's seed first (an `act` that samples its
-    actions then draws the same ones for an episode wherever it runs)."""
+    """Mean metrics of `act(obs) -> action` over `episodes` episodes (seeds seed..seed+N-1) on `split`."""
     from sim.eval import summarize
 
     summary = summarize(
         episode_rows(
-            act,
-            task,
-            env_config,
-            split=split,
-            episodes=episodes,
-            seed=seed,
-            num_scenes=num_scenes,
-            progress=progress,
-            seed_torch=seed_torch,
+            act, task, env_config, split=split, episodes=episodes, seed=seed, num_scenes=num_scenes, progress=progress
         )
     )
     summary["split"] = split
@@ -60,7 +49,8 @@ def episode_rows(
     progress: bool,
     seed_torch: bool = False,
 ) -> list[dict[str, float]]:
-    """The metrics of each episode of `evaluate_policy`, in seed order."""
+    """The metrics of each episode of `evaluate_policy`, in seed order; with `seed_torch`, torch's global generator
+    is seeded with each episode's seed first."""
     import gymnasium as gym
 
     import sim  # noqa: F401
@@ -76,27 +66,36 @@ def episode_rows(
         from rich.progress import track
 
         seeds = track(seeds, description=f"eval {task} {split}")
+    manual_seed = None
+    if seed_torch:  # an `act` that samples draws the same actions for an episode wherever it runs
+        import torch
+
+        manual_seed = torch.manual_seed
     try:
         policy = lambda e, obs: np.asarray(act(obs), dtype=np.float32).reshape(2)  # noqa: E731
         for s in seeds:
-            if seed_torch:
-                import torch
-
-                torch.manual_seed(s)
+            if manual_seed is not None:
+                manual_seed(s)
             rows.append(rollout(env, policy, s))
     finally:
         env.close()
     return rows
 
 
-def _evaluate_shard(job: tuple[str, str, dict[str, Any], str, int, int, int, str]) -> list[dict[str, Any]]:
-    """The episode rows of one worker's seeds (a process of `evaluate_run`: it loads the policy itself)."""
-    import torch
-
+def _run_rows(
+    run_dir: str,
+    task: str,
+    cfg: dict[str, Any],
+    split: str,
+    seed: int,
+    episodes: int,
+    num_scenes: int,
+    actions: str,
+    progress: bool = False,
+) -> list[dict[str, Any]]:
+    """The episode rows of the policy saved in `run_dir` over seeds seed..seed+episodes-1, acting with `actions`."""
     from curbside.train.policies import load_policy
 
-    run_dir, task, cfg, split, seed, episodes, num_scenes, actions = job
-    torch.set_num_threads(1)
     act, _ = load_policy(run_dir, deterministic=actions == "mean")
     return episode_rows(
         act,
@@ -106,9 +105,17 @@ def _evaluate_shard(job: tuple[str, str, dict[str, Any], str, int, int, int, str
         episodes=episodes,
         seed=seed,
         num_scenes=num_scenes,
-        progress=False,
+        progress=progress,
         seed_torch=actions == "sampled",
     )
+
+
+def _evaluate_shard(job: tuple[str, str, dict[str, Any], str, int, int, int, str]) -> list[dict[str, Any]]:
+    """`_run_rows` of one worker's seeds (a process of `evaluate_run`: it loads the policy itself)."""
+    import torch
+
+    torch.set_num_threads(1)
+    return _run_rows(*job)
 
 
 def evaluate_run(
@@ -127,36 +134,24 @@ def evaluate_run(
     """`evaluate_policy` of the policy saved in `run_dir`, its episodes shared among `workers` processes: the same
     episodes in the same seed order, so the same figures whatever `workers` is. `actions` is "mean" (the policy's
     mean action) or "sampled" (drawn from its distribution, torch seeded with each episode's seed)."""
+    from sim.eval import summarize
+
     if actions not in EVAL_ACTIONS:
         raise ConfigError(f"unknown actions {actions!r}; valid: {', '.join(EVAL_ACTIONS)}")
     workers = max(1, min(int(workers), episodes))
     if workers == 1:
-        from curbside.train.policies import load_policy
+        rows = _run_rows(str(run_dir), task, dict(env_config), split, seed, episodes, num_scenes, actions, progress)
+    else:
+        from concurrent.futures import ProcessPoolExecutor
 
-        act, _ = load_policy(run_dir, deterministic=actions == "mean")
-        return evaluate_policy(
-            act,
-            task,
-            env_config,
-            split=split,
-            episodes=episodes,
-            seed=seed,
-            num_scenes=num_scenes,
-            progress=progress,
-            seed_torch=actions == "sampled",
-        )
-    from concurrent.futures import ProcessPoolExecutor
-
-    from sim.eval import summarize
-
-    bounds = np.linspace(seed, seed + episodes, workers + 1).astype(int)
-    jobs = [
-        (str(run_dir), task, dict(env_config), split, int(a), int(b - a), num_scenes, actions)
-        for a, b in zip(bounds[:-1], bounds[1:])
-        if b > a
-    ]
-    with ProcessPoolExecutor(len(jobs)) as pool:
-        rows = [row for part in pool.map(_evaluate_shard, jobs) for row in part]
+        bounds = np.linspace(seed, seed + episodes, workers + 1).astype(int)
+        jobs = [
+            (str(run_dir), task, dict(env_config), split, int(a), int(b - a), num_scenes, actions)
+            for a, b in zip(bounds[:-1], bounds[1:])
+            if b > a
+        ]
+        with ProcessPoolExecutor(len(jobs)) as pool:
+            rows = [row for part in pool.map(_evaluate_shard, jobs) for row in part]
     summary = summarize(rows)
     summary["split"] = split
     return summary
