@@ -248,29 +248,30 @@ def eval_cmd(
     workers: int = typer.Option(
         1, min=1, max=64, help="Processes sharing the episodes (the same figures for any count)."
     ),
-    actions: str = typer.Option(
-        "mean",
-        help="mean (the policy's mean action, the protocols' rule) or sampled (drawn from its distribution, as "
-        "MetaUrban's evaluation script does; PPO family, BC and GAIL).",
+    actions: str | None = typer.Option(
+        None,
+        help="mean (the policy's mean action) or sampled (drawn from its distribution, as MetaUrban's evaluation "
+        "script does; PPO family, BC and GAIL); default: the run's protocol's rule (curbside mean, paper sampled).",
     ),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Evaluate a trained policy on a split: SR, SPL, SNS (SocialNav), Cost."""
     require("train", "train eval")
     from curbside.train.evaluate import EVAL_ACTIONS, evaluate_run
-    from curbside.train.policies import load_policy
+    from curbside.train.policies import eval_actions_of, load_policy, read_run
+    from curbside.train.protocols import deep_merge
     from curbside.train.protocols import protocol as get_protocol
 
     try:
-        if actions not in EVAL_ACTIONS:
+        if actions is not None and actions not in EVAL_ACTIONS:
             raise ConfigError(f"unknown --actions {actions!r}; valid: {', '.join(EVAL_ACTIONS)}")
+        run = read_run(run_dir)
+        proto = get_protocol(run.get("protocol", "curbside"))
+        actions = actions or eval_actions_of(run, proto.eval_actions)
         # A run that cannot be loaded (or cannot sample) fails here, before any worker starts.
-        _, run = load_policy(run_dir, deterministic=actions == "mean")
-        from curbside.train.protocols import deep_merge
-
+        load_policy(run_dir, deterministic=actions == "mean")
         cfg = deep_merge(run.get("env_config", {}), parse_config_json(config))
         _check_env_config(run["task"], cfg, split)
-        proto = get_protocol(run.get("protocol", "curbside"))
     except (ConfigError, ValueError, FileNotFoundError) as e:
         raise fail(str(e)) from None
     episodes = episodes or proto.eval_episodes
@@ -287,14 +288,13 @@ def eval_cmd(
         actions=actions,
     )
     summary["algo"] = run["algo"]
-    summary["actions"] = actions
     if as_json:
         typer.echo(json.dumps(summary, sort_keys=True))
         return
     sns = f"  SNS {summary['sns']:.3f}" if "sns" in summary else ""
     typer.echo(
         f"{run['algo']} on {run['task']} {split}, {episodes} episodes: SR {summary['sr']:.3f}  "
-        f"SPL {summary['spl']:.3f}{sns}  Cost {summary['cost']:.2f}"
+        f"SPL {summary['spl']:.3f}{sns}  Cost {summary['cost']:.2f}  ({actions} actions)"
     )
 
 

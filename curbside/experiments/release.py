@@ -95,7 +95,9 @@ def card(
         "train_seconds": None if result.get("resumed", False) else result.get("train_s"),
         "env_config": meta.get("env_config", {}),
         "metrics": {
-            split: {k: ev.get(k) for k in ("sr", "spl", "sns", "cost", "route_completion", "episodes") if k in ev}
+            split: {
+                k: ev.get(k) for k in ("sr", "spl", "sns", "cost", "route_completion", "episodes", "actions") if k in ev
+            }
             for split, ev in result["evals"].items()
         },
         "command": f"curbside experiment run {experiment} --budget {budget} --only {run.id} && curbside experiment "

@@ -5,7 +5,8 @@ result.json (written last, atomically): a run with a result.json is finished and
 one resumes from its latest checkpoint. A run whose run.json records another env config than the one it would train
 with now (its protocol has changed: a new catalog, say) is stale: it moves to ROOT/<experiment>/<budget>/stale/ and
 trains again from scratch. `reevaluate` evaluates finished runs again with the simulator as it is (after
-a physics fix, say) and rewrites their result.json, training nothing. Demonstrations for offline and imitation runs
+a physics fix, say) and rewrites their result.json, training nothing; a finished run evaluated with other actions than
+its protocol's rule has it act with now (mean or sampled) is evaluated again the same way. Demonstrations for offline and imitation runs
 are collected once per task under ROOT/<experiment>/<budget>/demos/<task>/.
 """
 
@@ -20,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from curbside.experiments.spec import BUDGETS, Experiment, Run, budget_of, check_run_ids, load_experiment
+from curbside.train.protocols import Protocol
 
 ONLINE = ("ppo", "ppo_lag", "ppo_et")
 DEFAULT_ROOT = Path("outputs/experiments")
@@ -175,9 +177,11 @@ def run_experiment(
                     )
             if done.is_file():
                 result = json.loads(done.read_text())
-                if reevaluate:
-                    log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating again")
-                    result["evals"] = _evaluate(run, policy_dir, b, proto.eval_scenes, progress, log)
+                otherwise = evaluated_otherwise(result, policy_dir, proto.eval_actions)
+                if reevaluate or otherwise:
+                    why = f" (evaluated with {otherwise} actions; the protocol's are {proto.eval_actions})"
+                    log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating again{why if otherwise else ''}")
+                    result["evals"] = _evaluate(run, policy_dir, b, proto, progress, log)
                     _write_json(done, result)
                 results.append(result)
                 continue
@@ -229,7 +233,7 @@ def run_experiment(
                 steps = 0
                 log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating the policy of {run.init}")
             train_s = time.time() - t0
-            evals = _evaluate(run, policy_dir, b, proto.eval_scenes, progress, log)
+            evals = _evaluate(run, policy_dir, b, proto, progress, log)
             result = {
                 "experiment": exp.name,
                 "budget": budget,
@@ -251,15 +255,28 @@ def run_experiment(
     return results
 
 
+def evaluated_otherwise(result: Mapping[str, Any], policy_dir: Path, actions: str) -> str | None:
+    """How a finished run's evaluations acted when that is not how its protocol's rule `actions` has its policy act
+    now ("mean" for evaluations that predate the record), else None."""
+    from curbside.train.policies import eval_actions_of, read_run
+
+    want = eval_actions_of(read_run(policy_dir), actions)
+    have = {ev.get("actions", "mean") for ev in result.get("evals", {}).values()}
+    return next((a for a in sorted(have) if a != want), None)
+
+
 def _evaluate(
-    run: Run, policy_dir: Path, b: dict[str, Any], eval_scenes: int, progress: bool, log: Callable[[str], None]
+    run: Run, policy_dir: Path, b: dict[str, Any], proto: Protocol, progress: bool, log: Callable[[str], None]
 ) -> dict[str, dict[str, Any]]:
-    """The policy in `policy_dir` evaluated on each of the run's splits, under its training config plus the run's."""
+    """The policy in `policy_dir` evaluated on each of the run's splits, under its training config plus the run's,
+    acting as the protocol's rule has it act."""
     from curbside.train.evaluate import evaluate_run
-    from curbside.train.policies import read_run
+    from curbside.train.policies import eval_actions_of, read_run
     from curbside.train.protocols import deep_merge
 
-    cfg = deep_merge(deep_merge(read_run(policy_dir).get("env_config", {}), run.env), run.eval_env)
+    meta = read_run(policy_dir)
+    cfg = deep_merge(deep_merge(meta.get("env_config", {}), run.env), run.eval_env)
+    actions = eval_actions_of(meta, proto.eval_actions)
     evals = {}
     for split in run.evaluate:
         evals[split] = evaluate_run(
@@ -268,9 +285,13 @@ def _evaluate(
             cfg,
             split=split,
             episodes=int(b["episodes"]),
-            num_scenes=eval_scenes,
+            num_scenes=proto.eval_scenes,
             workers=int(b["eval_workers"]),
             progress=progress,
+            actions=actions,
         )
-        log(f"    {split}: SR {evals[split]['sr']:.2f}  SPL {evals[split]['spl']:.2f}  Cost {evals[split]['cost']:.2f}")
+        log(
+            f"    {split}: SR {evals[split]['sr']:.2f}  SPL {evals[split]['spl']:.2f}  Cost {evals[split]['cost']:.2f}"
+            f"  ({actions} actions)"
+        )
     return evals

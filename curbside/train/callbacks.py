@@ -43,9 +43,11 @@ def SplitEvalCallback(
     split: str,
     csv_path: Path,
     at_start: bool = False,
+    actions: str = "mean",
 ) -> Any:
     """An SB3 callback that evaluates the current policy on `split` every `every` env steps into `csv_path` (and
-    before the first step with `at_start`: a fine-tuned run's first row is its source policy's evaluation)."""
+    before the first step with `at_start`: a fine-tuned run's first row is its source policy's evaluation), acting
+    with its mean action or, with `actions` "sampled", draws seeded by each episode's seed."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     from curbside.train.evaluate import evaluate_policy
@@ -73,12 +75,13 @@ def SplitEvalCallback(
         def record(self) -> None:
             policy = self.model
             summary = evaluate_policy(
-                lambda obs: policy.predict(obs, deterministic=True)[0],
+                lambda obs: policy.predict(obs, deterministic=actions == "mean")[0],
                 task,
                 env_config,
                 split=split,
                 episodes=episodes,
                 progress=False,
+                seed_torch=actions == "sampled",
             )
             append_eval_row(csv_path, self.num_timesteps, summary, self.logger, split)
 

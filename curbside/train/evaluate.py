@@ -24,13 +24,23 @@ def evaluate_policy(
     seed: int = 0,
     num_scenes: int = EVAL_SCENES,
     progress: bool = True,
+    seed_torch: bool = False,
 ) -> dict[str, Any]:
-    """Mean metrics of `act(obs) -> action` over `episodes` episodes (seeds seed..seed+N-1) on `split`."""
+    """Mean metrics of `act(obs) -> action` over `episodes` episodes (seeds seed..seed+N-1) on `split`; `seed_torch`
+    as in `episode_rows` (for an `act` that samples)."""
     from sim.eval import summarize
 
     summary = summarize(
         episode_rows(
-            act, task, env_config, split=split, episodes=episodes, seed=seed, num_scenes=num_scenes, progress=progress
+            act,
+            task,
+            env_config,
+            split=split,
+            episodes=episodes,
+            seed=seed,
+            num_scenes=num_scenes,
+            progress=progress,
+            seed_torch=seed_torch,
         )
     )
     summary["split"] = split
@@ -50,7 +60,8 @@ def episode_rows(
     seed_torch: bool = False,
 ) -> list[dict[str, float]]:
     """The metrics of each episode of `evaluate_policy`, in seed order; with `seed_torch`, torch's global generator
-    is seeded with each episode's seed first."""
+    is seeded with each episode's seed first and given back its state at the end (a training run that evaluates
+    itself keeps its own draws)."""
     import gymnasium as gym
 
     import sim  # noqa: F401
@@ -70,7 +81,7 @@ def episode_rows(
     if seed_torch:  # an `act` that samples draws the same actions for an episode wherever it runs
         import torch
 
-        manual_seed = torch.manual_seed
+        manual_seed, rng_state = torch.manual_seed, torch.get_rng_state()
     try:
         policy = lambda e, obs: np.asarray(act(obs), dtype=np.float32).reshape(2)  # noqa: E731
         for s in seeds:
@@ -79,6 +90,8 @@ def episode_rows(
             rows.append(rollout(env, policy, s))
     finally:
         env.close()
+        if manual_seed is not None:
+            torch.set_rng_state(rng_state)
     return rows
 
 
@@ -154,6 +167,7 @@ def evaluate_run(
             rows = [row for part in pool.map(_evaluate_shard, jobs) for row in part]
     summary = summarize(rows)
     summary["split"] = split
+    summary["actions"] = actions
     return summary
 
 

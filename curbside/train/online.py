@@ -91,6 +91,7 @@ def train_online(
     eval_every: int = 0,
     eval_episodes: int = 20,
     eval_split: str = "test",
+    eval_actions: str = "mean",
     progress: bool = True,
     subprocess: bool = True,
     split: str = "train",
@@ -101,7 +102,8 @@ def train_online(
 ) -> Path:
     """Train `algo` on `split` for `steps` env steps; checkpoints, CSV/TensorBoard logs and the final policy
     (`policy.zip`) go to `out`; returns the policy path. `resume` continues from `out/checkpoints`; `init_from`
-    starts from another run's policy (its evaluation is the curve's first row when `eval_every` > 0).
+    starts from another run's policy (its evaluation is the curve's first row when `eval_every` > 0); the curve's
+    policy acts as `eval_actions` says (curbside.train.evaluate.EVAL_ACTIONS).
     `backend_config` holds env keys of the training backend alone (scene_steps; sim.batched's route_pool): the
     evaluations and run.json's env_config leave them out."""
     import torch
@@ -158,7 +160,16 @@ def train_online(
         if latest is None and curve.exists():
             curve.unlink()  # a fresh run writes a fresh curve
         callbacks.append(
-            SplitEvalCallback(task, env_config, eval_every, eval_episodes, eval_split, curve, at_start=latest is None)
+            SplitEvalCallback(
+                task,
+                env_config,
+                eval_every,
+                eval_episodes,
+                eval_split,
+                curve,
+                at_start=latest is None,
+                actions=eval_actions,
+            )
         )
     (out / "run.json").write_text(
         json.dumps(

@@ -21,6 +21,8 @@ POLICY_FILES = {
     "iql": "policy.pt",
     "td3bc": "policy.pt",
 }
+# Learners whose saved policy is one action per observation (d3rlpy-style actors; RLlib checkpoints load the same way).
+DETERMINISTIC_ALGOS = ("iql", "td3bc")
 
 
 def save_policy(model: Any, path: Path) -> Path:
@@ -52,6 +54,16 @@ def read_run(run_dir: str | Path) -> dict[str, Any]:
     return run
 
 
+def can_sample(run: dict[str, Any]) -> bool:
+    """Whether the run's saved policy is a distribution that `load_policy(deterministic=False)` can draw from."""
+    return run["algo"] not in DETERMINISTIC_ALGOS and run.get("engine") != "rllib"
+
+
+def eval_actions_of(run: dict[str, Any], actions: str) -> str:
+    """How the run's policy acts under a protocol whose rule is `actions`: "mean" for a policy that cannot sample."""
+    return actions if can_sample(run) else "mean"
+
+
 def load_policy(
     run_dir: str | Path, *, deterministic: bool = True
 ) -> tuple[Callable[[np.ndarray], np.ndarray], dict[str, Any]]:
@@ -59,7 +71,7 @@ def load_policy(
     from its distribution (PPO family, BC and GAIL; draws follow torch's global seed)."""
     run = read_run(run_dir)
     algo = run["algo"]
-    if not deterministic and (algo in ("iql", "td3bc") or run.get("engine") == "rllib"):
+    if not deterministic and not can_sample(run):
         raise ConfigError(f"a {algo} policy from {run_dir} acts deterministically only; drop the stochastic option")
     if run.get("engine") == "rllib":  # `curbside train run --executor ray`: an RLlib checkpoint folder
         from curbside.train.rllib import load_rllib_policy

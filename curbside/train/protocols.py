@@ -63,6 +63,9 @@ class Protocol:
     eval_episodes: int  # episodes per split in an evaluation
     eval_scenes: int = 50  # scenes of the split an evaluation draws from
     curve_episodes: int = 20  # episodes per point of a learning curve
+    # How a stochastic policy (PPO family, BC, GAIL) acts in evaluations and curves: its mean action or draws from
+    # its distribution (curbside.train.evaluate.EVAL_ACTIONS); IQL and TD3+BC always act with their one action.
+    eval_actions: str = "mean"
     # Extra env config of each training backend (scene reuse): the evaluations and run.json's env_config leave it out.
     training_config: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     catalog: CatalogRecipe | None = None  # the catalog env_config's "catalog" names (None: fallback boxes)
@@ -185,6 +188,7 @@ PROTOCOLS: dict[str, Protocol] = {
         pybullet_envs=8,
         eval_episodes=200,
         eval_scenes=100,
+        eval_actions="sampled",
         # A paper-scale scene costs ~2 s to build and a long route ~0.1 s to plan: each batched env keeps its scene for
         # 20,000 steps and each scene a pool of 16 routes. A PyBullet env's new scene costs ~2.8 s (world and
         # pedestrians included), about 500 of its steps: it keeps its scene for 2,000 steps (docs/protocols.md).
@@ -199,6 +203,8 @@ PROTOCOLS: dict[str, Protocol] = {
                 "BC, GAIL)",
                 "demos": "MetaUrban, ICLR 2025, appendix: 30,000 steps, 80 % from a trained PPO policy, ~60 % success",
                 "env_config": "docs/protocols.md: the metaurban12k preset (scenes, 250-650 m routes, horizon rule)",
+                "eval_actions": "MetaUrban's RL/PointNav/eval_ppo.py: SB3's predict with its default, a draw from the "
+                "policy's distribution (docs/protocols.md)",
                 "catalog": "MetaUrban, ICLR 2025, Sec. 3: 10,000 assets, unseen objects held out of training; ours "
                 "1,023 procedural ones (docs/protocols.md)",
             }

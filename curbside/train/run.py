@@ -199,6 +199,7 @@ def train(
             resume=resume,
             eval_every=eval_every,
             eval_episodes=episodes,
+            eval_actions=proto.eval_actions,
             progress=progress,
             subprocess=subprocess,
             split=split,

@@ -116,6 +116,25 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     assert json.loads(first.read_text())["evals"]["test"]["sr"] == measured
     assert {r["run"]: r["train_s"] for r in again} == {r["run"]: r["train_s"] for r in results}
 
+    # The protocol's rule turns to sampled actions: every finished run is evaluated again with draws, nothing trained;
+    # a run after that finds them current and evaluates nothing.
+    from dataclasses import replace
+
+    from curbside.train.protocols import PROTOCOLS
+
+    with monkeypatch.context() as m:
+        m.setitem(PROTOCOLS, "curbside", replace(PROTOCOLS["curbside"], eval_actions="sampled"))
+        logged: list[str] = []
+        sampled = run_experiment(str(exp), "smoke", root=root, progress=False, log=logged.append)
+        assert calls == [] and len(sampled) == 4
+        assert {ev["actions"] for r in sampled for ev in r["evals"].values()} == {"sampled"}
+        assert sum("evaluated with mean actions; the protocol's are sampled" in line for line in logged) == 4
+        stamp = first.stat().st_mtime_ns
+        run_experiment(str(exp), "smoke", root=root, progress=False, log=lambda s: None)
+        assert first.stat().st_mtime_ns == stamp
+    run_experiment(str(exp), "smoke", root=root, progress=False, log=lambda s: None)  # back to mean actions
+    assert {ev["actions"] for ev in json.loads(first.read_text())["evals"].values()} == {"mean"}
+
     out = write_report(str(exp), "smoke", root=root, out_root=tmp_path / "report")
     with open(out, newline="") as f:
         rows = list(csv.DictReader(f))
@@ -151,6 +170,22 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     assert one == two and one["episodes"] == 3
     with pytest.raises(ConfigError, match="unknown actions 'greedy'; valid: mean, sampled"):
         evaluate_run(source, "PointNav", CFG, episodes=1, actions="greedy")
+
+    # A training run that evaluates itself with draws keeps its own: torch's generator is given back its state.
+    import torch
+
+    from curbside.train.evaluate import evaluate_policy
+
+    def draw(obs):
+        return torch.rand(2).numpy() * 2 - 1
+
+    torch.manual_seed(7)
+    state = torch.get_rng_state()
+    drawn = [
+        evaluate_policy(draw, "PointNav", CFG, episodes=2, num_scenes=2, progress=False, seed_torch=True)
+        for _ in range(2)
+    ]
+    assert drawn[0] == drawn[1] and torch.equal(torch.get_rng_state(), state)
 
     # The zoo: run a's seed-0 policy (b only evaluates it), loadable as it is, with a card and no Adam moments.
     import numpy as np

@@ -37,6 +37,8 @@ def test_paper_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
     assert ppo["env_config"]["preset"] == "metaurban12k" and ppo["num_scenes"] == 12_800
     assert [protocol("paper").scenes(s) for s in ("train", "test", "unseen", "finetune")] == [12_800, 1_000, 100, 1_000]
     assert protocol("paper").eval_episodes >= 200
+    # MetaUrban's eval_ppo.py calls SB3's predict with its default: the policy's draws, not its mean.
+    assert protocol("paper").eval_actions == "sampled" and "eval_ppo.py" in protocol("paper").sources["eval_actions"]
     bc = resolve_run("bc", "PointNav", protocol="paper")["hparams"]
     assert (bc["learning_rate"], bc["batch_size"]) == (1e-4, 64)
     from curbside.experiments.spec import budget_of, load_experiment
@@ -93,6 +95,7 @@ def test_curbside_protocol_keeps_the_learnable_defaults() -> None:
     r = resolve_run("ppo", "PointNav")
     assert r["env_config"] == {} and r["n_envs"] == 8 and r["num_scenes"] == 64
     assert r["hparams"]["learning_rate"] == 3e-4 and r["hparams"]["n_steps"] == 512
+    assert protocol("curbside").eval_actions == "mean"
     assert set(PROTOCOLS) == {"curbside", "paper"}
 
 

@@ -291,6 +291,9 @@ def test_eval_with_unknown_actions_or_sampled_actions_of_a_deterministic_actor_i
     assert "unknown --actions 'greedy'; valid: mean, sampled" in line
     line = one_error_line(*cli(["train", "eval", str(tmp_path), "--actions", "sampled"], capsys))
     assert "acts deterministically only" in line
+    # Without --actions the run's protocol decides, and an actor that cannot sample acts with its one action.
+    code, out, _ = cli(["train", "eval", str(tmp_path), "--episodes", "1", "--json"], capsys)
+    assert code == 0 and json.loads(out)["actions"] == "mean"
 
 
 def test_bad_config_json_is_one_line_exit_2(tmp_path, capsys) -> None:
