@@ -191,8 +191,6 @@ def run_experiment(
             backend = run.backend or b["backend"]
             if run.task != "PointNav" or run.method not in ONLINE + ("gail",) or backend != "batched":
                 backend = "pybullet"
-            if run.method == "gail":
-                backend = "pybullet"  # GAIL's generator steps an SB3 VecEnv of the PyBullet envs
             demos = _demos(root, exp, budget, run, b) if not online and run.train else None
             steps = _steps(b, run.method)
             # A budget's hparams are PPO's (the generator's for GAIL); the other learners take its network alone.

@@ -155,7 +155,6 @@ def train_gail(
 
     from curbside.train.online import ppo_kwargs
 
-    torch.set_num_threads(1)
     low, high = venv.action_space.low, venv.action_space.high
     disc = Discriminator(
         int(np.prod(venv.observation_space.shape)),

@@ -13,6 +13,7 @@ from curbside.train.policies import check_algo
 from kernel.config import ConfigError
 
 BACKENDS = ("pybullet", "batched")  # the PyBullet envs (the reference), or sim.batched (PointNav, flat ground)
+BATCHED_ALGOS = ("ppo", "ppo_lag", "ppo_et", "gail")  # what sim.batched can train: PPO and GAIL's PPO generator
 
 
 def check_backend(backend: str, task: str, algo: str) -> str:
@@ -21,8 +22,11 @@ def check_backend(backend: str, task: str, algo: str) -> str:
         raise ConfigError(f"unknown backend {backend!r}; valid: {', '.join(BACKENDS)}")
     if backend == "batched" and task != "PointNav":
         raise ConfigError(f"the batched backend steps PointNav only; train {task} with --backend pybullet")
-    if backend == "batched" and algo not in ("ppo", "ppo_lag", "ppo_et"):
-        raise ConfigError(f"the batched backend trains ppo, ppo_lag and ppo_et; train {algo} with --backend pybullet")
+    if backend == "batched" and algo not in BATCHED_ALGOS:
+        raise ConfigError(
+            f"the batched backend trains {', '.join(BATCHED_ALGOS)} (the learners that step envs); train {algo} "
+            "with --backend pybullet"
+        )
     return backend
 
 
@@ -243,7 +247,7 @@ def train(
     import gymnasium as gym
 
     import sim  # noqa: F401
-    from curbside.train.envs import env_id, make_vec_env, split_config
+    from curbside.train.envs import env_id, split_config
 
     probe = gym.make(env_id(task), config=split_config(cfg, split, 1))
     obs_space, act_space = probe.observation_space, probe.action_space
@@ -270,11 +274,18 @@ def train(
             hparams=h,
             progress=progress,
         )
+    import torch
+
+    from curbside.train.envs import make_training_vec
     from curbside.train.imitate import train_gail
 
-    # GAIL's generator steps the PyBullet envs, with that backend's scene reuse (run.json keeps the env_config alone).
-    train_cfg = {**cfg, **proto.backend_config("pybullet")}
-    vec = make_vec_env(task, train_cfg, envs, scenes, split=split, subprocess=subprocess, seed=seed)
+    # GAIL's generator steps the backend's envs, with its scene reuse (run.json keeps the env_config alone); the
+    # batched env runs in this process and leaves torch the second core between rollouts, as PPO's does.
+    torch.set_num_threads(2 if backend == "batched" else 1)
+    train_cfg = {**cfg, **proto.backend_config(backend)}
+    vec = make_training_vec(
+        task, train_cfg, envs, scenes, backend=backend, split=split, seed=seed, subprocess=subprocess
+    )
     try:
         return train_gail(transitions, out, steps=steps, venv=vec, hparams=h, seed=seed, resume=resume)
     finally:

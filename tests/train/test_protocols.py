@@ -236,8 +236,8 @@ def test_seeds_are_aggregated_as_mean_and_std(tmp_path) -> None:
         (["--backend", "gpu"], "unknown backend 'gpu'; valid: pybullet, batched"),
         (["--backend", "batched", "--task", "SocialNav"], "the batched backend steps PointNav only"),
         (
-            ["--backend", "batched", "--algo", "gail", "--demos", "."],
-            "the batched backend trains ppo, ppo_lag and ppo_et",
+            ["--backend", "batched", "--algo", "bc", "--demos", "."],
+            "the batched backend trains ppo, ppo_lag, ppo_et, gail",
         ),
         (["--split", "test"], "--split test is held out for evaluation"),
         (["--split", "validation"], "unknown split 'validation'"),
