@@ -58,15 +58,16 @@ def paper_cell(exp: Experiment, task: str, method: str, split: str, setting: str
 
 
 def stale_runs(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> dict[str, list[str]]:
-    """ "<run id> seed <s>" -> the env keys it trained with that differ from its protocol's now, for every finished
-    run trained under another env config (`curbside experiment run` trains those again)."""
-    from curbside.experiments.runner import expected_env_config, run_dir, stale_keys
+    """ "<run id> seed <s>" -> the env config and hyper-parameter keys it trained with that differ from what it would
+    train with now (`runner.stale_keys`), for every finished run trained otherwise (`curbside experiment run` trains
+    those again)."""
+    from curbside.experiments.runner import expected_training, run_dir, stale_keys
 
     stale = {}
     for run in exp.runs:
         if not run.train:
             continue
-        expected = expected_env_config(exp, run)
+        expected = expected_training(exp, run, budget)
         for seed in run.seeds:
             out = run_dir(root, exp, budget, run, seed)
             changed = stale_keys(out, expected) if (out / "result.json").is_file() else []
@@ -134,7 +135,7 @@ def write_report(
                 "protocol": exp.protocol,
                 "runs_finished": finished,
                 "runs_declared": expected,
-                "runs_stale": stale,  # finished under another env config: left out of results.csv until trained again
+                "runs_stale": stale,  # trained otherwise than the protocol says now: left out of results.csv until trained again
                 "command": f"curbside experiment run {exp.name} --budget {budget} && curbside experiment report {exp.name} "
                 f"--budget {budget}",
             },

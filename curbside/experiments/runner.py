@@ -2,9 +2,9 @@
 
 Layout: ROOT/<experiment>/<budget>/<run id>/seed_<s>/ holds the training run (run.json, checkpoints, policy) and
 result.json (written last, atomically): a run with a result.json is finished and never trained again; a run without
-one resumes from its latest checkpoint. A run whose run.json records another env config than the one it would train
-with now (its protocol has changed: a new catalog, say) is stale: it moves to ROOT/<experiment>/<budget>/stale/ and
-trains again from scratch. `reevaluate` evaluates finished runs again with the simulator as it is (after
+one resumes from its latest checkpoint. A run whose run.json records another env config or other hyper-parameters
+than it would train with now (its protocol has changed: a new catalog, say) is stale: it moves to
+ROOT/<experiment>/<budget>/stale/ and trains again from scratch. `reevaluate` evaluates finished runs again with the simulator as it is (after
 a physics fix, say) and rewrites their result.json, training nothing; a finished run evaluated with other actions than
 its protocol's rule has it act with now (mean or sampled) is evaluated again the same way. Demonstrations for offline and imitation runs
 are collected once per task under ROOT/<experiment>/<budget>/demos/<task>/.
@@ -49,23 +49,52 @@ def _plain(value: Any) -> Any:
     return json.loads(json.dumps(value, default=lambda o: dict(o) if isinstance(o, Mapping) else list(o)))
 
 
-def expected_env_config(exp: Experiment, run: Run) -> dict[str, Any]:
-    """The env config `run` of `exp` trains under now: its protocol's, with the run's own keys and split."""
+def run_backend(run: Run, b: Mapping[str, Any]) -> str:
+    """The backend (run, budget values `b`) trains on: the run's or the budget's, where it can train the run (the
+    batched env steps PointNav's online learners and GAIL's generator), else the PyBullet envs."""
+    backend = run.backend or b["backend"]
+    return backend if run.task == "PointNav" and run.method in ONLINE + ("gail",) else "pybullet"
+
+
+def run_hparams(run: Run, b: Mapping[str, Any]) -> dict[str, Any]:
+    """The hyper-parameters the runner gives `run`: the budget's are PPO's (the generator's for GAIL); the other
+    learners take its network alone."""
+    if run.method in ONLINE + ("gail",):
+        return dict(b["hparams"])
+    return {"net_arch": b["hparams"]["net_arch"]} if "net_arch" in b["hparams"] else {}
+
+
+def expected_training(exp: Experiment, run: Run, budget: str) -> dict[str, Any]:
+    """What `run` of `exp` at `budget` trains under now, as its run.json records it: env config (its protocol's, with
+    the run's own keys and split) and hyper-parameters (the protocol's, with the budget's)."""
     from curbside.train.run import resolve_run
 
-    return dict(
-        resolve_run(run.method, run.task, protocol=exp.protocol, env_config=run.env, split=run.split)["env_config"]
+    b = budget_of(exp, budget)
+    r = resolve_run(
+        run.method,
+        run.task,
+        protocol=exp.protocol,
+        env_config=run.env,
+        split=run.split,
+        n_envs=b["n_envs"],
+        hparams=run_hparams(run, b),
+        backend=run_backend(run, b),
     )
+    return {"env_config": r["env_config"], "hparams": r["hparams"]}
 
 
-def stale_keys(out: Path, env_config: Mapping[str, Any]) -> list[str]:
-    """The env config keys whose value in the run.json at `out` differs from `env_config` (empty when it matches or
-    there is no run.json)."""
+def stale_keys(out: Path, expected: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """The keys of each part of `expected` (env_config, hparams) whose value in the run.json at `out` differs, as
+    "part.key" (empty when they match or there is no run.json)."""
     path = out / "run.json"
     if not path.is_file():
         return []
-    have, want = _plain(json.loads(path.read_text()).get("env_config", {})), _plain(env_config)
-    return sorted(k for k in {*have, *want} if have.get(k) != want.get(k))
+    recorded = json.loads(path.read_text())
+    changed = []
+    for part, want_part in expected.items():
+        have, want = _plain(recorded.get(part, {})), _plain(want_part)
+        changed += [f"{part}.{k}" for k in sorted({*have, *want}) if have.get(k) != want.get(k)]
+    return changed
 
 
 def _set_aside(root: Path, exp: Experiment, budget: str, run: Run, seed: int) -> Path:
@@ -165,15 +194,15 @@ def run_experiment(
             assert policy_dir is not None
             done = out / "result.json"
             if run.train and not reevaluate:
-                changed = stale_keys(out, expected_env_config(exp, run))
+                changed = stale_keys(out, expected_training(exp, run, budget))
                 if changed:
                     moved = _set_aside(root, exp, budget, run, seed)
                     for dependent in exp.runs:  # runs that start from this one are measured again too
                         if dependent.init == run.id and run_dir(root, exp, budget, dependent, seed).exists():
                             _set_aside(root, exp, budget, dependent, seed)
                     log(
-                        f"[{exp.name} {budget}] {run.id} seed {seed}: trained with another env config "
-                        f"({', '.join(changed)}); moved to {moved}, training again"
+                        f"[{exp.name} {budget}] {run.id} seed {seed}: trained under another env config or "
+                        f"hyper-parameters ({', '.join(changed)}); moved to {moved}, training again"
                     )
             if done.is_file():
                 result = json.loads(done.read_text())
@@ -188,17 +217,10 @@ def run_experiment(
             if reevaluate:
                 continue
             online = run.method in ONLINE
-            backend = run.backend or b["backend"]
-            if run.task != "PointNav" or run.method not in ONLINE + ("gail",) or backend != "batched":
-                backend = "pybullet"
+            backend = run_backend(run, b)
             demos = _demos(root, exp, budget, run, b) if not online and run.train else None
             steps = _steps(b, run.method)
-            # A budget's hparams are PPO's (the generator's for GAIL); the other learners take its network alone.
-            hparams = (
-                b["hparams"]
-                if run.method in ONLINE + ("gail",)
-                else ({"net_arch": b["hparams"]["net_arch"]} if "net_arch" in b["hparams"] else {})
-            )
+            hparams = run_hparams(run, b)
             t0 = time.time()
             resumed = (out / "run.json").is_file()  # then train_s holds this call's part of the training alone
             out.mkdir(parents=True, exist_ok=True)

@@ -210,24 +210,28 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     ours, theirs = load_policy(released)[0], load_policy(source)[0]
     assert all(np.array_equal(ours(o), theirs(o)) for o in obs)
 
-    # The protocol changes (a scene setting, a new catalog): the finished runs are stale. The report leaves them (and
-    # b's evaluations of them) out; the runner moves them aside and trains them again.
+    # The protocol changes (a scene setting, a new catalog, a hyper-parameter): the finished runs are stale. The
+    # report leaves them (and b's evaluations of them) out; the runner moves them aside and trains them again.
     import dataclasses
 
     from curbside.train import protocols
 
-    changed = dataclasses.replace(protocols.PROTOCOLS["curbside"], env_config={"horizon": 777})
+    hparams = {**protocols.PROTOCOLS["curbside"].hparams, "ppo": {**protocols.PROTOCOLS["curbside"].hparams["ppo"]}}
+    hparams["ppo"]["gamma"] = 0.98
+    changed = dataclasses.replace(protocols.PROTOCOLS["curbside"], env_config={"horizon": 777}, hparams=hparams)
     monkeypatch.setitem(protocols.PROTOCOLS, "curbside", changed)
     out = write_report(str(exp), "smoke", root=root, out_root=tmp_path / "report")
     report = json.loads((out.parent / "report.json").read_text())
-    assert report["runs_stale"] == {"a seed 0": ["horizon"], "a seed 1": ["horizon"]}
+    stale = ["env_config.horizon", "hparams.gamma"]
+    assert report["runs_stale"] == {"a seed 0": stale, "a seed 1": stale}
     assert out.read_text().strip() == ",".join(COLUMNS)  # no rows
     calls.clear()
     run_experiment(str(exp), "smoke", root=root, seeds=[0], progress=False, log=lambda s: None)
     assert calls == [("a", 0)]
     assert (root / "tiny" / "smoke" / "stale" / "a" / "seed_0" / "result.json").is_file()
     assert (root / "tiny" / "smoke" / "stale" / "b" / "seed_0" / "result.json").is_file()  # b evaluated the old a
-    assert json.loads((source / "run.json").read_text())["env_config"]["horizon"] == 777
+    retrained = json.loads((source / "run.json").read_text())
+    assert retrained["env_config"]["horizon"] == 777 and retrained["hparams"]["gamma"] == 0.98
     with open(write_report(str(exp), "smoke", root=root, out_root=tmp_path / "report"), newline="") as f:
         rows = list(csv.DictReader(f))
     assert sorted((r["seed"], r["steps"]) for r in rows) == [("0", "0"), ("0", "128")]  # a and b, seed 0 alone
