@@ -91,6 +91,11 @@ def run_cmd(
         None, min=1, help="Episodes per learning-curve evaluation; default: the protocol's."
     ),
     config: str | None = typer.Option(None, help="Env config overrides as a JSON object."),
+    hparams: str | None = typer.Option(
+        None,
+        help="Hyper-parameter overrides of the protocol's as a JSON object, e.g. '{\"n_epochs\": 30}' "
+        "(docs/protocols.md lists each algorithm's).",
+    ),
     executor: Executor = typer.Option(
         "local",
         help="local: SB3 with --envs envs in local processes; ray: RLlib PPO "
@@ -112,6 +117,7 @@ def run_cmd(
     from curbside.train.run import check_backend, resolve_run, train
 
     cfg = parse_config_json(config)
+    overrides = parse_config_json(hparams, "--hparams")
     ex = check_executor_args(executor, address)
     try:
         check_algo(algo)
@@ -120,7 +126,15 @@ def run_cmd(
         if split in ("test", "unseen"):
             raise ConfigError(f"--split {split} is held out for evaluation; train on train or finetune")
         r = resolve_run(
-            algo, task, protocol=protocol, env_config=cfg, n_envs=envs, num_scenes=scenes, split=split, backend=backend
+            algo,
+            task,
+            protocol=protocol,
+            env_config=cfg,
+            n_envs=envs,
+            num_scenes=scenes,
+            split=split,
+            backend=backend,
+            hparams=overrides,
         )
         if ex == "process":
             raise ConfigError(
@@ -163,6 +177,7 @@ def run_cmd(
             init_from=init_from,
             eval_every=eval_every,
             eval_episodes=eval_episodes,
+            hparams=overrides,
             executor=ex,
             num_env_runners=num_env_runners,
             address=address,

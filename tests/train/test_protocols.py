@@ -243,6 +243,8 @@ def test_seeds_are_aggregated_as_mean_and_std(tmp_path) -> None:
         (["--split", "validation"], "unknown split 'validation'"),
         (["--seeds", "0,x"], "--seeds must be comma-separated integers"),
         (["--config", '{"split": "test"}'], "config.split 'test' differs from --split 'train'"),
+        (["--hparams", '{"epochs": 3}'], "unknown ppo hyper-parameter(s) ['epochs']; valid: batch_size"),
+        (["--hparams", "[30]"], "--hparams must be a JSON object"),
     ],
 )
 def test_bad_protocol_backend_split_or_seeds_is_one_line_exit_2(tmp_path, capsys, args, expected) -> None:

@@ -418,6 +418,16 @@ def test_a_run_is_never_overwritten_and_resume_needs_the_same_run(demos, tmp_pat
     assert (out / "policy.zip").read_bytes() == before
 
 
+def test_hparams_override_the_protocols_and_the_run_records_them(tmp_path, capsys) -> None:
+    out = tmp_path / "run"
+    tiny = {"n_steps": 32, "batch_size": 32, "n_epochs": 1, "net_arch": [16, 16], "gamma": 0.95}
+    argv = ["train", "run", "--steps", "64", "--envs", "2", "--scenes", "2", "--config", json.dumps(CFG)]
+    code, _, err = cli([*argv, "--hparams", json.dumps(tiny), "--eval-every", "0", "--out", str(out)], capsys)
+    assert code == 0, err
+    recorded = json.loads((out / "run.json").read_text())["hparams"]
+    assert {k: recorded[k] for k in tiny} == tiny and recorded["learning_rate"] == 3e-4  # the rest: the protocol's
+
+
 def test_a_policy_save_that_fails_leaves_the_previous_policy(tmp_path) -> None:
     """save_policy writes beside the old file and swaps: a save that fails (here its temporary path is a folder, so
     SB3 writes elsewhere and the swap fails) raises and leaves the previous policy as it was."""
