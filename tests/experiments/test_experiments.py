@@ -304,6 +304,18 @@ def test_findings_follow_the_results_and_say_what_has_not_run(tmp_path) -> None:
     assert data["reproduced"] == 4 and data["not_reproduced"] == 1 and data["not_run"] == 5
     missing = next(f for f in data["findings"] if f["finding"] == 9)
     assert "curbside experiment run table5_horizon --budget small" in missing["why"]
+    assert data["paper_budget_cells"] == []
+
+    # PPO PointNav at the paper's budget stands in for its small cells: here its unseen SR is above test.
+    _results(
+        tmp_path / "table1_paper",
+        "paper",
+        [("PointNav", "ppo", "test", "", 0.4, 1.0), ("PointNav", "ppo", "unseen", "", 0.45, 1.0)],
+    )
+    data = json.loads(write_findings(tmp_path).read_text())
+    two = next(f for f in data["findings"] if f["finding"] == 2)
+    assert two["reproduced"] is False and two["ours"] == {"ppo_pointnav_test_sr": 0.4, "ppo_pointnav_unseen_sr": 0.45}
+    assert data["paper_budget_cells"] == ["table1_paper PointNav ppo test", "table1_paper PointNav ppo unseen"]
 
 
 def test_seeds_and_only_pick_the_runs_to_train(tmp_path, capsys) -> None:
