@@ -4,10 +4,11 @@ Layout: ROOT/<experiment>/<budget>/<run id>/seed_<s>/ holds the training run (ru
 result.json (written last, atomically): a run with a result.json is finished and never trained again; a run without
 one resumes from its latest checkpoint. A run whose run.json records another env config or other hyper-parameters
 than it would train with now (its protocol has changed: a new catalog, say) is stale: it moves to
-ROOT/<experiment>/<budget>/stale/ and trains again from scratch. `reevaluate` evaluates finished runs again with the simulator as it is (after
-a physics fix, say) and rewrites their result.json, training nothing; a finished run evaluated with other actions than
-its protocol's rule has it act with now (mean or sampled) is evaluated again the same way. Demonstrations for offline and imitation runs
-are collected once per task under ROOT/<experiment>/<budget>/demos/<task>/.
+ROOT/<experiment>/<budget>/stale/ and trains again from scratch. A finished run whose evaluations acted otherwise
+than its protocol's rule has it act now (mean or sampled actions) is evaluated again; `reevaluate` evaluates every
+finished run again with the simulator as it is (after a physics fix, say) and rewrites its result.json, training
+nothing. Demonstrations for offline and imitation runs are collected once per task under
+ROOT/<experiment>/<budget>/demos/<task>/.
 """
 
 from __future__ import annotations
