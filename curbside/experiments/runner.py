@@ -45,11 +45,6 @@ def _write_json(path: Path, data: dict[str, Any]) -> None:
     os.replace(tmp, path)
 
 
-def _plain(value: Any) -> Any:
-    """`value` as JSON reads it back (tuples as lists, mapping proxies as dicts): run.json's form."""
-    return json.loads(json.dumps(value, default=lambda o: dict(o) if isinstance(o, Mapping) else list(o)))
-
-
 def run_backend(run: Run, b: Mapping[str, Any]) -> str:
     """The backend (run, budget values `b`) trains on: the run's or the budget's, where it can train the run (the
     batched env steps PointNav's online learners and GAIL's generator), else the PyBullet envs."""
@@ -87,15 +82,10 @@ def expected_training(exp: Experiment, run: Run, budget: str) -> dict[str, Any]:
 def stale_keys(out: Path, expected: Mapping[str, Mapping[str, Any]]) -> list[str]:
     """The keys of each part of `expected` (env_config, hparams) whose value in the run.json at `out` differs, as
     "part.key" (empty when they match or there is no run.json)."""
+    from curbside.train.run import changed_keys
+
     path = out / "run.json"
-    if not path.is_file():
-        return []
-    recorded = json.loads(path.read_text())
-    changed = []
-    for part, want_part in expected.items():
-        have, want = _plain(recorded.get(part, {})), _plain(want_part)
-        changed += [f"{part}.{k}" for k in sorted({*have, *want}) if have.get(k) != want.get(k)]
-    return changed
+    return changed_keys(json.loads(path.read_text()), expected) if path.is_file() else []
 
 
 def _set_aside(root: Path, exp: Experiment, budget: str, run: Run, seed: int) -> Path:

@@ -207,7 +207,7 @@ def budget_of(exp: Experiment, budget: str) -> dict[str, Any]:
             "bc_steps": 18_750,
             "demos_steps": 30_000,
             "episodes": 200,
-            "eval_every": 250_000,
+            "eval_every": 500_000,  # a curve point costs ~2.5 min of PyBullet episodes: 10 points in 5M steps
             "curve_episodes": 20,
             "n_envs": None,
             "scenes": None,

@@ -111,10 +111,11 @@ CURBSIDE_PPO: dict[str, Any] = {
 }
 # MetaUrban, ICLR 2025, appendix table of PPO / PPO-Lag / PPO-ET hyper-parameters: horizon 1,000, lr 5e-5, gamma 0.99,
 # GAE lambda 0.95, clip 0.2, train batch 25,600, SGD minibatch 256, value-loss coefficient 1.0, entropy 0.0, cost
-# limit 1. Not in the paper (docs/protocols.md): epochs per batch, network, initial log-std, the Lagrange multiplier's
-# step and start, the early-termination penalty.
+# limit 1. Not in the paper (docs/protocols.md): epochs per batch (RLlib's default, 30: the table's settings are RLlib's),
+# network, initial log-std, the Lagrange multiplier's step and start, the early-termination penalty.
 PAPER_PPO: dict[str, Any] = {
     **CURBSIDE_PPO,
+    "n_epochs": 30,
     "learning_rate": 5e-5,
     "train_batch": 25_600,
     "batch_size": 256,

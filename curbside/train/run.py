@@ -81,6 +81,37 @@ def resolve_run(
     }
 
 
+def _plain(value: Any) -> Any:
+    """`value` as JSON reads it back (tuples as lists, mapping proxies as dicts): run.json's form."""
+    return json.loads(json.dumps(value, default=lambda o: dict(o) if isinstance(o, Mapping) else list(o)))
+
+
+def changed_keys(recorded: Mapping[str, Any], expected: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """The keys of each part of `expected` (env_config, hparams) whose value in a run.json's `recorded` content
+    differs, as "part.key"."""
+    changed = []
+    for part, want_part in expected.items():
+        have, want = _plain(recorded.get(part, {})), _plain(want_part)
+        changed += [f"{part}.{k}" for k in sorted({*have, *want}) if have.get(k) != want.get(k)]
+    return changed
+
+
+def check_resume_config(out: Path, env_config: Mapping[str, Any], hparams: Mapping[str, Any]) -> None:
+    """A resumed run goes on under the env config and hyper-parameters it started with: a ConfigError naming the
+    values that differ (a protocol changed since, or other overrides) and how to continue."""
+    recorded = json.loads((Path(out) / "run.json").read_text())
+    given = {"env_config": env_config, "hparams": hparams}
+    changed = changed_keys(recorded, given)
+    if changed:
+        part, key = changed[0].split(".", 1)
+        was, now = recorded.get(part, {}).get(key), _plain(given[part]).get(key)
+        raise ConfigError(
+            f"--resume of {out}: it trained with {changed[0]} = {json.dumps(was)}, this command gives "
+            f"{json.dumps(now)} ({len(changed)} value(s) differ: {', '.join(changed)}); pass the run's values with "
+            "--config or --hparams to continue it, or train into another --out"
+        )
+
+
 def check_run_folder(out: Path, algo: str, task: str, resume: bool) -> None:
     """A new run needs a folder that holds none (a run is never overwritten); `resume` needs the folder of a run of
     the same algorithm and task. ConfigError with the fix otherwise."""
@@ -151,6 +182,8 @@ def train(
         backend=backend,
     )
     cfg, h, envs, scenes = r["env_config"], r["hparams"], r["n_envs"], r["num_scenes"]
+    if resume:
+        check_resume_config(Path(out), cfg, h)
     proto = get_protocol(protocol)
     episodes = int(eval_episodes or proto.curve_episodes)
     out = Path(out)

@@ -34,6 +34,7 @@ def test_paper_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
         h["cost_limit"],
     ) == (5e-5, 0.99, 0.95, 0.2, 256, 1.0, 0.0, 1.0)
     assert h["n_steps"] * ppo["n_envs"] == 25_600  # the paper's train batch
+    assert h["n_epochs"] == 30  # not in the paper: RLlib's default num_sgd_iter, as its table's settings are RLlib's
     assert ppo["env_config"]["preset"] == "metaurban12k" and ppo["num_scenes"] == 12_800
     assert [protocol("paper").scenes(s) for s in ("train", "test", "unseen", "finetune")] == [12_800, 1_000, 100, 1_000]
     assert protocol("paper").eval_episodes >= 200

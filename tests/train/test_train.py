@@ -351,6 +351,11 @@ def test_ppo_lag_keeps_lambda_across_resume(tmp_path) -> None:
     ckpt = tmp_path / "checkpoints"
     ckpt.mkdir(exist_ok=True)
     (tmp_path / "policy.zip").rename(ckpt / "policy_256_steps.zip")
+    # The resumed part freezes the multiplier (lag_lr 0; a resume goes on under the hyper-parameters its run.json
+    # records, so they are set there too): lambda must come back as saved, not as lag_init.
+    meta = json.loads((tmp_path / "run.json").read_text())
+    meta["hparams"]["lag_lr"] = 0.0
+    (tmp_path / "run.json").write_text(json.dumps(meta))
     train(
         "ppo_lag",
         "PointNav",
@@ -426,6 +431,12 @@ def test_hparams_override_the_protocols_and_the_run_records_them(tmp_path, capsy
     assert code == 0, err
     recorded = json.loads((out / "run.json").read_text())["hparams"]
     assert {k: recorded[k] for k in tiny} == tiny and recorded["learning_rate"] == 3e-4  # the rest: the protocol's
+    # A resume goes on under the values the run started with: other ones are refused in one line, naming them.
+    again = [*argv, "--steps", "128", "--eval-every", "0", "--resume", "--out", str(out)]
+    line = one_error_line(*cli([*again, "--hparams", json.dumps({**tiny, "gamma": 0.9})], capsys))
+    assert "it trained with hparams.gamma = 0.95, this command gives 0.9" in line and "--hparams" in line
+    code, _, err = cli([*again, "--hparams", json.dumps(tiny)], capsys)
+    assert code == 0, err
 
 
 def test_a_policy_save_that_fails_leaves_the_previous_policy(tmp_path) -> None:
