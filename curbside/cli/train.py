@@ -248,6 +248,7 @@ def ppo_cmd(
         init_from=None,
         seeds=None,
         eval_episodes=None,
+        hparams=None,
     )
 
 
