@@ -77,20 +77,19 @@ def episode_rows(
         from rich.progress import track
 
         seeds = track(seeds, description=f"eval {task} {split}")
-    manual_seed = None
     if seed_torch:  # an `act` that samples draws the same actions for an episode wherever it runs
         import torch
 
-        manual_seed, rng_state = torch.manual_seed, torch.get_rng_state()
+        rng_state = torch.get_rng_state()
     try:
         policy = lambda e, obs: np.asarray(act(obs), dtype=np.float32).reshape(2)  # noqa: E731
         for s in seeds:
-            if manual_seed is not None:
-                manual_seed(s)
+            if seed_torch:
+                torch.manual_seed(s)
             rows.append(rollout(env, policy, s))
     finally:
         env.close()
-        if manual_seed is not None:
+        if seed_torch:
             torch.set_rng_state(rng_state)
     return rows
 
