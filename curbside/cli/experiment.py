@@ -112,6 +112,56 @@ def release_cmd(
         )
 
 
+@app.command("pack")
+def pack_cmd(
+    name: str = typer.Argument(..., help="An experiment name or a path to a .yaml file."),
+    budget: str = typer.Option("small", help="The budget whose runs to pack."),
+    root: Path = typer.Option(Path("outputs/experiments"), help="Where the runs are."),
+    archive: Path = typer.Option(Path("benchmarks/runs"), help="Runs go to ARCHIVE/<experiment>/<budget>/."),
+) -> None:
+    """Copy what each started run needs to go on (a finished run's result and policy, an unfinished run's newest
+    checkpoint) into ARCHIVE, so that another machine continues the experiment after `curbside experiment unpack`."""
+    require("train", "experiment pack")
+    from curbside.experiments.archive import pack
+    from curbside.experiments.spec import budget_of, load_experiment
+
+    try:
+        budget_of(load_experiment(name), budget)
+        written = pack(name, budget, root=root, archive=archive)
+    except (ConfigError, FileNotFoundError) as e:
+        raise fail(str(e)) from None
+    for path in written:
+        state = "finished" if (path / "result.json").is_file() else "to resume"
+        typer.echo(f"packed {path} ({state})")
+    if not written:
+        typer.echo(f"no run of {name} at budget {budget} has started under {root}; nothing packed")
+
+
+@app.command("unpack")
+def unpack_cmd(
+    name: str = typer.Argument(..., help="An experiment name or a path to a .yaml file."),
+    budget: str = typer.Option("small", help="The budget whose runs to unpack."),
+    root: Path = typer.Option(Path("outputs/experiments"), help="Where the runs train and keep their results."),
+    archive: Path = typer.Option(Path("benchmarks/runs"), help="Where `curbside experiment pack` put the runs."),
+) -> None:
+    """Put the packed runs of the experiment back under ROOT where ROOT holds none of them yet; `curbside experiment
+    run` then skips the finished ones and resumes the others."""
+    from curbside.experiments.archive import unpack
+    from curbside.experiments.spec import budget_of, load_experiment
+
+    try:
+        budget_of(load_experiment(name), budget)
+        restored, kept = unpack(name, budget, root=root, archive=archive)
+    except (ConfigError, FileNotFoundError) as e:
+        raise fail(str(e)) from None
+    for path in restored:
+        typer.echo(f"restored {path}")
+    for path in kept:
+        typer.echo(f"kept {path} (it holds that run already)")
+    if not restored and not kept:
+        typer.echo(f"{archive} holds no packed run of {name} at budget {budget}")
+
+
 @app.command("findings")
 def findings_cmd(
     results: Path = typer.Option(Path("benchmarks/results"), help="Folder of the experiments' reports."),

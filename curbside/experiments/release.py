@@ -27,7 +27,7 @@ def release_name(run: Run, paper_kind: str) -> str:
     return f"{run.method}-{setting}"
 
 
-def _compact_copy(src: Path, dst: Path, algo: str) -> None:
+def compact_copy(src: Path, dst: Path, algo: str) -> None:
     """Copy the policy file; a PPO-family zip is written again with a fresh optimizer (no Adam moments)."""
     if algo in ONLINE + ("gail",):
         from stable_baselines3 import PPO
@@ -64,7 +64,7 @@ def release(
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir(parents=True)
         policy_file = POLICY_FILES[run.method]
-        _compact_copy(src / policy_file, tmp / policy_file, run.method)
+        compact_copy(src / policy_file, tmp / policy_file, run.method)
         (tmp / "run.json").write_text(json.dumps(meta, indent=2) + "\n")
         (tmp / "card.json").write_text(
             json.dumps(card(exp.name, budget, run, seed, meta, result, dst), indent=2) + "\n"

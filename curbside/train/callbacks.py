@@ -88,6 +88,38 @@ def SplitEvalCallback(
     return _SplitEval()
 
 
+def training_logger(folder: Path, formats: tuple[str, ...], resumed_at: int | None) -> Any:
+    """An SB3 logger writing `formats` ("csv", "tensorboard") to `folder`. A resumed run (`resumed_at`: the env steps of
+    its checkpoint) keeps the rows its progress.csv holds up to those steps, and goes on below them; SB3's own CSV
+    writer starts the file afresh."""
+    from stable_baselines3.common.logger import CSVOutputFormat, Logger, make_output_format
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "progress.csv"
+    kept: list[dict[str, str]] = []
+    header: list[str] = []
+    if resumed_at is not None and path.is_file():
+        with open(path, newline="") as f:
+            reader = csv.DictReader(f)
+            header = list(reader.fieldnames or [])
+            kept = [r for r in reader if int(float(r.get("time/total_timesteps") or 0)) <= resumed_at]
+    outputs = []
+    for fmt in formats:
+        if fmt != "csv":
+            outputs.append(make_output_format(fmt, str(folder)))
+            continue
+        writer = CSVOutputFormat(str(path))
+        if header:
+            writer.keys = list(header)
+            rows = csv.DictWriter(writer.file, fieldnames=header, lineterminator="\n")
+            rows.writeheader()
+            rows.writerows(kept)
+            writer.file.flush()
+        outputs.append(writer)
+    return Logger(folder=str(folder), output_formats=outputs)
+
+
 def drop_rows_after(csv_path: Path, steps: int) -> None:
     """Remove the rows of a learning curve past `steps` (a resumed run evaluates those steps again)."""
     if not csv_path.is_file():

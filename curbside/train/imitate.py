@@ -150,9 +150,9 @@ def train_gail(
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
-    from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import VecEnvWrapper
 
+    from curbside.train.callbacks import training_logger
     from curbside.train.online import ppo_kwargs
 
     low, high = venv.action_space.low, venv.action_space.high
@@ -220,7 +220,7 @@ def train_gail(
         gen.set_state(state["generator"])
     else:
         learner = PPO("MlpPolicy", DiscriminatorReward(venv), seed=seed, device="cpu", **ppo_kwargs(hparams))
-    learner.set_logger(configure(str(out / "logs"), ["csv"]))
+    learner.set_logger(training_logger(out / "logs", ("csv",), learner.num_timesteps if resumed else None))
 
     class Checkpoint(BaseCallback):
         """After each round (the discriminator's update runs first): generator and discriminator, each written

@@ -109,14 +109,13 @@ def train_online(
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import CallbackList
-    from stable_baselines3.common.logger import configure
 
-    from curbside.train.callbacks import CheckpointEvery, SplitEvalCallback
+    from curbside.train.callbacks import CheckpointEvery, SplitEvalCallback, training_logger
     from curbside.train.envs import make_training_vec
 
     out.mkdir(parents=True, exist_ok=True)
     ckpt_dir = out / "checkpoints"
-    latest = _latest_checkpoint(ckpt_dir) if resume else None
+    latest = latest_checkpoint(ckpt_dir) if resume else None
     source = (
         check_init_from(init_from, algo, task, env_config, hparams["net_arch"])
         if init_from is not None and latest is None
@@ -144,7 +143,9 @@ def train_online(
         model.policy.load_state_dict(PPO.load(source, device="cpu").policy.state_dict())
     else:
         model = PPO("MlpPolicy", vec, seed=seed, device="cpu", verbose=0, **kwargs)
-    model.set_logger(configure(str(out / "logs"), ["csv", "tensorboard"]))
+    model.set_logger(
+        training_logger(out / "logs", ("csv", "tensorboard"), model.num_timesteps if latest is not None else None)
+    )
     callbacks: list = [CheckpointEvery(ckpt_dir, CHECKPOINT_EVERY)]
     if algo == "ppo_lag":
         state = out / "lagrange.json"
@@ -248,7 +249,7 @@ def observation_shape(task: str, env_config: Mapping[str, Any]) -> tuple[int, ..
         env.close()
 
 
-def _latest_checkpoint(ckpt_dir: Path) -> Path | None:
+def latest_checkpoint(ckpt_dir: Path) -> Path | None:
     """The newest whole checkpoint in `ckpt_dir`: one that is not a readable SB3 zip (a run killed while an older
     trainer wrote it in place) is skipped with a warning, so the run resumes from the one before."""
     import zipfile

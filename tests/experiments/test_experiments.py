@@ -242,6 +242,9 @@ def test_bad_experiment_input_is_one_line_exit_2(tmp_path, capsys) -> None:
     assert "unknown experiment 'table9'; valid: ablation_dynamic_density" in line
     line = one_error_line(*cli(["experiment", "run", "table1_paper", "--budget", "huge"], capsys))
     assert "unknown budget 'huge'; valid: smoke, small, paper" in line
+    for verb in ("pack", "unpack"):
+        line = one_error_line(*cli(["experiment", verb, "table1_paper", "--budget", "huge"], capsys))
+        assert "unknown budget 'huge'; valid: smoke, small, paper" in line
     line = one_error_line(*cli(["experiment", "run", "table1_paper", "--only", "PointNav-dqn"], capsys))
     assert "unknown run id(s) ['PointNav-dqn']" in line
     bad = tmp_path / "bad.yaml"
@@ -341,3 +344,68 @@ def test_demonstrations_follow_the_best_finished_ppo_of_the_task(tmp_path) -> No
         # the largest finished budget drives, whatever budget the demonstrations are collected for
         assert _demo_policy(tmp_path, exp, "PointNav") == d
     assert _demo_policy(tmp_path, exp, "SocialNav") is None  # each task's own PPO
+
+
+def test_packed_runs_go_on_on_another_machine(tmp_path, monkeypatch) -> None:
+    """A run killed before its result is packed with its newest checkpoint alone and resumes from it after unpack;
+    a finished run travels with a compact policy and is never trained again."""
+    import shutil
+
+    import torch
+
+    import curbside.train.online as online
+    import curbside.train.run as run_module
+    from curbside.experiments.archive import pack, unpack
+
+    real = run_module.train
+    calls: list[bool] = []
+
+    def killed_after_training(algo, task, out, **kw):
+        real(algo, task, out, **kw)
+        raise KeyboardInterrupt  # killed before its evaluation: no result.json
+
+    spec = yaml.safe_load(_experiment(tmp_path).read_text())
+    spec["runs"] = spec["runs"][:1]
+    spec["runs"][0]["seeds"] = [0]
+    spec["budgets"]["smoke"]["online_steps"] = 256  # two rollouts: the newest checkpoint holds an update's moments
+    exp = tmp_path / "tiny.yaml"
+    exp.write_text(yaml.safe_dump(spec))
+    root, archive, moved = tmp_path / "runs", tmp_path / "archive", tmp_path / "elsewhere"
+    monkeypatch.setattr(online, "CHECKPOINT_EVERY", 64)
+    monkeypatch.setattr(run_module, "train", killed_after_training)
+    with pytest.raises(KeyboardInterrupt):
+        run_experiment(str(exp), "smoke", root=root, progress=False, log=lambda s: None)
+    source = root / "tiny" / "smoke" / "a" / "seed_0"
+    assert len(list((source / "checkpoints").iterdir())) == 4  # every 64 steps
+
+    assert pack(str(exp), "smoke", root=root, archive=archive) == [archive / "tiny" / "smoke" / "a" / "seed_0"]
+    packed = archive / "tiny" / "smoke" / "a" / "seed_0"
+    assert [f.name for f in (packed / "checkpoints").iterdir()] == ["policy_256_steps.zip"]
+    assert (packed / "run.json").is_file() and not (packed / "result.json").exists()
+
+    shutil.copytree(archive, moved / "archive")  # another machine: the archive alone, no runs
+    monkeypatch.setattr(run_module, "train", lambda *a, **kw: (calls.append(kw["resume"]), real(*a, **kw))[1])
+    assert unpack(str(exp), "smoke", root=moved / "runs", archive=moved / "archive") == (
+        [moved / "runs" / "tiny" / "smoke" / "a" / "seed_0"],
+        [],
+    )
+    (result,) = run_experiment(str(exp), "smoke", root=moved / "runs", progress=False, log=lambda s: None)
+    assert calls == [True] and result["resumed"] and result["steps"] == 256
+    from stable_baselines3 import PPO
+
+    resumed = moved / "runs" / "tiny" / "smoke" / "a" / "seed_0"
+    assert PPO.load(resumed / "policy.zip", device="cpu").num_timesteps == 256  # nothing trained past the checkpoint
+
+    # Finished: the result and a policy without Adam's moments travel; unpacked, the run is done and evaluates alike.
+    pack(str(exp), "smoke", root=moved / "runs", archive=archive)
+    assert (packed / "result.json").is_file() and not (packed / "checkpoints").exists()
+    compact, whole = (PPO.load(d / "policy.zip", device="cpu").policy for d in (packed, resumed))
+    assert compact.optimizer.state_dict()["state"] == {} and whole.optimizer.state_dict()["state"] != {}
+    assert all(torch.equal(a, b) for a, b in zip(compact.state_dict().values(), whole.state_dict().values()))
+    calls.clear()
+    third = tmp_path / "third"
+    unpack(str(exp), "smoke", root=third, archive=archive)
+    (again,) = run_experiment(str(exp), "smoke", root=third, progress=False, log=lambda s: None)
+    assert calls == [] and again == result
+    restored, kept = unpack(str(exp), "smoke", root=third, archive=archive)
+    assert restored == [] and kept == [third / "tiny" / "smoke" / "a" / "seed_0"]

@@ -3,6 +3,7 @@ Minari datasets; bad input gets one line and exit code 2 (real SB3, torch, Minar
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
@@ -270,10 +271,14 @@ def test_checkpoints_are_whole_and_a_resume_skips_a_truncated_one(tmp_path, monk
     whole = (ckpt / "policy_128_steps.zip").read_bytes()
     (ckpt / "policy_192_steps.zip").write_bytes(whole[: len(whole) // 2])
     with pytest.warns(UserWarning, match="policy_192_steps.zip is not a whole SB3 zip"):
-        assert online._latest_checkpoint(ckpt) == ckpt / "policy_128_steps.zip"
+        assert online.latest_checkpoint(ckpt) == ckpt / "policy_128_steps.zip"
     with pytest.warns(UserWarning, match="policy_192_steps.zip is not a whole SB3 zip"):
         train("ppo", "PointNav", tmp_path, steps=256, resume=True, **kwargs)
     assert PPO.load(tmp_path / "policy.zip").num_timesteps == 256
+    # The progress log goes on from the checkpoint: the first run's rows, then the resumed run's.
+    with open(tmp_path / "logs" / "progress.csv", newline="") as f:
+        logged = [int(r["time/total_timesteps"]) for r in csv.DictReader(f)]
+    assert logged == [128, 256]
     assert (ckpt / "policy_256_steps.zip").is_file() and not list(ckpt.glob("*.tmp*"))
 
 
