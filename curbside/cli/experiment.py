@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 import typer
 
@@ -11,11 +13,25 @@ from curbside.cli.errors import fail
 from curbside.cli.extras import require
 from kernel.config import ConfigError
 
+T = TypeVar("T")
+
 app = typer.Typer(
     rich_markup_mode=None,
     help="Run the MetaUrban paper's experiments (Table 1, 2, 5, ablations, seeds) and report them.",
     no_args_is_help=True,
 )
+
+
+def _checked(name: str, budget: str, call: Callable[[], T]) -> T:
+    """`call()` once the experiment file `name` and its `budget` are known to be valid; bad input of either, or a
+    ConfigError from the call, is one line and exit 2."""
+    from curbside.experiments.spec import budget_of, load_experiment
+
+    try:
+        budget_of(load_experiment(name), budget)
+        return call()
+    except (ConfigError, FileNotFoundError) as e:
+        raise fail(str(e)) from None
 
 
 @app.command("list")
@@ -43,20 +59,17 @@ def run_cmd(
     """Train and evaluate every run of the experiment that has no result yet; a killed run resumes from its checkpoint."""
     require("train", "experiment run")
     from curbside.experiments.runner import run_experiment
-    from curbside.experiments.spec import budget_of, load_experiment
 
-    try:
-        budget_of(load_experiment(name), budget)
-        ids = [s for s in only.split(",") if s] if only else None
+    ids = [s for s in only.split(",") if s] if only else None
+
+    def run() -> list[dict]:
         try:
             seed_list = [int(s) for s in seeds.split(",") if s.strip()] if seeds else None
         except ValueError:
             raise ConfigError(f"--seeds must be comma-separated integers such as 0,1,2, got {seeds!r}") from None
-        results = run_experiment(
-            name, budget, root=root, only=ids, seeds=seed_list, reevaluate=reevaluate, log=typer.echo
-        )
-    except (ConfigError, FileNotFoundError) as e:
-        raise fail(str(e)) from None
+        return run_experiment(name, budget, root=root, only=ids, seeds=seed_list, reevaluate=reevaluate, log=typer.echo)
+
+    results = _checked(name, budget, run)
     done = "evaluated again" if reevaluate else "finished"
     typer.echo(f"{len(results)} runs {done}; report them with `curbside experiment report {name} --budget {budget}`")
 
@@ -72,13 +85,8 @@ def report_cmd(
 ) -> None:
     """Write results.csv (ours beside the paper's numbers) and results.png for the experiment's finished runs."""
     from curbside.experiments.report import write_report
-    from curbside.experiments.spec import budget_of, load_experiment
 
-    try:
-        budget_of(load_experiment(name), budget)
-        path = write_report(name, budget, root=root, out_root=out)
-    except (ConfigError, FileNotFoundError) as e:
-        raise fail(str(e)) from None
+    path = _checked(name, budget, lambda: write_report(name, budget, root=root, out_root=out))
     typer.echo(f"wrote {path} and {path.with_suffix('.png')}")
 
 
@@ -95,14 +103,9 @@ def release_cmd(
     ZOO/<task>/<method>` evaluates one."""
     require("train", "experiment release")
     from curbside.experiments.release import release
-    from curbside.experiments.spec import budget_of, load_experiment
 
-    try:
-        budget_of(load_experiment(name), budget)
-        ids = [s for s in only.split(",") if s] if only else None
-        written = release(name, budget, root=root, zoo=zoo, seed=seed, only=ids)
-    except (ConfigError, FileNotFoundError) as e:
-        raise fail(str(e)) from None
+    ids = [s for s in only.split(",") if s] if only else None
+    written = _checked(name, budget, lambda: release(name, budget, root=root, zoo=zoo, seed=seed, only=ids))
     for path in written:
         typer.echo(f"released {path}")
     if not written:
@@ -123,13 +126,8 @@ def pack_cmd(
     checkpoint) into ARCHIVE, so that another machine continues the experiment after `curbside experiment unpack`."""
     require("train", "experiment pack")
     from curbside.experiments.archive import pack
-    from curbside.experiments.spec import budget_of, load_experiment
 
-    try:
-        budget_of(load_experiment(name), budget)
-        written = pack(name, budget, root=root, archive=archive)
-    except (ConfigError, FileNotFoundError) as e:
-        raise fail(str(e)) from None
+    written = _checked(name, budget, lambda: pack(name, budget, root=root, archive=archive))
     for path in written:
         state = "finished" if (path / "result.json").is_file() else "to resume"
         typer.echo(f"packed {path} ({state})")
@@ -147,13 +145,8 @@ def unpack_cmd(
     """Put the packed runs of the experiment back under ROOT where ROOT holds none of them yet; `curbside experiment
     run` then skips the finished ones and resumes the others."""
     from curbside.experiments.archive import unpack
-    from curbside.experiments.spec import budget_of, load_experiment
 
-    try:
-        budget_of(load_experiment(name), budget)
-        restored, kept = unpack(name, budget, root=root, archive=archive)
-    except (ConfigError, FileNotFoundError) as e:
-        raise fail(str(e)) from None
+    restored, kept = _checked(name, budget, lambda: unpack(name, budget, root=root, archive=archive))
     for path in restored:
         typer.echo(f"restored {path}")
     for path in kept:
