@@ -132,7 +132,7 @@ def test_dvc_yaml_stages_match_modules_and_params():
     params = yaml.safe_load((REPO_ROOT / "params.yaml").read_text())
     assert list(stages) == STAGES and list(params) == STAGES
     for name, st in stages.items():
-        assert st["cmd"] == f"python -m pipelines.{name} --params params.yaml"
+        assert st["cmd"] == f"${{portable}} python -m pipelines.{name} --params params.yaml"
         assert st["params"] == [name] and st["metrics"], name
         read = _keys_read(name)
         assert read, f"pipelines.{name}.run reads no p[...] key: the check has lost track of the stage"
