@@ -24,7 +24,8 @@ import numpy as np
 
 # Per CPU kind: numpy's transcendental kernels (SVML on AVX-512) and hence the doubles depend on it.
 # The AVX-512 hash comes from a commit whose episodes give the AVX2 hash with numpy's AVX-512 kernels off
-# (NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR"), so both record the same behaviour.
+# (NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR"), so both record the same behaviour; it is the same
+# with only the AVX512_ICL and AVX512_SPR kernels off (a Skylake-X-level machine).
 GOLDEN = {
     ("x86_64", "AVX2"): "d044a33bc2f4dc95720e51acfe4a7df3e41f17092bc1f726d34a6a992422cdb5",
     ("x86_64", "AVX512_SKX"): "28c74703091c0ff61ada9b5c22e5c2bd4de3bc0e552934d16c415b23282fabf6",
