@@ -25,6 +25,13 @@ def _is_temporary(path: Path) -> bool:
     return ".tmp" in path.name or path.name.startswith("tmp_")
 
 
+def _swap_in(tmp: Path, dst: Path) -> None:
+    """Put the folder `tmp`, written whole, in the place of `dst`."""
+    if dst.exists():
+        shutil.rmtree(dst)
+    tmp.replace(dst)
+
+
 def pack_run(src: Path, dst: Path, method: str) -> bool:
     """Copy what the run in `src` needs to go on to `dst` (replaced whole); False when `src` holds no run."""
     from curbside.experiments.release import compact_copy
@@ -55,9 +62,7 @@ def pack_run(src: Path, dst: Path, method: str) -> bool:
         keep += [f for f in ckpt.iterdir() if f.is_file() and not f.match(STEP_CHECKPOINT) and not _is_temporary(f)]
         for f in keep:
             shutil.copyfile(f, tmp / "checkpoints" / f.name)
-    if dst.exists():
-        shutil.rmtree(dst)
-    tmp.replace(dst)
+    _swap_in(tmp, dst)
     return True
 
 
@@ -92,8 +97,6 @@ def unpack(
             tmp = dst.with_name(dst.name + ".tmp")
             shutil.rmtree(tmp, ignore_errors=True)
             shutil.copytree(src, tmp)
-            if dst.exists():
-                shutil.rmtree(dst)
-            tmp.replace(dst)
+            _swap_in(tmp, dst)
             restored.append(dst)
     return restored, kept
