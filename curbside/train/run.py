@@ -61,7 +61,10 @@ def resolve_run(
         )
     cfg.pop("split", None)
     envs = int(n_envs or (proto.n_envs if backend == "batched" else proto.pybullet_envs))
-    num_scenes = num_scenes or cfg.pop("num_scenes", None)  # an experiment's scene count (ablation b) is env config
+    # An experiment's scene count (ablation b) is env config; a run records it once, as its num_scenes, so the
+    # recorded and the expected env configs of a run compare equal whichever way the count was given.
+    configured_scenes = cfg.pop("num_scenes", None)
+    num_scenes = num_scenes or configured_scenes
     h = proto.algo_hparams(algo)
     ppo_family = algo in ("ppo", "ppo_lag", "ppo_et", "gail")
     valid = {*h, "net_arch", *(("n_steps",) if ppo_family else ())}

@@ -330,6 +330,33 @@ def test_seeds_and_only_pick_the_runs_to_train(tmp_path, capsys) -> None:
     assert "--seeds must be comma-separated integers" in line
 
 
+def test_a_run_with_its_own_scene_count_is_current_once_finished(tmp_path) -> None:
+    """Ablation (b)'s runs give their scene count in their env config: the run records it once (as num_scenes), so
+    the report counts it finished, not stale, and a second `run` trains nothing."""
+    spec = {
+        "name": "scaled",
+        "title": "scaled",
+        "paper": "ablation_scaling",
+        "protocol": "curbside",
+        "evaluate": ["test"],
+        "runs": [
+            {"id": "scenes-3", "task": "PointNav", "method": "ppo", "setting": "3", "env": {**CFG, "num_scenes": 3}}
+        ],
+        "budgets": {"smoke": TINY},
+    }
+    exp, root = tmp_path / "scaled.yaml", tmp_path / "runs"
+    exp.write_text(yaml.safe_dump(spec))
+    run_experiment(str(exp), "smoke", root=root, progress=False, log=lambda s: None)
+    recorded = json.loads((root / "scaled" / "smoke" / "scenes-3" / "seed_0" / "run.json").read_text())
+    assert recorded["num_scenes"] == 3 and "num_scenes" not in recorded["env_config"]
+    out = write_report(str(exp), "smoke", root=root, out_root=tmp_path / "report")
+    report = json.loads((out.parent / "report.json").read_text())
+    assert report["runs_stale"] == {} and report["runs_finished"] == 1
+    logged: list[str] = []
+    run_experiment(str(exp), "smoke", root=root, progress=False, log=logged.append)
+    assert not any("training" in line for line in logged)
+
+
 def test_demonstrations_follow_the_best_finished_ppo_of_the_task(tmp_path) -> None:
     from curbside.experiments.runner import _demo_policy, run_dir
     from curbside.experiments.spec import load_experiment
