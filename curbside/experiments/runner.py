@@ -4,7 +4,9 @@ Layout: ROOT/<experiment>/<budget>/<run id>/seed_<s>/ holds the training run (ru
 result.json (written last, atomically): a run with a result.json is finished and never trained again; a run without
 one resumes from its latest checkpoint. A run whose run.json records another env config or other hyper-parameters
 than it would train with now (its protocol has changed: a new catalog, say) is stale: it moves to
-ROOT/<experiment>/<budget>/stale/ and trains again from scratch. A finished run whose evaluations acted otherwise
+ROOT/<experiment>/<budget>/stale/ and trains again from scratch. A run that another experiment has already trained
+the same way (its run.json records the same training, `trained_elsewhere`) copies that training and is evaluated on
+its own splits (result.json's `trained_in` names the source). A finished run whose evaluations acted otherwise
 than its protocol's rule has it act now (mean or sampled actions) is evaluated again; `reevaluate` evaluates every
 finished run again with the simulator as it is (after a physics fix, say) and rewrites its result.json, training
 nothing. Demonstrations for offline and imitation runs are collected once per task under
@@ -77,6 +79,68 @@ def expected_training(exp: Experiment, run: Run, budget: str) -> dict[str, Any]:
         backend=run_backend(run, b),
     )
     return {"env_config": r["env_config"], "hparams": r["hparams"]}
+
+
+def trained_elsewhere(root: Path, exp: Experiment, budget: str, run: Run, seed: int) -> Path | None:
+    """A finished run of another experiment whose run.json records the very training (run, seed) of `exp` at
+    `budget` would do (algorithm, task, split, steps, seed, envs, scenes, env config, hyper-parameters, backend and
+    learning curve; from scratch): ablation (a)'s train run, Table 5's 410 m run and seed robustness's seed 0 are one
+    training. None when there is none, or (run, seed) starts from another run or learns from demonstrations."""
+    from curbside.train.run import _plain, resolve_run
+
+    if not run.train or run.init or run.method not in ONLINE:
+        return None
+    b = budget_of(exp, budget)
+    backend = run_backend(run, b)
+    r = resolve_run(
+        run.method,
+        run.task,
+        protocol=exp.protocol,
+        env_config=run.env,
+        split=run.split,
+        n_envs=b["n_envs"],
+        num_scenes=run.env.get("num_scenes") or b["scenes"],
+        hparams=run_hparams(run, b),
+        backend=backend,
+    )
+    want = _plain(
+        {
+            "algo": run.method,
+            "task": run.task,
+            "split": run.split,
+            "steps": _steps(b, run.method),
+            "seed": seed,
+            "n_envs": r["n_envs"],
+            "num_scenes": r["num_scenes"],
+            "env_config": r["env_config"],
+            "hparams": r["hparams"],
+            "protocol": r["protocol"],
+            "backend": backend,
+            "init_from": None,
+            "eval_every": int(b["eval_every"]),
+            "eval_episodes": int(b["curve_episodes"]),
+        }
+    )
+    mine = run_dir(root, exp, budget, run, seed)
+    for done in sorted(Path(root).glob(f"*/*/*/seed_{seed}/result.json")):
+        source = done.parent
+        if source == mine or source.parts[-4] == exp.name or not (source / "run.json").is_file():
+            continue
+        recorded = json.loads((source / "run.json").read_text())
+        if all(recorded.get(k, "missing") == v for k, v in want.items()):
+            return source
+    return None
+
+
+def _copy_training(source: Path, out: Path) -> None:
+    """`source`'s training (run.json, policy, curve, logs; not its checkpoints or result) as the run at `out`."""
+    tmp = out.with_name(out.name + ".copying")
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    shutil.copytree(source, tmp, ignore=shutil.ignore_patterns("checkpoints", "result.json"))
+    if out.exists():
+        shutil.rmtree(out)  # a folder without run.json: nothing trained there yet
+    os.replace(tmp, out)
 
 
 def stale_keys(out: Path, expected: Mapping[str, Mapping[str, Any]]) -> list[str]:
@@ -214,36 +278,42 @@ def run_experiment(
             hparams = run_hparams(run, b)
             t0 = time.time()
             resumed = (out / "run.json").is_file()  # then train_s holds this call's part of the training alone
-            out.mkdir(parents=True, exist_ok=True)
-            if run.train:
-                log(
-                    f"[{exp.name} {budget}] {run.id} seed {seed}: training {run.method} on {run.task} {run.split} "
-                    f"for {steps:,} steps"
-                )
-                train(
-                    run.method,
-                    run.task,
-                    out,
-                    steps=steps,
-                    protocol=exp.protocol,
-                    backend=backend,
-                    split=run.split,
-                    env_config=run.env,
-                    n_envs=b["n_envs"],
-                    num_scenes=run.env.get("num_scenes") or b["scenes"],
-                    seed=seed,
-                    demos=demos,
-                    resume=resumed,
-                    init_from=init_from,
-                    eval_every=int(b["eval_every"]) if online else 0,
-                    eval_episodes=int(b["curve_episodes"]),
-                    hparams=hparams,
-                    progress=progress,
-                )
+            source = None if resumed else trained_elsewhere(root, exp, budget, run, seed)
+            if source is not None:
+                log(f"[{exp.name} {budget}] {run.id} seed {seed}: trained as {source} was; copying its training")
+                _copy_training(source, out)
+                train_s = float(json.loads((source / "result.json").read_text()).get("train_s", 0.0))
             else:
-                steps = 0
-                log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating the policy of {run.init}")
-            train_s = time.time() - t0
+                out.mkdir(parents=True, exist_ok=True)
+                if run.train:
+                    log(
+                        f"[{exp.name} {budget}] {run.id} seed {seed}: training {run.method} on {run.task} "
+                        f"{run.split} for {steps:,} steps"
+                    )
+                    train(
+                        run.method,
+                        run.task,
+                        out,
+                        steps=steps,
+                        protocol=exp.protocol,
+                        backend=backend,
+                        split=run.split,
+                        env_config=run.env,
+                        n_envs=b["n_envs"],
+                        num_scenes=run.env.get("num_scenes") or b["scenes"],
+                        seed=seed,
+                        demos=demos,
+                        resume=resumed,
+                        init_from=init_from,
+                        eval_every=int(b["eval_every"]) if online else 0,
+                        eval_episodes=int(b["curve_episodes"]),
+                        hparams=hparams,
+                        progress=progress,
+                    )
+                else:
+                    steps = 0
+                    log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating the policy of {run.init}")
+                train_s = time.time() - t0
             evals = _evaluate(run, policy_dir, b, proto, progress, log)
             result = {
                 "experiment": exp.name,
@@ -258,6 +328,7 @@ def run_experiment(
                 "backend": backend,
                 "train_s": round(train_s, 1),
                 "resumed": resumed,
+                **({"trained_in": str(source)} if source is not None else {}),
                 "protocol": exp.protocol,
                 "evals": evals,
             }

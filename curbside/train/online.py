@@ -183,6 +183,8 @@ def train_online(
                 "seed": seed,
                 "hparams": dict(hparams),
                 "env_config": dict(env_config),
+                "eval_every": eval_every,
+                "eval_episodes": eval_episodes,
                 **dict(meta or {}),
             },
             indent=2,

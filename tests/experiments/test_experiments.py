@@ -330,9 +330,10 @@ def test_seeds_and_only_pick_the_runs_to_train(tmp_path, capsys) -> None:
     assert "--seeds must be comma-separated integers" in line
 
 
-def test_a_run_with_its_own_scene_count_is_current_once_finished(tmp_path) -> None:
+def test_a_run_is_current_once_finished_and_trained_once_for_every_experiment(tmp_path) -> None:
     """Ablation (b)'s runs give their scene count in their env config: the run records it once (as num_scenes), so
-    the report counts it finished, not stale, and a second `run` trains nothing."""
+    the report counts it finished, not stale, and a second `run` trains nothing. Another experiment that would train
+    the same run copies its training instead."""
     spec = {
         "name": "scaled",
         "title": "scaled",
@@ -355,6 +356,23 @@ def test_a_run_with_its_own_scene_count_is_current_once_finished(tmp_path) -> No
     logged: list[str] = []
     run_experiment(str(exp), "smoke", root=root, progress=False, log=logged.append)
     assert not any("training" in line for line in logged)
+
+    # Another experiment with the same training copies it (and evaluates on its own splits); one scene fewer trains.
+    runs = [{**spec["runs"][0], "id": "same"}, {**spec["runs"][0], "id": "fewer", "env": {**CFG, "num_scenes": 2}}]
+    other = tmp_path / "other.yaml"
+    other.write_text(
+        yaml.safe_dump(json.loads(json.dumps({**spec, "name": "other", "evaluate": ["unseen"], "runs": runs})))
+    )
+    logged.clear()
+    results = {r["run"]: r for r in run_experiment(str(other), "smoke", root=root, progress=False, log=logged.append)}
+    source, copy = root / "scaled" / "smoke" / "scenes-3" / "seed_0", root / "other" / "smoke" / "same" / "seed_0"
+    assert results["same"]["trained_in"] == str(source) and "trained_in" not in results["fewer"]
+    assert [line.split(": ")[0] for line in logged if "training" in line] == [
+        "[other smoke] same seed 0",  # trained as scenes-3 was; copying its training
+        "[other smoke] fewer seed 0",  # training ppo ...
+    ]
+    assert (copy / "policy.zip").read_bytes() == (source / "policy.zip").read_bytes()
+    assert set(results["same"]["evals"]) == {"unseen"}
 
 
 def test_demonstrations_follow_the_best_finished_ppo_of_the_task(tmp_path) -> None:
