@@ -105,7 +105,8 @@ def train_online(
     starts from another run's policy (its evaluation is the curve's first row when `eval_every` > 0); the curve's
     policy acts as `eval_actions` says (curbside.train.evaluate.EVAL_ACTIONS).
     `backend_config` holds env keys of the training backend alone (scene_steps; sim.batched's route_pool): the
-    evaluations and run.json's env_config leave them out."""
+    evaluations and run.json's env_config leave them out, and `env_config` wins where it sets one (ablation (b)'s
+    runs change scenes more often, so that a run visits the scenes it counts)."""
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import CallbackList
@@ -126,7 +127,7 @@ def train_online(
     torch.set_num_threads(2 if backend == "batched" else 1)
     vec = make_training_vec(
         task,
-        {**train_config, **(backend_config or {})},
+        {**(backend_config or {}), **train_config},
         n_envs,
         num_scenes,
         backend=backend,

@@ -130,6 +130,45 @@ def test_gail_generator_trains_on_the_batched_backend(demos, tmp_path) -> None:
     assert len(rows) >= 2 and "gail/disc_acc_expert" in header  # the discriminator learned on the batched rollouts
 
 
+def test_a_run_env_config_overrides_its_backend_scene_reuse(tmp_path, monkeypatch) -> None:
+    """The protocol's training envs keep a scene for its backend's `scene_steps`; a run that sets its own (ablation
+    (b)) trains with that, and records it."""
+    import dataclasses
+
+    import curbside.train.envs as envs
+    from curbside.train import protocols
+
+    reuse = {"batched": {"scene_steps": 20_000, "route_pool": 16}}
+    monkeypatch.setitem(
+        protocols.PROTOCOLS,
+        "curbside",
+        dataclasses.replace(protocols.PROTOCOLS["curbside"], training_config=reuse),
+    )
+    seen: list[dict] = []
+    real = envs.make_training_vec
+    monkeypatch.setattr(
+        envs,
+        "make_training_vec",
+        lambda task, config, *a, **kw: (seen.append(dict(config)), real(task, config, *a, **kw))[1],
+    )
+    out = tmp_path / "ppo"
+    train(
+        "ppo",
+        "PointNav",
+        out,
+        steps=128,
+        backend="batched",
+        env_config={**CFG, "scene_steps": 7},
+        n_envs=2,
+        num_scenes=2,
+        hparams=TINY_PPO,
+        progress=False,
+    )
+    assert seen[0]["scene_steps"] == 7 and seen[0]["route_pool"] == 16
+    recorded = json.loads((out / "run.json").read_text())["env_config"]
+    assert recorded["scene_steps"] == 7 and "route_pool" not in recorded
+
+
 def test_a_killed_gail_run_resumes_from_its_last_round(demos, tmp_path, monkeypatch) -> None:
     from stable_baselines3 import PPO
 
