@@ -62,37 +62,12 @@ def run_hparams(run: Run, b: Mapping[str, Any]) -> dict[str, Any]:
     return {"net_arch": b["hparams"]["net_arch"]} if "net_arch" in b["hparams"] else {}
 
 
-def expected_training(exp: Experiment, run: Run, budget: str) -> dict[str, Any]:
-    """What `run` of `exp` at `budget` trains under now, as its run.json records it: env config (its protocol's, with
-    the run's own keys and split) and hyper-parameters (the protocol's, with the budget's)."""
+def _resolved(exp: Experiment, run: Run, budget: str) -> dict[str, Any]:
+    """`train.run.resolve_run` for `run` of `exp` at `budget`: what the runner's `train` call trains it with."""
     from curbside.train.run import resolve_run
 
     b = budget_of(exp, budget)
-    r = resolve_run(
-        run.method,
-        run.task,
-        protocol=exp.protocol,
-        env_config=run.env,
-        split=run.split,
-        n_envs=b["n_envs"],
-        hparams=run_hparams(run, b),
-        backend=run_backend(run, b),
-    )
-    return {"env_config": r["env_config"], "hparams": r["hparams"]}
-
-
-def trained_elsewhere(root: Path, exp: Experiment, budget: str, run: Run, seed: int) -> Path | None:
-    """A finished run of another experiment whose run.json records the very training (run, seed) of `exp` at
-    `budget` would do (algorithm, task, split, steps, seed, envs, scenes, env config, hyper-parameters, backend and
-    learning curve; from scratch): ablation (a)'s train run, Table 5's 410 m run and seed robustness's seed 0 are one
-    training. None when there is none, or (run, seed) starts from another run or learns from demonstrations."""
-    from curbside.train.run import _plain, resolve_run
-
-    if not run.train or run.init or run.method not in ONLINE:
-        return None
-    b = budget_of(exp, budget)
-    backend = run_backend(run, b)
-    r = resolve_run(
+    return resolve_run(
         run.method,
         run.task,
         protocol=exp.protocol,
@@ -101,9 +76,29 @@ def trained_elsewhere(root: Path, exp: Experiment, budget: str, run: Run, seed: 
         n_envs=b["n_envs"],
         num_scenes=run.env.get("num_scenes") or b["scenes"],
         hparams=run_hparams(run, b),
-        backend=backend,
+        backend=run_backend(run, b),
     )
-    want = _plain(
+
+
+def expected_training(exp: Experiment, run: Run, budget: str) -> dict[str, Any]:
+    """What `run` of `exp` at `budget` trains under now, as its run.json records it: env config (its protocol's, with
+    the run's own keys and split) and hyper-parameters (the protocol's, with the budget's)."""
+    r = _resolved(exp, run, budget)
+    return {"env_config": r["env_config"], "hparams": r["hparams"]}
+
+
+def trained_elsewhere(root: Path, exp: Experiment, budget: str, run: Run, seed: int) -> Path | None:
+    """A finished run of another experiment whose run.json records the very training (run, seed) of `exp` at
+    `budget` would do (algorithm, task, split, steps, seed, envs, scenes, env config, hyper-parameters, backend and
+    learning curve; from scratch): ablation (a)'s train run, Table 5's 410 m run and seed robustness's seed 0 are one
+    training. None when there is none, or (run, seed) starts from another run or learns from demonstrations."""
+    from curbside.train.run import as_recorded
+
+    if not run.train or run.init or run.method not in ONLINE:
+        return None
+    b = budget_of(exp, budget)
+    r = _resolved(exp, run, budget)
+    want = as_recorded(
         {
             "algo": run.method,
             "task": run.task,
@@ -115,7 +110,7 @@ def trained_elsewhere(root: Path, exp: Experiment, budget: str, run: Run, seed: 
             "env_config": r["env_config"],
             "hparams": r["hparams"],
             "protocol": r["protocol"],
-            "backend": backend,
+            "backend": run_backend(run, b),
             "init_from": None,
             "eval_every": int(b["eval_every"]),
             "eval_episodes": int(b["curve_episodes"]),

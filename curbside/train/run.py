@@ -84,7 +84,7 @@ def resolve_run(
     }
 
 
-def _plain(value: Any) -> Any:
+def as_recorded(value: Any) -> Any:
     """`value` as JSON reads it back (tuples as lists, mapping proxies as dicts): run.json's form."""
     return json.loads(json.dumps(value, default=lambda o: dict(o) if isinstance(o, Mapping) else list(o)))
 
@@ -94,7 +94,7 @@ def changed_keys(recorded: Mapping[str, Any], expected: Mapping[str, Mapping[str
     differs, as "part.key"."""
     changed = []
     for part, want_part in expected.items():
-        have, want = _plain(recorded.get(part, {})), _plain(want_part)
+        have, want = as_recorded(recorded.get(part, {})), as_recorded(want_part)
         changed += [f"{part}.{k}" for k in sorted({*have, *want}) if have.get(k) != want.get(k)]
     return changed
 
@@ -107,7 +107,7 @@ def check_resume_config(out: Path, env_config: Mapping[str, Any], hparams: Mappi
     changed = changed_keys(recorded, given)
     if changed:
         part, key = changed[0].split(".", 1)
-        was, now = recorded.get(part, {}).get(key), _plain(given[part]).get(key)
+        was, now = recorded.get(part, {}).get(key), as_recorded(given[part]).get(key)
         raise ConfigError(
             f"--resume of {out}: it trained with {changed[0]} = {json.dumps(was)}, this command gives "
             f"{json.dumps(now)} ({len(changed)} value(s) differ: {', '.join(changed)}); pass the run's values with "
