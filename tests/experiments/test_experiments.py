@@ -48,6 +48,11 @@ def test_every_shipped_experiment_loads_with_its_paper_numbers() -> None:
     assert all(paper_cell(t2, r.task, r.method, "test", r.setting) for r in t2.runs)
     scaling = load_experiment("ablation_scaling")
     assert [int(r.setting) for r in scaling.runs] == [5, 50, 200, 1000]
+    # Each run draws at least as many scenes as it counts in its budget (one draw every scene_steps env steps).
+    from curbside.experiments.spec import budget_of
+
+    small = budget_of(scaling, "small")
+    assert all(small["online_steps"] // r.env["scene_steps"] >= r.env["num_scenes"] for r in scaling.runs)
 
 
 def _experiment(tmp_path: Path) -> Path:
