@@ -62,6 +62,12 @@ def run_hparams(run: Run, b: Mapping[str, Any]) -> dict[str, Any]:
     return {"net_arch": b["hparams"]["net_arch"]} if "net_arch" in b["hparams"] else {}
 
 
+def run_scenes(run: Run, b: Mapping[str, Any]) -> int | None:
+    """The scenes (run, budget values `b`) trains on: the run's own count (ablation (b)), else the budget's (None:
+    the protocol's for the split)."""
+    return run.env.get("num_scenes") or b["scenes"]
+
+
 def _resolved(exp: Experiment, run: Run, budget: str) -> dict[str, Any]:
     """`train.run.resolve_run` for `run` of `exp` at `budget`: what the runner's `train` call trains it with."""
     from curbside.train.run import resolve_run
@@ -74,7 +80,7 @@ def _resolved(exp: Experiment, run: Run, budget: str) -> dict[str, Any]:
         env_config=run.env,
         split=run.split,
         n_envs=b["n_envs"],
-        num_scenes=run.env.get("num_scenes") or b["scenes"],
+        num_scenes=run_scenes(run, b),
         hparams=run_hparams(run, b),
         backend=run_backend(run, b),
     )
@@ -295,7 +301,7 @@ def run_experiment(
                         split=run.split,
                         env_config=run.env,
                         n_envs=b["n_envs"],
-                        num_scenes=run.env.get("num_scenes") or b["scenes"],
+                        num_scenes=run_scenes(run, b),
                         seed=seed,
                         demos=demos,
                         resume=resumed,
