@@ -83,11 +83,12 @@ def report_cmd(
         Path("benchmarks/results"), help="Reports go to OUT/<experiment>/ (budget small) or OUT/<experiment>/<budget>/."
     ),
 ) -> None:
-    """Write results.csv (ours beside the paper's numbers) and results.png for the experiment's finished runs."""
+    """Write results.csv (ours beside the paper's numbers), summary.csv (mean and std over seeds) and results.png for
+    the experiment's finished runs."""
     from curbside.experiments.report import write_report
 
     path = _checked(name, budget, lambda: write_report(name, budget, root=root, out_root=out))
-    typer.echo(f"wrote {path} and {path.with_suffix('.png')}")
+    typer.echo(f"wrote {path}, {path.with_name('summary.csv')} and {path.with_suffix('.png')}")
 
 
 @app.command("release")

@@ -1,5 +1,6 @@
-"""An experiment's report: results.csv (one row per run, seed and evaluated split, beside the paper's numbers) and a
-PNG of success rates beside the paper's, under benchmarks/results/<experiment>/."""
+"""An experiment's report under benchmarks/results/<experiment>/: results.csv (one row per run, seed and evaluated
+split, beside the paper's numbers), summary.csv (mean and std over the seeds of each run and split) and a PNG of
+success rates beside the paper's."""
 
 from __future__ import annotations
 
@@ -30,6 +31,20 @@ COLUMNS = (
     "paper_spl",
     "paper_sns",
     "paper_cost",
+)
+
+
+METRICS = ("sr", "spl", "sns", "cost")
+SUMMARY_COLUMNS = (
+    "experiment",
+    "task",
+    "method",
+    "split",
+    "setting",
+    "seeds",
+    "steps",
+    *(f"{m}_{stat}" for m in METRICS for stat in ("mean", "std")),
+    *(f"paper_{m}" for m in METRICS),
 )
 
 
@@ -100,17 +115,45 @@ def rows_of(exp: Experiment, budget: str, root: Path, stale: Mapping[str, Any]) 
                         "setting": run.setting,
                         "seed": seed,
                         "steps": result["steps"],
-                        **{k: ev.get(k, "") for k in ("sr", "spl", "sns", "cost")},
-                        **{f"paper_{k}": paper.get(k, "") for k in ("sr", "spl", "sns", "cost")},
+                        **{k: ev.get(k, "") for k in METRICS},
+                        **{f"paper_{k}": paper.get(k, "") for k in METRICS},
                     }
                 )
     return rows
 
 
+def summary_of(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per (task, method, setting, split) of `rows`: the seeds measured, and the mean and std over them of
+        each metric (the population std, as the report's error bars; empty where a metric was not measured, and the std
+    where one seed was)."""
+    groups: dict[tuple[str, str, str, str], list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r["task"], r["method"], r["setting"], r["split"]), []).append(r)
+    out = []
+    for (task, method, setting, split), group in groups.items():
+        first = group[0]
+        row: dict[str, Any] = {
+            "experiment": first["experiment"],
+            "task": task,
+            "method": method,
+            "split": split,
+            "setting": setting,
+            "seeds": " ".join(str(r["seed"]) for r in group),
+            "steps": " ".join(sorted({str(r["steps"]) for r in group})),
+        }
+        for m in METRICS:
+            values = [float(r[m]) for r in group if r[m] != ""]
+            row[f"{m}_mean"] = round(float(np.mean(values)), 4) if values else ""
+            row[f"{m}_std"] = round(float(np.std(values)), 4) if len(values) > 1 else ""
+            row[f"paper_{m}"] = first[f"paper_{m}"]
+        out.append(row)
+    return out
+
+
 def write_report(
     name: str, budget: str, *, root: Path = DEFAULT_ROOT, out_root: Path = Path("benchmarks/results")
 ) -> Path:
-    """Write results.csv, results.png and report.json into out_root/<experiment>/ (the `small` budget, the one every
+    """Write results.csv, summary.csv, results.png and report.json into out_root/<experiment>/ (the `small` budget, the one every
     experiment runs) or out_root/<experiment>/<budget>/ (another budget); return the CSV path."""
     exp = load_experiment(name)
     stale = stale_runs(exp, budget, root)
@@ -122,6 +165,10 @@ def write_report(
         writer = csv.DictWriter(f, fieldnames=list(COLUMNS))
         writer.writeheader()
         writer.writerows(rows)
+    with open(out / "summary.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(SUMMARY_COLUMNS))
+        writer.writeheader()
+        writer.writerows(summary_of(rows))
     from curbside.experiments.runner import run_dir
 
     expected = sum(len(r.seeds) for r in exp.runs)

@@ -8,6 +8,7 @@ import csv
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -147,6 +148,16 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     assert {(r["split"], r["paper_sr"]) for r in rows} == {("test", "0.66"), ("unseen", "0.49")}
     assert (out.parent / "results.png").stat().st_size > 0
     assert json.loads((out.parent / "report.json").read_text())["runs_finished"] == 4
+    with open(out.parent / "summary.csv", newline="") as f:
+        summary = {(r["method"], r["setting"], r["split"]): r for r in csv.DictReader(f)}
+    for key, cell in summary.items():  # each run and split: the seeds' mean and std
+        srs = [float(r["sr"]) for r in rows if (r["method"], r["setting"], r["split"]) == key]
+        assert cell["seeds"].split() == sorted(
+            {r["seed"] for r in rows if (r["method"], r["setting"], r["split"]) == key}
+        )
+        assert float(cell["sr_mean"]) == pytest.approx(np.mean(srs), abs=1e-4)
+        assert float(cell["sr_std"]) == pytest.approx(np.std(srs), abs=1e-4)
+    assert sum(len(c["seeds"].split()) for c in summary.values()) == len(rows)
 
     # Evaluation shared among processes: the same episodes, so the same figures.
     from curbside.train.evaluate import evaluate_run
@@ -193,8 +204,6 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     assert drawn[0] == drawn[1] and torch.equal(torch.get_rng_state(), state)
 
     # The zoo: run a's seed-0 policy (b only evaluates it), loadable as it is, with a card and no Adam moments.
-    import numpy as np
-
     from curbside.experiments.release import release
     from curbside.train.policies import load_policy
 
