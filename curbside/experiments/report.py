@@ -123,9 +123,9 @@ def rows_of(exp: Experiment, budget: str, root: Path, stale: Mapping[str, Any]) 
 
 
 def summary_of(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """One row per (task, method, setting, split) of `rows`: the seeds measured, and the mean and std over them of
-        each metric (the population std, as the report's error bars; empty where a metric was not measured, and the std
-    where one seed was)."""
+    """One row per (task, method, setting, split) of `rows`: the seeds measured, and the mean and the population std
+    over them of each metric (the mean empty where the metric was not measured, the std where fewer than two seeds
+    measured it)."""
     groups: dict[tuple[str, str, str, str], list[dict[str, Any]]] = {}
     for r in rows:
         groups.setdefault((r["task"], r["method"], r["setting"], r["split"]), []).append(r)
@@ -153,8 +153,8 @@ def summary_of(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 def write_report(
     name: str, budget: str, *, root: Path = DEFAULT_ROOT, out_root: Path = Path("benchmarks/results")
 ) -> Path:
-    """Write results.csv, summary.csv, results.png and report.json into out_root/<experiment>/ (the `small` budget, the one every
-    experiment runs) or out_root/<experiment>/<budget>/ (another budget); return the CSV path."""
+    """Write results.csv, summary.csv, results.png and report.json into out_root/<experiment>/ (the `small` budget,
+    the one every experiment runs) or out_root/<experiment>/<budget>/ (another budget); return the CSV path."""
     exp = load_experiment(name)
     stale = stale_runs(exp, budget, root)
     rows = rows_of(exp, budget, root, stale)
@@ -165,10 +165,11 @@ def write_report(
         writer = csv.DictWriter(f, fieldnames=list(COLUMNS))
         writer.writeheader()
         writer.writerows(rows)
+    summary = summary_of(rows)
     with open(out / "summary.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(SUMMARY_COLUMNS))
         writer.writeheader()
-        writer.writerows(summary_of(rows))
+        writer.writerows(summary)
     from curbside.experiments.runner import run_dir
 
     expected = sum(len(r.seeds) for r in exp.runs)
@@ -190,43 +191,37 @@ def write_report(
         )
         + "\n"
     )
-    plot(exp, rows, out / "results.png", budget)
+    plot(exp, summary, out / "results.png", budget)
     return path
 
 
-def plot(exp: Experiment, rows: list[dict[str, Any]], path: Path, budget: str) -> None:
-    """Success rate per (task, method, setting) and split: ours (mean, std over seeds) beside the paper's."""
+def plot(exp: Experiment, summary: list[dict[str, Any]], path: Path, budget: str) -> None:
+    """Success rate per (task, method, setting) and split from `summary_of`'s rows: ours (mean, std over seeds)
+    beside the paper's."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    splits = sorted({r["split"] for r in rows}) or ["test"]
+    splits = sorted({r["split"] for r in summary}) or ["test"]
     fig, axes = plt.subplots(
         1, len(splits), figsize=(max(5.0, 0.6 * len(exp.runs) + 2) * len(splits) / 1.5, 4), squeeze=False
     )
     for ax, split in zip(axes[0], splits):
-        sel = [r for r in rows if r["split"] == split]
-        keys = list(dict.fromkeys((r["task"], r["method"], r["setting"]) for r in sel))
+        sel = [r for r in summary if r["split"] == split]
+        keys = [(r["task"], r["method"], r["setting"]) for r in sel]
         labels = [" ".join(x for x in (t[:1] + "N" if t else "", m, s) if x) for t, m, s in keys]
-        ours = [[float(r["sr"]) for r in sel if (r["task"], r["method"], r["setting"]) == k] for k in keys]
-        paper = [
-            next(
-                (r["paper_sr"] for r in sel if (r["task"], r["method"], r["setting"]) == k and r["paper_sr"] != ""),
-                np.nan,
-            )
-            for k in keys
-        ]
         x = np.arange(len(keys))
         ax.bar(
             x - 0.2,
-            [np.mean(o) for o in ours],
+            [float(r["sr_mean"]) for r in sel],
             0.4,
-            yerr=[np.std(o) for o in ours],
+            yerr=[float(r["sr_std"] or 0.0) for r in sel],
             label=f"curbside ({budget})",
             color="#3b7dd8",
         )
-        ax.bar(x + 0.2, [float(p) for p in paper], 0.4, label="MetaUrban paper", color="#bbbbbb")
+        paper = [float(r["paper_sr"]) if r["paper_sr"] != "" else np.nan for r in sel]
+        ax.bar(x + 0.2, paper, 0.4, label="MetaUrban paper", color="#bbbbbb")
         ax.set_xticks(x, labels, rotation=45, ha="right", fontsize=7)
         ax.set_ylim(0, 1)
         ax.set_title(f"{exp.title}: {split} SR", fontsize=9)
