@@ -49,9 +49,9 @@ def _write_json(path: Path, data: dict[str, Any]) -> None:
 
 def run_backend(run: Run, b: Mapping[str, Any]) -> str:
     """The backend (run, budget values `b`) trains on: the run's or the budget's, where it can train the run (the
-    batched env steps PointNav's online learners and GAIL's generator), else the PyBullet envs."""
+    batched envs step the online learners and GAIL's generator), else the PyBullet envs."""
     backend = run.backend or b["backend"]
-    return backend if run.task == "PointNav" and run.method in ONLINE + ("gail",) else "pybullet"
+    return backend if run.method in ONLINE + ("gail",) else "pybullet"
 
 
 def run_hparams(run: Run, b: Mapping[str, Any]) -> dict[str, Any]:

@@ -118,20 +118,21 @@ def make_training_vec(
     subprocess: bool = True,
 ) -> Any:
     """The SB3 VecEnv online training steps: `make_vec_env`'s sharded PyBullet envs, or (backend "batched") one
-    sim.batched.BatchedPointNav of `n_envs` envs in this process, drawing from `num_scenes` scenes of `split`."""
+    sim.batched env (BatchedPointNav, BatchedSocialNav) of `n_envs` envs in this process, drawing from `num_scenes`
+    scenes of `split`."""
     if backend == "pybullet":
         return make_vec_env(task, config, n_envs, num_scenes, split=split, subprocess=subprocess, seed=seed)
-    if task != "PointNav":
-        raise ConfigError(f"the batched backend steps PointNav only; train {task} with --backend pybullet")
+    env_id(task)  # an unknown task fails here, naming the valid ones
     from stable_baselines3.common.vec_env import VecMonitor
 
     from curbside.train.vec import VectorEnvAdapter
-    from sim.batched import BatchedPointNav
+    from sim.batched import BatchedPointNav, BatchedSocialNav
 
     cfg = split_config(config, split, num_scenes)
     cfg.setdefault("scene_cache", min(num_scenes, max(2 * n_envs, 8)))
+    batched = BatchedSocialNav if task == "SocialNav" else BatchedPointNav
     vec = VecMonitor(
-        VectorEnvAdapter(BatchedPointNav(n_envs, config=cfg)),
+        VectorEnvAdapter(batched(n_envs, config=cfg)),
         info_keywords=("is_success", "episode_cost", "route_completion"),
     )
     vec.seed(seed)

@@ -12,7 +12,7 @@ from curbside.train.defaults import RUN_EVAL_EVERY, RUN_N_ENVS, RUN_NUM_SCENES, 
 from curbside.train.policies import check_algo
 from kernel.config import ConfigError
 
-BACKENDS = ("pybullet", "batched")  # the PyBullet envs (the reference), or sim.batched (PointNav, flat ground)
+BACKENDS = ("pybullet", "batched")  # the PyBullet envs (the reference), or sim.batched (flat ground)
 BATCHED_ALGOS = ("ppo", "ppo_lag", "ppo_et", "gail")  # what sim.batched can train: PPO and GAIL's PPO generator
 
 
@@ -20,8 +20,6 @@ def check_backend(backend: str, task: str, algo: str) -> str:
     """`backend` if it can train `algo` on `task`; otherwise a ConfigError that names what can."""
     if backend not in BACKENDS:
         raise ConfigError(f"unknown backend {backend!r}; valid: {', '.join(BACKENDS)}")
-    if backend == "batched" and task != "PointNav":
-        raise ConfigError(f"the batched backend steps PointNav only; train {task} with --backend pybullet")
     if backend == "batched" and algo not in BATCHED_ALGOS:
         raise ConfigError(
             f"the batched backend trains {', '.join(BATCHED_ALGOS)} (the learners that step envs); train {algo} "
@@ -162,7 +160,7 @@ def train(
     """Train `algo` on `task`'s `split` under `protocol`; write run.json and the policy into `out`; return the policy
     path.
 
-    `backend` "batched" steps the online algorithms' envs in sim.batched (PointNav); evaluation always runs on the
+    `backend` "batched" steps the online algorithms' envs in sim.batched; evaluation always runs on the
     PyBullet env. `init_from` starts from a trained run's policy (same algorithm family, task and observations).
     `executor` "ray" trains PPO (or PPO-ET) on Ray RLlib with `num_env_runners` env runners on the cluster at
     `address` (curbside.train.rllib), into the same layout; "local" is SB3 with `n_envs` envs.

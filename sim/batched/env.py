@@ -21,7 +21,7 @@ from kernel.config import ConfigError
 from sim.batched.atlas import Atlas
 from sim.batched.episodes import KIND_BITS, Episodes
 from sim.batched.kinematics import Drive
-from sim.batched.lidar import lidar_pair
+from sim.batched.lidar import BatchLidar, lidar_pair
 from sim.batched.routes import RouteBatch
 from sim.batched.scene_store import BuiltScene, SceneStore
 from sim.envs.observation import GOAL_LOG_SCALE, EgoObservation
@@ -85,6 +85,11 @@ class BatchedPointNav(VectorEnv):
     """
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
+    # The task's config (defaults, rules, presets) and collision kinds: a subclass for another task replaces them.
+    defaults: dict[str, Any] = BATCHED_DEFAULTS
+    table: dict[str, Rule | Table] = BATCHED_TABLE
+    presets: Mapping[str, Mapping[str, Any]] = TASK_PRESETS
+    kind_bits: Mapping[str, int] = KIND_BITS
 
     def __init__(
         self, num_envs: int = 1, config: Mapping[str, Any] | None = None, render_mode: str | None = None, **kwargs: Any
@@ -95,8 +100,8 @@ class BatchedPointNav(VectorEnv):
             raise ConfigError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         if render_mode is not None:
             raise ConfigError("BatchedPointNav does not render; use the PyBullet env (curbside/PointNav-v0) for images")
-        self.config = cfg = resolve_task_config(BATCHED_DEFAULTS, config, TASK_PRESETS)
-        check_config(cfg, BATCHED_TABLE, BATCHED_DEFAULTS)
+        self.config = cfg = resolve_task_config(self.defaults, config, self.presets)
+        check_config(cfg, self.table, self.defaults)
         for key, need, why in PYBULLET_ONLY:
             if cfg[key] != need:
                 raise ConfigError(f"config.{key} must be {need!r} in the batched env: {why}")
@@ -129,7 +134,7 @@ class BatchedPointNav(VectorEnv):
         self.drive = Drive(self.spec_machine, n_envs)
         self.lidar, self.low_lidar = lidar_pair(cfg, self.drive.bounding_radius)
         self.routes = RouteBatch(n_envs)
-        self.episodes = Episodes(n_envs, cfg)
+        self.episodes = Episodes(n_envs, cfg, self.kind_bits)
         self.rngs = [np.random.default_rng() for _ in range(n_envs)]
         self.built: list[BuiltScene | None] = [None] * n_envs
         self.slots = np.zeros(n_envs, dtype=np.int64)
@@ -186,11 +191,19 @@ class BatchedPointNav(VectorEnv):
             self.routes.set(k, route)
             self.reference[k] = self.store.reference_length(built, route)
             lengths[k], horizons[k] = route.length, horizon
+            self._start_episode(k, built, route)
         self.body_level[envs] = SIDEWALK_LEVEL  # a new episode's body level follows from its start alone
         self._locate_level(envs)
+        self._started_episodes(envs)
         mask = np.zeros(self.num_envs, dtype=bool)
         mask[envs] = True
         return {"route_length": lengths, "_route_length": mask, "horizon": horizons, "_horizon": mask.copy()}
+
+    def _start_episode(self, k: int, built: BuiltScene, route: Route) -> None:
+        """Hook: env k's episode starts on `route` in `built`, the machine at the start (its draws come next)."""
+
+    def _started_episodes(self, envs: np.ndarray) -> None:
+        """Hook: envs `envs` have started their episodes (levels located)."""
 
     def _draw_route(self, k: int, options: Mapping[str, Any] | None) -> tuple[BuiltScene, Route]:
         """Env k's scene (a new one when its `scene_steps` are spent) and next route; a scene with no route of
@@ -233,7 +246,7 @@ class BatchedPointNav(VectorEnv):
         entering = np.nonzero(low_ramp & (self.body_level == SIDEWALK_LEVEL))[0]
         if entering.size:
             self.body_level[entering] = ROAD_LEVEL
-            over_sidewalk, _ = self._collide(entering, drive.x[entering], drive.y[entering], drive.yaw[entering])
+            over_sidewalk, _ = self._collide_static(entering, drive.x[entering], drive.y[entering], drive.yaw[entering])
             self.body_level[entering[over_sidewalk]] = SIDEWALK_LEVEL
 
     # -- stepping ------------------------------------------------------------------------------------
@@ -275,6 +288,7 @@ class BatchedPointNav(VectorEnv):
                 steep = np.where(kinds[envs] == KIND_BITS["curb"], STEEP_CURB, STEEP_WALL)
                 stopped[envs] = self._slide(envs, normals, steep, rest_x, rest_y, x, y, yaw, v, sub_dt)
             drive.store(x, y, yaw, v, w, sub_dt, stopped)
+        hits |= self._after_substeps(act)
         arclen, lat = self.routes.locate(drive.x, drive.y, ep.progress)
         progress, new_progress, collided = ep.advance(drive.x - x0, drive.y - y0, arclen, lat, hits)
         self._locate_level()
@@ -338,7 +352,19 @@ class BatchedPointNav(VectorEnv):
         out.update({f"_{k}": done for k in list(out)})
         return out
 
+    def _after_substeps(self, actions: np.ndarray) -> np.ndarray:
+        """Hook: every machine has moved through the step's substeps (`actions` [n, 2], clipped); returns the kind
+        bits of contacts made after them (PointNav: none)."""
+        return np.zeros(self.num_envs, dtype=np.int64)
+
     def _collide(
+        self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(blocked, kind bits) of envs `envs` with footprints at (x, y, yaw) (arrays over `envs`): what the machines
+        collide with (PointNav: the scene's solids, `_collide_static`)."""
+        return self._collide_static(envs, x, y, yaw)
+
+    def _collide_static(
         self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """(blocked, kind bits) of envs `envs` with footprints at (x, y, yaw) (arrays over `envs`): blocked when a
@@ -458,9 +484,9 @@ class BatchedPointNav(VectorEnv):
     def _observe(self) -> np.ndarray:
         """Every env's observation (the layout of `EgoObservation`, PointNavEnv's table)."""
         drive, ep, routes, observation = self.drive, self.episodes, self.routes, self.observation
-        parts = [self.lidar.scan(self.atlas, self.slots, self.level, drive.x, drive.y, drive.yaw)]
+        parts = [self._scan(self.lidar)]
         if self.low_lidar is not None:
-            parts.append(self.low_lidar.scan(self.atlas, self.slots, self.level, drive.x, drive.y, drive.yaw))
+            parts.append(self._scan(self.low_lidar))
         heading_err = (drive.yaw - routes.heading_at(ep.progress) + np.pi) % (2.0 * np.pi) - np.pi
         cos, sin = np.cos(drive.yaw)[:, None], np.sin(drive.yaw)[:, None]
         wp = routes.point_at(ep.progress[:, None] + observation._wp_offsets[None])
@@ -485,6 +511,11 @@ class BatchedPointNav(VectorEnv):
         obs = np.concatenate([*parts, state.astype(np.float32), ego.astype(np.float32), tail.astype(np.float32)], 1)
         np.clip(obs, -1.0, 1.0, out=obs)
         return obs
+
+    def _scan(self, lidar: BatchLidar) -> np.ndarray:
+        """`lidar`'s encoded scans [n, beams] of every env (PointNav: the scenes' static solids)."""
+        drive = self.drive
+        return lidar.scan(self.atlas, self.slots, self.level, drive.x, drive.y, drive.yaw)
 
     def close_extras(self, **kwargs: Any) -> None:
         """Drop the scenes' grids."""

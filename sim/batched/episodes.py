@@ -13,21 +13,26 @@ from sim.raycast.grids import KIND_NAMES
 from sim.tasks.termination import EndMarks, EndRules, end_of_step
 
 KIND_BITS = {name: 1 << k for k, name in KIND_NAMES.items()}  # object 2, building 4, curb 8
+# SocialNav's moving bodies (sim.batched.social), beside the grids' kinds.
+SOCIAL_KIND_BITS = {**KIND_BITS, "agent": 1 << 4, "vehicle": 1 << 5}
 
 
 class Episodes:
-    """Per-env counters of the running episodes; `reset(mask)` starts new ones, `advance` records a step."""
+    """Per-env counters of the running episodes; `reset(mask)` starts new ones, `advance` records a step.
 
-    def __init__(self, n: int, cfg: Mapping[str, Any]) -> None:
+    `kind_bits`: the collision kinds counted (`collisions_<kind>`) and their bits in `advance`'s hit masks."""
+
+    def __init__(self, n: int, cfg: Mapping[str, Any], kind_bits: Mapping[str, int] = KIND_BITS) -> None:
         self.n = n
+        self.kind_bits = dict(kind_bits)
         self.rules = EndRules.from_config(cfg)
         self.marks = EndMarks.zeros(n)
-        self.cost_bits = sum(KIND_BITS[k] for k in cfg["cost_kinds"] if k in KIND_BITS)
+        self.cost_bits = sum(kind_bits[k] for k in cfg["cost_kinds"] if k in kind_bits)
         f = lambda: np.zeros(n)  # noqa: E731
         i = lambda: np.zeros(n, dtype=np.int64)  # noqa: E731
         self.progress, self.max_progress, self.lateral, self.path_length = f(), f(), f(), f()
         self.steps, self.horizon, self.cost_total = i(), i(), i()
-        self.collision_counts = {k: i() for k in KIND_BITS}
+        self.collision_counts = {k: i() for k in kind_bits}
         self.last_action = np.zeros((n, 2))
 
     def reset(self, k: int, horizon: int) -> None:
@@ -50,7 +55,7 @@ class Episodes:
         self.progress, self.lateral = s, lateral
         self.max_progress = np.maximum(self.max_progress, s)
         self.steps += 1
-        for name, bit in KIND_BITS.items():
+        for name, bit in self.kind_bits.items():
             self.collision_counts[name] += (hits & bit) > 0
         collided = (hits & self.cost_bits) > 0
         self.cost_total += collided

@@ -1,6 +1,6 @@
 """Gymnasium environments: PointNav (sim.envs.pointnav) and SocialNav (sim.envs.socialnav).
 
-`register_envs()` registers the ids (and curbside/BatchedPointNav-v0, vector only); `import sim` calls it, and so does code that makes envs by id
+`register_envs()` registers the ids (and curbside/BatchedPointNav-v0 and BatchedSocialNav-v0, vector only); `import sim` calls it, and so does code that makes envs by id
 (entry points are strings, so nothing heavy loads).
 """
 
@@ -12,7 +12,10 @@ ENV_IDS = {
 }
 # Vector-only ids: `gymnasium.make_vec(id, num_envs)` gives the batched numpy env (docs/batched.md: flat ground,
 # kinematic machines); it has no single-env `gymnasium.make`. `make_vec` of the ids above gives PyBullet envs.
-VECTOR_ENTRY_POINTS = {"curbside/BatchedPointNav-v0": "sim.batched:BatchedPointNav"}
+VECTOR_ENTRY_POINTS = {
+    "curbside/BatchedPointNav-v0": "sim.batched:BatchedPointNav",
+    "curbside/BatchedSocialNav-v0": "sim.batched:BatchedSocialNav",
+}
 
 
 def register_envs() -> None:

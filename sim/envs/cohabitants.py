@@ -177,15 +177,16 @@ class BodyAdapter(Manager[WorldBodies]):
         world = self.world
         assert world is not None  # made with the world (on_scene)
         crowd = self.crowd.crowd
-        world.bodies.sync(crowd.kind_idx, crowd.pos, self._base_heights(crowd, world.curb_height), self.traffic.poses())
+        world.bodies.sync(crowd.kind_idx, crowd.pos, agent_base_heights(crowd, world.curb_height), self.traffic.poses())
 
-    @staticmethod
-    def _base_heights(crowd: AgentManager, curb: float) -> np.ndarray:
-        xy = crowd.pos
-        if not len(xy):
-            return np.zeros(0)
-        grid = crowd.grid
-        assert grid is not None  # the crowd's reset built its grid; only then are there agents
-        codes = cell_values(xy, float(grid.origin[0]), float(grid.origin[1]), float(grid.res), grid.cells)
-        # Legend: sidewalk on the curb, crosswalk on the road, ramps half way.
-        return np.array([curb, curb, 0.0, curb / 2])[np.minimum(codes, 3)]
+
+def agent_base_heights(crowd: AgentManager, curb: float) -> np.ndarray:
+    """The ground height under every agent of `crowd` (m): the curb's on sidewalks, the road's on crosswalks."""
+    xy = crowd.pos
+    if not len(xy):
+        return np.zeros(0)
+    grid = crowd.grid
+    assert grid is not None  # the crowd's reset built its grid; only then are there agents
+    codes = cell_values(xy, float(grid.origin[0]), float(grid.origin[1]), float(grid.res), grid.cells)
+    # Legend: sidewalk on the curb, crosswalk on the road, ramps half way.
+    return np.array([curb, curb, 0.0, curb / 2])[np.minimum(codes, 3)]

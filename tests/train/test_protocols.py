@@ -235,7 +235,7 @@ def test_seeds_are_aggregated_as_mean_and_std(tmp_path) -> None:
     [
         (["--protocol", "papr"], "unknown protocol 'papr'; valid: curbside, paper"),
         (["--backend", "gpu"], "unknown backend 'gpu'; valid: pybullet, batched"),
-        (["--backend", "batched", "--task", "SocialNav"], "the batched backend steps PointNav only"),
+        (["--backend", "batched", "--task", "Social"], "unknown task 'Social'; valid: PointNav, SocialNav"),
         (
             ["--backend", "batched", "--algo", "bc", "--demos", "."],
             "the batched backend trains ppo, ppo_lag, ppo_et, gail",
