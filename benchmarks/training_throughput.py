@@ -7,7 +7,8 @@ Each case builds the training VecEnv a `curbside train run` builds (curbside.tra
 PPO with the protocol's hyper-parameters, runs one PPO iteration (a train batch of env steps, then the update) to
 warm up (scene builds, first touches), then times `--iterations` more: env steps per wall-clock second, with the
 share of time in the update; and the milliseconds of one BC minibatch. Cases:
-- ppo_pointnav_<protocol>_batched: the batched backend (sim.batched), the protocol's envs (paper: 64);
+- ppo_pointnav_<protocol>_batched and ppo_socialnav_<protocol>_batched: the batched backend (sim.batched), the
+  protocol's envs (paper: 64);
 - ppo_pointnav_<protocol>_pybullet and ppo_socialnav_<protocol>_pybullet: the PyBullet envs sharded over the cores
   (8 envs; the paper's 128 processes do not fit two cores);
 - bc_<protocol>_minibatch_ms: one behaviour-cloning minibatch of the protocol's batch size and network.
@@ -179,7 +180,13 @@ def main() -> None:
     ap.add_argument("--only", nargs="*", default=None, help="case names to run (default: all)")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "training_throughput")
     args = ap.parse_args()
-    cases = [("PointNav", "batched"), ("PointNav", "pybullet"), ("SocialNav", "pybullet"), ("bc", "minibatch")]
+    cases = [
+        ("PointNav", "batched"),
+        ("SocialNav", "batched"),
+        ("PointNav", "pybullet"),
+        ("SocialNav", "pybullet"),
+        ("bc", "minibatch"),
+    ]
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "summary.json"
     summary: dict[str, Any] = json.loads(path.read_text()) if path.is_file() else {"cases": {}}

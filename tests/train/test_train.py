@@ -130,6 +130,28 @@ def test_gail_generator_trains_on_the_batched_backend(demos, tmp_path) -> None:
     assert len(rows) >= 2 and "gail/disc_acc_expert" in header  # the discriminator learned on the batched rollouts
 
 
+def test_socialnav_ppo_lag_trains_on_the_batched_backend(tmp_path) -> None:
+    """SocialNav's online learners step sim.batched's BatchedSocialNav; PPO-Lag's cost signal includes agents."""
+    from stable_baselines3 import PPO
+
+    out = tmp_path / "social"
+    train(
+        "ppo_lag",
+        "SocialNav",
+        out,
+        steps=128,
+        backend="batched",
+        env_config={**CFG, "agents": {"dynamic_density": 20.0}},
+        n_envs=2,
+        num_scenes=2,
+        hparams=TINY_PPO,
+        progress=False,
+    )
+    run = json.loads((out / "run.json").read_text())
+    assert (run["backend"], run["task"]) == ("batched", "SocialNav")
+    assert PPO.load(out / "policy.zip", device="cpu").num_timesteps >= 128
+
+
 def test_a_run_env_config_overrides_its_backend_scene_reuse(tmp_path, monkeypatch) -> None:
     """The protocol's training envs keep a scene for its backend's `scene_steps`; a run that sets its own (ablation
     (b)) trains with that, and records it."""
