@@ -180,3 +180,28 @@ def test_config_is_socialnavs_with_route_pool_and_unknown_keys_fail() -> None:
     obs, _ = envs.reset(seed=3)
     assert obs.shape == (2, SocialNavEnv({"scene_spec": street()}).observation_space.shape[0])
     envs.close()
+
+
+def test_same_seed_same_episodes_byte_for_byte_and_autoreset_keys() -> None:
+    runs = []
+    for _ in range(2):
+        env = BatchedSocialNav(3, {"scene_spec": street(), "agents": dict(CROWD), "route_length": [5.0, 15.0]})
+        obs, _ = env.reset(seed=7)
+        rng = np.random.default_rng(0)
+        trace, finals = [obs], []
+        for _ in range(60):
+            obs, reward, term, trunc, info = env.step(rng.uniform(-1.0, 1.0, (3, 2)))
+            trace += [obs, reward, np.stack([env.crowds[k].crowd.pos.sum(axis=0) for k in range(3)])]
+            if "final_info" in info:
+                done = info["_final_info"]
+                assert done.any() and all(info["final_obs"][k] is not None for k in np.nonzero(done)[0])
+                finals.append({key: info["final_info"][key][done] for key in ("psc", "stl", "sns", "success")})
+        env.close()
+        runs.append((trace, finals))
+    (a, fa), (b, fb) = runs
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+    assert fa and len(fa) == len(fb)  # episodes ended (short routes), with the social metrics in final_info
+    for x, y in zip(fa, fb):
+        assert all(np.array_equal(x[k], y[k]) for k in x)
+        assert np.all((x["psc"] >= 0.0) & (x["psc"] <= 1.0))
+        np.testing.assert_allclose(x["sns"], 0.5 * (x["psc"] + x["stl"]))
