@@ -16,12 +16,11 @@ import numpy as np
 from numba import njit
 
 from kernel.config import ConfigError
-from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
 from sim.batched.env import BATCHED_KEYS, BatchedPointNav
 from sim.batched.episodes import SOCIAL_KIND_BITS
 from sim.batched.lidar import BatchLidar
 from sim.batched.scene_store import BuiltScene
-from sim.envs.bodies import VEHICLE_HEIGHT
+from sim.envs.bodies import VEHICLE_HEIGHT, capsule_shapes
 from sim.envs.cohabitants import CrowdAdapter, TrafficAdapter, agent_base_heights
 from sim.envs.managers import EgoPose, ResetContext, TickContext
 from sim.raycast.grids import SIDEWALK_LEVEL
@@ -35,7 +34,6 @@ SOCIAL_KEYS = {**CONFIG_KEYS, "route_pool": BATCHED_KEYS["route_pool"]}
 SOCIAL_DEFAULTS: dict[str, Any] = defaults_of(SOCIAL_KEYS)
 SOCIAL_TABLE: dict[str, Rule | Table] = table_of(SOCIAL_KEYS)
 AGENT_BIT, VEHICLE_BIT = SOCIAL_KIND_BITS["agent"], SOCIAL_KIND_BITS["vehicle"]
-_NO_IDS = np.zeros(0, dtype=np.int64)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -70,7 +68,7 @@ def shape_contacts(
             eu, ew = max(abs(u) - half_l, 0.0), max(abs(w) - half_w, 0.0)
             gap = math.sqrt(eu * eu + ew * ew) - agent_r[a]
             if gap < 0.0:
-                bits[j] |= 1 << 4
+                bits[j] |= AGENT_BIT
                 if -gap > depth[j]:
                     depth[j] = -gap
                     # From the agent's centre to the footprint's nearest point (to the centre when inside it).
@@ -114,7 +112,7 @@ def shape_contacts(
                     sign = -1.0 if along > 0.0 else 1.0
                     ax_x, ax_y = sign * px, sign * py
             if best > 0.0:
-                bits[j] |= 1 << 5
+                bits[j] |= VEHICLE_BIT
                 if best > depth[j]:
                     depth[j], nx[j], ny[j] = best, ax_x, ax_y
     return bits, nx, ny, depth
@@ -161,6 +159,7 @@ class BatchedSocialNav(BatchedPointNav):
         self.psc_ok = np.zeros(n, dtype=np.int64)  # steps with every agent outside the personal space
         # Each env's capsules (centre x, y, z; half straight part; radius) and its vehicles' poses, flattened with
         # start offsets per env (`shape_contacts`' layout); rebuilt whenever the cohabitants move.
+        self._capsule_shapes = [capsule_shapes(np.zeros(0, dtype=np.int64)) for _ in range(n)]  # fixed an episode
         self._capsules = [np.zeros((0, 5)) for _ in range(n)]
         self._vehicles = [np.zeros((0, 3)) for _ in range(n)]
         self._agent_start = np.zeros(n + 1, dtype=np.int64)
@@ -180,6 +179,7 @@ class BatchedSocialNav(BatchedPointNav):
         self.traffics[k].reset(ctx)
         self.curb[k] = float(built.scene.curb_height)
         self.psc_ok[k] = 0
+        self._capsule_shapes[k] = capsule_shapes(self.crowds[k].crowd.kind_idx)
         self._shapes_of(k)
 
     def _started_episodes(self, envs: np.ndarray) -> None:
@@ -206,14 +206,12 @@ class BatchedSocialNav(BatchedPointNav):
     def _shapes_of(self, k: int) -> None:
         """Env k's capsules and vehicle poses, where its crowd and traffic stand now."""
         crowd = self.crowds[k].crowd
-        kinds = [KIND_NAMES[i] for i in crowd.kind_idx]
-        caps = np.zeros((len(kinds), 5))
-        if kinds:
-            radius = np.array([AGENT_KINDS[n].radius for n in kinds])
-            half_h = np.array([max(AGENT_KINDS[n].height, 2.0 * AGENT_KINDS[n].radius) / 2 for n in kinds])
+        half_h, radius, shaft = self._capsule_shapes[k]
+        caps = np.zeros((len(radius), 5))
+        if len(radius):
             caps[:, :2] = crowd.pos
             caps[:, 2] = agent_base_heights(crowd, self.curb[k]) + half_h
-            caps[:, 3] = np.maximum(half_h - radius, 0.0)
+            caps[:, 3] = shaft
             caps[:, 4] = radius
         self._capsules[k] = caps
         self._vehicles[k] = np.stack(self.traffics[k].poses(), 1) if self.traffics[k].enabled else np.zeros((0, 3))

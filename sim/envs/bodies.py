@@ -33,6 +33,15 @@ def moved_rows(xyz: np.ndarray, last: np.ndarray):  # pragma: no cover - numba
     return idx, step
 
 
+def capsule_shapes(kind_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per agent of kinds `kind_idx`: its capsule's half height (centre above the ground), radius, and half its
+    straight part."""
+    kinds = [AGENT_KINDS[KIND_NAMES[k]] for k in kind_idx]
+    half_heights = np.array([max(kind.height, 2.0 * kind.radius) / 2 for kind in kinds])
+    radii = np.array([kind.radius for kind in kinds])
+    return half_heights, radii, np.maximum(half_heights - radii, 0.0)
+
+
 class CohabitantBodies:
     """Bodies for a crowd and its traffic in one Bullet client; their ids go into `collision_kinds` by kind."""
 
@@ -136,10 +145,8 @@ class CohabitantBodies:
                 self.agents.append(body)
                 self.collision_kinds[body] = "agent"
             self._kind_idx = self._kind_src = kind_idx
-            self._half_heights = np.array([max(AGENT_KINDS[k].height, 2.0 * AGENT_KINDS[k].radius) / 2 for k in kinds])
-            self._radii = np.array([AGENT_KINDS[k].radius for k in kinds])
+            self._half_heights, self._radii, self._shaft = capsule_shapes(kind_idx)
             self._xyz = np.full((len(kinds), 3), np.nan)  # nan != anything: every body moves on the first sync
-            self._shaft = np.maximum(self._half_heights - self._radii, 0.0)  # half each capsule's straight part
             self._agent_ids = np.asarray(self.agents, dtype=np.int64)
             self._yaw = np.zeros(len(kinds))
         while len(self.vehicles) < n_vehicles:

@@ -109,7 +109,7 @@ def test_replay_matches_pybullet_within_tolerances(replay) -> None:
 def test_episode_end_and_social_metrics_match_pybullet(replay) -> None:
     info_ref, final, term_ref, term = replay["end"]
     assert term_ref and term and info_ref["is_success"] and final["is_success"][0]
-    steps = info_ref["metrics"].get("steps", final["steps"][0])
+    steps = info_ref["metrics"]["steps"]
     assert final["steps"][0] == pytest.approx(steps, abs=1)
     for key in ("spl", "stl", "psc"):
         assert final[key][0] == pytest.approx(info_ref[key], abs=2.0 / steps), key
