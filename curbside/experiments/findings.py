@@ -1,6 +1,8 @@
 """The MetaUrban paper's ten findings, each checked on the experiments' results.csv files: whether ours
 reproduces it, the numbers on both sides, and the rule that decided it (`findings.json`). A cell measured at the
-paper's budget (PPO PointNav's 5M steps in Table 1) stands in for the `small` one.
+paper's budget (PPO PointNav's 5M steps in Table 1) stands in for the `small` one in the findings that read a
+method's own level (1, 2); the findings that compare methods with each other (3, 4) compare them at the one budget
+they all trained at, `small`, since a policy trained 17 times longer would win any such comparison by its budget.
 
 A finding whose experiment has no results yet is reported with `reproduced: null` and the command that runs it.
 Each rule is written to be checkable on our numbers whatever their level: it asks for the paper's direction (lower,
@@ -121,15 +123,18 @@ def _socialnav_harder(t: Table) -> dict[str, Any]:
 
 def _safe_rl(t: Table) -> dict[str, Any]:
     ours: dict[str, Any] = {}
-    ok = True
+    ok, missing = True, False
     for task in ("PointNav", "SocialNav"):
         base_sr, base_cost = _sr(t, task, "ppo", "test"), _cost(t, task, "ppo", "test")
         for m in ("ppo_lag", "ppo_et"):
             sr, cost = _sr(t, task, m, "test"), _cost(t, task, m, "test")
             ours[f"{task}_{m}"] = {"sr": sr, "cost": cost, "ppo_sr": base_sr, "ppo_cost": base_cost}
             if sr is None or cost is None or base_sr is None or base_cost is None:
-                return {"reproduced": None, "ours": ours}
-            ok &= cost < base_cost and sr <= base_sr
+                missing = True
+            else:
+                ok &= cost < base_cost and sr <= base_sr
+    if missing:
+        return {"reproduced": None, "ours": ours}
     return {
         "reproduced": ok,
         "ours": ours,
@@ -232,9 +237,10 @@ def _pedestrians(t: Table) -> dict[str, Any]:
     }
 
 
-def _tables(root: Path) -> tuple[dict[str, Table], list[str]]:
-    """Each experiment's `small` report (root/<name>/results.csv), its cells measured at the `paper` budget
-    (root/<name>/paper/results.csv) in place of the `small` ones; and those cells, named."""
+def _tables(root: Path) -> tuple[dict[str, Table], dict[str, Table], list[str]]:
+    """Each experiment's `small` report (root/<name>/results.csv) with its cells measured at the `paper` budget
+    (root/<name>/paper/results.csv) in place of the `small` ones; the `small` reports alone; and the replaced cells,
+    named."""
     names = (
         "table1_paper",
         "table2",
@@ -245,17 +251,19 @@ def _tables(root: Path) -> tuple[dict[str, Table], list[str]]:
         "ablation_static_density",
         "ablation_dynamic_density",
     )
-    tables, replaced = {}, []
+    tables, small, replaced = {}, {}, []
     for n in names:
         larger = read_table(root / n / "paper" / "results.csv")
-        tables[n] = {**read_table(root / n / "results.csv"), **larger}
+        small[n] = read_table(root / n / "results.csv")
+        tables[n] = {**small[n], **larger}
         replaced += [" ".join(x for x in (n, *key) if x) for key in sorted(larger)]
-    return tables, replaced
+    return tables, small, replaced
 
 
-def check_findings(t: dict[str, Table]) -> list[dict[str, Any]]:
-    """The ten findings checked on each experiment's table (`_tables`)."""
-    table1 = t["table1_paper"]
+def check_findings(t: dict[str, Table], small: dict[str, Table]) -> list[dict[str, Any]]:
+    """The ten findings checked on each experiment's table, `t` with the paper-budget cells in place and `small`
+    without them (`_tables`)."""
+    table1, table1_small = t["table1_paper"], small["table1_paper"]
     items = [
         (
             1,
@@ -275,15 +283,15 @@ def check_findings(t: dict[str, Table]) -> list[dict[str, Any]]:
             3,
             "SocialNav is much harder than PointNav for every method.",
             "table1_paper",
-            "SocialNav test SR below PointNav's for at least 5 of the 7 methods, and on average",
-            lambda: _socialnav_harder(table1),
+            "at the `small` budget, SocialNav test SR below PointNav's for at least 5 of the 7 methods, and on average",
+            lambda: _socialnav_harder(table1_small),
         ),
         (
             4,
             "Safe RL (PPO-Lag, PPO-ET) lowers cost at some cost in SR.",
             "table1_paper",
-            "on both tasks, PPO-Lag and PPO-ET have a lower test cost than PPO and no higher SR",
-            lambda: _safe_rl(table1),
+            "at the `small` budget, on both tasks, PPO-Lag and PPO-ET have a lower test cost than PPO and no higher SR",
+            lambda: _safe_rl(table1_small),
         ),
         (
             5,
@@ -344,8 +352,8 @@ def check_findings(t: dict[str, Table]) -> list[dict[str, Any]]:
 
 def write_findings(root: Path = RESULTS) -> Path:
     """Write root/findings.json (the ten findings, and how many are reproduced) and return its path."""
-    tables, paper_budget_cells = _tables(Path(root))
-    items = check_findings(tables)
+    tables, small, paper_budget_cells = _tables(Path(root))
+    items = check_findings(tables, small)
     path = Path(root) / "findings.json"
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(

@@ -323,15 +323,21 @@ def test_findings_follow_the_results_and_say_what_has_not_run(tmp_path) -> None:
     assert "curbside experiment run table5_horizon --budget small" in missing["why"]
     assert data["paper_budget_cells"] == []
 
-    # PPO PointNav at the paper's budget stands in for its small cells: here its unseen SR is above test.
+    # PPO PointNav at the paper's budget stands in for its small cells where a finding reads PPO's own level: here
+    # its unseen SR is above test. Its cost (0.1, below PPO-Lag's 0.9) stays out of finding 4, which compares the
+    # methods at the budget they share.
     _results(
         tmp_path / "table1_paper",
         "paper",
-        [("PointNav", "ppo", "test", "", 0.4, 1.0), ("PointNav", "ppo", "unseen", "", 0.45, 1.0)],
+        [("PointNav", "ppo", "test", "", 0.4, 0.1), ("PointNav", "ppo", "unseen", "", 0.45, 1.0)],
     )
     data = json.loads(write_findings(tmp_path).read_text())
     two = next(f for f in data["findings"] if f["finding"] == 2)
     assert two["reproduced"] is False and two["ours"] == {"ppo_pointnav_test_sr": 0.4, "ppo_pointnav_unseen_sr": 0.45}
+    four = next(f for f in data["findings"] if f["finding"] == 4)
+    assert four["reproduced"] is True and four["ours"]["PointNav_ppo_lag"]["ppo_cost"] == 1.0
+    three = next(f for f in data["findings"] if f["finding"] == 3)
+    assert three["ours"]["ppo"]["PointNav"] == 0.6
     assert data["paper_budget_cells"] == ["table1_paper PointNav ppo test", "table1_paper PointNav ppo unseen"]
 
 
