@@ -174,24 +174,30 @@ def evaluate_policy_batched(
     act_batch: Callable[[np.ndarray], np.ndarray],
     env_config: Mapping[str, Any],
     *,
+    task: str = "PointNav",
     split: str = "test",
     episodes: int = 50,
     seed: int = 0,
     num_scenes: int = EVAL_SCENES,
     n_envs: int = 50,
 ) -> dict[str, Any]:
-    """PointNav metrics of `act_batch(obs [n, d]) -> actions [n, 2]` on the batched env (sim.batched), episode for
+    """`task`'s metrics of `act_batch(obs [n, d]) -> actions [n, 2]` on the batched env (sim.batched), episode for
     episode the ones `evaluate_policy` runs on the PyBullet env: episode k uses seed `seed + k` (batched sub-env i
-    reset with seed s draws PointNavEnv.reset(seed=s)'s scene and route), in waves of `n_envs` episodes.
+    reset with seed s draws the PyBullet env's reset(seed=s) scene and route, and SocialNav's crowd and traffic), in
+    waves of `n_envs` episodes.
 
-    Returns sr, spl, route_completion, cost (episode cost) and episodes: the transfer gap is the PyBullet figure minus this.
+    Returns sr, spl, route_completion, cost (episode cost), SocialNav's sns, and episodes: the transfer gap is the
+    PyBullet figure minus this.
     """
-    from sim.batched import BatchedPointNav
+    from sim.batched import BatchedPointNav, BatchedSocialNav
 
+    batched = {"PointNav": BatchedPointNav, "SocialNav": BatchedSocialNav}
+    if task not in batched:
+        raise ConfigError(f"no batched env for task {task!r}; valid: {', '.join(batched)}")
     cfg = split_config(env_config, split, num_scenes)
     cfg.update(scene_cache=max(1, min(num_scenes, n_envs)), route_pool=0, scene_steps=0)
     rows: list[dict[str, float]] = []
-    env = BatchedPointNav(n_envs, config=cfg)
+    env = batched[task](n_envs, config=cfg)
     try:
         for first in range(seed, seed + episodes, n_envs):
             n = min(n_envs, seed + episodes - first)
@@ -210,14 +216,16 @@ def evaluate_policy_batched(
                             "cost": float(fi["episode_cost"][i]),
                             "route_completion": float(fi["route_completion"][i]),
                         }
+                        if "sns" in fi:
+                            finished[i]["sns"] = float(fi["sns"][i])
             rows.extend(finished[i] for i in range(n))
     finally:
         env.close()
+    keys = ("success", "spl", "cost", "route_completion", "sns")
+    means = {k: float(np.mean([r[k] for r in rows])) for k in keys if k in rows[0]}
     return {
-        "sr": float(np.mean([r["success"] for r in rows])),
-        "spl": float(np.mean([r["spl"] for r in rows])),
-        "cost": float(np.mean([r["cost"] for r in rows])),
-        "route_completion": float(np.mean([r["route_completion"] for r in rows])),
+        "sr": means.pop("success"),
+        **means,
         "episodes": len(rows),
         "split": split,
         "env": "batched",

@@ -361,3 +361,24 @@ def test_a_protocol_catalog_is_built_once_on_first_use(tmp_path, monkeypatch) ->
     env.reset(seed=0)
     assert {o["asset_id"] for o in env.scene_spec["objects"]} & set(CatalogReader(recipe.path).table.asset_id)
     env.close()
+
+
+@pytest.mark.parametrize("task", ["PointNav", "SocialNav"])
+def test_batched_evaluation_runs_the_pybullet_evaluations_episodes(task) -> None:
+    # A policy driving ahead at a constant command, on the PyBullet env and on the batched env: episode k has seed k
+    # on both, so the same scenes and routes; the two simulators' contacts differ by a few steps, not by episodes.
+    from curbside.train.evaluate import evaluate_policy, evaluate_policy_batched
+
+    cfg, action = {**CFG, "horizon": 60}, np.array([0.2, 0.6], dtype=np.float32)
+    ref = evaluate_policy(lambda o: action, task, cfg, episodes=3, num_scenes=3, progress=False)
+    got = evaluate_policy_batched(
+        lambda obs: np.tile(action, (len(obs), 1)), cfg, task=task, episodes=3, num_scenes=3, n_envs=3
+    )
+    assert got["episodes"] == 3 and got["env"] == "batched"
+    assert got["sr"] == ref["sr"]
+    assert 0.0 < got["route_completion"] and abs(got["route_completion"] - ref["route_completion"]) < 0.1
+    assert ("sns" in got) == (task == "SocialNav")
+    if task == "SocialNav":
+        assert got["sns"] == pytest.approx(ref["sns"], abs=0.1)
+    with pytest.raises(ConfigError, match="valid: PointNav, SocialNav"):
+        evaluate_policy_batched(lambda obs: obs[:, :2], cfg, task="Teleop", episodes=1)
