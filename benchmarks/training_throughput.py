@@ -8,7 +8,9 @@ PPO with the protocol's hyper-parameters, runs one PPO iteration (a train batch 
 warm up (scene builds, first touches), then times `--iterations` more: env steps per wall-clock second, with the
 share of time in the update; and the milliseconds of one BC minibatch. Cases:
 - ppo_pointnav_<protocol>_batched and ppo_socialnav_<protocol>_batched: the batched backend (sim.batched), the
-  protocol's envs (paper: 64);
+  protocol's envs (paper: 64) in one batched env a core, as training runs them (curbside.train.batched_shards);
+- ppo_pointnav_<protocol>_batched_one_process and ppo_socialnav_<protocol>_batched_one_process: the same envs in one
+  batched env in the training process;
 - ppo_pointnav_<protocol>_pybullet and ppo_socialnav_<protocol>_pybullet: the PyBullet envs sharded over the cores
   (8 envs; the paper's 128 processes do not fit two cores);
 - bc_<protocol>_minibatch_ms: one behaviour-cloning minibatch of the protocol's batch size and network.
@@ -35,8 +37,9 @@ if str(ROOT) not in sys.path:
 PYBULLET_ENVS = 8
 
 
-def measure(task: str, backend: str, protocol: str, iterations: int) -> dict[str, Any]:
-    """Env steps/s of PPO end to end for one (task, backend) under `protocol`."""
+def measure(task: str, backend: str, protocol: str, iterations: int, subprocess: bool = True) -> dict[str, Any]:
+    """Env steps/s of PPO end to end for one (task, backend) under `protocol`; `subprocess` False: the batched envs
+    in this process alone."""
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
@@ -52,7 +55,10 @@ def measure(task: str, backend: str, protocol: str, iterations: int) -> dict[str
     extra = proto.backend_config(backend)
     torch.set_num_threads(2 if backend == "batched" else 1)
     t0 = time.perf_counter()
-    vec = make_training_vec(task, {**run["env_config"], **extra}, n_envs, run["num_scenes"], backend=backend)
+    vec = make_training_vec(
+        task, {**run["env_config"], **extra}, n_envs, run["num_scenes"], backend=backend, subprocess=subprocess
+    )
+    shards = (len(getattr(vec.venv, "bounds", ())) or 1) if backend == "batched" else None  # batched env processes
     model = PPO("MlpPolicy", vec, seed=0, device="cpu", verbose=0, **ppo_kwargs(run["hparams"]))
     batch = model.n_steps * n_envs
 
@@ -88,6 +94,7 @@ def measure(task: str, backend: str, protocol: str, iterations: int) -> dict[str
     return {
         "task": task,
         "backend": backend,
+        "batched_shards": shards,
         "protocol": protocol,
         "n_envs": n_envs,
         "train_batch": batch,
@@ -183,6 +190,8 @@ def main() -> None:
     cases = [
         ("PointNav", "batched"),
         ("SocialNav", "batched"),
+        ("PointNav", "batched_one_process"),
+        ("SocialNav", "batched_one_process"),
         ("PointNav", "pybullet"),
         ("SocialNav", "pybullet"),
         ("bc", "minibatch"),
@@ -207,7 +216,8 @@ def main() -> None:
             path.write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
             continue
         load = os.getloadavg()[0]
-        result = measure(task, backend, args.protocol, args.iterations)
+        one = backend == "batched_one_process"
+        result = measure(task, "batched" if one else backend, args.protocol, args.iterations, subprocess=not one)
         result["load_avg_1min_before"] = round(load, 2)
         summary["cases"][name] = result
         summary[f"{name}_env_steps_per_s"] = result["env_steps_per_s"]

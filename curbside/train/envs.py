@@ -4,6 +4,7 @@ a shard of the training scenes (so every worker's scene cache holds all of its s
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
@@ -117,23 +118,41 @@ def make_training_vec(
     seed: int = 0,
     subprocess: bool = True,
 ) -> Any:
-    """The SB3 VecEnv online training steps: `make_vec_env`'s sharded PyBullet envs, or (backend "batched") one
-    sim.batched env (BatchedPointNav, BatchedSocialNav) of `n_envs` envs in this process, drawing from `num_scenes`
-    scenes of `split`."""
+    """The SB3 VecEnv online training steps: `make_vec_env`'s sharded PyBullet envs, or (backend "batched")
+    sim.batched envs (BatchedPointNav, BatchedSocialNav) drawing from `num_scenes` scenes of `split`: `n_envs` envs
+    cut into one batched env per core (curbside.train.batched_shards), or one in this process when `subprocess` is
+    False."""
     if backend == "pybullet":
         return make_vec_env(task, config, n_envs, num_scenes, split=split, subprocess=subprocess, seed=seed)
     env_id(task)  # an unknown task fails here, naming the valid ones
-    from stable_baselines3.common.vec_env import VecMonitor
+    import os
 
-    from curbside.train.vec import VectorEnvAdapter
-    from sim.batched import BatchedPointNav, BatchedSocialNav
+    from stable_baselines3.common.vec_env import VecEnv, VecMonitor
+
+    from curbside.train.batched_shards import BatchedShards
 
     cfg = split_config(config, split, num_scenes)
-    cfg.setdefault("scene_cache", min(num_scenes, max(2 * n_envs, 8)))
-    batched = BatchedSocialNav if task == "SocialNav" else BatchedPointNav
-    vec = VecMonitor(
-        VectorEnvAdapter(batched(n_envs, config=cfg)),
-        info_keywords=("is_success", "episode_cost", "route_completion"),
-    )
+    shards = min(n_envs, os.cpu_count() or 1) if subprocess else 1
+    # Each shard keeps the scenes its own envs use: two per env, as one batched env of all of them would.
+    cfg.setdefault("scene_cache", min(num_scenes, max(2 * -(-n_envs // shards), 8)))
+    make = BatchedShard(task, cfg)
+    inner: VecEnv = make(n_envs) if shards == 1 else BatchedShards(make, n_envs, shards)
+    vec = VecMonitor(inner, info_keywords=("is_success", "episode_cost", "route_completion"))
     vec.seed(seed)
     return vec
+
+
+@dataclass(frozen=True)
+class BatchedShard:
+    """Builds one shard of a batched training env: `task`'s sim.batched env of n envs under `config`, as an SB3 VecEnv
+    (picklable: worker processes build their shards with it)."""
+
+    task: str
+    config: Mapping[str, Any]
+
+    def __call__(self, n_envs: int) -> Any:
+        from curbside.train.vec import VectorEnvAdapter
+        from sim.batched import BatchedPointNav, BatchedSocialNav
+
+        batched = BatchedSocialNav if self.task == "SocialNav" else BatchedPointNav
+        return VectorEnvAdapter(batched(n_envs, config=dict(self.config)))
