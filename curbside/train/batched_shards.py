@@ -50,11 +50,10 @@ def _serve(make: MakeShard, n: int, pipe: Connection) -> None:
         except (EOFError, OSError):  # the parent is gone
             shard.close()
             return
+        if command == "close":
+            shard.close()
+            return
         try:
-            if command == "close":
-                shard.close()
-                pipe.send(("ok", None))
-                return
             pipe.send(("ok", _run(shard, command, data)))
         except Exception:
             pipe.send(("error", traceback.format_exc()))
@@ -114,6 +113,10 @@ class BatchedShards(VecEnv):
         super().__init__(n_envs, self.local.observation_space, self.local.action_space)
 
     # ------------------------------------------------------------------ commands to every shard
+    def _died(self, w: int) -> str:
+        self.procs[w].join(1.0)
+        return f"shard {w + 1}'s worker process died (exit code {self.procs[w].exitcode})"
+
     def _gather(self) -> list[Any]:
         out = []
         for w, pipe in enumerate(self.pipes):
@@ -121,7 +124,7 @@ class BatchedShards(VecEnv):
                 status, value = pipe.recv()
             except (EOFError, OSError) as err:
                 self.close()
-                raise RuntimeError(f"shard {w + 1}'s worker process died (exit code {self.procs[w].exitcode})") from err
+                raise RuntimeError(self._died(w)) from err
             if status != "ok":
                 self.close()
                 raise RuntimeError(f"shard {w + 1} failed in its worker process:\n{value}")
@@ -130,8 +133,12 @@ class BatchedShards(VecEnv):
 
     def _all(self, command: str, per_shard: Sequence[Any]) -> list[Any]:
         """Run `command` on every shard at once (per_shard[k] is shard k's data); the answers in shard order."""
-        for pipe, data in zip(self.pipes, per_shard[1:]):
-            pipe.send((command, data))
+        for w, (pipe, data) in enumerate(zip(self.pipes, per_shard[1:])):
+            try:
+                pipe.send((command, data))
+            except OSError as err:  # BrokenPipeError: the worker is gone
+                self.close()
+                raise RuntimeError(self._died(w)) from err
         try:
             mine = _run(self.local, command, per_shard[0])
         except BaseException:

@@ -72,3 +72,14 @@ class _FailsOnThree:
 def test_a_shard_that_fails_in_its_worker_raises_its_error() -> None:
     with pytest.raises(RuntimeError, match="(?s)shard 1 failed in its worker process.*lidar.beams must be"):
         BatchedShards(_FailsOnThree(), 5, 2)
+
+
+def test_a_worker_that_dies_fails_the_next_step_clearly() -> None:
+    sharded = BatchedShards(BatchedShard("PointNav", split_config(CFG, "train", 2)), 2, 2)
+    sharded.reset()
+    sharded.procs[0].kill()
+    sharded.procs[0].join()
+    sharded.step_async(np.zeros((2, 2), dtype=np.float32))
+    with pytest.raises(RuntimeError, match="shard 1's worker process died"):
+        sharded.step_wait()
+    assert sharded.closed
