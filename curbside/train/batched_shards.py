@@ -115,7 +115,11 @@ class BatchedShards(VecEnv):
     # ------------------------------------------------------------------ commands to every shard
     def _died(self, w: int) -> str:
         self.procs[w].join(1.0)
-        return f"shard {w + 1}'s worker process died (exit code {self.procs[w].exitcode})"
+        return (
+            f"shard {w + 1}'s worker process died (exit code {self.procs[w].exitcode}; its traceback is above). A "
+            "script that builds training envs at import time needs an `if __name__ == \"__main__\":` guard: the "
+            "worker process imports it again"
+        )
 
     def _gather(self) -> list[Any]:
         out = []
