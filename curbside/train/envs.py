@@ -132,7 +132,8 @@ def make_training_vec(
     from curbside.train.batched_shards import BatchedShards
 
     cfg = split_config(config, split, num_scenes)
-    shards = min(n_envs, os.cpu_count() or 1) if subprocess else 1
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    shards = min(n_envs, cores) if subprocess else 1
     # Each shard keeps the scenes its own envs use: two per env, as one batched env of all of them would.
     cfg.setdefault("scene_cache", min(num_scenes, max(2 * -(-n_envs // shards), 8)))
     make = BatchedShard(task, cfg)
