@@ -123,7 +123,8 @@ def train_online(
         else None
     )
     train_config = early_termination_config(env_config, hparams["cost_limit"]) if algo == "ppo_et" else dict(env_config)
-    # The batched env runs in this process (its LiDAR march uses every core between updates): torch may too.
+    # The batched envs' shards rest while the policy updates (one shard steps in this process): the update may use
+    # every core.
     torch.set_num_threads(2 if backend == "batched" else 1)
     vec = make_training_vec(
         task,

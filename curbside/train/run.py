@@ -314,7 +314,7 @@ def train(
     from curbside.train.imitate import train_gail
 
     # GAIL's generator steps the backend's envs, with its scene reuse (run.json keeps the env_config alone); the
-    # batched env runs in this process and leaves torch the second core between rollouts, as PPO's does.
+    # batched envs' shards rest while the discriminator and the generator update, as PPO's do.
     torch.set_num_threads(2 if backend == "batched" else 1)
     train_cfg = {**cfg, **proto.backend_config(backend)}
     vec = make_training_vec(
