@@ -8,9 +8,9 @@ PPO with the protocol's hyper-parameters, runs one PPO iteration (a train batch 
 warm up (scene builds, first touches), then times `--iterations` more: env steps per wall-clock second, with the
 share of time in the update; and the milliseconds of one BC minibatch. Cases:
 - ppo_pointnav_<protocol>_batched and ppo_socialnav_<protocol>_batched: the batched backend (sim.batched), the
-  protocol's envs (paper: 64) in one batched env a core, as training runs them (curbside.train.batched_shards);
-- ppo_pointnav_<protocol>_batched_one_process and ppo_socialnav_<protocol>_batched_one_process: the same envs in one
-  batched env in the training process;
+  protocol's envs (paper: 64) in one batched env in the training process;
+- ppo_pointnav_<protocol>_batched_sharded and ppo_socialnav_<protocol>_batched_sharded: the same envs as one batched
+  env a core (curbside.train.batched_shards; training runs SocialNav's this way, PointNav's in one);
 - ppo_pointnav_<protocol>_pybullet and ppo_socialnav_<protocol>_pybullet: the PyBullet envs sharded over the cores
   (8 envs; the paper's 128 processes do not fit two cores);
 - bc_<protocol>_minibatch_ms: one behaviour-cloning minibatch of the protocol's batch size and network.
@@ -37,9 +37,9 @@ if str(ROOT) not in sys.path:
 PYBULLET_ENVS = 8
 
 
-def measure(task: str, backend: str, protocol: str, iterations: int, subprocess: bool = True) -> dict[str, Any]:
-    """Env steps/s of PPO end to end for one (task, backend) under `protocol`; `subprocess` False: the batched envs
-    in this process alone."""
+def measure(task: str, backend: str, protocol: str, iterations: int, shards: int = 1) -> dict[str, Any]:
+    """Env steps/s of PPO end to end for one (task, backend) under `protocol`; the batched envs in `shards` batched
+    envs."""
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
@@ -56,7 +56,7 @@ def measure(task: str, backend: str, protocol: str, iterations: int, subprocess:
     torch.set_num_threads(2 if backend == "batched" else 1)
     t0 = time.perf_counter()
     vec = make_training_vec(
-        task, {**run["env_config"], **extra}, n_envs, run["num_scenes"], backend=backend, subprocess=subprocess
+        task, {**run["env_config"], **extra}, n_envs, run["num_scenes"], backend=backend, shards=shards
     )
     shards = (len(getattr(vec.venv, "bounds", ())) or 1) if backend == "batched" else None  # batched env processes
     model = PPO("MlpPolicy", vec, seed=0, device="cpu", verbose=0, **ppo_kwargs(run["hparams"]))
@@ -190,8 +190,8 @@ def main() -> None:
     cases = [
         ("PointNav", "batched"),
         ("SocialNav", "batched"),
-        ("PointNav", "batched_one_process"),
-        ("SocialNav", "batched_one_process"),
+        ("PointNav", "batched_sharded"),
+        ("SocialNav", "batched_sharded"),
         ("PointNav", "pybullet"),
         ("SocialNav", "pybullet"),
         ("bc", "minibatch"),
@@ -216,8 +216,11 @@ def main() -> None:
             path.write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
             continue
         load = os.getloadavg()[0]
-        one = backend == "batched_one_process"
-        result = measure(task, "batched" if one else backend, args.protocol, args.iterations, subprocess=not one)
+        sharded = backend == "batched_sharded"
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        result = measure(
+            task, "batched" if sharded else backend, args.protocol, args.iterations, shards=cores if sharded else 1
+        )
         result["load_avg_1min_before"] = round(load, 2)
         summary["cases"][name] = result
         summary[f"{name}_env_steps_per_s"] = result["env_steps_per_s"]

@@ -13,6 +13,11 @@ from kernel.config import ConfigError
 
 TASKS = {"PointNav": "curbside/PointNav-v0", "SocialNav": "curbside/SocialNav-v0"}
 SPLITS = ("train", "test", "unseen", "finetune")
+# Batched training envs cut into one batched env a core. SocialNav's crowds step one env at a time in Python, and one
+# batched env leaves the second core idle while it rolls out: PPO under `paper` trains at 361 env steps/s in two
+# shards against 276 in one. PointNav's step is mostly the LiDAR march, which already runs on every core, and the
+# hand-over costs more than the second shard brings: 584 against 688 (benchmarks/training_throughput.py).
+BATCHED_SHARDED_TASKS = ("SocialNav",)
 MAX_WORKER_SCENES = 16  # built worlds a training worker keeps (a paper-scale world holds ~100 MB)
 
 
@@ -117,11 +122,12 @@ def make_training_vec(
     split: str = "train",
     seed: int = 0,
     subprocess: bool = True,
+    shards: int | None = None,
 ) -> Any:
     """The SB3 VecEnv online training steps: `make_vec_env`'s sharded PyBullet envs, or (backend "batched")
-    sim.batched envs (BatchedPointNav, BatchedSocialNav) drawing from `num_scenes` scenes of `split`: `n_envs` envs
-    cut into one batched env per core (curbside.train.batched_shards), or one in this process when `subprocess` is
-    False."""
+    sim.batched envs (BatchedPointNav, BatchedSocialNav) drawing from `num_scenes` scenes of `split`, cut into
+    `shards` batched envs that step side by side (curbside.train.batched_shards). `shards` None: one a core for
+    SocialNav, one batched env in this process for PointNav (BATCHED_SHARDED_TASKS); `subprocess` False: one."""
     if backend == "pybullet":
         return make_vec_env(task, config, n_envs, num_scenes, split=split, subprocess=subprocess, seed=seed)
     env_id(task)  # an unknown task fails here, naming the valid ones
@@ -132,8 +138,10 @@ def make_training_vec(
     from curbside.train.batched_shards import BatchedShards
 
     cfg = split_config(config, split, num_scenes)
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    shards = min(n_envs, cores) if subprocess else 1
+    if shards is None:
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        shards = cores if task in BATCHED_SHARDED_TASKS else 1
+    shards = max(1, min(shards, n_envs)) if subprocess else 1
     # Each shard keeps the scenes its own envs use: two per env, as one batched env of all of them would.
     cfg.setdefault("scene_cache", min(num_scenes, max(2 * -(-n_envs // shards), 8)))
     make = BatchedShard(task, cfg)

@@ -83,3 +83,24 @@ def test_a_worker_that_dies_fails_the_next_step_clearly() -> None:
     with pytest.raises(RuntimeError, match="shard 1's worker process died"):
         sharded.step_wait()
     assert sharded.closed
+
+
+def test_training_shards_socialnav_over_the_cores_and_keeps_pointnav_in_one_process() -> None:
+    import os
+
+    from curbside.train.envs import make_training_vec
+    from curbside.train.vec import VectorEnvAdapter
+
+    cores = len(os.sched_getaffinity(0))
+    for task, want in (("PointNav", 1), ("SocialNav", min(cores, 4))):
+        vec = make_training_vec(task, CFG, 4, 2, backend="batched")
+        try:
+            inner = vec.venv
+            got = len(inner.bounds) if isinstance(inner, BatchedShards) else 1
+            assert got == want, task
+            assert isinstance(inner, BatchedShards) or isinstance(inner, VectorEnvAdapter)
+        finally:
+            vec.close()
+    one = make_training_vec("SocialNav", CFG, 4, 2, backend="batched", subprocess=False)
+    assert isinstance(one.venv, VectorEnvAdapter)
+    one.close()
