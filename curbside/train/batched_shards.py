@@ -117,7 +117,7 @@ class BatchedShards(VecEnv):
         self.procs[w].join(1.0)
         return (
             f"shard {w + 1}'s worker process died (exit code {self.procs[w].exitcode}; its traceback is above). A "
-            "script that builds training envs at import time needs an `if __name__ == \"__main__\":` guard: the "
+            'script that builds training envs at import time needs an `if __name__ == "__main__":` guard: the '
             "worker process imports it again"
         )
 
