@@ -181,6 +181,8 @@ def plot(summary: dict[str, Any], path: Path) -> None:
 
 
 def main() -> None:
+    from curbside.train.sharded import usable_cores
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--protocol", default="paper")
     ap.add_argument("--iterations", type=int, default=2, help="timed PPO iterations per case (after one warm-up)")
@@ -217,9 +219,12 @@ def main() -> None:
             continue
         load = os.getloadavg()[0]
         sharded = backend == "batched_sharded"
-        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
         result = measure(
-            task, "batched" if sharded else backend, args.protocol, args.iterations, shards=cores if sharded else 1
+            task,
+            "batched" if sharded else backend,
+            args.protocol,
+            args.iterations,
+            shards=usable_cores() if sharded else 1,
         )
         result["load_avg_1min_before"] = round(load, 2)
         summary["cases"][name] = result

@@ -131,16 +131,15 @@ def make_training_vec(
     if backend == "pybullet":
         return make_vec_env(task, config, n_envs, num_scenes, split=split, subprocess=subprocess, seed=seed)
     env_id(task)  # an unknown task fails here, naming the valid ones
-    import os
 
     from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
     from curbside.train.batched_shards import BatchedShards
+    from curbside.train.sharded import usable_cores
 
     cfg = split_config(config, split, num_scenes)
     if shards is None:
-        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-        shards = cores if task in BATCHED_SHARDED_TASKS else 1
+        shards = usable_cores() if task in BATCHED_SHARDED_TASKS else 1
     shards = max(1, min(shards, n_envs)) if subprocess else 1
     # Each shard keeps the scenes its own envs use: two per env, as one batched env of all of them would.
     cfg.setdefault("scene_cache", min(num_scenes, max(2 * -(-n_envs // shards), 8)))

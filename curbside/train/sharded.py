@@ -46,6 +46,11 @@ if TYPE_CHECKING:
     from multiprocessing.context import ForkContext, ForkServerContext, SpawnContext
 
 
+def usable_cores() -> int:
+    """Cores this process may run on (its CPU affinity where the OS reports one)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
 class ShardedVectorEnv(VectorEnv):
     """`len(env_fns)` envs in `workers` shards (env i in shard i * workers // n); Box observations only.
 
@@ -87,7 +92,7 @@ class ShardedVectorEnv(VectorEnv):
         self._arrays = self._shared.views()
         self._obs = self._arrays["obs"]
         self._bounds = [(w * n // workers, (w + 1) * n // workers) for w in range(workers)]
-        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        cores = usable_cores()
         processes = workers if local else workers + 1  # the parent waits (spins) too
         self._spin = (SPIN_S if processes <= cores else 0.0) if spin is None else float(spin)
         self._pending: list[Any] | None = None  # the shards' actions between step_async and step_wait
