@@ -8,7 +8,9 @@ without the optimizer's moments (a third of the checkpoint), so the zoo stays sm
 from __future__ import annotations
 
 import json
+import re
 import shutil
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +19,11 @@ from curbside.experiments.spec import Run, check_run_ids, load_experiment
 from curbside.train.policies import POLICY_FILES, save_policy
 
 ZOO = Path("policies")
+# A compacted policy's zip holds the same bytes for the same weights, so a repacked, unchanged policy never churns
+# git: SB3 stamps each entry with the time of saving, and writes reprs such as "<function f at 0x7f...>" (an address
+# of the saving process) beside each serialized object of its "data".
+ZIP_TIME = (1980, 1, 1, 0, 0, 0)
+OBJECT_ADDRESS = re.compile(rb" at 0x[0-9a-f]+>")
 
 
 def release_name(run: Run, paper_kind: str) -> str:
@@ -28,7 +35,8 @@ def release_name(run: Run, paper_kind: str) -> str:
 
 
 def compact_copy(src: Path, dst: Path, algo: str) -> None:
-    """Copy the policy file; a PPO-family zip is written again with a fresh optimizer (no Adam moments)."""
+    """Copy the policy file; a PPO-family zip is written again with a fresh optimizer (no Adam moments) and
+    nothing of the moment or process that saved it, so the same policy always compacts to the same bytes."""
     if algo in ONLINE + ("gail",):
         from stable_baselines3 import PPO
 
@@ -38,8 +46,26 @@ def compact_copy(src: Path, dst: Path, algo: str) -> None:
             policy.parameters(), lr=model.learning_rate if isinstance(model.learning_rate, float) else 1e-4
         )
         save_policy(model, dst)
+        _normalise_policy_zip(dst)
     else:
         shutil.copyfile(src, dst)
+
+
+def _normalise_policy_zip(path: Path) -> None:
+    """Rewrite the SB3 zip at `path` so that it holds nothing of the moment or process that saved it: every entry
+    stamped ZIP_TIME, and the object addresses dropped from the readable reprs beside the serialized values of its
+    "data" (SB3 loads the serialized values and ignores the reprs). Written beside `path` and swapped in whole."""
+    tmp = path.with_name(f"{path.stem}.tmp{path.suffix}")
+    with zipfile.ZipFile(path) as old, zipfile.ZipFile(tmp, "w") as new:
+        for info in old.infolist():
+            content = old.read(info)
+            if info.filename == "data":
+                content = OBJECT_ADDRESS.sub(b">", content)
+            pinned = zipfile.ZipInfo(info.filename, date_time=ZIP_TIME)
+            pinned.compress_type = info.compress_type
+            pinned.external_attr = info.external_attr
+            new.writestr(pinned, content)
+    tmp.replace(path)
 
 
 def release(
