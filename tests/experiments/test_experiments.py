@@ -399,16 +399,25 @@ def test_demonstrations_follow_the_best_finished_ppo_of_the_task(tmp_path) -> No
     from curbside.experiments.runner import _demo_policy, run_dir
     from curbside.experiments.spec import load_experiment
 
+    def finish(d: Path, sr: float) -> Path:
+        d.mkdir(parents=True)
+        (d / "result.json").write_text(json.dumps({"evals": {"test": {"sr": sr}, "unseen": {"sr": 0.5}}}))
+        return d
+
     exp = load_experiment("table1_paper")
-    ppo = next(r for r in exp.runs if r.task == "PointNav" and r.method == "ppo")
+    ppo = {t: next(r for r in exp.runs if r.task == t and r.method == "ppo") for t in ("PointNav", "SocialNav")}
     assert _demo_policy(tmp_path, exp, "PointNav") is None  # no PPO has finished: the expert drives every episode
     for budget in ("smoke", "small", "paper"):
-        d = run_dir(tmp_path, exp, budget, ppo, ppo.seeds[0])
-        d.mkdir(parents=True)
-        (d / "result.json").write_text("{}")
+        d = finish(run_dir(tmp_path, exp, budget, ppo["PointNav"], 0), 0.1)
         # the largest finished budget drives, whatever budget the demonstrations are collected for
         assert _demo_policy(tmp_path, exp, "PointNav") == d
     assert _demo_policy(tmp_path, exp, "SocialNav") is None  # each task's own PPO
+
+    # A PPO that succeeds in no test episode drives none: the largest budget that did, or the expert alone.
+    finish(run_dir(tmp_path, exp, "paper", ppo["SocialNav"], 0), 0.0)
+    assert _demo_policy(tmp_path, exp, "SocialNav") is None
+    small = finish(run_dir(tmp_path, exp, "small", ppo["SocialNav"], 0), 0.02)
+    assert _demo_policy(tmp_path, exp, "SocialNav") == small
 
 
 def test_packed_runs_go_on_on_another_machine(tmp_path, monkeypatch) -> None:
