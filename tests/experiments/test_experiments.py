@@ -317,6 +317,12 @@ def test_findings_follow_the_results_and_say_what_has_not_run(tmp_path) -> None:
     state = {f["finding"]: f["reproduced"] for f in data["findings"]}
     assert state[1] and state[2] and state[3] and state[4]  # below 0.8; unseen lower; SocialNav half; safe RL
     assert state[5] is False  # test SR falls with more scenes here
+    five = next(f for f in data["findings"] if f["finding"] == 5)
+    assert (
+        five["why"]
+        == "test SR at 1000 scenes, 0.10, is not above 0.30 at 5; test SR falls over log(scenes) (slope -0.038)."
+    )
+    assert all("why" not in f for f in data["findings"] if f["reproduced"])
     assert [n for n, v in state.items() if v is None] == [6, 7, 8, 9, 10]
     assert data["reproduced"] == 4 and data["not_reproduced"] == 1 and data["not_run"] == 5
     missing = next(f for f in data["findings"] if f["finding"] == 9)
@@ -334,6 +340,7 @@ def test_findings_follow_the_results_and_say_what_has_not_run(tmp_path) -> None:
     data = json.loads(write_findings(tmp_path).read_text())
     two = next(f for f in data["findings"] if f["finding"] == 2)
     assert two["reproduced"] is False and two["ours"] == {"ppo_pointnav_test_sr": 0.4, "ppo_pointnav_unseen_sr": 0.45}
+    assert two["why"] == "PPO's PointNav unseen SR 0.45 is not below its test SR 0.40."
     four = next(f for f in data["findings"] if f["finding"] == 4)
     assert four["reproduced"] is True and four["ours"]["PointNav_ppo_lag"]["ppo_cost"] == 1.0
     three = next(f for f in data["findings"] if f["finding"] == 3)
