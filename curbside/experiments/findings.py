@@ -69,11 +69,11 @@ def _cost(t: Table, task: str, method: str, split: str) -> float | None:
     return None if cell is None or "cost" not in cell else cell["cost"]
 
 
-def _why(clauses: dict[str, bool] | list[str]) -> dict[str, str]:
-    """{"why": the clauses of a finding's rule that ours breaks, as one sentence}, or {} when it breaks none.
-    `clauses`: the broken ones, or each clause's sentence with whether it is broken."""
-    broken = [c for c, is_broken in clauses.items() if is_broken] if isinstance(clauses, dict) else clauses
-    return {"why": "; ".join(broken) + "."} if broken else {}
+def _judged(broken: dict[str, bool]) -> dict[str, Any]:
+    """A finding's verdict from its rule's clauses, each a sentence on ours with whether ours breaks it: reproduced
+    when none is broken, else not, with "why": the broken ones as one sentence."""
+    why = [clause for clause, is_broken in broken.items() if is_broken]
+    return {"reproduced": not why, **({"why": "; ".join(why) + "."} if why else {})}
 
 
 def _far_from_solved(t: Table) -> dict[str, Any]:
@@ -84,14 +84,14 @@ def _far_from_solved(t: Table) -> dict[str, Any]:
     found = [v for v in best.values() if v is not None]
     if len(found) < len(best):
         return {"reproduced": None, "ours": best}
-    solved = [
-        f"{task}'s best test SR {v:.2f} reaches {FAR_FROM_SOLVED}"
-        for task, v in best.items()
-        if v is not None and v >= FAR_FROM_SOLVED
-    ]
     return {
-        "reproduced": not solved,
-        **_why(solved),
+        **_judged(
+            {
+                f"{task}'s best test SR {v:.2f} reaches {FAR_FROM_SOLVED}": v >= FAR_FROM_SOLVED
+                for task, v in best.items()
+                if v is not None
+            }
+        ),
         "ours": {f"best_test_sr_{k}": v for k, v in best.items()},
         "paper": {"best_test_sr_PointNav": 0.66, "best_test_sr_SocialNav": 0.36},
     }
@@ -107,8 +107,7 @@ def _unseen_below_test(t: Table) -> dict[str, Any]:
         f"PPO's PointNav unseen SR {unseen:.2f} is below half its test SR {test:.2f}": unseen < 0.5 * test,
     }
     return {
-        "reproduced": not any(broken.values()),
-        **_why(broken),
+        **_judged(broken),
         "ours": ours,
         "paper": {"ppo_pointnav_test_sr": 0.66, "ppo_pointnav_unseen_sr": 0.49},
     }
@@ -131,8 +130,7 @@ def _socialnav_harder(t: Table) -> dict[str, Any]:
         f"SocialNav's mean test SR {mean_s:.2f} is not below PointNav's {mean_p:.2f}": mean_s >= mean_p,
     }
     return {
-        "reproduced": not any(broken.values()),
-        **_why(broken),
+        **_judged(broken),
         "ours": {**ours, "methods_harder": harder},
         "paper": {
             m: {
@@ -146,7 +144,7 @@ def _socialnav_harder(t: Table) -> dict[str, Any]:
 
 def _safe_rl(t: Table) -> dict[str, Any]:
     ours: dict[str, Any] = {}
-    broken: list[str] = []
+    broken: dict[str, bool] = {}
     missing = False
     for task in ("PointNav", "SocialNav"):
         base_sr, base_cost = _sr(t, task, "ppo", "test"), _cost(t, task, "ppo", "test")
@@ -156,15 +154,12 @@ def _safe_rl(t: Table) -> dict[str, Any]:
             if sr is None or cost is None or base_sr is None or base_cost is None:
                 missing = True
                 continue
-            if cost >= base_cost:
-                broken.append(f"{task} {m}'s test cost {cost:.2f} is not below PPO's {base_cost:.2f}")
-            if sr > base_sr:
-                broken.append(f"{task} {m}'s test SR {sr:.2f} is above PPO's {base_sr:.2f}")
+            broken[f"{task} {m}'s test cost {cost:.2f} is not below PPO's {base_cost:.2f}"] = cost >= base_cost
+            broken[f"{task} {m}'s test SR {sr:.2f} is above PPO's {base_sr:.2f}"] = sr > base_sr
     if missing:
         return {"reproduced": None, "ours": ours}
     return {
-        "reproduced": not broken,
-        **_why(broken),
+        **_judged(broken),
         "ours": ours,
         "paper": {
             f"{task}_{m}": {k: paper.PAPER_TABLE1[(task, "test", m)][k] for k in ("sr", "cost")}
@@ -191,8 +186,7 @@ def _scaling(t: Table) -> dict[str, Any]:
         f"test SR falls over log(scenes) (slope {slope:.3f})": slope <= 0,
     }
     return {
-        "reproduced": not any(broken.values()),
-        **_why(broken),
+        **_judged(broken),
         "ours": {**ours, "slope_per_log_scene": slope},
         "paper": {str(n): c["sr"] for n, c in paper.PAPER_ABLATION_SCALING.items()},
     }
@@ -200,7 +194,7 @@ def _scaling(t: Table) -> dict[str, Any]:
 
 def _density(static: Table, dynamic: Table) -> dict[str, Any]:
     ours: dict[str, Any] = {}
-    broken: list[str] = []
+    broken: dict[str, bool] = {}
     for name, t in (("static", static), ("dynamic", dynamic)):
         for split in ("train", "test"):
             low, high = (
@@ -210,11 +204,11 @@ def _density(static: Table, dynamic: Table) -> dict[str, Any]:
             ours[f"{name}_{split}"] = {"density_1pc": low, "density_100pc": high}
             if low is None or high is None:
                 return {"reproduced": None, "ours": ours}
-            if high >= low:
-                broken.append(f"{name} density's {split} SR at 100 % ({high:.2f}) is not below that at 1 % ({low:.2f})")
+            broken[f"{name} density's {split} SR at 100 % ({high:.2f}) is not below that at 1 % ({low:.2f})"] = (
+                high >= low
+            )
     return {
-        "reproduced": not broken,
-        **_why(broken),
+        **_judged(broken),
         "ours": ours,
         "paper": "train and test SR both fall sharply from 1 % to 100 % (figure)",
     }
@@ -227,8 +221,7 @@ def _finetune(t: Table) -> dict[str, Any]:
     if scratch is None or pretrained is None:
         return {"reproduced": None, "ours": ours}
     return {
-        "reproduced": pretrained > scratch,
-        **_why({f"fine-tuned SR {pretrained:.2f} is not above scratch's {scratch:.2f}": pretrained <= scratch}),
+        **_judged({f"fine-tuned SR {pretrained:.2f} is not above scratch's {scratch:.2f}": pretrained <= scratch}),
         "ours": ours,
         "paper": {k: v.get("sr") for k, v in paper.PAPER_ABLATION_GENERALISATION.items()},
     }
@@ -246,8 +239,7 @@ def _machines(t: Table) -> dict[str, Any]:
     ranked = sorted(ours, key=lambda m: ours[m], reverse=True)
     ok = ranked[0] == "delivery_bot_mod1" and set(ranked[-2:]) == {"delivery_bot_mod2", "wheelchair"}
     return {
-        "reproduced": ok,
-        **_why({f"the machines rank {', '.join(ranked)} by mean test SR": not ok}),
+        **_judged({f"the machines rank {', '.join(ranked)} by mean test SR": not ok}),
         "ours": {**ours, "ranking": ranked},
         "paper": {m: sum(c["sr"] for c in paper.PAPER_TABLE2[m].values()) / 2 for m in need},
     }
@@ -260,8 +252,7 @@ def _long_routes(t: Table) -> dict[str, Any]:
     if short is None or long is None:
         return {"reproduced": None, "ours": ours}
     return {
-        "reproduced": long > short,
-        **_why({f"the 410 m model's test SR {long:.2f} is not above the 10 m model's {short:.2f}": long <= short}),
+        **_judged({f"the 410 m model's test SR {long:.2f} is not above the 10 m model's {short:.2f}": long <= short}),
         "ours": ours,
         "paper": {k: v["sr"] for k, v in paper.PAPER_TABLE5_HORIZON.items()},
     }
@@ -272,14 +263,13 @@ def _pedestrians(t: Table) -> dict[str, Any]:
     one, two, three = sr["1"], sr["2"], sr["3"]
     if one is None or two is None or three is None:
         return {"reproduced": None, "ours": sr}
-    broken = [
-        f"setting {k}'s test SR {v:.2f} is not below setting 1's {one:.2f}"
-        for k, v in (("2", two), ("3", three))
-        if v >= one
-    ]
     return {
-        "reproduced": not broken,
-        **_why(broken),
+        **_judged(
+            {
+                f"setting {k}'s test SR {v:.2f} is not below setting 1's {one:.2f}": v >= one
+                for k, v in (("2", two), ("3", three))
+            }
+        ),
         "ours": sr,
         "paper": {k: v["sr"] for k, v in paper.PAPER_TABLE5_PEDESTRIANS.items()},
     }
