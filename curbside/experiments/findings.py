@@ -379,10 +379,12 @@ def check_findings(t: dict[str, Table], small: dict[str, Table]) -> list[dict[st
         result = check()
         entry = {"finding": number, "claim": claim, "experiment": experiment, "rule": rule, **result}
         if result["reproduced"] is None:
-            first = experiment.split(",")[0]
+            # A finding read from two experiments waits for the one with no cells yet (ablation (d) beside (c)).
+            names = [n.strip() for n in experiment.split(",")]
+            wait = next((n for n in names if not small.get(n)), names[0])
             entry["why"] = (
-                f"not run yet: curbside experiment run {first} --budget small && curbside experiment "
-                f"report {first} --budget small"
+                f"not run yet: curbside experiment run {wait} --budget small && curbside experiment "
+                f"report {wait} --budget small"
             )
         out.append(entry)
     return out

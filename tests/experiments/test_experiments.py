@@ -328,6 +328,15 @@ def test_findings_follow_the_results_and_say_what_has_not_run(tmp_path) -> None:
     missing = next(f for f in data["findings"] if f["finding"] == 9)
     assert "curbside experiment run table5_horizon --budget small" in missing["why"]
     assert data["paper_budget_cells"] == []
+    # Finding 6 reads two experiments: with ablation (c) measured, it waits for ablation (d), the one with no cells.
+    _results(
+        tmp_path,
+        "ablation_static_density",
+        [("PointNav", "ppo", split, d, 0.4, 1.0) for split in ("train", "test") for d in ("0.01", "1.0")],
+    )
+    six = next(f for f in json.loads(write_findings(tmp_path).read_text())["findings"] if f["finding"] == 6)
+    assert six["reproduced"] is None
+    assert "curbside experiment run ablation_dynamic_density --budget small" in six["why"]
 
     # PPO PointNav at the paper's budget stands in for its small cells where a finding reads PPO's own level: here
     # its unseen SR is above test. Its cost (0.1, below PPO-Lag's 0.9) stays out of finding 4, which compares the
