@@ -69,10 +69,10 @@ def _cost(t: Table, task: str, method: str, split: str) -> float | None:
     return None if cell is None or "cost" not in cell else cell["cost"]
 
 
-def _judged(broken: dict[str, bool]) -> dict[str, Any]:
+def _judged(clauses: dict[str, bool]) -> dict[str, Any]:
     """A finding's verdict from its rule's clauses, each a sentence on ours with whether ours breaks it: reproduced
     when none is broken, else not, with "why": the broken ones as one sentence."""
-    why = [clause for clause, is_broken in broken.items() if is_broken]
+    why = [clause for clause, is_broken in clauses.items() if is_broken]
     return {"reproduced": not why, **({"why": "; ".join(why) + "."} if why else {})}
 
 
@@ -196,6 +196,7 @@ def _density(static: Table, dynamic: Table) -> dict[str, Any]:
     ours: dict[str, Any] = {}
     broken: dict[str, bool] = {}
     for name, t in (("static", static), ("dynamic", dynamic)):
+        experiment = f"ablation_{name}_density"
         for split in ("train", "test"):
             low, high = (
                 next((c["sr"] for (_, _, sp, st), c in t.items() if sp == split and st == s and "sr" in c), None)
@@ -203,7 +204,7 @@ def _density(static: Table, dynamic: Table) -> dict[str, Any]:
             )
             ours[f"{name}_{split}"] = {"density_1pc": low, "density_100pc": high}
             if low is None or high is None:
-                return {"reproduced": None, "ours": ours}
+                return {"reproduced": None, "ours": ours, "waits_for": experiment}
             broken[f"{name} density's {split} SR at 100 % ({high:.2f}) is not below that at 1 % ({low:.2f})"] = (
                 high >= low
             )
@@ -377,11 +378,10 @@ def check_findings(t: dict[str, Table], small: dict[str, Table]) -> list[dict[st
     out = []
     for number, claim, experiment, rule, check in items:
         result = check()
+        # A check that reads two experiments says which one lacks its cells; the others read one.
+        wait = result.pop("waits_for", experiment)
         entry = {"finding": number, "claim": claim, "experiment": experiment, "rule": rule, **result}
         if result["reproduced"] is None:
-            # A finding read from two experiments waits for the one with no cells yet (ablation (d) beside (c)).
-            names = [n.strip() for n in experiment.split(",")]
-            wait = next((n for n in names if not small.get(n)), names[0])
             entry["why"] = (
                 f"not run yet: curbside experiment run {wait} --budget small && curbside experiment "
                 f"report {wait} --budget small"
