@@ -508,3 +508,21 @@ def test_packed_runs_go_on_on_another_machine(tmp_path, monkeypatch) -> None:
     assert calls == [] and again == result
     restored, kept = unpack(str(exp), "smoke", root=third, archive=archive)
     assert restored == [] and kept == [third / "tiny" / "smoke" / "a" / "seed_0"]
+
+
+def test_every_table2_run_draws_a_route_on_its_single_block() -> None:
+    # One block holds tens of metres of sidewalk: a run that kept the protocol's paper-scale routes could not start.
+    import gymnasium as gym
+
+    from curbside.train.protocols import deep_merge, protocol
+
+    t2 = load_experiment("table2")
+    proto = protocol(t2.protocol)
+    for run in t2.runs:
+        cfg = deep_merge(deep_merge(proto.env_config, run.env), run.eval_env)
+        env = gym.make(f"curbside/{run.task}-v0", config={**cfg, "split": "test"})
+        try:
+            _, info = env.reset(seed=0)
+            assert 10.0 <= info["route_length"] <= 60.0 * 1.1, (run.id, info["route_length"])
+        finally:
+            env.close()
