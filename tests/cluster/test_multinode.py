@@ -7,6 +7,7 @@ import json
 import os
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -28,11 +29,32 @@ def cluster() -> Iterator[str]:
         c.add_node(num_cpus=1)
     c.wait_for_nodes()
     ray.init(address=c.address, log_to_driver=False)
+    _warm_every_node(ray)
     try:
         yield c.address
     finally:
         ray.shutdown()
         c.shutdown()
+
+
+def _warm_every_node(ray: Any) -> None:
+    """Run one task pinned to each node, so every node has a worker and the scheduler's view holds all three.
+
+    wait_for_nodes returns once the nodes are registered, which can come before their resources reach the
+    scheduler: on a fast machine the scenes then all ran on the head (8 of 8), and the spread check failed on a
+    cluster that was still forming rather than on the executor."""
+    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+    @ray.remote(num_cpus=1)
+    def node_id() -> str:
+        return str(ray.get_runtime_context().get_node_id())
+
+    alive = [n["NodeID"] for n in ray.nodes() if n["Alive"]]
+    assert len(alive) == NODES, ray.nodes()
+    pinned = [
+        node_id.options(scheduling_strategy=NodeAffinitySchedulingStrategy(n, soft=False)).remote() for n in alive
+    ]
+    assert sorted(ray.get(pinned, timeout=120)) == sorted(alive)
 
 
 def test_scenes_spread_over_the_nodes_and_equal_a_local_run(cluster: str, tmp_path: Path) -> None:
