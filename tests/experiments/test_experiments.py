@@ -528,3 +528,28 @@ def test_every_table2_run_draws_a_route_on_its_single_block() -> None:
             assert lo <= info["route_length"] <= hi, (run.id, info["route_length"])
         finally:
             env.close()
+
+
+def test_static_density_runs_scale_the_street_objects_with_their_setting() -> None:
+    # The metaurban12k preset's min_objects floor refills sparse scenes: a run that kept it trained its "1 %" on
+    # ~30 % of the full density's street objects, and the ablation measured almost no range of densities.
+    import warnings
+
+    from curbside.train.protocols import deep_merge, protocol
+    from sim.scene.generator import generate_scene
+    from sim.tasks.pointnav import DEFAULT_CONFIG, TASK_PRESETS, resolve_task_config
+
+    exp = load_experiment("ablation_static_density")
+    proto = protocol(exp.protocol)
+    street: dict[float, float] = {}
+    for run in exp.runs:
+        cfg = deep_merge(proto.env_config, run.env)
+        scene = resolve_task_config(DEFAULT_CONFIG, {k: cfg[k] for k in ("preset", "scene")}, TASK_PRESETS)["scene"]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # no catalog: default-size boxes, the same counts
+            scenes = [generate_scene(scene, seed) for seed in range(3)]
+        counts = [sum(o["category"] != "building_facade" for o in s["objects"]) for s in scenes]
+        street[float(run.setting)] = sum(counts) / len(counts)
+    densities = sorted(street)
+    assert [street[d] for d in densities] == sorted(street.values()), street  # more objects at each higher setting
+    assert street[densities[0]] < 0.1 * street[densities[-1]], street
