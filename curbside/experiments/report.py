@@ -82,7 +82,7 @@ def stale_runs(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> dict[
     for run in exp.runs:
         if not run.train:
             continue
-        expected = expected_training(exp, run, budget)
+        expected = expected_training(exp, run, budget, root)
         for seed in run.seeds:
             out = run_dir(root, exp, budget, run, seed)
             changed = stale_keys(out, expected) if (out / "result.json").is_file() else []

@@ -3,7 +3,8 @@
 Layout: ROOT/<experiment>/<budget>/<run id>/seed_<s>/ holds the training run (run.json, checkpoints, policy) and
 result.json (written last, atomically): a run with a result.json is finished and never trained again; a run without
 one resumes from its latest checkpoint. A run whose run.json records another env config or other hyper-parameters
-than it would train with now (its protocol has changed: a new catalog, say) is stale: it moves to
+than it would train with now (its protocol has changed: a new catalog, say), or demonstrations another policy drove
+(a PPO of the task has finished at a larger budget since), is stale: it moves to
 ROOT/<experiment>/<budget>/stale/ and trains again from scratch. A run that another experiment has already trained
 the same way (its run.json records the same training, `trained_elsewhere`) copies that training and is evaluated on
 its own splits (result.json's `trained_in` names the source). A finished run whose evaluations acted otherwise
@@ -86,11 +87,15 @@ def _resolved(exp: Experiment, run: Run, budget: str) -> dict[str, Any]:
     )
 
 
-def expected_training(exp: Experiment, run: Run, budget: str) -> dict[str, Any]:
+def expected_training(exp: Experiment, run: Run, budget: str, root: Path = DEFAULT_ROOT) -> dict[str, Any]:
     """What `run` of `exp` at `budget` trains under now, as its run.json records it: env config (its protocol's, with
-    the run's own keys and split) and hyper-parameters (the protocol's, with the budget's)."""
+    the run's own keys and split) and hyper-parameters (the protocol's, with the budget's); for a run that learns
+    from demonstrations, also who drives them (`demo_source`)."""
     r = _resolved(exp, run, budget)
-    return {"env_config": r["env_config"], "hparams": r["hparams"]}
+    expected = {"env_config": r["env_config"], "hparams": r["hparams"]}
+    if run.train and run.method not in ONLINE:
+        expected["demos"] = demo_source(root, exp, run.task)
+    return expected
 
 
 def trained_elsewhere(root: Path, exp: Experiment, budget: str, run: Run, seed: int) -> Path | None:
@@ -145,12 +150,18 @@ def _copy_training(source: Path, out: Path) -> None:
 
 
 def stale_keys(out: Path, expected: Mapping[str, Mapping[str, Any]]) -> list[str]:
-    """The keys of each part of `expected` (env_config, hparams) whose value in the run.json at `out` differs, as
-    "part.key" (empty when they match or there is no run.json)."""
+    """The keys of each part of `expected` (env_config, hparams; demos) whose value in the run.json at `out` differs,
+    as "part.key" (empty when they match or there is no run.json). The demonstrations a run learned from are recorded
+    with their statistics (`demos_meta`); only the keys `expected["demos"]` names are compared."""
     from curbside.train.run import changed_keys
 
     path = out / "run.json"
-    return changed_keys(json.loads(path.read_text()), expected) if path.is_file() else []
+    if not path.is_file():
+        return []
+    recorded = json.loads(path.read_text())
+    changed = changed_keys(recorded, {part: want for part, want in expected.items() if part != "demos"})
+    have = recorded.get("demos_meta") or {}
+    return changed + [f"demos.{k}" for k, v in sorted(expected.get("demos", {}).items()) if have.get(k) != v]
 
 
 def _set_aside(root: Path, exp: Experiment, budget: str, run: Run, seed: int) -> Path:
@@ -180,6 +191,23 @@ def _demo_policy(root: Path, exp: Experiment, task: str) -> Path | None:
     return None
 
 
+def demo_source(root: Path, exp: Experiment, task: str) -> dict[str, Any]:
+    """Who drives `task`'s demonstrations for `exp` now, as the demonstrations record it: the protocol's mix, a share
+    of the episodes from the best trained PPO of the task this experiment has (a PPO of a few updates drives no
+    better than chance, and its demonstrations would teach nothing) and the noisy expert the rest (or all, without
+    one). A run that learned from demonstrations another source drove is stale: a PPO finishing at a larger budget
+    changes its data."""
+    from curbside.train.protocols import protocol
+
+    proto = protocol(exp.protocol)
+    source = _demo_policy(root, exp, task) if proto.demos.policy_fraction > 0 else None
+    return {
+        "policy": str(source) if source is not None else None,
+        "policy_fraction": proto.demos.policy_fraction if source is not None else 0.0,
+        "noise": proto.demos.expert_noise,
+    }
+
+
 def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]) -> Path:
     """The task's demonstrations for this experiment and budget (collected on first use, and again when the policy
     that should drive them, the expert's noise or the scenes' catalog has changed since)."""
@@ -188,19 +216,9 @@ def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]
 
     base = Path(root) / exp.name / budget / "demos" / run.task
     path = base / dataset_id(run.task)
-    proto = protocol(exp.protocol)
-    # The protocol's mix: a share of the episodes from the best trained PPO of the task this experiment has (a PPO
-    # of a few updates drives no better than chance, and its demonstrations would teach nothing); the noisy expert
-    # drives the rest (or all, without one).
-    source = _demo_policy(root, exp, run.task) if proto.demos.policy_fraction > 0 else None
-    fraction = proto.demos.policy_fraction if source is not None else 0.0
-    env_config = deep_merge(proto.env_config, run.env)
-    want: dict[str, Any] = {
-        "policy": str(source) if source is not None else None,
-        "policy_fraction": fraction,
-        "noise": proto.demos.expert_noise,
-        "catalog": env_config.get("catalog"),
-    }
+    env_config = deep_merge(protocol(exp.protocol).env_config, run.env)
+    source = demo_source(root, exp, run.task)
+    want: dict[str, Any] = {**source, "catalog": env_config.get("catalog")}
     meta = path / "curbside.json"
     have = json.loads(meta.read_text()) if meta.is_file() else None
     if have is None or any(have.get(k, 0.0 if k == "policy_fraction" else None) != v for k, v in want.items()):
@@ -208,12 +226,12 @@ def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]
             run.task,
             base,
             steps=int(b["demos_steps"]),
-            noise=proto.demos.expert_noise,
+            noise=source["noise"],
             env_config=env_config,
             num_scenes=int(b["scenes"] or 64),
             progress=False,
-            policy=source,
-            policy_fraction=fraction,
+            policy=Path(source["policy"]) if source["policy"] is not None else None,
+            policy_fraction=source["policy_fraction"],
         )
     return path
 
@@ -253,15 +271,15 @@ def run_experiment(
             assert policy_dir is not None
             done = out / "result.json"
             if run.train and not reevaluate:
-                changed = stale_keys(out, expected_training(exp, run, budget))
+                changed = stale_keys(out, expected_training(exp, run, budget, root))
                 if changed:
                     moved = _set_aside(root, exp, budget, run, seed)
                     for dependent in exp.runs:  # runs that start from this one are measured again too
                         if dependent.init == run.id and run_dir(root, exp, budget, dependent, seed).exists():
                             _set_aside(root, exp, budget, dependent, seed)
                     log(
-                        f"[{exp.name} {budget}] {run.id} seed {seed}: trained under another env config or "
-                        f"hyper-parameters ({', '.join(changed)}); moved to {moved}, training again"
+                        f"[{exp.name} {budget}] {run.id} seed {seed}: trained under another env config, "
+                        f"hyper-parameters or demonstrations ({', '.join(changed)}); moved to {moved}, training again"
                     )
             if done.is_file():
                 result = json.loads(done.read_text())

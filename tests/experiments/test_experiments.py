@@ -436,6 +436,34 @@ def test_demonstrations_follow_the_best_finished_ppo_of_the_task(tmp_path) -> No
     assert _demo_policy(tmp_path, exp, "SocialNav") == small
 
 
+def test_an_offline_run_is_stale_once_another_ppo_drives_its_demonstrations(tmp_path) -> None:
+    """The demonstrations an offline run learned from are part of its training: when a PPO of the task finishes at a
+    larger budget and drives them now, the run's recorded source differs and the report and runner count it stale."""
+    from curbside.experiments.report import stale_runs
+    from curbside.experiments.runner import demo_source, expected_training, run_dir
+    from curbside.experiments.spec import load_experiment
+
+    exp = load_experiment("table1_paper")
+    run = next(r for r in exp.runs if r.task == "SocialNav" and r.method == "iql")
+    ppo = next(r for r in exp.runs if r.task == "SocialNav" and r.method == "ppo")
+    expected = expected_training(exp, run, "small", tmp_path)
+    assert expected["demos"] == {"policy": None, "policy_fraction": 0.0, "noise": expected["demos"]["noise"]}
+    out = run_dir(tmp_path, exp, "small", run, 0)
+    out.mkdir(parents=True)
+    recorded = {"env_config": expected["env_config"], "hparams": expected["hparams"]}
+    # run.json records the demonstrations with their statistics too; those are not compared
+    recorded["demos_meta"] = {**expected["demos"], "episodes": 30, "success_rate": 0.17}
+    (out / "run.json").write_text(json.dumps(recorded))
+    (out / "result.json").write_text(json.dumps({"evals": {"test": {"sr": 0.5}}}))
+    assert stale_runs(exp, "small", tmp_path) == {}
+
+    driver = run_dir(tmp_path, exp, "paper", ppo, 0)
+    driver.mkdir(parents=True)
+    (driver / "result.json").write_text(json.dumps({"evals": {"test": {"sr": 0.3}}}))
+    assert demo_source(tmp_path, exp, "SocialNav")["policy"] == str(driver)
+    assert stale_runs(exp, "small", tmp_path) == {"SocialNav-iql seed 0": ["demos.policy", "demos.policy_fraction"]}
+
+
 def test_packed_runs_go_on_on_another_machine(tmp_path, monkeypatch) -> None:
     """A run killed before its result is packed with its newest checkpoint alone and resumes from it after unpack;
     a finished run travels with a compact policy and is never trained again."""
