@@ -260,7 +260,11 @@ def eval_cmd(
         None, min=1, help="Episodes (seeds seed..seed+N-1); default: the run's protocol's (curbside 50, paper 200)."
     ),
     seed: int = typer.Option(0, min=0, help="Seed of the first episode."),
-    config: str | None = typer.Option(None, help="Env config overrides as a JSON object (default: the run's)."),
+    config: str | None = typer.Option(
+        None,
+        help="Env config overrides as a JSON object (default: the run's, with its protocol's episode rules for "
+        "evaluations: paper's has no stuck or contact ending).",
+    ),
     workers: int = typer.Option(
         1, min=1, max=64, help="Processes sharing the episodes (the same figures for any count)."
     ),
@@ -286,7 +290,8 @@ def eval_cmd(
         actions = actions or eval_actions_of(run, proto.eval_actions)
         # A run that cannot be loaded (or cannot sample) fails here, before any worker starts.
         load_policy(run_dir, deterministic=actions == "mean")
-        cfg = deep_merge(run.get("env_config", {}), parse_config_json(config))
+        # The protocol's episode rules for evaluations first; the user's overrides win.
+        cfg = deep_merge(deep_merge(run.get("env_config", {}), proto.eval_env), parse_config_json(config))
         _check_env_config(run["task"], cfg, split)
     except (ConfigError, ValueError, FileNotFoundError) as e:
         raise fail(str(e)) from None

@@ -122,7 +122,9 @@ def card(
         "env_config": meta.get("env_config", {}),
         "metrics": {
             split: {
-                k: ev.get(k) for k in ("sr", "spl", "sns", "cost", "route_completion", "episodes", "actions") if k in ev
+                k: ev.get(k)
+                for k in ("sr", "spl", "sns", "cost", "route_completion", "episodes", "actions", "eval_env")
+                if k in ev
             }
             for split, ev in result["evals"].items()
         },

@@ -91,8 +91,33 @@ def stale_runs(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> dict[
     return stale
 
 
-def rows_of(exp: Experiment, budget: str, root: Path, stale: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """The rows of every finished (run, seed) of `exp` at `budget`, the `stale` ones (`stale_runs`) left out."""
+def evaluated_otherwise_runs(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> dict[str, str]:
+    """ "<run id> seed <s>" -> how its evaluations differ from what the protocol's rules have them do now
+    (`runner.evaluated_otherwise`: other actions or episode rules), for every finished run evaluated otherwise
+    (`curbside experiment run` evaluates those again)."""
+    from curbside.experiments.runner import evaluated_otherwise, run_dir
+    from curbside.train.protocols import protocol
+
+    proto = protocol(exp.protocol)
+    by_id = {r.id: r for r in exp.runs}
+    otherwise = {}
+    for run in exp.runs:
+        source = by_id[run.init] if not run.train and run.init else run
+        for seed in run.seeds:
+            f = run_dir(root, exp, budget, run, seed) / "result.json"
+            policy_dir = run_dir(root, exp, budget, source, seed)
+            if f.is_file() and (policy_dir / "run.json").is_file():
+                why = evaluated_otherwise(json.loads(f.read_text()), policy_dir, proto)
+                if why:
+                    otherwise[f"{run.id} seed {seed}"] = why
+    return otherwise
+
+
+def rows_of(
+    exp: Experiment, budget: str, root: Path, stale: Mapping[str, Any], otherwise: Mapping[str, Any] | None = None
+) -> list[dict[str, Any]]:
+    """The rows of every finished (run, seed) of `exp` at `budget`, the `stale` ones (`stale_runs`) and those
+    evaluated `otherwise` (`evaluated_otherwise_runs`) left out."""
     from curbside.experiments.runner import run_dir
 
     by_id = {r.id: r for r in exp.runs}
@@ -101,7 +126,7 @@ def rows_of(exp: Experiment, budget: str, root: Path, stale: Mapping[str, Any]) 
         for seed in run.seeds:
             f = run_dir(root, exp, budget, run, seed) / "result.json"
             source = by_id[run.init] if not run.train and run.init else run
-            if not f.is_file() or f"{source.id} seed {seed}" in stale:
+            if not f.is_file() or f"{source.id} seed {seed}" in stale or f"{run.id} seed {seed}" in (otherwise or {}):
                 continue
             result = json.loads(f.read_text())
             for split, ev in result["evals"].items():
@@ -157,7 +182,8 @@ def write_report(
     the one every experiment runs) or out_root/<experiment>/<budget>/ (another budget); return the CSV path."""
     exp = load_experiment(name)
     stale = stale_runs(exp, budget, root)
-    rows = rows_of(exp, budget, root, stale)
+    otherwise = evaluated_otherwise_runs(exp, budget, root)
+    rows = rows_of(exp, budget, root, stale, otherwise)
     out = Path(out_root) / exp.name if budget == "small" else Path(out_root) / exp.name / budget
     out.mkdir(parents=True, exist_ok=True)
     path = out / "results.csv"
@@ -184,6 +210,8 @@ def write_report(
                 "runs_finished": finished,
                 "runs_declared": expected,
                 "runs_stale": stale,  # trained otherwise than the protocol says now: left out of results.csv until trained again
+                # evaluated otherwise than the protocol says now: left out of results.csv until evaluated again
+                "runs_evaluated_otherwise": otherwise,
                 "command": f"curbside experiment run {exp.name} --budget {budget} && curbside experiment report {exp.name} "
                 f"--budget {budget}",
             },

@@ -283,9 +283,9 @@ def run_experiment(
                     )
             if done.is_file():
                 result = json.loads(done.read_text())
-                otherwise = evaluated_otherwise(result, policy_dir, proto.eval_actions)
+                otherwise = evaluated_otherwise(result, policy_dir, proto)
                 if reevaluate or otherwise:
-                    why = f" (evaluated with {otherwise} actions; the protocol's are {proto.eval_actions})"
+                    why = f" (evaluated {otherwise})"
                     log(f"[{exp.name} {budget}] {run.id} seed {seed}: evaluating again{why if otherwise else ''}")
                     result["evals"] = _evaluate(run, policy_dir, b, proto, progress, log)
                     _write_json(done, result)
@@ -359,27 +359,38 @@ def run_experiment(
     return results
 
 
-def evaluated_otherwise(result: Mapping[str, Any], policy_dir: Path, actions: str) -> str | None:
-    """How a finished run's evaluations acted when that is not how its protocol's rule `actions` has its policy act
-    now ("mean" for evaluations that predate the record), else None."""
+def evaluated_otherwise(result: Mapping[str, Any], policy_dir: Path, proto: Protocol) -> str | None:
+    """How a finished run's evaluations differ from what `proto`'s rules have them do now, in words: acting
+    otherwise than its `eval_actions` ("mean" for evaluations that predate the record) or under other episode rules
+    than its `eval_env` (none for evaluations that predate the record); None when they do not."""
     from curbside.train.policies import eval_actions_of, read_run
+    from curbside.train.run import as_recorded
 
-    want = eval_actions_of(read_run(policy_dir), actions)
-    have = {ev.get("actions", "mean") for ev in result.get("evals", {}).values()}
-    return next((a for a in sorted(have) if a != want), None)
+    want = eval_actions_of(read_run(policy_dir), proto.eval_actions)
+    evals = result.get("evals", {}).values()
+    actions = next((a for a in sorted({ev.get("actions", "mean") for ev in evals}) if a != want), None)
+    if actions is not None:
+        return f"with {actions} actions; the protocol's are {want}"
+    rules = as_recorded(proto.eval_env)
+    other = next((ev.get("eval_env", {}) for ev in evals if ev.get("eval_env", {}) != rules), None)
+    if other is not None:
+        return f"under episode rules {json.dumps(other, sort_keys=True)}; the protocol's are {json.dumps(rules, sort_keys=True)}"
+    return None
 
 
 def _evaluate(
     run: Run, policy_dir: Path, b: dict[str, Any], proto: Protocol, progress: bool, log: Callable[[str], None]
 ) -> dict[str, dict[str, Any]]:
-    """The policy in `policy_dir` evaluated on each of the run's splits, under its training config plus the run's,
-    acting as the protocol's rule has it act."""
+    """The policy in `policy_dir` evaluated on each of the run's splits, under its training config plus the run's
+    and the protocol's episode rules (`eval_env`, recorded in each evaluation), acting as the protocol's rule has it
+    act."""
     from curbside.train.evaluate import evaluate_run
     from curbside.train.policies import eval_actions_of, read_run
     from curbside.train.protocols import deep_merge
+    from curbside.train.run import as_recorded
 
     meta = read_run(policy_dir)
-    cfg = deep_merge(deep_merge(meta.get("env_config", {}), run.env), run.eval_env)
+    cfg = deep_merge(deep_merge(deep_merge(meta.get("env_config", {}), run.env), proto.eval_env), run.eval_env)
     actions = eval_actions_of(meta, proto.eval_actions)
     evals = {}
     for split in run.evaluate:
@@ -394,6 +405,7 @@ def _evaluate(
             progress=progress,
             actions=actions,
         )
+        evals[split]["eval_env"] = as_recorded(proto.eval_env)
         log(
             f"    {split}: SR {evals[split]['sr']:.2f}  SPL {evals[split]['spl']:.2f}  Cost {evals[split]['cost']:.2f}"
             f"  ({actions} actions)"

@@ -66,6 +66,9 @@ class Protocol:
     # How a stochastic policy (PPO family, BC, GAIL) acts in evaluations and curves: its mean action or draws from
     # its distribution (curbside.train.evaluate.EVAL_ACTIONS); IQL and TD3+BC always act with their one action.
     eval_actions: str = "mean"
+    # Env config every evaluation adds to the run's (the episode rules the protocol measures under): an evaluation
+    # records it, and one recorded under another is done again. Training and its learning curves keep the run's own.
+    eval_env: Mapping[str, Any] = field(default_factory=lambda: _frozen({}))
     # Extra env config of each training backend (scene reuse): the evaluations and run.json's env_config leave it out.
     training_config: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     catalog: CatalogRecipe | None = None  # the catalog env_config's "catalog" names (None: fallback boxes)
@@ -190,6 +193,10 @@ PROTOCOLS: dict[str, Protocol] = {
         eval_episodes=200,
         eval_scenes=100,
         eval_actions="sampled",
+        # The paper's episode ends only on success, leaving the route or the horizon (R_crash: no termination); the
+        # training envs keep their stuck and contact endings, which end a pinned machine's episode early
+        # (docs/protocols.md).
+        eval_env=_frozen({"stuck_steps": 0, "collision_steps": 0}),
         # A paper-scale scene costs ~2 s to build and a long route ~0.1 s to plan: each batched env keeps its scene for
         # 20,000 steps and each scene a pool of 16 routes. A PyBullet env's new scene costs ~2.8 s (world and
         # pedestrians included), about 500 of its steps: it keeps its scene for 2,000 steps (docs/protocols.md).
@@ -204,6 +211,9 @@ PROTOCOLS: dict[str, Protocol] = {
                 "BC, GAIL)",
                 "demos": "MetaUrban, ICLR 2025, appendix: 30,000 steps, 80 % from a trained PPO policy, ~60 % success",
                 "env_config": "docs/protocols.md: the metaurban12k preset (scenes, 250-650 m routes, horizon rule)",
+                "eval_env": "MetaUrban, ICLR 2025, reward (R_crash per collision step, no termination) and "
+                "MetaUrban's envs/sidewalk_static_env.py (crash_*_done False: success, out of road or horizon end an "
+                "episode; docs/protocols.md)",
                 "eval_actions": "MetaUrban's RL/PointNav/eval_ppo.py: SB3's predict with its default, a draw from the "
                 "policy's distribution (docs/protocols.md)",
                 "catalog": "MetaUrban, ICLR 2025, Sec. 3: 10,000 assets, unseen objects held out of training; ours "

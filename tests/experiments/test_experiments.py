@@ -141,6 +141,25 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     run_experiment(str(exp), "smoke", root=root, progress=False, log=lambda s: None)  # back to mean actions
     assert {ev["actions"] for ev in json.loads(first.read_text())["evals"].values()} == {"mean"}
 
+    # The protocol's episode rules for evaluations change (a 7-step horizon here): the report leaves the runs
+    # evaluated under the old rules out until `run` evaluates them again under the new ones, training nothing.
+    with monkeypatch.context() as m:
+        m.setitem(PROTOCOLS, "curbside", replace(PROTOCOLS["curbside"], eval_env={"horizon": 7}))
+        out = write_report(str(exp), "smoke", root=root, out_root=tmp_path / "rules")
+        assert len(json.loads((out.parent / "report.json").read_text())["runs_evaluated_otherwise"]) == 4
+        assert out.read_text().strip() == ",".join(COLUMNS)  # no rows
+        logged = []
+        ruled = run_experiment(str(exp), "smoke", root=root, progress=False, log=logged.append)
+        assert (
+            calls == [] and sum('under episode rules {}; the protocol\'s are {"horizon": 7}' in x for x in logged) == 4
+        )
+        assert [ev["eval_env"] for r in ruled for ev in r["evals"].values()] == [{"horizon": 7}] * 4
+        assert max(ev["steps"] for r in ruled for ev in r["evals"].values()) <= 7  # the rule reached the env
+        out = write_report(str(exp), "smoke", root=root, out_root=tmp_path / "rules")
+        assert json.loads((out.parent / "report.json").read_text())["runs_evaluated_otherwise"] == {}
+    run_experiment(str(exp), "smoke", root=root, progress=False, log=lambda s: None)  # back to the env's own rules
+    assert {json.dumps(ev["eval_env"]) for ev in json.loads(first.read_text())["evals"].values()} == {"{}"}
+
     out = write_report(str(exp), "smoke", root=root, out_root=tmp_path / "report")
     with open(out, newline="") as f:
         rows = list(csv.DictReader(f))
