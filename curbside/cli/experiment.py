@@ -106,12 +106,14 @@ def release_cmd(
     from curbside.experiments.release import release
 
     ids = [s for s in only.split(",") if s] if only else None
-    written = _checked(name, budget, lambda: release(name, budget, root=root, zoo=zoo, seed=seed, only=ids))
+    written = _checked(
+        name, budget, lambda: release(name, budget, root=root, zoo=zoo, seed=seed, only=ids, log=typer.echo)
+    )
     for path in written:
         typer.echo(f"released {path}")
     if not written:
         typer.echo(
-            f"no finished run of {name} at budget {budget} yet: run `curbside experiment run {name} --budget "
+            f"no policy of {name} at budget {budget} released: run `curbside experiment run {name} --budget "
             f"{budget}` first"
         )
 

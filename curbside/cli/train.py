@@ -263,7 +263,7 @@ def eval_cmd(
     config: str | None = typer.Option(
         None,
         help="Env config overrides as a JSON object (default: the run's, with its protocol's episode rules for "
-        "evaluations: paper's has no stuck or contact ending).",
+        "evaluations).",
     ),
     workers: int = typer.Option(
         1, min=1, max=64, help="Processes sharing the episodes (the same figures for any count)."

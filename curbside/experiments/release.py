@@ -11,6 +11,7 @@ import json
 import re
 import shutil
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -69,12 +70,27 @@ def _normalise_policy_zip(path: Path) -> None:
 
 
 def release(
-    name: str, budget: str, *, root: Path = DEFAULT_ROOT, zoo: Path = ZOO, seed: int = 0, only: list[str] | None = None
+    name: str,
+    budget: str,
+    *,
+    root: Path = DEFAULT_ROOT,
+    zoo: Path = ZOO,
+    seed: int = 0,
+    only: list[str] | None = None,
+    log: Callable[[str], None] = print,
 ) -> list[Path]:
     """Copy the seed-`seed` policy of every finished training run of experiment `name` at `budget` (of the run ids in
-    `only`, when given) into the zoo; return the folders written. A run without a result yet is skipped."""
+    `only`, when given) into the zoo; return the folders written. A run without a result yet is skipped, and so is
+    one trained or evaluated otherwise than its protocol says now (its card's figures would not be the protocol's),
+    each with a line to `log`."""
+    from curbside.experiments.report import evaluated_otherwise_runs, stale_runs
+
     exp = load_experiment(name)
     check_run_ids(exp, only)
+    outdated = {
+        **{k: f"trained otherwise ({', '.join(v)})" for k, v in stale_runs(exp, budget, root).items()},
+        **{k: f"evaluated {v}" for k, v in evaluated_otherwise_runs(exp, budget, root).items()},
+    }
     written = []
     for run in exp.runs:
         if not run.train or seed not in run.seeds or (only and run.id not in only):
@@ -82,6 +98,13 @@ def release(
         src = run_dir(root, exp, budget, run, seed)
         result_file = src / "result.json"
         if not result_file.is_file():
+            continue
+        why = outdated.get(f"{run.id} seed {seed}")
+        if why:
+            log(
+                f"skipped {run.id} seed {seed}: {why}; `curbside experiment run {name} --budget {budget}` measures it "
+                "again first"
+            )
             continue
         result = json.loads(result_file.read_text())
         meta = json.loads((src / "run.json").read_text())

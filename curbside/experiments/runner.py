@@ -87,7 +87,7 @@ def _resolved(exp: Experiment, run: Run, budget: str) -> dict[str, Any]:
     )
 
 
-def expected_training(exp: Experiment, run: Run, budget: str, root: Path = DEFAULT_ROOT) -> dict[str, Any]:
+def expected_training(exp: Experiment, run: Run, budget: str, root: Path) -> dict[str, Any]:
     """What `run` of `exp` at `budget` trains under now, as its run.json records it: env config (its protocol's, with
     the run's own keys and split) and hyper-parameters (the protocol's, with the budget's); for a run that learns
     from demonstrations, also who drives them (`demo_source`)."""
@@ -160,8 +160,21 @@ def stale_keys(out: Path, expected: Mapping[str, Mapping[str, Any]]) -> list[str
         return []
     recorded = json.loads(path.read_text())
     changed = changed_keys(recorded, {part: want for part, want in expected.items() if part != "demos"})
-    have = recorded.get("demos_meta") or {}
-    return changed + [f"demos.{k}" for k, v in sorted(expected.get("demos", {}).items()) if have.get(k) != v]
+    have = demo_identity(recorded.get("demos_meta") or {})
+    want = demo_identity(expected.get("demos", {}))
+    return changed + [f"demos.{k}" for k in sorted(want) if have.get(k) != want[k]]
+
+
+def demo_identity(source: Mapping[str, Any]) -> dict[str, Any]:
+    """The keys of a demonstrations record (`demo_source`'s, or a dataset's curbside.json) that say who drove them,
+    the policy named by its run (experiment, budget, run id, seed: the last four parts of its folder), whatever root
+    the experiments were run under. A record without a share from a policy reads as the expert alone."""
+    policy = source.get("policy")
+    return {
+        "policy": "/".join(Path(policy).parts[-4:]) if policy is not None else None,
+        "policy_fraction": float(source.get("policy_fraction", 0.0)),
+        "noise": source.get("noise"),
+    }
 
 
 def _set_aside(root: Path, exp: Experiment, budget: str, run: Run, seed: int) -> Path:
@@ -195,8 +208,8 @@ def demo_source(root: Path, exp: Experiment, task: str) -> dict[str, Any]:
     """Who drives `task`'s demonstrations for `exp` now, as the demonstrations record it: the protocol's mix, a share
     of the episodes from the best trained PPO of the task this experiment has (a PPO of a few updates drives no
     better than chance, and its demonstrations would teach nothing) and the noisy expert the rest (or all, without
-    one). A run that learned from demonstrations another source drove is stale: a PPO finishing at a larger budget
-    changes its data."""
+    one). A run that learned from demonstrations another source drove is stale: a PPO finishing at a larger budget,
+    or one whose evaluation finds it succeeding where it did not (or no longer), changes its data."""
     from curbside.train.protocols import protocol
 
     proto = protocol(exp.protocol)
@@ -218,10 +231,9 @@ def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]
     path = base / dataset_id(run.task)
     env_config = deep_merge(protocol(exp.protocol).env_config, run.env)
     source = demo_source(root, exp, run.task)
-    want: dict[str, Any] = {**source, "catalog": env_config.get("catalog")}
     meta = path / "curbside.json"
     have = json.loads(meta.read_text()) if meta.is_file() else None
-    if have is None or any(have.get(k, 0.0 if k == "policy_fraction" else None) != v for k, v in want.items()):
+    if have is None or demo_identity(have) != demo_identity(source) or have.get("catalog") != env_config.get("catalog"):
         collect_demos(
             run.task,
             base,

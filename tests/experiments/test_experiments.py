@@ -148,6 +148,14 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
         out = write_report(str(exp), "smoke", root=root, out_root=tmp_path / "rules")
         assert len(json.loads((out.parent / "report.json").read_text())["runs_evaluated_otherwise"]) == 4
         assert out.read_text().strip() == ",".join(COLUMNS)  # no rows
+        from curbside.experiments.release import release
+
+        skipped: list[str] = []  # a card's figures would not be the protocol's
+        assert release(str(exp), "smoke", root=root, zoo=tmp_path / "zoo", log=skipped.append) == []
+        assert skipped == [
+            'skipped a seed 0: evaluated under episode rules {}; the protocol\'s are {"horizon": 7}; `curbside '
+            f"experiment run {exp} --budget smoke` measures it again first"
+        ]
         logged = []
         ruled = run_experiment(str(exp), "smoke", root=root, progress=False, log=logged.append)
         assert (
@@ -481,6 +489,61 @@ def test_an_offline_run_is_stale_once_another_ppo_drives_its_demonstrations(tmp_
     (driver / "result.json").write_text(json.dumps({"evals": {"test": {"sr": 0.3}}}))
     assert demo_source(tmp_path, exp, "SocialNav")["policy"] == str(driver)
     assert stale_runs(exp, "small", tmp_path) == {"SocialNav-iql seed 0": ["demos.policy", "demos.policy_fraction"]}
+
+
+def test_an_offline_run_trains_again_once_a_ppo_of_its_task_drives_the_demonstrations(tmp_path, monkeypatch) -> None:
+    """`run` moves an offline run whose demonstrations another source drove aside and trains it again on new ones:
+    the experiment's PPO, failing every test episode when the run trained (the expert drove alone), is found
+    succeeding since."""
+    import dataclasses
+
+    import curbside.train.run as run_module
+    from curbside.train import protocols
+
+    base = protocols.PROTOCOLS["curbside"]
+    mixed = dataclasses.replace(base, demos=dataclasses.replace(base.demos, policy_fraction=0.5))
+    monkeypatch.setitem(protocols.PROTOCOLS, "curbside", mixed)
+    spec = {
+        "name": "mixed",
+        "title": "mixed",
+        "paper": "table1",
+        "protocol": "curbside",
+        "evaluate": ["test"],
+        "runs": [
+            {"id": "p", "task": "PointNav", "method": "ppo", "seeds": [0], "env": CFG},
+            {"id": "o", "task": "PointNav", "method": "bc", "seeds": [0], "env": CFG},
+        ],
+        "budgets": {"smoke": {**TINY, "bc_steps": 20, "demos_steps": 200}},
+    }
+    path = tmp_path / "mixed.yaml"
+    path.write_text(yaml.safe_dump(json.loads(json.dumps(spec))))  # no YAML aliases for the shared CFG
+    real, calls = run_module.train, []
+    monkeypatch.setattr(run_module, "train", lambda *a, **kw: (calls.append(Path(a[2]).parent.name), real(*a, **kw))[1])
+    root = tmp_path / "runs"
+    ppo_result = root / "mixed" / "smoke" / "p" / "seed_0" / "result.json"
+
+    def ppo_scores(sr: float) -> None:
+        result = json.loads(ppo_result.read_text())
+        result["evals"]["test"]["sr"] = sr
+        ppo_result.write_text(json.dumps(result))
+
+    run_experiment(str(path), "smoke", root=root, only=["p"], progress=False, log=lambda s: None)
+    ppo_scores(0.0)
+    run_experiment(str(path), "smoke", root=root, only=["o"], progress=False, log=lambda s: None)
+    offline = root / "mixed" / "smoke" / "o" / "seed_0"
+    first = json.loads((offline / "run.json").read_text())["demos_meta"]
+    assert first["policy"] is None and first["policy_fraction"] == 0.0 and calls == ["p", "o"]
+    run_experiment(str(path), "smoke", root=root, only=["o"], progress=False, log=lambda s: None)
+    assert calls == ["p", "o"]  # the same source: nothing to do
+
+    ppo_scores(0.5)
+    logged: list[str] = []
+    run_experiment(str(path), "smoke", root=root, only=["o"], progress=False, log=logged.append)
+    assert calls == ["p", "o", "o"]
+    assert any("(demos.policy, demos.policy_fraction)" in line for line in logged), logged
+    assert (root / "mixed" / "smoke" / "stale" / "o" / "seed_0" / "result.json").is_file()
+    again = json.loads((offline / "run.json").read_text())["demos_meta"]
+    assert again["policy"] == str(ppo_result.parent) and again["policy_fraction"] == 0.5
 
 
 def test_packed_runs_go_on_on_another_machine(tmp_path, monkeypatch) -> None:
