@@ -456,10 +456,11 @@ def test_demonstrations_follow_the_best_finished_ppo_of_the_task(tmp_path) -> No
         assert _demo_policy(tmp_path, exp, "PointNav") == d
     assert _demo_policy(tmp_path, exp, "SocialNav") is None  # each task's own PPO
 
-    # A PPO that succeeds in no test episode drives none: the largest budget that did, or the expert alone.
-    finish(run_dir(tmp_path, exp, "paper", ppo["SocialNav"], 0), 0.0)
+    # A PPO that succeeds in fewer than a tenth of its test episodes drives none: the largest budget that did, or
+    # the expert alone.
+    finish(run_dir(tmp_path, exp, "paper", ppo["SocialNav"], 0), 0.02)
     assert _demo_policy(tmp_path, exp, "SocialNav") is None
-    small = finish(run_dir(tmp_path, exp, "small", ppo["SocialNav"], 0), 0.02)
+    small = finish(run_dir(tmp_path, exp, "small", ppo["SocialNav"], 0), 0.1)
     assert _demo_policy(tmp_path, exp, "SocialNav") == small
 
 
