@@ -113,18 +113,31 @@ def _polygons(polys: Iterable[Any]) -> list[Polygon]:
 def paint_many(
     mask: np.ndarray, origin: tuple[float, float], resolution: float, polys: Iterable[Any], value: int | bool
 ) -> None:
-    """`paint` of every polygon of `polys` with one `value`, in one vectorised pass.
+    """`paint` of every polygon of `polys` with one `value`, in one vectorised pass (see `_inside_cells`)."""
+    idx, _ = _inside_cells(_polygons(polys), origin, resolution, mask.shape)
+    if not len(idx):
+        return
+    if mask.flags.c_contiguous:
+        mask.reshape(-1)[idx] = value
+    else:
+        mask[np.unravel_index(idx, mask.shape)] = value
+
+
+def _inside_cells(
+    parts: list[Polygon], origin: tuple[float, float], resolution: float, shape: tuple[int, ...]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The flat indices of the cells of a grid of `shape` whose centres lie strictly inside each polygon of `parts`,
+    and the index in `parts` of the polygon each cell belongs to (a cell inside two polygons is listed twice).
 
     Row k's centre is y_k = y0 + (k + 0.5) * res; an edge crosses row k when min(y) <= y_k < max(y) (the
     half-open rule counts each vertex once, like a point-in-polygon test), so the rows an edge crosses are one
     `searchsorted` range. Each polygon's crossings on a row, sorted by x, pair up as inside spans; a cell is in
-    when its centre is strictly inside. All cells of all spans get `value` (spans of different polygons may
-    overlap: they set the same value).
+    when its centre is strictly inside.
     """
-    parts = _polygons(polys)
+    none = np.zeros(0, dtype=np.int64)
     if not parts:
-        return
-    h, w = mask.shape
+        return none, none
+    h, w = shape
     rings = [(i, r) for i, poly in enumerate(parts) for r in _rings(poly)]
     a = np.concatenate([r[:-1] for _, r in rings])
     b = np.concatenate([r[1:] for _, r in rings])
@@ -135,29 +148,27 @@ def paint_many(
     cnt = np.maximum(np.searchsorted(ys, hi, side="left") - k0, 0)  # rows with lo <= y_k < hi
     total = int(cnt.sum())
     if total == 0:
-        return
+        return none, none
     ends = np.cumsum(cnt)
     edges = np.repeat(np.arange(len(a)), cnt)
     rows = np.repeat(k0, cnt) + (np.arange(total) - np.repeat(ends - cnt, cnt))
     ax, ay, bx, by = a[edges, 0], a[edges, 1], b[edges, 0], b[edges, 1]
     x = ax + (ys[rows] - ay) * (bx - ax) / (by - ay)
-    order = np.lexsort((x, rows, pid[edges]))
-    rows, x = rows[order], x[order]
+    owner = pid[edges]
+    order = np.lexsort((x, rows, owner))
+    rows, x, owner = rows[order], x[order], owner[order]
     start = np.ceil((x[0::2] - origin[0]) / resolution - 0.5 + 1e-12).astype(np.int64)
     stop = np.ceil((x[1::2] - origin[0]) / resolution - 0.5 - 1e-12).astype(np.int64)
     start = np.clip(start, 0, w)
     stop = np.clip(stop, 0, w)
     keep = stop > start
     if not keep.any():
-        return
+        return none, none
     r, c0, n = rows[0::2][keep], start[keep], (stop - start)[keep]
     # The cells of every span through one flat index array (span k covers r*w + c0 ... r*w + c0 + n - 1).
     ends = np.cumsum(n)
     idx = np.arange(int(ends[-1]), dtype=np.int64) + np.repeat(r * w + c0 - (ends - n), n)
-    if mask.flags.c_contiguous:
-        mask.reshape(-1)[idx] = value
-    else:
-        mask[np.unravel_index(idx, mask.shape)] = value
+    return idx, np.repeat(owner[0::2][keep], n)
 
 
 def paint_reference(
@@ -254,22 +265,30 @@ def obstacle_mask(
     if not cover_thin:
         paint_many(out, grid.origin, grid.resolution, polys, True)
         return out
-    (x0, y0), res, (n_rows, n_cols) = grid.origin, grid.resolution, grid.shape
-    for poly in polys:
+    # Each object's cells in one vectorised pass, then the objects in order: one whose cells were all set already
+    # (none, for a pole thinner than a cell) blocks the cell of its centroid instead.
+    n_rows, n_cols = grid.shape
+    parts, owners = [], []
+    for k, poly in enumerate(polys):
+        for part in _polygons([poly]):
+            parts.append(part)
+            owners.append(k)
+    idx, part_of = _inside_cells(parts, grid.origin, grid.resolution, grid.shape)
+    obj = np.asarray(owners, dtype=np.int64)[part_of]
+    order = np.argsort(obj, kind="stable")
+    idx = idx[order]
+    bounds = np.searchsorted(obj[order], np.arange(len(polys) + 1))
+    flat = out.reshape(-1)
+    for k, poly in enumerate(polys):
         if poly.is_empty:
             continue
-        # Painting sets only cells whose centres lie in the polygon, all inside its bounds: count there, not grid-wide.
-        bx0, by0, bx1, by1 = poly.bounds
-        win = (
-            slice(max(int(math.floor((by0 - y0) / res)), 0), min(int(math.ceil((by1 - y0) / res)) + 1, n_rows)),
-            slice(max(int(math.floor((bx0 - x0) / res)), 0), min(int(math.ceil((bx1 - x0) / res)) + 1, n_cols)),
-        )
-        before = int(out[win].sum())
-        paint(out, grid.origin, res, poly, True)
-        if int(out[win].sum()) == before:
-            i, j = (int(coord) for coord in grid.world_to_cell((poly.centroid.x, poly.centroid.y)))
-            if 0 <= i < n_rows and 0 <= j < n_cols:
-                out[i, j] = True
+        cells = idx[bounds[k] : bounds[k + 1]]
+        if not flat[cells].all():
+            flat[cells] = True
+            continue
+        i, j = (int(coord) for coord in grid.world_to_cell((poly.centroid.x, poly.centroid.y)))
+        if 0 <= i < n_rows and 0 <= j < n_cols:
+            out[i, j] = True
     return out
 
 

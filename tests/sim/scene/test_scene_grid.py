@@ -47,3 +47,18 @@ def test_scanline_paint_matches_point_in_polygon_reference() -> None:
         paint(fast, (-1.0, -1.0), 0.25, poly, 2)
         paint_reference(slow, (-1.0, -1.0), 0.25, poly, 2)
         assert np.array_equal(fast, slow) and slow.any()
+
+
+def test_obstacle_mask_covers_thin_and_hidden_objects_at_their_centroid() -> None:
+    mask, origin = rasterize([(1, [box(0, 0, 10, 10)])], (0, 0, 10, 10), 0.5)
+    grid = decode_walkable({"walkable": encode_walkable(mask, origin, 0.5)})
+    pole = box(2.05, 2.05, 2.15, 2.15)  # thinner than a cell, between cell centres
+    big, inner = box(5, 5, 8, 8), box(6, 6, 7, 7)  # inner's cells are all big's
+    painted = obstacle_mask(grid, [pole, big, inner], cover_thin=False)
+    covered = obstacle_mask(grid, [pole, big, inner])
+    pole_cell = tuple(int(c) for c in grid.world_to_cell((2.1, 2.1)))
+    assert not painted[pole_cell] and covered[pole_cell]
+    assert int(painted.sum()) == 36 and int(covered.sum()) == 37  # big: 3 m x 3 m; + the pole's cell
+    # Each object is judged in order against those before it: the inner box alone covers its own 4 cells.
+    alone = obstacle_mask(grid, [inner])
+    assert int(alone.sum()) == 4
