@@ -12,6 +12,7 @@ from kernel.config import ConfigError
 
 EVAL_SCENES = 50  # scenes of the split an evaluation draws its episodes from
 EVAL_ACTIONS = ("mean", "sampled")  # how a policy acts in an evaluation: its mean action, or draws
+SHARDS_PER_WORKER = 4  # an evaluation's episodes come in this many shards a worker (see `evaluate_run`)
 
 
 def evaluate_policy(
@@ -104,11 +105,13 @@ def _run_rows(
     num_scenes: int,
     actions: str,
     progress: bool = False,
+    policy: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> list[dict[str, Any]]:
-    """The episode rows of the policy saved in `run_dir` over seeds seed..seed+episodes-1, acting with `actions`."""
+    """The episode rows of the policy saved in `run_dir` (or `policy`, loaded from it already) over seeds
+    seed..seed+episodes-1, acting with `actions`."""
     from curbside.train.policies import load_policy
 
-    act, _ = load_policy(run_dir, deterministic=actions == "mean")
+    act = policy if policy is not None else load_policy(run_dir, deterministic=actions == "mean")[0]
     return episode_rows(
         act,
         task,
@@ -122,12 +125,22 @@ def _run_rows(
     )
 
 
+# A worker process's policy, loaded at its first shard: (run_dir, actions) -> act. Only the pool's workers fill it,
+# and they end with their `evaluate_run`, so a policy saved again later is never served from here.
+_WORKER_POLICY: dict[tuple[str, str], Callable[[np.ndarray], np.ndarray]] = {}
+
+
 def _evaluate_shard(job: tuple[str, str, dict[str, Any], str, int, int, int, str]) -> list[dict[str, Any]]:
-    """`_run_rows` of one worker's seeds (a process of `evaluate_run`: it loads the policy itself)."""
+    """`_run_rows` of one shard of seeds, in a worker process of `evaluate_run` (which loads the policy once)."""
     import torch
 
+    from curbside.train.policies import load_policy
+
     torch.set_num_threads(1)
-    return _run_rows(*job)
+    run_dir, actions = job[0], job[7]
+    if (run_dir, actions) not in _WORKER_POLICY:
+        _WORKER_POLICY[(run_dir, actions)] = load_policy(run_dir, deterministic=actions == "mean")[0]
+    return _run_rows(*job, policy=_WORKER_POLICY[(run_dir, actions)])
 
 
 def evaluate_run(
@@ -156,13 +169,16 @@ def evaluate_run(
     else:
         from concurrent.futures import ProcessPoolExecutor
 
-        bounds = np.linspace(seed, seed + episodes, workers + 1).astype(int)
+        # Several shards a worker, handed out as workers free up: a failing policy's episodes run to the horizon,
+        # several times longer than a success, and one worker would otherwise wait on a shard full of them.
+        shards = min(episodes, workers * SHARDS_PER_WORKER)
+        bounds = np.linspace(seed, seed + episodes, shards + 1).astype(int)
         jobs = [
             (str(run_dir), task, dict(env_config), split, int(a), int(b - a), num_scenes, actions)
             for a, b in zip(bounds[:-1], bounds[1:])
             if b > a
         ]
-        with ProcessPoolExecutor(len(jobs)) as pool:
+        with ProcessPoolExecutor(workers) as pool:
             rows = [row for part in pool.map(_evaluate_shard, jobs) for row in part]
     summary = summarize(rows)
     summary["split"] = split
