@@ -7,6 +7,7 @@ microseconds rather than one SQL round trip each.
 from __future__ import annotations
 
 import copy
+import functools
 import json
 import re
 import zlib
@@ -339,3 +340,19 @@ class CatalogReader:
     def resolve(self, relative: str | None) -> Path | None:
         """Absolute path of a file recorded relative to the catalog's directory (None stays None)."""
         return resolve_stored(relative, self.root)
+
+
+def read_catalog(path: str | Path) -> CatalogReader:
+    """The catalog at `path`, read once a process: envs generate and build a scene at every reset from the same file,
+    and reading it costs a tenth of a second. The file's mtime and size key the read, so a rebuilt catalog is read
+    again. A reader's state is its lookups' memo, so sharing one changes no scene."""
+    try:
+        stat = Path(path).stat()
+    except OSError:  # the reader names what is missing and how to build it
+        return CatalogReader(path)
+    return _read_catalog(str(path), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=4)
+def _read_catalog(path: str, mtime_ns: int, size: int) -> CatalogReader:
+    return CatalogReader(path)

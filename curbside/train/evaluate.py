@@ -125,22 +125,20 @@ def _run_rows(
     )
 
 
-# A worker process's policy, loaded at its first shard: (run_dir, actions) -> act. Only the pool's workers fill it,
-# and they end with their `evaluate_run`, so a policy saved again later is never served from here.
-_WORKER_POLICY: dict[tuple[str, str], Callable[[np.ndarray], np.ndarray]] = {}
-
-
 def _evaluate_shard(job: tuple[str, str, dict[str, Any], str, int, int, int, str]) -> list[dict[str, Any]]:
-    """`_run_rows` of one shard of seeds, in a worker process of `evaluate_run` (which loads the policy once)."""
+    """`_run_rows` of one shard of seeds, in a worker process of `evaluate_run` (which loads the policy once: the
+    pool's workers end with their `evaluate_run`, so a policy saved again later is never served stale)."""
     import torch
 
     from curbside.train.policies import load_policy
+    from kernel.executors import worker_state
 
     torch.set_num_threads(1)
     run_dir, actions = job[0], job[7]
-    if (run_dir, actions) not in _WORKER_POLICY:
-        _WORKER_POLICY[(run_dir, actions)] = load_policy(run_dir, deterministic=actions == "mean")[0]
-    return _run_rows(*job, policy=_WORKER_POLICY[(run_dir, actions)])
+    act = worker_state(
+        "eval_policy", f"{run_dir}|{actions}", lambda: load_policy(run_dir, deterministic=actions == "mean")[0]
+    )
+    return _run_rows(*job, policy=act)
 
 
 def evaluate_run(

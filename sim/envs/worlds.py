@@ -183,9 +183,9 @@ def build_slot(slot: SceneSlot, scene: Scene, cfg: Mapping[str, Any], machine: A
     catalog = None
     meshes = cfg["visual_meshes"] is True or (cfg["visual_meshes"] == "auto" and bool(cfg["camera"]["modalities"]))
     if cfg["catalog"] is not None and (cfg["collision"] == "convex" or meshes):
-        from catalogs.reader import CatalogReader
+        from catalogs.reader import read_catalog
 
-        catalog = CatalogReader(cfg["catalog"])
+        catalog = read_catalog(cfg["catalog"])
     dt = float(cfg["dt"])
     slot.scene = scene
     slot.world = World(

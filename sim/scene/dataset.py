@@ -73,10 +73,9 @@ def _reader(catalog: str | None) -> Any:
     """The catalog reader of this worker process (read once per process, not once per scene)."""
     if catalog is None:
         return None
-    from catalogs.reader import CatalogReader
-    from kernel.executors import worker_state
+    from catalogs.reader import read_catalog
 
-    return worker_state("catalog", catalog, lambda: CatalogReader(catalog))
+    return read_catalog(catalog)
 
 
 def scene_file(split: str, seed: int) -> str:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 import gc
 import warnings
 from collections import Counter
@@ -29,26 +28,10 @@ def _open_catalog(catalog: Any) -> tuple[Any, str | None]:
     if catalog is None:
         return None, None
     if isinstance(catalog, (str, Path)):
-        try:
-            stat = Path(catalog).stat()
-        except OSError:  # the reader names what is missing and how to build it
-            stat = None
-        if stat is None:
-            from catalogs.reader import CatalogReader
+        from catalogs.reader import read_catalog
 
-            return CatalogReader(catalog), str(catalog)
-        return _read_catalog(str(catalog), stat.st_mtime_ns, stat.st_size), str(catalog)
+        return read_catalog(catalog), str(catalog)
     return catalog, str(getattr(catalog, "path", catalog))
-
-
-@functools.lru_cache(maxsize=4)
-def _read_catalog(path: str, mtime_ns: int, size: int) -> Any:
-    """The catalog at `path`, read once a process: an env generates a scene at every reset from the same file, and
-    reading it costs a tenth of a second. The file's mtime and size key the read, so a rebuilt catalog is read again.
-    A reader's state is its lookups' memo, so sharing one changes no scene."""
-    from catalogs.reader import CatalogReader
-
-    return CatalogReader(path)
 
 
 def _line(ls: Any) -> list[list[float]]:
