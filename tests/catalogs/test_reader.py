@@ -140,3 +140,20 @@ def test_by_depth_lists_each_categorys_zone_assets_shallowest_first(tmp_path: Pa
     with pytest.raises(ValueError):
         index[0, 0] = 3  # shared: read-only
     assert len([i for i in reader.by_depth(("bench",))[0][0] if i >= 0]) == 5  # any zone
+
+
+def test_read_catalog_reads_a_file_once_and_a_rebuilt_one_again(tmp_path: Path, make_asset) -> None:
+    from catalogs.reader import read_catalog
+
+    path = tmp_path / "shared.duckdb"
+    with build_catalog(path) as w:
+        w.upsert_assets([make_asset(f"bench-{i}") for i in range(3)])
+    first = read_catalog(path)
+    assert read_catalog(str(path)) is first  # every env and scene build of the process shares one read
+    assert len(first) == 3
+    with build_catalog(path) as w:  # a rebuild changes the file's size (and mtime): the next read sees it
+        w.upsert_assets([make_asset(f"hydrant-{i}", category="fire_hydrant") for i in range(40)])
+    again = read_catalog(path)
+    assert again is not first
+    assert again.categories() == CatalogReader(path).categories() != first.categories()
+    assert again.categories()["fire_hydrant"] == 40
