@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from curbside.experiments.runner import DEFAULT_ROOT
-from curbside.experiments.spec import Experiment, load_experiment
+from curbside.experiments.spec import Experiment, budget_of, load_experiment
 
 COLUMNS = (
     "experiment",
@@ -93,12 +93,13 @@ def stale_runs(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> dict[
 
 def evaluated_otherwise_runs(exp: Experiment, budget: str, root: Path = DEFAULT_ROOT) -> dict[str, str]:
     """ "<run id> seed <s>" -> how its evaluations differ from what the protocol's rules have them do now
-    (`runner.evaluated_otherwise`: other actions or episode rules), for every finished run evaluated otherwise
-    (`curbside experiment run` evaluates those again)."""
+    (`runner.evaluated_otherwise`: other actions, episode rules or number of episodes), for every finished run
+    evaluated otherwise (`curbside experiment run` evaluates those again)."""
     from curbside.experiments.runner import evaluated_otherwise, run_dir
     from curbside.train.protocols import protocol
 
     proto = protocol(exp.protocol)
+    episodes = int(budget_of(exp, budget)["episodes"])
     by_id = {r.id: r for r in exp.runs}
     otherwise = {}
     for run in exp.runs:
@@ -107,7 +108,7 @@ def evaluated_otherwise_runs(exp: Experiment, budget: str, root: Path = DEFAULT_
             f = run_dir(root, exp, budget, run, seed) / "result.json"
             policy_dir = run_dir(root, exp, budget, source, seed)
             if f.is_file() and (policy_dir / "run.json").is_file():
-                why = evaluated_otherwise(json.loads(f.read_text()), policy_dir, proto)
+                why = evaluated_otherwise(json.loads(f.read_text()), policy_dir, proto, episodes)
                 if why:
                     otherwise[f"{run.id} seed {seed}"] = why
     return otherwise

@@ -186,6 +186,22 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
         assert float(cell["sr_std"]) == pytest.approx(np.std(srs), abs=1e-4)
     assert sum(len(c["seeds"].split()) for c in summary.values()) == len(rows)
 
+    # The budget asks for more episodes a split: the report leaves the runs measured on fewer out until `run`
+    # evaluates them again on the new count, training nothing.
+    more = yaml.safe_load(exp.read_text())
+    more["budgets"]["smoke"]["episodes"] = 2
+    exp.write_text(yaml.safe_dump(more))
+    out = write_report(str(exp), "smoke", root=root, out_root=tmp_path / "more")
+    assert set(json.loads((out.parent / "report.json").read_text())["runs_evaluated_otherwise"].values()) == {
+        "on 1 episodes a split; the budget's are 2"
+    }
+    logged = []
+    recounted = run_experiment(str(exp), "smoke", root=root, progress=False, log=logged.append)
+    assert calls == [] and sum("on 1 episodes a split; the budget's are 2" in x for x in logged) == 4
+    assert [ev["episodes"] for r in recounted for ev in r["evals"].values()] == [2] * 4
+    out = write_report(str(exp), "smoke", root=root, out_root=tmp_path / "more")
+    assert json.loads((out.parent / "report.json").read_text())["runs_finished"] == 4
+
     # Evaluation shared among processes: the same episodes, so the same figures.
     from curbside.train.evaluate import evaluate_run
 
