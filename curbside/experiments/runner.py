@@ -10,8 +10,8 @@ the same way (its run.json records the same training, `trained_elsewhere`) copie
 its own splits (result.json's `trained_in` names the source). A finished run whose evaluations acted otherwise
 than its protocol's rule has it act now (mean or sampled actions), or ran another number of episodes a split than
 its budget asks, is evaluated again; `reevaluate` evaluates every finished run again with the simulator as it is
-(after a physics fix, say) and rewrites its result.json, training nothing. Demonstrations for offline and imitation runs are collected once per task under
-ROOT/<experiment>/<budget>/demos/<task>/.
+(after a physics fix, say) and rewrites its result.json, training nothing. Demonstrations for offline and imitation
+runs are collected once per task under ROOT/<experiment>/<budget>/demos/<task>/.
 """
 
 from __future__ import annotations
@@ -378,13 +378,11 @@ def run_experiment(
     return results
 
 
-def evaluated_otherwise(
-    result: Mapping[str, Any], policy_dir: Path, proto: Protocol, episodes: int | None = None
-) -> str | None:
+def evaluated_otherwise(result: Mapping[str, Any], policy_dir: Path, proto: Protocol, episodes: int) -> str | None:
     """How a finished run's evaluations differ from what `proto`'s rules and its budget have them do now, in words:
     acting otherwise than its `eval_actions` ("mean" for evaluations that predate the record), under other episode
     rules than its `eval_env` (none for evaluations that predate the record), or on another number of episodes a
-    split than the budget's `episodes` (when given); None when they do not."""
+    split than the budget's `episodes`; None when they do not."""
     from curbside.train.policies import eval_actions_of, read_run
     from curbside.train.run import as_recorded
 
@@ -397,8 +395,8 @@ def evaluated_otherwise(
     other = next((ev.get("eval_env", {}) for ev in evals if ev.get("eval_env", {}) != rules), None)
     if other is not None:
         return f"under episode rules {json.dumps(other, sort_keys=True)}; the protocol's are {json.dumps(rules, sort_keys=True)}"
-    counts = sorted({int(ev["episodes"]) for ev in evals if "episodes" in ev and int(ev["episodes"]) != episodes})
-    if episodes is not None and counts:
+    counts = sorted({int(ev.get("episodes", episodes)) for ev in evals} - {episodes})
+    if counts:
         return f"on {', '.join(map(str, counts))} episodes a split; the budget's are {episodes}"
     return None
 
