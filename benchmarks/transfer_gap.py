@@ -46,18 +46,17 @@ def main() -> None:
 
     from curbside.train.evaluate import evaluate_policy_batched, evaluate_run
     from curbside.train.policies import load_policy
-    from curbside.train.protocols import protocol
+    from curbside.train.protocols import deep_merge, protocol
 
     act_one, run = load_policy(args.run, deterministic=args.actions == "mean")
-    task, cfg = run["task"], dict(run["env_config"])
+    task = run["task"]
     proto = protocol(run.get("protocol", "curbside"))
-    if args.episode_ends == "protocol":
-        cfg.update(proto.eval_env)
+    cfg = deep_merge(run["env_config"], proto.eval_env if args.episode_ends == "protocol" else None)
     scenes = proto.eval_scenes
-    # Sampled actions: SB3 policies draw for the whole batch in one call (~10x faster on long episodes). Mean actions
-    # go one observation at a time, as the figures measured that way were, since a batched matrix product may round
-    # differently.
-    batches = args.actions == "sampled" and run["algo"] in ("ppo", "ppo_lag", "ppo_et", "gail", "bc")
+    # Sampled actions come from an SB3 policy (load_policy refuses the others), which draws for the whole batch in
+    # one call (~10x faster on long episodes). Mean actions go one observation at a time, as the figures measured
+    # that way were, since a batched matrix product may round differently.
+    batches = args.actions == "sampled"
 
     def act(obs: np.ndarray) -> np.ndarray:
         if batches:
