@@ -74,6 +74,11 @@ def ppo_config(
         raise ConfigError(f"the ray executor trains {', '.join(RLLIB_ALGOS)}; train {algo} with --executor local")
     register_env(rllib_env_name(task), make_rllib_env)
     h = dict(hparams)
+    if "target_kl" in h:
+        raise ConfigError(
+            "the ray executor has no target_kl (RLlib's KL term is a loss penalty, not SB3's early stop of a batch's "
+            "epochs); train with --executor local, or drop target_kl from --hparams"
+        )
     n_envs = num_env_runners * envs_per_runner
     ctx = {
         "task": task,

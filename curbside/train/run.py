@@ -65,10 +65,17 @@ def resolve_run(
     num_scenes = num_scenes or configured_scenes
     h = proto.algo_hparams(algo)
     ppo_family = algo in ("ppo", "ppo_lag", "ppo_et", "gail")
-    valid = {*h, "net_arch", *(("n_steps",) if ppo_family else ())}
+    # n_steps and SB3's target_kl (stop a batch's epochs once the approximate KL passes 1.5 x target_kl) are
+    # overrides only: no protocol sets them, so a protocol's recorded runs keep resuming under its values.
+    valid = {*h, "net_arch", *(("n_steps", "target_kl") if ppo_family else ())}
     unknown = sorted(set(hparams or {}) - valid)
     if unknown:
         raise ConfigError(f"unknown {algo} hyper-parameter(s) {unknown}; valid: {', '.join(sorted(valid))}")
+    target_kl = (hparams or {}).get("target_kl")
+    if target_kl is not None and (
+        isinstance(target_kl, bool) or not isinstance(target_kl, (int, float)) or target_kl <= 0
+    ):
+        raise ConfigError(f"hparams.target_kl must be a number > 0 (e.g. 0.01), got {json.dumps(target_kl)}")
     h = {**h, **(hparams or {})}
     if algo in ("ppo", "ppo_lag", "ppo_et", "gail"):
         h = ppo_hparams(h, envs)

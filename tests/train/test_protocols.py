@@ -334,6 +334,29 @@ def test_unknown_hyper_parameter_of_an_algorithm_names_the_valid_ones() -> None:
     assert resolve_run("ppo", "PointNav", hparams={"n_steps": 64})["hparams"]["n_steps"] == 64
 
 
+def test_target_kl_is_a_ppo_override_that_no_protocol_records() -> None:
+    """target_kl reaches SB3's PPO only when given, so runs of a protocol resume under the values they recorded."""
+    from curbside.train.online import ppo_kwargs
+
+    assert "target_kl" not in resolve_run("ppo", "PointNav", protocol="paper")["hparams"]
+    h = resolve_run("ppo", "PointNav", protocol="paper", hparams={"target_kl": 0.01})["hparams"]
+    assert ppo_kwargs(h)["target_kl"] == 0.01
+    for bad in (0, -0.01, "0.01", True):
+        with pytest.raises(ConfigError, match=r"hparams.target_kl must be a number > 0"):
+            resolve_run("ppo", "PointNav", hparams={"target_kl": bad})
+    with pytest.raises(ConfigError, match=r"unknown bc hyper-parameter\(s\) \['target_kl'\]"):
+        resolve_run("bc", "PointNav", hparams={"target_kl": 0.01})
+
+
+def test_the_ray_executor_refuses_target_kl() -> None:
+    pytest.importorskip("ray")
+    from curbside.train.rllib import ppo_config
+
+    h = resolve_run("ppo", "PointNav", hparams={"target_kl": 0.01})["hparams"]
+    with pytest.raises(ConfigError, match="the ray executor has no target_kl"):
+        ppo_config("ppo", "PointNav", {}, h, num_env_runners=1, envs_per_runner=1, num_scenes=4, seed=0)
+
+
 def test_a_protocol_catalog_is_built_once_on_first_use(tmp_path, monkeypatch) -> None:
     """The paper protocol names a 1,023-asset catalog (31 variants of each of the 33 categories); a protocol's catalog
     is built the first time an env of the protocol is configured, and scenes then draw its assets."""
