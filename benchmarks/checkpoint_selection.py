@@ -94,7 +94,9 @@ def main() -> None:
     ckpts = checkpoints_every(args.run, args.every)
     if not ckpts:
         sys.exit(f"error: {args.run}/checkpoints holds no policy_<steps>_steps.zip; pass a run that keeps them")
-    work = args.out.parent / f".{args.out.stem}_policies"
+    work = (
+        ROOT / "outputs" / "checkpoint_selection" / args.out.stem
+    )  # one folder a scored checkpoint, removed at the end
     settings = {k: v for k, v in vars(args).items() if k != "out"}
     settings["run"] = str(args.run)
     result = json.loads(args.out.read_text()) if args.out.is_file() else {}

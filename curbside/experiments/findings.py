@@ -43,7 +43,7 @@ def read_table(path: Path) -> Table:
         for k in ("sr", "spl", "sns", "cost"):
             values = [float(r[k]) for r in rows if r.get(k) not in (None, "")]
             if values:
-                cell[k] = sum(values) / len(values)
+                cell[k] = round(sum(values) / len(values), 6)  # 0.495, not 0.49499999999999994
         out[key] = cell
     return out
 
