@@ -77,7 +77,7 @@ def resolve_run(
     ):
         raise ConfigError(f"hparams.target_kl must be a number > 0 (e.g. 0.01), got {json.dumps(target_kl)}")
     h = {**h, **(hparams or {})}
-    if algo in ("ppo", "ppo_lag", "ppo_et", "gail"):
+    if ppo_family:
         h = ppo_hparams(h, envs)
     return {
         "protocol": proto.name,
