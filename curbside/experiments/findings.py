@@ -25,6 +25,13 @@ RESULTS = Path("benchmarks/results")
 METHODS = ("ppo", "ppo_lag", "ppo_et", "iql", "td3bc", "bc", "gail")
 FAR_FROM_SOLVED = 0.8  # best test SR below this on both tasks: "far from solved"
 
+
+def _fig(v: float) -> str:
+    """A figure as the docs print it: two decimals, three where the third is not 0 (0.40, 0.365; not 0.36)."""
+    text = f"{v:.3f}"
+    return text[:-1] if text.endswith("0") else text
+
+
 Cell = dict[str, float]
 Table = dict[tuple[str, str, str, str], Cell]  # (task, method, split, setting) -> mean sr, spl, sns, cost
 
@@ -87,7 +94,7 @@ def _far_from_solved(t: Table) -> dict[str, Any]:
     return {
         **_judged(
             {
-                f"{task}'s best test SR {v:.2f} reaches {FAR_FROM_SOLVED}": v >= FAR_FROM_SOLVED
+                f"{task}'s best test SR {_fig(v)} reaches {FAR_FROM_SOLVED}": v >= FAR_FROM_SOLVED
                 for task, v in best.items()
                 if v is not None
             }
@@ -103,8 +110,8 @@ def _unseen_below_test(t: Table) -> dict[str, Any]:
     if test is None or unseen is None:
         return {"reproduced": None, "ours": ours}
     broken = {
-        f"PPO's PointNav unseen SR {unseen:.2f} is not below its test SR {test:.2f}": unseen >= test,
-        f"PPO's PointNav unseen SR {unseen:.2f} is below half its test SR {test:.2f}": unseen < 0.5 * test,
+        f"PPO's PointNav unseen SR {_fig(unseen)} is not below its test SR {_fig(test)}": unseen >= test,
+        f"PPO's PointNav unseen SR {_fig(unseen)} is below half its test SR {_fig(test)}": unseen < 0.5 * test,
     }
     return {
         **_judged(broken),
@@ -127,7 +134,7 @@ def _socialnav_harder(t: Table) -> dict[str, Any]:
     mean_s = sum(s for _, s in have.values()) / len(have)
     broken = {
         f"SocialNav's test SR is below PointNav's for {harder} of {len(have)} methods": harder < 5,
-        f"SocialNav's mean test SR {mean_s:.2f} is not below PointNav's {mean_p:.2f}": mean_s >= mean_p,
+        f"SocialNav's mean test SR {_fig(mean_s)} is not below PointNav's {_fig(mean_p)}": mean_s >= mean_p,
     }
     return {
         **_judged(broken),
@@ -154,8 +161,8 @@ def _safe_rl(t: Table) -> dict[str, Any]:
             if sr is None or cost is None or base_sr is None or base_cost is None:
                 missing = True
                 continue
-            broken[f"{task} {m}'s test cost {cost:.2f} is not below PPO's {base_cost:.2f}"] = cost >= base_cost
-            broken[f"{task} {m}'s test SR {sr:.2f} is above PPO's {base_sr:.2f}"] = sr > base_sr
+            broken[f"{task} {m}'s test cost {_fig(cost)} is not below PPO's {_fig(base_cost)}"] = cost >= base_cost
+            broken[f"{task} {m}'s test SR {_fig(sr)} is above PPO's {_fig(base_sr)}"] = sr > base_sr
     if missing:
         return {"reproduced": None, "ours": ours}
     return {
@@ -182,7 +189,8 @@ def _scaling(t: Table) -> dict[str, Any]:
     mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
     slope = sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / max(sum((x - mx) ** 2 for x in xs), 1e-12)
     broken = {
-        f"test SR at {points[-1][0]} scenes, {ys[-1]:.2f}, is not above {ys[0]:.2f} at {points[0][0]}": ys[-1] <= ys[0],
+        f"test SR at {points[-1][0]} scenes, {_fig(ys[-1])}, is not above {_fig(ys[0])} at {points[0][0]}": ys[-1]
+        <= ys[0],
         f"test SR falls over log(scenes) (slope {slope:.3f})": slope <= 0,
     }
     return {
@@ -205,7 +213,7 @@ def _density(static: Table, dynamic: Table) -> dict[str, Any]:
             ours[f"{name}_{split}"] = {"density_1pc": low, "density_100pc": high}
             if low is None or high is None:
                 return {"reproduced": None, "ours": ours, "waits_for": experiment}
-            broken[f"{name} density's {split} SR at 100 % ({high:.2f}) is not below that at 1 % ({low:.2f})"] = (
+            broken[f"{name} density's {split} SR at 100 % ({_fig(high)}) is not below that at 1 % ({_fig(low)})"] = (
                 high >= low
             )
     return {
@@ -222,7 +230,7 @@ def _finetune(t: Table) -> dict[str, Any]:
     if scratch is None or pretrained is None:
         return {"reproduced": None, "ours": ours}
     return {
-        **_judged({f"fine-tuned SR {pretrained:.2f} is not above scratch's {scratch:.2f}": pretrained <= scratch}),
+        **_judged({f"fine-tuned SR {_fig(pretrained)} is not above scratch's {_fig(scratch)}": pretrained <= scratch}),
         "ours": ours,
         "paper": {k: v.get("sr") for k, v in paper.PAPER_ABLATION_GENERALISATION.items()},
     }
@@ -253,7 +261,9 @@ def _long_routes(t: Table) -> dict[str, Any]:
     if short is None or long is None:
         return {"reproduced": None, "ours": ours}
     return {
-        **_judged({f"the 410 m model's test SR {long:.2f} is not above the 10 m model's {short:.2f}": long <= short}),
+        **_judged(
+            {f"the 410 m model's test SR {_fig(long)} is not above the 10 m model's {_fig(short)}": long <= short}
+        ),
         "ours": ours,
         "paper": {k: v["sr"] for k, v in paper.PAPER_TABLE5_HORIZON.items()},
     }
@@ -267,7 +277,7 @@ def _pedestrians(t: Table) -> dict[str, Any]:
     return {
         **_judged(
             {
-                f"setting {k}'s test SR {v:.2f} is not below setting 1's {one:.2f}": v >= one
+                f"setting {k}'s test SR {_fig(v)} is not below setting 1's {_fig(one)}": v >= one
                 for k, v in (("2", two), ("3", three))
             }
         ),
