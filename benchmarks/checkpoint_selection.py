@@ -3,15 +3,16 @@ scored on a held-out selection split, the best one is evaluated on the test spli
 final policy's.
 
 Usage: python benchmarks/checkpoint_selection.py RUN_DIR [--every 500000] [--select-split finetune]
-       [--select-episodes 50] [--test-episodes 200] [--workers 2] --out FILE.json
+       [--select-episodes 50] [--test-episodes 200] [--unseen-episodes 0] [--workers 2] --out FILE.json
 
 RUN_DIR is a folder written by `curbside train run` or `curbside experiment run` that still holds its `checkpoints/`
 (policy_<steps>_steps.zip). MetaUrban's released PointNav training keeps the best model of an SB3 `EvalCallback`
 (`best_model_save_path`), so a figure of that model is the best of many draws; this measures how much that choice adds
 here. Every evaluation uses the run's protocol's rules (`curbside train eval`'s: its actions and episode ends), episode k
 with seed k. The selection split must be disjoint from the test split (finetune or unseen scenes), or the test figure
-of the chosen checkpoint is biased upward. Each checkpoint's score is written to `--out` as it lands; a rerun skips the
-scored ones.
+of the chosen checkpoint is biased upward. `--unseen-episodes N` evaluates the chosen checkpoint on N unseen-split
+episodes too (the paper's second column). Each checkpoint's score is written to `--out` as it lands; a rerun skips the
+scored ones and the evaluations already made.
 """
 
 from __future__ import annotations
@@ -103,6 +104,7 @@ def main() -> None:
     ap.add_argument("--select-split", default="finetune", choices=("finetune", "unseen", "train"))
     ap.add_argument("--select-episodes", type=int, default=50)
     ap.add_argument("--test-episodes", type=int, default=200)
+    ap.add_argument("--unseen-episodes", type=int, default=0, help="also evaluate the chosen checkpoint on unseen")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args()
@@ -113,7 +115,8 @@ def main() -> None:
     work = (
         ROOT / "outputs" / "checkpoint_selection" / args.out.stem
     )  # one folder a scored checkpoint, removed at the end
-    settings = {k: v for k, v in vars(args).items() if k != "out"}
+    # What decides the scores and the choice; --unseen-episodes only adds an evaluation of the chosen checkpoint.
+    settings = {k: v for k, v in vars(args).items() if k not in ("out", "unseen_episodes")}
     settings["run"] = str(args.run)
     result = json.loads(args.out.read_text()) if args.out.is_file() else {}
     if result.get("settings") != settings:
@@ -133,22 +136,28 @@ def main() -> None:
         write(args.out, result)
     # The best selection SR; among equals, the higher route completion, then the later checkpoint.
     best = int(max(scores, key=lambda s: (scores[s]["sr"], scores[s]["route_completion"], int(s))))
-    if result.get("best_test", {}).get("steps") != best:
-        t0 = time.perf_counter()
-        figures = evaluate(args.run, ckpts[best], "test", args.test_episodes, args.workers, work)
-        result["best_test"] = {"steps": best, **figures}
-        print(f"best ({best:,} steps): test SR {figures['sr']:.3f} ({time.perf_counter() - t0:.0f} s)", flush=True)
-    # The final policy's figures are the run's own evaluation (result.json) where it ran on as many test episodes.
     final = json.loads((args.run / "result.json").read_text()) if (args.run / "result.json").is_file() else {}
-    final_test = final.get("evals", {}).get("test", {})
-    if final_test.get("episodes") == args.test_episodes:
-        result["final_test"] = {"steps": final.get("steps"), **{k: final_test[k] for k in SUMMARY_KEYS}}
-    elif result.get("final_test") is None and (args.run / "policy.zip").is_file():
-        figures = evaluate(args.run, args.run / "policy.zip", "test", args.test_episodes, args.workers, work)
-        result["final_test"] = {"steps": final.get("steps"), **figures}
+    splits = {"test": args.test_episodes, "unseen": args.unseen_episodes}
+    for split, episodes in splits.items():
+        chosen = result.get(f"best_{split}", {})
+        if episodes > 0 and (chosen.get("steps"), chosen.get("episodes")) != (best, episodes):
+            t0 = time.perf_counter()
+            figures = evaluate(args.run, ckpts[best], split, episodes, args.workers, work)
+            result[f"best_{split}"] = {"steps": best, **figures}
+            print(
+                f"best ({best:,} steps): {split} SR {figures['sr']:.3f} ({time.perf_counter() - t0:.0f} s)", flush=True
+            )
+            write(args.out, result)
+        # The final policy's figures are the run's own evaluation (result.json) where it ran on as many episodes.
+        own = final.get("evals", {}).get(split, {})
+        if episodes > 0 and own.get("episodes") == episodes:
+            result[f"final_{split}"] = {"steps": final.get("steps"), **{k: own[k] for k in SUMMARY_KEYS}}
+        elif episodes > 0 and result.get(f"final_{split}") is None and (args.run / "policy.zip").is_file():
+            figures = evaluate(args.run, args.run / "policy.zip", split, episodes, args.workers, work)
+            result[f"final_{split}"] = {"steps": final.get("steps"), **figures}
     write(args.out, result)
     shutil.rmtree(work, ignore_errors=True)
-    print(json.dumps({k: result.get(k) for k in ("best_test", "final_test")}, indent=2))
+    print(json.dumps({k: result.get(k) for k in result if k.startswith(("best_", "final_"))}, indent=2))
 
 
 if __name__ == "__main__":
