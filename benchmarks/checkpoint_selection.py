@@ -91,6 +91,19 @@ def evaluate(run: Path, policy: Path, split: str, episodes: int, workers: int, w
     return {k: summary[k] for k in SUMMARY_KEYS}
 
 
+def logged_steps(run: Path) -> int | None:
+    """The env steps of a run's last logged update (logs/progress.csv): its final policy's, where no result.json
+    records them (a run whose evaluation did not run)."""
+    import csv
+
+    log = run / "logs" / "progress.csv"
+    if not log.is_file():
+        return None
+    with open(log, newline="") as f:
+        steps = [row.get("time/total_timesteps") for row in csv.DictReader(f)]
+    return max((int(float(x)) for x in steps if x), default=None)
+
+
 def write(out: Path, result: dict) -> None:
     tmp = out.with_suffix(".tmp")
     tmp.write_text(json.dumps(result, indent=2) + "\n")
@@ -152,9 +165,12 @@ def main() -> None:
         own = final.get("evals", {}).get(split, {})
         if episodes > 0 and own.get("episodes") == episodes:
             result[f"final_{split}"] = {"steps": final.get("steps"), **{k: own[k] for k in SUMMARY_KEYS}}
-        elif episodes > 0 and result.get(f"final_{split}") is None and (args.run / "policy.zip").is_file():
-            figures = evaluate(args.run, args.run / "policy.zip", split, episodes, args.workers, work)
-            result[f"final_{split}"] = {"steps": final.get("steps"), **figures}
+        elif episodes > 0 and (args.run / "policy.zip").is_file():
+            figures = result.get(f"final_{split}") or evaluate(
+                args.run, args.run / "policy.zip", split, episodes, args.workers, work
+            )
+            figures = {k: figures[k] for k in SUMMARY_KEYS}
+            result[f"final_{split}"] = {"steps": final.get("steps") or logged_steps(args.run), **figures}
     write(args.out, result)
     shutil.rmtree(work, ignore_errors=True)
     print(json.dumps({k: result.get(k) for k in result if k.startswith(("best_", "final_"))}, indent=2))
