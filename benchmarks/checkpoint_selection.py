@@ -49,24 +49,24 @@ def checkpoints_every(run: Path, every: int) -> dict[int, Path]:
     return {steps: found[steps] for steps in nearest.values()}
 
 
-def experiment_overrides(run: Path) -> tuple[dict, dict]:
-    """The env and eval_env overrides of the experiment run that `run` holds (its result.json names it); none for a
-    run of `curbside train run`."""
+def experiment_run(run: Path):
+    """The experiment run (`curbside.experiments.spec.Run`) that `run` holds, named by its result.json; None for a run
+    of `curbside train run`."""
     from curbside.experiments.spec import load_experiment
 
     f = run / "result.json"
     meta = json.loads(f.read_text()) if f.is_file() else {}
     if "experiment" not in meta:
-        return {}, {}
-    spec = next(r for r in load_experiment(meta["experiment"]).runs if r.id == meta["run"])
-    return dict(spec.env), dict(spec.eval_env)
+        return None
+    return next(r for r in load_experiment(meta["experiment"]).runs if r.id == meta["run"])
 
 
 def evaluate(run: Path, policy: Path, split: str, episodes: int, workers: int, work: Path) -> dict:
     """`curbside train eval`'s figures for `policy` under the run's record (a folder with its run.json and the policy)."""
+    from curbside.experiments.runner import eval_config
     from curbside.train.evaluate import evaluate_run
     from curbside.train.policies import eval_actions_of, read_run
-    from curbside.train.protocols import deep_merge, protocol
+    from curbside.train.protocols import protocol
 
     folder = work / policy.stem
     folder.mkdir(parents=True, exist_ok=True)
@@ -74,13 +74,12 @@ def evaluate(run: Path, policy: Path, split: str, episodes: int, workers: int, w
     shutil.copyfile(policy, folder / "policy.zip")
     record = read_run(folder)
     proto = protocol(record.get("protocol", "curbside"))
-    # An experiment's run evaluates under its own env and eval_env overrides too (runner._evaluate's order), so its
-    # checkpoints are scored as its reported figures are (Table 5's routes and crowds differ from training's).
-    env, eval_env = experiment_overrides(run)
+    # An experiment's run evaluates under its own env and eval_env overrides too, so its checkpoints are scored as its
+    # reported figures are (Table 5's routes and crowds differ from training's).
     summary = evaluate_run(
         folder,
         record["task"],
-        deep_merge(deep_merge(deep_merge(record.get("env_config", {}), env), proto.eval_env), eval_env),
+        eval_config(record.get("env_config", {}), experiment_run(run), proto),
         split=split,
         episodes=episodes,
         num_scenes=proto.eval_scenes,

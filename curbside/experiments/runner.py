@@ -401,6 +401,16 @@ def evaluated_otherwise(result: Mapping[str, Any], policy_dir: Path, proto: Prot
     return None
 
 
+def eval_config(env_config: Mapping[str, Any], run: Run | None, proto: Protocol) -> dict[str, Any]:
+    """The env config a run's policy is evaluated under: its training config, then the run's env overrides, the
+    protocol's episode rules (`eval_env`) and the run's own; without a run (`curbside train run`), the protocol's."""
+    from curbside.train.protocols import deep_merge
+
+    if run is None:
+        return deep_merge(env_config, proto.eval_env)
+    return deep_merge(deep_merge(deep_merge(env_config, run.env), proto.eval_env), run.eval_env)
+
+
 def _evaluate(
     run: Run, policy_dir: Path, b: dict[str, Any], proto: Protocol, progress: bool, log: Callable[[str], None]
 ) -> dict[str, dict[str, Any]]:
@@ -409,11 +419,10 @@ def _evaluate(
     act."""
     from curbside.train.evaluate import evaluate_run
     from curbside.train.policies import eval_actions_of, read_run
-    from curbside.train.protocols import deep_merge
     from curbside.train.run import as_recorded
 
     meta = read_run(policy_dir)
-    cfg = deep_merge(deep_merge(deep_merge(meta.get("env_config", {}), run.env), proto.eval_env), run.eval_env)
+    cfg = eval_config(meta.get("env_config", {}), run, proto)
     actions = eval_actions_of(meta, proto.eval_actions)
     evals = {}
     for split in run.evaluate:
