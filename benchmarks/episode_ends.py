@@ -2,10 +2,12 @@
 stuck (and whether the machine never moved), out of route, toppled; the top speed each episode reached.
 
 Usage: python benchmarks/episode_ends.py [--policy policies/PointNav/ppo] [--episodes 30] [--split test] [--stochastic]
-       [--out benchmarks/results/episode_ends/<task>-<method>.json]
+       [--protocol-endings] [--out benchmarks/results/episode_ends/<task>-<method>.json]
 
 `--stochastic` draws each action from the policy's distribution (torch seeded with 0 before each env's episodes)
-instead of taking its mean. The policy folder's card.json (or run.json) gives the env config it was trained under. Episode k uses seed k on both
+instead of taking its mean. `--protocol-endings` runs the episodes under the protocol's evaluation rules
+(`eval_env`: the `paper` protocol ends an episode on success, out of route, toppling or the horizon, never on being
+stuck or in contact) instead of the training env's. The policy folder's card.json (or run.json) gives the env config it was trained under. Episode k uses seed k on both
 envs (the batched env's sub-env reset with seed k draws the PyBullet env's scene and route). Writes one JSON with a
 row per episode and the counts of each end, per env.
 """
@@ -119,6 +121,11 @@ def main() -> None:
     ap.add_argument("--split", default="test")
     ap.add_argument("--stochastic", action="store_true", help="sample actions instead of the policy's mean")
     ap.add_argument(
+        "--protocol-endings",
+        action="store_true",
+        help="end episodes as the protocol's evaluation does (its eval_env), not as the training env does",
+    )
+    ap.add_argument(
         "--out", type=Path, default=None, help="default: benchmarks/results/episode_ends/<task>-<method>.json"
     )
     args = ap.parse_args()
@@ -128,7 +135,10 @@ def main() -> None:
             / "benchmarks"
             / "results"
             / "episode_ends"
-            / f"{args.policy.parent.name}-{args.policy.name}{'-stochastic' if args.stochastic else ''}.json"
+            / (
+                f"{args.policy.parent.name}-{args.policy.name}{'-stochastic' if args.stochastic else ''}"
+                f"{'-protocol-endings' if args.protocol_endings else ''}.json"
+            )
         )
 
     import torch
@@ -141,7 +151,12 @@ def main() -> None:
     card_path = args.policy / "card.json"
     env_config = json.loads(card_path.read_text())["env_config"] if card_path.is_file() else run["env_config"]
     card = json.loads(card_path.read_text()) if card_path.is_file() else {}
-    num_scenes = protocol(card.get("protocol", run.get("protocol", "curbside"))).eval_scenes
+    proto = protocol(card.get("protocol", run.get("protocol", "curbside")))
+    num_scenes = proto.eval_scenes
+    if args.protocol_endings:
+        from curbside.experiments.runner import eval_config
+
+        env_config = eval_config(env_config, None, proto)
     torch.manual_seed(0)
     pybullet = pybullet_ends(act, env_config, args.split, args.episodes, num_scenes)
     torch.manual_seed(0)
@@ -153,6 +168,7 @@ def main() -> None:
         else str(args.policy),
         "split": args.split,
         "actions": "sampled" if args.stochastic else "mean",
+        "endings": "protocol" if args.protocol_endings else "training",
         "episodes": args.episodes,
         "counts": {"pybullet": counts(pybullet), "batched": counts(batched)},
         "episodes_by_seed": [

@@ -76,7 +76,7 @@ class PointNavEnv(gym.Env):
 
     ## Episode end
     Terminated on success (route completion >= 0.95), out of route (|lateral offset| > `out_of_route_distance`, or
-    the centre off the walkable area), stuck (< `stuck_distance` of new progress in `stuck_steps` steps, or
+    the centre off the walkable area; only with `out_of_route_ends`), stuck (< `stuck_distance` of new progress in `stuck_steps` steps, or
     `collision_steps` steps in contact), toppled, or cost past `max_episode_cost`. Truncated at the horizon:
     min(`horizon`, route length / `horizon_min_speed` / dt). `info["cost"]` is 1 on a step in contact with a
     `cost_kinds` body, else 0. At episode end `info` also holds the metrics (`success`, `spl`, `route_completion`,

@@ -242,6 +242,11 @@ CONFIG_KEYS: dict[str, Key | dict[str, Key]] = {
     "success_completion": Key(0.95, Float(0.0, 1.0, lo_open=True), "route fraction that counts as success"),
     "out_of_route_distance": Key(3.0, Pos(1000.0), "lateral offset (m) that ends the episode as out of route"),
     "terminate_off_walkable": Key(True, Bool(), "leaving the walkable area (road, buildings) is out of route too"),
+    "out_of_route_ends": Key(
+        True,
+        Bool(),
+        "out of route ends the episode (False: the machine may come back; MetaUrban's static env never ends it)",
+    ),
     "stuck_steps": Key(
         100,
         Int(0, 10_000_000),

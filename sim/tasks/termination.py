@@ -64,6 +64,7 @@ class EndRules:
     off_walkable_ends: bool  # leaving the walkable area ends the episode as out of route
     topple: float  # roll or pitch (rad) past which the machine has toppled
     max_cost: float  # episode cost past which the episode ends (PPO-ET's rule; config None: never)
+    out_of_route_ends: bool = True  # False: leaving the route is allowed, the machine may come back to it
 
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any]) -> EndRules:
@@ -77,6 +78,7 @@ class EndRules:
             bool(cfg["terminate_off_walkable"]),
             float(np.radians(cfg["topple_angle"])),
             math.inf if cfg["max_episode_cost"] is None else float(cfg["max_episode_cost"]),
+            bool(cfg["out_of_route_ends"]),
         )
 
 
@@ -122,6 +124,8 @@ def end_of_step(
     off = abs(lateral) > rules.out_of_route_distance
     if rules.off_walkable_ends:
         off = off | (on_walkable ^ True)
+    if not rules.out_of_route_ends:
+        off = off & False
     out = (succeeded ^ True) & off
     marks.contact_run = (marks.contact_run + 1) * in_contact
     moved_on = max_progress >= marks.progress + rules.stuck_distance

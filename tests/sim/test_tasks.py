@@ -338,3 +338,33 @@ def test_episode_end_rules_give_the_same_flags_for_one_env_and_for_many():
             )
         seen += np.array([a.sum() for a in arrays])
     assert (seen > 0).all()  # every rule fired somewhere
+
+
+def test_out_of_route_ends_false_lets_the_machine_leave_and_keeps_every_other_end():
+    """With `out_of_route_ends` false, a step off the route or off the walkable area ends nothing; success, stuck and
+    toppling still end the episode, and the same step with the default rules is out of route."""
+    from sim.tasks.termination import EndMarks, EndRules, end_of_step
+
+    ends = EndRules(0.95, 2.0, 0.5, 6, 0, True, 1.0, math.inf)
+    stays = EndRules(0.95, 2.0, 0.5, 6, 0, True, 1.0, math.inf, out_of_route_ends=False)
+    off = (1, 5.0, 30.0, 4.0, False, False, 0.0, 0)  # 4 m off a 2 m route band, off the walkable area
+    assert end_of_step(ends, EndMarks(), *off)[1]
+    assert end_of_step(stays, EndMarks(), *off) == (False, False, False, False, False)
+    assert end_of_step(stays, EndMarks(), 1, 29.0, 30.0, 4.0, False, False, 0.0, 0)[0]  # success off the route
+    assert end_of_step(stays, EndMarks(), 1, 5.0, 30.0, 4.0, False, False, 2.0, 0)[3]  # toppled
+    marks = EndMarks()
+    flags = [end_of_step(stays, marks, k, 5.0, 30.0, 4.0, False, False, 0.0, 0) for k in range(1, 8)]
+    assert [f[2] for f in flags] == [False] * 6 + [True]  # progress last grew at step 1: stuck at step 7
+    many = end_of_step(
+        stays,
+        EndMarks.zeros(3),
+        np.ones(3, dtype=np.int64),
+        np.full(3, 5.0),
+        np.full(3, 30.0),
+        np.array([0.0, 4.0, -9.0]),
+        np.array([True, False, False]),
+        np.zeros(3, dtype=bool),
+        np.zeros(3),
+        np.zeros(3),
+    )
+    assert not many[1].any()
