@@ -212,8 +212,8 @@ PROTOCOLS: dict[str, Protocol] = {
                 "demos": "MetaUrban, ICLR 2025, appendix: 30,000 steps, 80 % from a trained PPO policy, ~60 % success",
                 "env_config": "docs/protocols.md: the metaurban12k preset (scenes, 250-650 m routes, horizon rule)",
                 "eval_env": "MetaUrban, ICLR 2025, reward (R_crash per collision step, no termination) and "
-                "MetaUrban's envs/sidewalk_static_env.py (crash_*_done False: success, out of road or horizon end an "
-                "episode; docs/protocols.md)",
+                "MetaUrban's envs/sidewalk_static_env.py (crash_*_done False: success or the horizon ends an episode; "
+                "the paper's out-of-route ending is kept, docs/protocols.md)",
                 "eval_actions": "MetaUrban's RL/PointNav/eval_ppo.py: SB3's predict with its default, a draw from the "
                 "policy's distribution (docs/protocols.md)",
                 "catalog": "MetaUrban, ICLR 2025, Sec. 3: 10,000 assets, unseen objects held out of training; ours "
