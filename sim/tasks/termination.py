@@ -66,6 +66,11 @@ class EndRules:
     max_cost: float  # episode cost past which the episode ends (PPO-ET's rule; config None: never)
     out_of_route_ends: bool = True  # False: leaving the route is allowed, the machine may come back to it
 
+    @property
+    def reads_walkable(self) -> bool:
+        """Whether the end of a step depends on the machine being on the walkable area (a lookup a step)."""
+        return self.off_walkable_ends and self.out_of_route_ends
+
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any]) -> EndRules:
         """The rules of a task config."""
@@ -121,11 +126,11 @@ def end_of_step(
     values is a sum of products, exact since one factor is 0): the PyBullet env's step pays no numpy call per rule.
     """
     succeeded = max_progress >= rules.success_completion * route_length
-    off = abs(lateral) > rules.out_of_route_distance
-    if rules.off_walkable_ends:
-        off = off | (on_walkable ^ True)
-    if not rules.out_of_route_ends:
-        off = off & False
+    off = False
+    if rules.out_of_route_ends:
+        off = abs(lateral) > rules.out_of_route_distance
+        if rules.off_walkable_ends:
+            off = off | (on_walkable ^ True)
     out = (succeeded ^ True) & off
     marks.contact_run = (marks.contact_run + 1) * in_contact
     moved_on = max_progress >= marks.progress + rules.stuck_distance
@@ -157,7 +162,7 @@ class Termination:
 
     def __call__(self, step: StepContext) -> StepEnd:
         """How `step` ends the episode; `step.on_walkable()` is asked only when the rules read it."""
-        on_walkable = bool(step.on_walkable()) if self.rules.off_walkable_ends else True
+        on_walkable = bool(step.on_walkable()) if self.rules.reads_walkable else True
         ends = end_of_step(
             self.rules,
             self.marks,
