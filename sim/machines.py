@@ -1,9 +1,11 @@
 """Mobile machines: MetaUrban's parameters (`machines.csv`, docs/design.md), PyBullet bodies, and their drive models.
 
 Wheeled machines are rigid chassis bodies with four wheel contact spheres. Their longitudinal and yaw
-dynamics come from a kinematic-bicycle force model (engine, brake, rolling resistance, drag, grade,
-tyre friction limit) integrated in Python at every physics substep; the resulting planar velocity is
-handed to Bullet, which integrates the body and resolves contacts (objects, buildings, curbs, ramps).
+dynamics come from a kinematic bicycle driven by one of two drives (`DRIVES`, the `drive` column of
+`machines.csv`), integrated in Python at every physics substep: `force`, curbside's force model (engine, brake,
+rolling resistance, drag, grade, tyre friction limit), and `vehicle`, MetaUrban's Bullet raycast vehicle
+(`vehicle_drive`); the resulting planar velocity is handed to Bullet, which integrates the body and resolves
+contacts (objects, buildings, curbs, ramps).
 The velocity Bullet leaves after the substep is read back, so a blocked machine really loses its speed.
 Legged machines (`robot_dog`, `humanoid`) follow speed and yaw-rate commands under velocity and
 acceleration limits (a fixed locomotion layer), through the same body and contact path.
@@ -24,6 +26,13 @@ from kernel.config import ConfigError
 from kernel.quiet import pybullet as p
 
 G = 9.81
+DRIVES = ("force", "vehicle")
+# MetaUrban's ego holds every wheel with a brake of 2.0 whenever it applies no engine force (coasting, at rest, over
+# its top speed): `EgoDeliveryRobot._apply_throttle_brake`, metaurban/component/delivery_robot/base_deliveryrobot.py
+# at commit 6b8ff9a. Bullet's raycast vehicle takes a wheel's brake as the largest rolling-friction impulse (N s) it
+# applies in one physics substep, and a wheel with engine force rolls free.
+IDLE_BRAKE = 2.0
+REVERSE_DEADZONE = 0.01  # m/s: below this forward speed a brake command holds the ego still (it never reverses)
 
 
 @dataclass(frozen=True)
@@ -53,6 +62,7 @@ class MachineSpec:
     accel_max: float  # legged only: m/s^2
     yaw_rate_max: float  # legged only: rad/s
     color: tuple[float, float, float, float]
+    drive: str = "force"  # wheeled only: "force" (curbside's force model) or "vehicle" (`vehicle_drive`)
 
     @property
     def v_max(self) -> float:
@@ -63,6 +73,17 @@ class MachineSpec:
     def steer_max(self) -> float:
         """Largest steering angle in radians."""
         return math.radians(self.steer_max_deg)
+
+    @property
+    def rides(self) -> bool:
+        """Whether the machine rides on raycast wheels (drive "vehicle"): only its chassis collides."""
+        return self.drive == "vehicle"
+
+    @property
+    def clearance(self) -> float:
+        """Height of the lowest colliding part above the surface: a raycast vehicle's chassis floor (the body is
+        built with its chassis from 0.9 wheel radii up), else 0 (the wheels touch what they roll into)."""
+        return 0.9 * self.wheel_radius if self.rides else 0.0
 
     @property
     def half_width(self) -> float:
@@ -112,9 +133,55 @@ def machine_spec(machine: str | Mapping[str, Any]) -> MachineSpec:
     spec = replace(base, **params)
     if spec.kind not in ("wheeled", "legged"):
         raise ConfigError(f"machine kind must be 'wheeled' or 'legged', got {spec.kind!r}")
+    if spec.drive not in DRIVES:
+        raise ConfigError(f"machine drive must be one of {', '.join(DRIVES)}, got {spec.drive!r}")
     if spec.v_max <= 0 or spec.wheelbase <= 0 or spec.mass <= 0:
         raise ConfigError("machine v_max_kmh, wheelbase and mass must be positive")
     return spec
+
+
+def vehicle_drive(
+    spec: MachineSpec,
+    speed: Any,
+    steer: Any,
+    throttle: Any,
+    engine_force: Any,
+    brake_force: Any,
+    dt: float,
+    friction: Any,
+    grade_accel: Any = 0.0,
+) -> tuple[Any, Any]:
+    """(speed, yaw rate) after one physics substep of `dt` s of MetaUrban's Bullet raycast vehicle: numbers for one
+    machine (`Machine.command`) or arrays for many (`sim.batched.kinematics.Drive.command`), the same doubles.
+
+    As `EgoDeliveryRobot._apply_throttle_brake` drives its four wheels (base_deliveryrobot.py at commit 6b8ff9a):
+    throttle >= 0 applies `throttle` x the engine force on every wheel, none above the top speed; throttle < 0 brakes
+    every wheel with |throttle| x the brake force, and at rest (forward speed under REVERSE_DEADZONE) holds it: the ego
+    never reverses. A wheel without engine force brakes with IDLE_BRAKE. Bullet takes a brake as the largest impulse
+    a wheel's rolling friction applies in a substep (so its deceleration is 4 brake / (mass dt), and it never drives
+    the machine backwards), and the tyres' friction caps what any wheel transmits (mu g in all). Steering turns the
+    front wheels by `steer` x steer_max: the yaw rate of a bicycle of the spec's wheelbase, friction-limited in
+    cornering. `friction` is the tyres' mu or the ground's, the lower; `grade_accel` the slope's pull (m/s^2).
+    """
+    forward = np.greater_equal(throttle, 0.0)
+    engine = np.where(forward & (speed * 3.6 <= spec.v_max_kmh), throttle * engine_force, 0.0)
+    brake = np.where(
+        forward,
+        np.where(engine != 0.0, 0.0, IDLE_BRAKE),
+        np.where(speed < REVERSE_DEADZONE, IDLE_BRAKE, -throttle * brake_force),
+    )
+    limit = friction * G
+    v_drive = speed + np.clip(4.0 * engine / spec.mass + grade_accel, -limit, limit) * dt
+    # The brakes take at most 4 brake / mass off the speed in a substep (the friction limit too) and stop it at 0.
+    slow = np.minimum(4.0 * brake / spec.mass, limit * dt)
+    v_new = np.where(v_drive > 0.0, np.maximum(v_drive - slow, 0.0), np.minimum(v_drive + slow, 0.0))
+    yaw_rate = v_new * np.tan(steer * spec.steer_max) / spec.wheelbase
+    moving = v_new != 0.0
+    max_rate = limit / np.where(moving, np.abs(v_new), 1.0)
+    yaw_rate = np.where(moving, np.clip(yaw_rate, -max_rate, max_rate), yaw_rate)
+    if np.ndim(v_new) == 0:
+        return float(v_new), float(yaw_rate)
+    return v_new, yaw_rate
 
 
 class Machine:
@@ -142,18 +209,26 @@ class Machine:
     def _build_body(self) -> int:
         spec, client = self.spec, self.client
         wheel_r = spec.wheel_radius
-        # Chassis starts just above the wheel centres so the spheres carry the load on the ground.
+        # Chassis starts just below the wheel centres so the spheres carry the load on the ground.
         clear = wheel_r * 0.9
         hz = max(0.5 * (spec.height - clear), 0.05)
         half = [0.5 * spec.length, 0.5 * spec.width, hz]
         chassis_z = clear + hz  # body origin sits at the ground; shapes are offset upwards
-        wx, wy = 0.5 * spec.wheelbase, max(0.5 * spec.width - 0.5 * spec.wheel_width, wheel_r * 0.5)
+        rides = spec.rides
+        if rides:
+            # MetaUrban's ego is a Bullet raycast vehicle: its wheels are rays that touch nothing but the surface under
+            # them (`Machine.ride` follows it), and only its chassis collides. Shown at the wheelbase's ends.
+            wx, wy = 0.5 * spec.wheelbase, 0.5 * spec.width
+        else:
+            wx = 0.5 * spec.wheelbase
+            wy = max(0.5 * spec.width - 0.5 * spec.wheel_width, wheel_r * 0.5)
         wheels = [[wx, wy, wheel_r], [wx, -wy, wheel_r], [-wx, wy, wheel_r], [-wx, -wy, wheel_r]]
+        spheres = 0 if rides else 4
         col = p.createCollisionShapeArray(
-            shapeTypes=[p.GEOM_BOX] + [p.GEOM_SPHERE] * 4,
-            halfExtents=[half] + [[0, 0, 0]] * 4,
-            radii=[0.0] + [wheel_r] * 4,
-            collisionFramePositions=[[0, 0, chassis_z]] + wheels,
+            shapeTypes=[p.GEOM_BOX] + [p.GEOM_SPHERE] * spheres,
+            halfExtents=[half] + [[0, 0, 0]] * spheres,
+            radii=[0.0] + [wheel_r] * spheres,
+            collisionFramePositions=[[0, 0, chassis_z]] + wheels[:spheres],
             physicsClientId=client,
         )
         vis = p.createVisualShapeArray(
@@ -208,7 +283,14 @@ class Machine:
         """Update speed, steering and yaw rate for one substep of `dt` seconds and hand the velocity to Bullet."""
         spec = self.spec
         v = self.speed
-        if spec.kind == "wheeled":
+        if spec.kind == "wheeled" and spec.drive == "vehicle":
+            self.steering = steer * spec.steer_max
+            grade = G * math.sin(self.pitch) if self.count_grade else 0.0
+            mu = min(spec.friction, self.surface_friction)
+            v_new, yaw_rate = vehicle_drive(
+                spec, v, steer, throttle, self.engine_force, self.brake_force, dt, mu, grade
+            )
+        elif spec.kind == "wheeled":
             self.steering = steer * spec.steer_max
             if throttle >= 0.0:
                 # The motor's force falls linearly to zero at v_max: the speed limit comes out of the drive.
@@ -245,13 +327,49 @@ class Machine:
         self.speed = v_new
         self.yaw_rate = yaw_rate
         cos_yaw, sn = math.cos(self.yaw), math.sin(self.yaw)
-        lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.client)
+        if spec.rides:  # `ride` sets its height and tilt: Bullet moves it in the plane only
+            lin, ang = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+        else:
+            lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.client)
         p.resetBaseVelocity(
             self.body, [v_new * cos_yaw, v_new * sn, lin[2]], [ang[0], ang[1], yaw_rate], physicsClientId=self.client
         )
 
+    def ride(self) -> None:
+        """Set a raycast vehicle's height and tilt to the surface under its wheels, as its suspension carries it.
+
+        Each wheel is a vertical ray at a corner of the wheelbase (its end, the body's side) that finds the surface
+        under it, up to a wheel radius above the wheel's contact (a curb lower than the axle is driven over, as
+        Bullet's raycast wheels do; a higher step is not: the chassis meets it). The chassis rests on the mean of the
+        four contacts and tilts with their plane."""
+        spec = self.spec
+        pos, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+        yaw = p.getEulerFromQuaternion(orn)[2]
+        c, sn = math.cos(yaw), math.sin(yaw)
+        hx, hy = 0.5 * spec.wheelbase, 0.5 * spec.width
+        corners = ((hx, hy), (hx, -hy), (-hx, hy), (-hx, -hy))
+        points = [(pos[0] + c * u - sn * w, pos[1] + sn * u + c * w) for u, w in corners]
+        top = pos[2] + spec.wheel_radius
+        hits = p.rayTestBatch(
+            [[x, y, top] for x, y in points], [[x, y, pos[2] - 1.0] for x, y in points], physicsClientId=self.client
+        )
+        heights = [float(h[3][2]) if h[0] >= 0 and h[0] != self.body else pos[2] for h in hits]
+        front, rear = 0.5 * (heights[0] + heights[1]), 0.5 * (heights[2] + heights[3])
+        left, right = 0.5 * (heights[0] + heights[2]), 0.5 * (heights[1] + heights[3])
+        pitch = math.atan2(rear - front, spec.wheelbase)  # Bullet's pitch is positive nose-down
+        roll = math.atan2(left - right, spec.width)
+        z = sum(heights) / 4.0
+        lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.client)
+        p.resetBasePositionAndOrientation(
+            self.body, [pos[0], pos[1], z], p.getQuaternionFromEuler([roll, pitch, yaw]), physicsClientId=self.client
+        )
+        # A reset drops the body's velocity: the planar one is Bullet's result, kept for `sync` to read.
+        p.resetBaseVelocity(self.body, [lin[0], lin[1], 0.0], [0.0, 0.0, ang[2]], physicsClientId=self.client)
+
     def sync(self) -> None:
         """Read pose and velocity back from Bullet after a substep (contacts may have changed them)."""
+        if self.spec.rides:
+            self.ride()
         pos, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
         lin, _ = p.getBaseVelocity(self.body, physicsClientId=self.client)
         roll, pitch, yaw = p.getEulerFromQuaternion(orn)

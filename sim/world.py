@@ -32,9 +32,17 @@ SURFACE_KINDS = ("ground", "sidewalk", "ramp")
 WALL_NZ = 0.5  # a contact whose normal is flatter than this is a wall (a curb side), not the ground
 
 
-def touching(client: int, body: int, kinds: Mapping[int, str], extra: Mapping[int, str], hits: set[str]) -> None:
+def touching(
+    client: int,
+    body: int,
+    kinds: Mapping[int, str],
+    extra: Mapping[int, str],
+    hits: set[str],
+    bodies: set[int] | None = None,
+) -> None:
     """Add to `hits` what `body` touches now: the kind of each body (`extra` first, then `kinds`, else
-    "object"), and "curb" for a surface touched through a wall-like contact normal."""
+    "object"), and "curb" for a surface touched through a wall-like contact normal; and to `bodies` (unless None)
+    the ids of the bodies touched that are not a surface."""
     for cp in p.getContactPoints(bodyA=body, physicsClientId=client):
         if cp[8] > 1e-3:
             continue  # within the contact margin but not touching
@@ -44,6 +52,8 @@ def touching(client: int, body: int, kinds: Mapping[int, str], extra: Mapping[in
                 hits.add("curb")
         else:
             hits.add(kind)
+            if bodies is not None:
+                bodies.add(cp[2])
 
 
 def _obj_vertices(path: str) -> np.ndarray:

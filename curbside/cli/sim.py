@@ -39,6 +39,11 @@ MACHINE_NAMES = (
     "mobility_scooter",
     "robot_dog",
     "humanoid",
+    "metaurban_coco",
+    "metaurban_coco_mod1",
+    "metaurban_coco_mod2",
+    "metaurban_wheelchair",
+    "metaurban_scooter",
 )
 MAX_SEED = 2**31 - 1  # episode seeds seed..seed+N-1 must stay valid numpy seeds
 

@@ -28,7 +28,7 @@ from sim.envs.observation import GOAL_LOG_SCALE, EgoObservation
 from sim.envs.reset_options import check_reset_options
 from sim.envs.worlds import SceneSource
 from sim.machines import machine_spec
-from sim.raycast.grids import CROSSWALK, KIND_NAMES, LOW_RAMP, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
+from sim.raycast.grids import CROSSWALK, KIND_NAMES, LOW_RAMP, OBJECT, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
 from sim.route import ROUTE_REDRAWS, Route, RouteError
 from sim.schema import Int, Key, Rule, Table, defaults_of, table_of
 from sim.tasks.pointnav import (
@@ -233,6 +233,12 @@ class BatchedPointNav(VectorEnv):
             if envs is not None:
                 k = np.intersect1d(k, envs)
             self.labels[k] = walkable_labels(built.scene.walkable, drive.x[k], drive.y[k])
+        if self.spec_machine.rides:
+            # A raycast vehicle drives over curbs: off the sidewalks (the road, a crosswalk) it is at the road's level,
+            # body and LiDAR alike, and no ramp's low part holds it back.
+            self.level = np.where((self.labels == CROSSWALK) | (self.labels == 0), ROAD_LEVEL, SIDEWALK_LEVEL)
+            self.body_level = self.level.copy()
+            return
         self.level = np.where(self.labels == CROSSWALK, ROAD_LEVEL, SIDEWALK_LEVEL)
         # The body's level: the road's on the lower half of a curb ramp as well, where Bullet's wedge is low enough
         # that the sidewalk beside it is a curb to climb (the LiDAR keeps `level`, as the PyBullet env's grid LiDAR
@@ -273,12 +279,16 @@ class BatchedPointNav(VectorEnv):
         x0, y0 = drive.x.copy(), drive.y.copy()
         sub_dt = self.dt / self.substeps
         hits = np.zeros(self.num_envs, dtype=np.int64)
+        charge_once = ep.cost_rule.once and ep.cost_bits & KIND_BITS["object"]
+        new_static = np.zeros(self.num_envs, dtype=bool)
         every = np.arange(self.num_envs)
         for _ in range(self.substeps):
             v, w = drive.command(steer, throttle, sub_dt)
             x, y, yaw = drive.integrate(v, w, sub_dt)
             blocked, kinds = self._collide(every, x, y, yaw)
             hits |= kinds
+            if charge_once:
+                self._charge_objects(np.nonzero((kinds & KIND_BITS["object"]) > 0)[0], x, y, yaw, new_static)
             stopped = None
             if blocked.any():
                 envs = np.nonzero(blocked)[0]
@@ -290,7 +300,7 @@ class BatchedPointNav(VectorEnv):
             drive.store(x, y, yaw, v, w, sub_dt, stopped)
         hits |= self._after_substeps(act)
         arclen, lat = self.routes.locate(drive.x, drive.y, ep.progress)
-        progress, new_progress, collided = ep.advance(drive.x - x0, drive.y - y0, arclen, lat, hits)
+        progress, new_progress, collided = ep.advance(drive.x - x0, drive.y - y0, arclen, lat, hits, new_static)
         self._locate_level()
         succeeded, out, stuck, over = ep.end(self.routes.length, self.labels != 0, hits != 0)
         reward = self.reward_fn.batch(
@@ -389,6 +399,33 @@ class BatchedPointNav(VectorEnv):
                 bits[near] |= np.where((occupied & (kinds == code)).any(axis=1), KIND_BITS[name], 0)
             blocked[near] = hit
         return blocked, bits
+
+    def _charge_objects(
+        self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray, new_static: np.ndarray
+    ) -> None:
+        """Envs `envs`, whose footprints at (x, y, yaw) overlap object cells, charge the objects they touch that they
+        have not touched before in the episode (`new_static`, `Episodes.charged`): the object of each overlapping
+        point is the one whose footprint's bounding circle it lies deepest in (the PyBullet env knows its bodies)."""
+        for k in envs.tolist():
+            built = self.built[k]
+            assert built is not None  # stepping envs have scenes
+            centres, radii = built.object_circles()
+            c, sn = math.cos(yaw[k]), math.sin(yaw[k])
+            px = x[k] + c * self._body_u - sn * self._body_w
+            py = y[k] + sn * self._body_u + c * self._body_w
+            frame = self.atlas.frames(self.slots[k : k + 1], self.body_level[k : k + 1], "body")
+            kinds = self.atlas.frames(self.slots[k : k + 1], self.body_level[k : k + 1], "kinds")
+            on = (self.atlas.lookup(frame, px[None], py[None]) == 0) & (
+                self.atlas.lookup(kinds, px[None], py[None]) == OBJECT
+            )
+            pts = np.stack([px[on[0]], py[on[0]]], 1)
+            if pts.size == 0 or centres.size == 0:
+                continue
+            depth = np.hypot(pts[:, None, 0] - centres[None, :, 0], pts[:, None, 1] - centres[None, :, 1]) - radii
+            touched = set(np.argmin(depth, axis=1).tolist()) - self.episodes.charged[k]
+            if touched:
+                self.episodes.charged[k] |= touched
+                new_static[k] = True
 
     def _back_off(
         self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray, rounds: int = 5

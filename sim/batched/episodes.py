@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from sim.raycast.grids import KIND_NAMES
+from sim.tasks.cost import MOVING_KINDS, CostRule
 from sim.tasks.termination import EndMarks, EndRules, end_of_step
 
 KIND_BITS = {name: 1 << k for k, name in KIND_NAMES.items()}  # object 2, building 4, curb 8
@@ -28,6 +29,9 @@ class Episodes:
         self.rules = EndRules.from_config(cfg)
         self.marks = EndMarks.zeros(n)
         self.cost_bits = sum(kind_bits[k] for k in cfg["cost_kinds"] if k in kind_bits)
+        self.moving_cost_bits = sum(kind_bits[k] for k in cfg["cost_kinds"] if k in kind_bits and k in MOVING_KINDS)
+        self.cost_rule = CostRule.from_config(cfg)
+        self.charged: list[set[int]] = [set() for _ in range(n)]  # objects charged (cost_rule "metaurban": once each)
         f = lambda: np.zeros(n)  # noqa: E731
         i = lambda: np.zeros(n, dtype=np.int64)  # noqa: E731
         self.progress, self.max_progress, self.lateral, self.path_length = f(), f(), f(), f()
@@ -42,14 +46,22 @@ class Episodes:
         for counts in (self.steps, self.cost_total, *self.collision_counts.values()):
             counts[k] = 0
         self.marks.reset(k)
+        self.charged[k] = set()
         self.horizon[k] = horizon
         self.last_action[k] = 0.0
 
     def advance(
-        self, dx: np.ndarray, dy: np.ndarray, s: np.ndarray, lateral: np.ndarray, hits: np.ndarray
+        self,
+        dx: np.ndarray,
+        dy: np.ndarray,
+        s: np.ndarray,
+        lateral: np.ndarray,
+        hits: np.ndarray,
+        new_static: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Record a step that moved every machine by (dx, dy) to arc length `s`, offset `lateral`, touching the
-        kinds in bit mask `hits`; returns (progress, new progress, collided)."""
+        kinds in bit mask `hits` (and, where `new_static`, an object not touched before in the episode); returns
+        (progress, new progress, collided: the step's cost, sim.tasks.cost)."""
         self.path_length += np.hypot(dx, dy)
         progress, new_progress = s - self.progress, np.maximum(s - self.max_progress, 0.0)
         self.progress, self.lateral = s, lateral
@@ -57,7 +69,10 @@ class Episodes:
         self.steps += 1
         for name, bit in self.kind_bits.items():
             self.collision_counts[name] += (hits & bit) > 0
-        collided = (hits & self.cost_bits) > 0
+        fresh = np.zeros(self.n, dtype=bool) if new_static is None else new_static
+        collided = np.asarray(
+            self.cost_rule((hits & self.cost_bits) > 0, fresh, (hits & self.moving_cost_bits) > 0, lateral), dtype=bool
+        )
         self.cost_total += collided
         return progress, new_progress, collided
 

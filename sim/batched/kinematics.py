@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.machines import G, MachineSpec
+from sim.machines import G, MachineSpec, vehicle_drive
 
 
 class Drive:
@@ -50,6 +50,8 @@ class Drive:
             target = np.maximum(throttle, 0.0) * s.v_max
             v_new = v + np.clip(target - v, -2.0 * s.accel_max * dt, s.accel_max * dt)
             return v_new, steer * s.yaw_rate_max
+        if s.drive == "vehicle":  # one function for both backends
+            return vehicle_drive(s, v, steer, throttle, self.engine_force, self.brake_force, dt, s.friction)
         steering = steer * s.steer_max
         drive = throttle * self.engine_force * np.maximum(0.0, 1.0 - v / s.v_max)
         force = np.where(throttle >= 0.0, drive, throttle * 4.0 * self.brake_force)

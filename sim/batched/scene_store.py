@@ -33,6 +33,16 @@ class BuiltScene:
     pool: list[Route] = field(default_factory=list)
     references: dict[int, float] = field(default_factory=dict)  # SPL's reference length of each pool route, by id
     users: int = 0  # envs whose episode runs in it now
+    _circles: tuple[np.ndarray, np.ndarray] | None = None
+
+    def object_circles(self) -> tuple[np.ndarray, np.ndarray]:
+        """The scene's objects' footprint centres [n, 2] and bounding radii [n] (made on first use: contacts)."""
+        if self._circles is None:
+            feet = [np.asarray(o["footprint"], dtype=np.float64) for o in self.scene.objects]
+            centres = np.array([f.mean(axis=0) for f in feet]).reshape(-1, 2)
+            radii = np.array([np.hypot(*(f - f.mean(axis=0)).T).max() for f in feet]).reshape(-1)
+            self._circles = (centres, radii)
+        return self._circles
 
 
 class SceneStore:
@@ -59,6 +69,7 @@ class SceneStore:
                 lidar=self.cfg["lidar"],
                 body_height=self.spec.height,
                 step_max=self.spec.wheel_radius,  # a step up to the wheels' axle height is climbed
+                clearance=self.spec.clearance,
             )
             planner = RoutePlanner(scene, self.spec.half_width, margin=float(self.cfg["route_margin"]))
             b = BuiltScene(key=key, scene=scene, slot=self.atlas.add(grids), planner=planner)

@@ -19,7 +19,8 @@ class Episode:
     max_progress: float = 0.0  # largest arc length reached
     lateral: float = 0.0  # signed offset from the route (left +)
     path_length: float = 0.0  # planar distance driven
-    cost_total: int = 0  # steps in contact with a cost kind
+    cost_total: int = 0  # steps that cost (sim.tasks.cost)
+    charged: set[int] = field(default_factory=set)  # static bodies charged (cost_rule "metaurban": once each)
     collision_counts: dict[str, int] = field(default_factory=dict)  # steps in contact, per kind
     step_collisions: set[str] = field(default_factory=set)  # kinds touched on the last step
     succeeded: bool = False

@@ -30,6 +30,7 @@ from sim.tasks.pointnav import (
     make_reward,
     resolve_task_config,
 )
+from sim.tasks.cost import MOVING_KINDS, STATIC_KINDS, CostRule
 from sim.tasks.sensors import check_lidar_reach
 from sim.tasks.termination import StepContext, Termination
 from sim.viewer import close_window, render_frame, served_render_modes
@@ -78,8 +79,9 @@ class PointNavEnv(gym.Env):
     Terminated on success (route completion >= 0.95), out of route (|lateral offset| > `out_of_route_distance`, or
     the centre off the walkable area; only with `out_of_route_ends`), stuck (< `stuck_distance` of new progress in `stuck_steps` steps, or
     `collision_steps` steps in contact), toppled, or cost past `max_episode_cost`. Truncated at the horizon:
-    min(`horizon`, route length / `horizon_min_speed` / dt). `info["cost"]` is 1 on a step in contact with a
-    `cost_kinds` body, else 0. At episode end `info` also holds the metrics (`success`, `spl`, `route_completion`,
+    min(`horizon`, route length / `horizon_min_speed` / dt). `info["cost"]` is the step's cost under `cost_rule`
+    (sim.tasks.cost): 1 on a step in contact with a `cost_kinds` body ("contact_steps"), or MetaUrban's rule
+    ("metaurban": an object at its first contact only), else 0. At episode end `info` also holds the metrics (`success`, `spl`, `route_completion`,
     `episode_cost`, `collisions_<kind>`, `path_length`, `time`, ...) and `info["metrics"]` (`cost`: the total).
 
     ## Managers
@@ -107,6 +109,9 @@ class PointNavEnv(gym.Env):
         self.dt = float(cfg["dt"])
         self.substeps = int(cfg["physics_substeps"])
         self.cost_kinds = frozenset(cfg["cost_kinds"])
+        self.cost_rule = CostRule.from_config(cfg)
+        self._moving_cost_kinds = self.cost_kinds & frozenset(MOVING_KINDS)
+        self._static_cost_kinds = self.cost_kinds & frozenset(STATIC_KINDS)
         self.scenes = SceneSource(cfg)  # parses and checks a given scene_spec / scene_path now
         self.measures = make_measures(list(cfg["measures"]), agents=self.has_agents)
         self.observation = EgoObservation(cfg)
@@ -304,11 +309,12 @@ class PointNavEnv(gym.Env):
             for mg in self.managers:
                 mg.before_step(tick)
         hits: set[str] = set()
+        touched: set[int] | None = set() if self.cost_rule.once else None
         for _ in range(self.substeps):
             machine.command(steer, throttle, self.dt / self.substeps)
             p.stepSimulation(physicsClientId=client)
             machine.sync()
-            self._contacts(hits)
+            self._contacts(hits, touched)
         if self.managers:
             tick = TickContext(self.dt, self._ego(), (steer, throttle))
             for mg in self.managers:
@@ -316,7 +322,15 @@ class PointNavEnv(gym.Env):
         x, y = machine.position[0], machine.position[1]
         ep = self.episode
         s, lat = self.route.locate(x, y, ep.progress)
-        collided = bool(hits & self.cost_kinds)
+        new_static = False
+        if touched:
+            kind_of = lambda b: self._collision_kinds.get(b) or self.kinds.get(b, "object")  # noqa: E731 (touching's)
+            new = {b for b in touched - ep.charged if kind_of(b) in self._static_cost_kinds}
+            ep.charged |= new
+            new_static = bool(new)
+        collided = bool(
+            self.cost_rule(bool(hits & self.cost_kinds), new_static, bool(hits & self._moving_cost_kinds), lat)
+        )
         progress, new_progress = ep.advance((x0, y0), (x, y), s, lat, hits, collided)
         self.scene_steps_left -= 1
         step = StepContext(
@@ -355,10 +369,10 @@ class PointNavEnv(gym.Env):
             info["is_success"] = ep.succeeded
         return obs, reward, terminated, truncated, info
 
-    def _contacts(self, hits: set[str]) -> None:
+    def _contacts(self, hits: set[str], bodies: set[int] | None = None) -> None:
         machine = self.machine
         assert machine is not None  # step runs only after a reset placed the machine
-        touching(self.client, machine.body, self.kinds, self._collision_kinds, hits)
+        touching(self.client, machine.body, self.kinds, self._collision_kinds, hits, bodies)
 
     def _observe(self) -> Observation:
         ep = self.episode

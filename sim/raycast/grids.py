@@ -151,9 +151,12 @@ def build_grids(
     lidar: dict[str, Any],
     body_height: float | None,
     step_max: float | None = None,
+    clearance: float = 0.0,
 ) -> SceneGrids:
     """The grids of `scene` for LiDAR heights `lidar["height"]`, `lidar["low_height"]` and (unless None) a body
-    `body_height` tall whose wheels climb steps up to `step_max` (None: no LOW_RAMP cells in `kinds`)."""
+    `body_height` tall whose wheels climb steps up to `step_max` (None: no LOW_RAMP cells in `kinds`) and whose
+    colliding parts start `clearance` above the surface (a raycast vehicle's chassis floor: it drives over what is
+    lower, curbs included)."""
     xmin, ymin, xmax, ymax = scene.bounds
     x0 = math.floor((xmin - MARGIN) / resolution) * resolution
     y0 = math.floor((ymin - MARGIN) / resolution) * resolution
@@ -205,7 +208,7 @@ def build_grids(
         # floor, not a wall.
         level = [distance(occupied(high, high)), distance(occupied(low, low))]
         if body_height is not None:
-            level.append(distance(occupied(base + 1e-3, base + body_height)))
+            level.append(distance(occupied(base + max(clearance, 1e-3), base + body_height)))
         tables.append(level)
     objects_mask = obstacle_mask(grid, objects) if objects else np.zeros(shape, dtype=bool)
     kinds[objects_mask] = OBJECT

@@ -36,6 +36,7 @@ from sim.schema import (
     key_field,
     table_of,
 )
+from sim.tasks.cost import COST_RULES, CostRule
 from sim.tasks.sensors import CAMERA_KEYS, LIDAR_KEYS, RENDER_KEYS, check_clipping_planes
 from sim.tasks.termination import StepContext, StepEnd
 
@@ -269,6 +270,12 @@ CONFIG_KEYS: dict[str, Key | dict[str, Key]] = {
         Rule("list", choices=COLLISION_KINDS),
         "contacts that cost (the paper: objects and buildings, not curbs)",
     ),
+    "cost_rule": Key(
+        "contact_steps",
+        Choice(*COST_RULES),
+        '"contact_steps": a step in contact with a cost kind costs 1; "metaurban": MetaUrban\'s cost function '
+        "(sim.tasks.cost: an object once, at its first contact; agents and vehicles every step; leaving the route)",
+    ),
     "lidar": LIDAR_KEYS,
     "speed_scale": Key(5.0, Pos(100.0), "m/s that maps to 1 in the `speed` observation (clipped)"),
     "num_waypoints": Key(10, Int(1, 1000), "route waypoints in the observation"),
@@ -347,6 +354,7 @@ def check_config(
         defaults=DEFAULT_CONFIG if defaults is None else defaults,
     )
     check_machine(cfg["machine"])
+    CostRule.from_config(cfg)
     check_clipping_planes(cfg["camera"])
     check_grid_lidar_collision(cfg)
 
