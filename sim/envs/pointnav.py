@@ -22,6 +22,7 @@ from sim.metrics import EpisodeView, make_measures
 from sim.route import ROUTE_REDRAWS, Route, RouteError, RoutePlanner
 from sim.scene.scene import Scene
 from sim.sensors import GridLidar, Lidar
+from sim.tasks.cost import MOVING_KINDS, STATIC_KINDS, CostRule
 from sim.tasks.pointnav import (
     CONFIG_TABLE,
     DEFAULT_CONFIG,
@@ -30,7 +31,6 @@ from sim.tasks.pointnav import (
     make_reward,
     resolve_task_config,
 )
-from sim.tasks.cost import MOVING_KINDS, STATIC_KINDS, CostRule
 from sim.tasks.sensors import check_lidar_reach
 from sim.tasks.termination import StepContext, Termination
 from sim.viewer import close_window, render_frame, served_render_modes
