@@ -1,0 +1,154 @@
+"""MetaUrban's world on both backends: its ego (the `metaurban_*` machines: EgoVehicle's body on Bullet raycast
+wheels), its cost rule (an object charged once, at its first contact) and its episode ends.
+
+Each check runs the PyBullet env (the reference) and the batched env on the hand-built street (tests/street.py) and
+could fail on either: a ride that does not climb, a cost counted per step, a horizon cut by route length.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from kernel.config import ConfigError
+from sim.batched import BatchedPointNav
+from sim.envs.pointnav import PointNavEnv
+from sim.machines import machine_spec, vehicle_drive
+from tests.street import street
+
+ROUTE = {"start": [3.0, 7.0], "goal": [40.0, 7.0]}  # left sidewalk; the trash bin stands on it at x = 15
+FREE = {"stuck_steps": 0, "collision_steps": 0, "horizon": 10_000, "horizon_min_speed": None}
+
+
+def test_the_raycast_vehicle_drive_is_metaurbans_for_numbers_and_arrays() -> None:
+    """Engine force on four wheels (4 F / m), no engine past the top speed, brakes that stop but never reverse, the
+    same doubles for one machine and for an array of them."""
+    spec = machine_spec("metaurban_coco")
+    v, _ = vehicle_drive(spec, 0.0, 0.0, 1.0, 450.0, 57.5, 0.02, 0.7)
+    assert v == pytest.approx(4 * 450.0 / 1595.0 * 0.02)
+    v = 0.0
+    for _ in range(1500):  # 30 s of full throttle
+        v, _ = vehicle_drive(spec, v, 0.0, 1.0, 450.0, 57.5, 0.02, 0.7)
+    assert spec.v_max - 0.05 < v < spec.v_max + 0.05  # the engine cuts out at 30 km/h, the idle brake holds it there
+    for _ in range(200):
+        v, w = vehicle_drive(spec, v, 0.5, -1.0, 450.0, 57.5, 0.02, 0.7)
+    assert v == 0.0 and w == 0.0  # braked to rest, not backwards
+    speeds = np.array([0.0, 3.0, 8.0, 9.0])
+    throttles = np.array([1.0, -0.5, 0.2, 0.0])
+    steers = np.array([0.3, -1.0, 0.0, 1.0])
+    v_arr, w_arr = vehicle_drive(spec, speeds, steers, throttles, 400.0, 50.0, 0.02, 0.7)
+    for k in range(4):
+        v_one, w_one = vehicle_drive(spec, float(speeds[k]), float(steers[k]), float(throttles[k]), 400.0, 50.0, 0.02, 0.7)
+        assert (v_one, w_one) == (float(v_arr[k]), float(w_arr[k]))
+
+
+def _drive_at_curb(machine: str, backend: str) -> tuple[float, float]:
+    """(y, surface level) from the road (x = 10, y = 0.5) straight at the left curb at throttle 0.3, after 10 s or
+    once past y = 6.2 (all four wheels over the sidewalk, the front ones short of the building at y = 9)."""
+    cfg = {"scene_spec": street(), "machine": machine, **FREE, "out_of_route_distance": 100.0}
+    cfg["terminate_off_walkable"] = False
+    if backend == "pybullet":
+        env = PointNavEnv(cfg)
+        env.reset(seed=0, options=ROUTE)
+        m = env.machine
+        m.reset(10.0, 0.5, 0.0, math.pi / 2, np.random.default_rng(0))
+        for _ in range(100):
+            env.step([0.0, 0.3])
+            if m.position[1] > 6.2:
+                break
+        y, z = m.position[1], m.position[2]
+        env.close()
+        return y, z
+    env = BatchedPointNav(1, cfg)
+    env.reset(seed=0, options=ROUTE)
+    env.drive.x[:], env.drive.y[:], env.drive.yaw[:] = 10.0, 0.5, math.pi / 2
+    env._locate_level()
+    for _ in range(100):
+        env.step(np.array([[0.0, 0.3]]))
+        if env.drive.y[0] > 6.2:
+            break
+    y, level = float(env.drive.y[0]), int(env.level[0])
+    env.close()
+    return y, 0.15 if level == 0 else 0.0  # SIDEWALK_LEVEL stands on the curb
+
+
+@pytest.mark.parametrize("backend", ["pybullet", "batched"])
+def test_metaurbans_ego_mounts_a_curb_that_the_delivery_robot_cannot(backend: str) -> None:
+    """The street's curb (0.15 m, at |y| = 4) is lower than the ego's axle: its raycast wheels drive up onto the
+    sidewalk, all four on it. The delivery robot's 0.10 m wheels stop at the curb."""
+    y, z = _drive_at_curb("metaurban_coco", backend)
+    assert 6.2 < y < 7.0 and z == pytest.approx(0.15, abs=0.01)
+    if backend == "pybullet":  # the batched env keeps a realistic machine on the walkable area by its levels
+        y, z = _drive_at_curb("delivery_bot", backend)
+        assert y < 4.5 and z < 0.14
+
+
+@pytest.mark.parametrize("machine", ["metaurban_coco", "delivery_bot"])
+def test_the_batched_body_grid_holds_a_curb_only_for_a_machine_that_cannot_climb_it(machine: str) -> None:
+    from sim.raycast.grids import CURB, ROAD_LEVEL, build_grids
+    from sim.scene.scene import Scene
+
+    spec = machine_spec(machine)
+    scene = Scene.parse(street(), source="test street")
+    grids = build_grids(
+        scene,
+        resolution=0.05,
+        lidar={"height": 0.4, "low_height": 0.1},
+        body_height=spec.height,
+        step_max=spec.wheel_radius,
+        clearance=spec.clearance,
+    )
+    body = grids.tables[ROAD_LEVEL][2]
+    raised = grids.kinds == CURB
+    assert (body[raised] == 0).all() != spec.rides  # every raised cell blocks the delivery robot, none the ego
+
+
+def _push(backend: str, cfg: dict) -> tuple[int, float]:
+    """(steps in contact with the trash bin, episode cost) of the ego driven into it until 50 steps in contact."""
+    contact, cost = 0, 0.0
+    if backend == "pybullet":
+        env = PointNavEnv(cfg)
+        env.reset(seed=0, options=ROUTE)
+        for _ in range(300):
+            _, _, term, _, info = env.step([0.0, 0.5])
+            assert not term
+            contact += "object" in info["collision_kinds"]
+            cost += info["cost"]
+            if contact == 50:
+                break
+        env.close()
+        return contact, cost
+    env = BatchedPointNav(1, cfg)
+    env.reset(seed=0, options=ROUTE)
+    for _ in range(300):
+        _, _, term, _, info = env.step(np.array([[0.0, 0.5]]))
+        assert not term[0]
+        contact += bool(info["collisions"][0] & 2)  # the object bit
+        cost += float(info["cost"][0])
+        if contact == 50:
+            break
+    env.close()
+    return contact, cost
+
+
+@pytest.mark.parametrize("backend", ["pybullet", "batched"])
+def test_an_object_pushed_for_50_steps_costs_once_under_metaurbans_rule(backend: str) -> None:
+    base = {"scene_spec": street(), "machine": "metaurban_coco", "cost_kinds": ["object"], **FREE}
+    assert _push(backend, {**base, "cost_rule": "metaurban"}) == (50, 1.0)
+    assert _push(backend, {**base, "cost_rule": "contact_steps"}) == (50, 50.0)
+
+
+def test_metaurbans_rule_charges_no_building_and_leaving_the_route_costs() -> None:
+    with pytest.raises(ConfigError, match="never charged by MetaUrban's cost function"):
+        PointNavEnv({"scene_spec": street(), "cost_rule": "metaurban", "cost_kinds": ["object", "building"]})
+    cfg = {"scene_spec": street(), "machine": "metaurban_coco", "cost_rule": "metaurban", "cost_kinds": ["object"]}
+    env = BatchedPointNav(1, {**cfg, **FREE, "out_of_route_distance": 1.0, "terminate_off_walkable": False})
+    env.reset(seed=0, options=ROUTE)
+    for _ in range(100):  # steer off the route to the right until the episode ends out of route
+        _, _, term, _, info = env.step(np.array([[-0.6, 0.4]]))
+        if term[0]:
+            break
+    assert term[0] and info["final_info"]["out_of_route"][0] and info["final_info"]["cost"][0] == 1.0
+    env.close()
