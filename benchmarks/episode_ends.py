@@ -4,12 +4,12 @@ stuck (and whether the machine never moved), out of route, toppled; the top spee
 Usage: python benchmarks/episode_ends.py [--policy policies/PointNav/ppo] [--episodes 30] [--split test] [--stochastic]
        [--protocol-endings] [--out benchmarks/results/episode_ends/<task>-<method>.json]
 
-`--stochastic` draws each action from the policy's distribution (torch seeded with 0 before each env's episodes)
-instead of taking its mean. `--protocol-endings` runs the episodes under the protocol's evaluation rules
-(`eval_env`: the `paper` protocol ends an episode on success, out of route, toppling or the horizon, never on being
-stuck or in contact) instead of the training env's. The policy folder's card.json (or run.json) gives the env config it was trained under. Episode k uses seed k on both
-envs (the batched env's sub-env reset with seed k draws the PyBullet env's scene and route). Writes one JSON with a
-row per episode and the counts of each end, per env.
+`--stochastic` draws each action from the policy's distribution (torch seeded with 0 before each env's episodes) instead
+of taking its mean. `--protocol-endings` runs the episodes under the protocol's evaluation rules (`eval_env`: the
+`paper_realistic` protocol ends an episode on success, out of route, toppling or the horizon, never on being stuck or in
+contact) instead of the training env's. The policy folder's card.json (or run.json) gives the env config it was trained
+under. Episode k uses seed k on both envs (the batched env's sub-env reset with seed k draws the PyBullet env's scene
+and route). Writes one JSON with a row per episode and the counts of each end, per env.
 """
 
 from __future__ import annotations

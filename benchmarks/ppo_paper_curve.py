@@ -1,14 +1,14 @@
-"""PPO's learning curve under the `paper` protocol on the batched backend, test SR measured on the PyBullet env,
-and the transfer gap of the final policy (the same episodes on the PyBullet env and on the batched env).
+"""PPO's learning curve under the `paper_realistic` protocol on the batched backend, test SR measured on the PyBullet
+env, and the transfer gap of the final policy (the same episodes on the PyBullet env and on the batched env).
 
 Usage: python benchmarks/ppo_paper_curve.py [--steps 5000000] [--eval-every 500000] [--curve-episodes 20]
        [--final-episodes 200] [--run outputs/train/ppo_paper_batched] [--out benchmarks/results/ppo_paper_curve]
 
-Training is `curbside train run --protocol paper --backend batched --resume`: a stopped run goes on from its last
-checkpoint (every 25,000 env steps), and a finished one is only evaluated. The last checkpoint of a stopped run is
-kept in git under OUT/checkpoint/ (with its curve): a run folder without checkpoints starts from it. Writes curve.csv (env steps, test SR, SPL,
-cost, route completion on `--curve-episodes` PyBullet episodes), transfer.json (the final policy on
-`--final-episodes` test episodes: PyBullet, batched, their SR difference) and curve.png.
+Training is `curbside train run --protocol paper_realistic --backend batched --resume`: a stopped run goes on from its
+last checkpoint (every 25,000 env steps), and a finished one is only evaluated. The last checkpoint of a stopped run is
+kept in git under OUT/checkpoint/ (with its curve): a run folder without checkpoints starts from it. Writes curve.csv
+(env steps, test SR, SPL, cost, route completion on `--curve-episodes` PyBullet episodes), transfer.json (the final
+policy on `--final-episodes` test episodes: PyBullet, batched, their SR difference) and curve.png.
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ def main() -> None:
     from curbside.train.protocols import protocol
     from curbside.train.run import train
 
-    proto = protocol("paper")
+    proto = protocol("paper_realistic")
     seed_run(args.run, args.out / "checkpoint")
     policy = args.run / "policy.zip"
     done = policy.is_file() and PPO.load(policy, device="cpu").num_timesteps >= args.steps
@@ -58,7 +58,7 @@ def main() -> None:
             "PointNav",
             args.run,
             steps=args.steps,
-            protocol="paper",
+            protocol="paper_realistic",
             backend="batched",
             resume=(args.run / "run.json").is_file(),
             eval_every=args.eval_every,
@@ -146,7 +146,7 @@ def plot(out: Path) -> None:
         )
         ax.scatter([end], [transfer["batched"]["sr"]], marker="x", s=80, color="C3", label="final SR, batched env")
     ax.axhline(0.66, color="gray", ls=":", lw=1, label="paper PPO test SR 0.66")
-    ax.set_xlabel("env steps (millions), paper protocol, batched backend")
+    ax.set_xlabel("env steps (millions), paper_realistic protocol, batched backend")
     ax.set_ylim(0, 1)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)

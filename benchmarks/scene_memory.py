@@ -1,14 +1,15 @@
-"""Peak RSS of the batched training env drawing from N paper-scale training scenes (the `paper` protocol's env).
+"""Peak RSS of the batched training env drawing from N paper-scale training scenes (the `paper_realistic`
+protocol's env).
 
 Usage: python benchmarks/scene_memory.py [--scenes 1000] [--envs 64] [--out benchmarks/results/scene_memory]
 
-The env is the one `curbside train run --protocol paper --backend batched` trains on (64 envs, the metaurban12k
-preset, 0.1 m grids) with `num_scenes` N, `scene_steps` 1 (every reset draws a scene) and the default LRU of built
-scenes (`scene_cache`, 2 x envs): one env at a time is reset into the next scene of the N, in order, until every one
-has been built once (random draws would need ~N ln N resets to visit them all), and the process's RSS is sampled
-after every reset. Scenes are generated lazily from their seeds (a scene spec
-costs nothing until drawn); a built scene (distance grids, planner) lives while an env uses it or while it is among
-the most recently used. Writes summary.json (peak RSS, RSS after each 100 scenes, build time) and a PNG.
+The env is the one `curbside train run --protocol paper_realistic --backend batched` trains on (64 envs, the
+metaurban12k preset, 0.1 m grids) with `num_scenes` N, `scene_steps` 1 (every reset draws a scene) and the default LRU
+of built scenes (`scene_cache`, 2 x envs): one env at a time is reset into the next scene of the N, in order, until
+every one has been built once (random draws would need ~N ln N resets to visit them all), and the process's RSS is
+sampled after every reset. Scenes are generated lazily from their seeds (a scene spec costs nothing until drawn); a
+built scene (distance grids, planner) lives while an env uses it or while it is among the most recently used. Writes
+summary.json (peak RSS, RSS after each 100 scenes, build time) and a PNG.
 """
 
 from __future__ import annotations
@@ -73,7 +74,7 @@ def main() -> None:
     from curbside.train.protocols import protocol
     from sim.batched import BatchedPointNav
 
-    proto = protocol("paper")
+    proto = protocol("paper_realistic")
     cfg = split_config({**proto.env_config, "route_pool": 1}, "train", args.scenes)
     cfg["scene_cache"] = 2 * args.envs
     t0 = time.perf_counter()

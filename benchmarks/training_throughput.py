@@ -1,6 +1,6 @@
 """PPO training throughput end to end (env steps, policy inference and the learner's updates) under a protocol.
 
-Usage: python benchmarks/training_throughput.py [--protocol paper] [--iterations 2] [--only NAME ...]
+Usage: python benchmarks/training_throughput.py [--protocol paper_realistic] [--iterations 2] [--only NAME ...]
        [--out benchmarks/results/training_throughput]
 
 Each case builds the training VecEnv a `curbside train run` builds (curbside.train.envs.make_training_vec) and SB3's
@@ -8,7 +8,7 @@ PPO with the protocol's hyper-parameters, runs one PPO iteration (a train batch 
 warm up (scene builds, first touches), then times `--iterations` more: env steps per wall-clock second, with the
 share of time in the update; and the milliseconds of one BC minibatch. Cases:
 - ppo_pointnav_<protocol>_batched and ppo_socialnav_<protocol>_batched: the batched backend (sim.batched), the
-  protocol's envs (paper: 64) in one batched env in the training process;
+  protocol's envs (paper_realistic: 64) in one batched env in the training process;
 - ppo_pointnav_<protocol>_batched_sharded and ppo_socialnav_<protocol>_batched_sharded: the same envs as one batched
   env a core (curbside.train.batched_shards; training runs SocialNav's this way, PointNav's in one);
 - ppo_pointnav_<protocol>_pybullet and ppo_socialnav_<protocol>_pybullet: the PyBullet envs sharded over the cores
@@ -184,7 +184,7 @@ def main() -> None:
     from curbside.train.sharded import usable_cores
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--protocol", default="paper")
+    ap.add_argument("--protocol", default="paper_realistic")
     ap.add_argument("--iterations", type=int, default=2, help="timed PPO iterations per case (after one warm-up)")
     ap.add_argument("--only", nargs="*", default=None, help="case names to run (default: all)")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "training_throughput")

@@ -9,9 +9,9 @@ run episode k with seed k, so their episodes start alike (the same scene, route,
 where the two simulators do (and, with sampled actions, in the draws). The policy acts with its mean action or draws
 from its distribution (`--actions sampled`, the paper protocol's rule; the batched env's draws follow torch's seed 0);
 the episodes end as the run's training env ends them or, with `--episode-ends protocol`, by the protocol's evaluation
-rules (`paper`: no stuck or contact ending). `--envs batched` measures the batched env alone. Prints and writes one
-JSON object: each env's SR, SPL, cost, route completion (and SNS for SocialNav), and the PyBullet-minus-batched
-difference of each.
+rules (`paper_realistic`: no stuck or contact ending). `--envs batched` measures the batched env alone. Prints and
+writes one JSON object: each env's SR, SPL, cost, route completion (and SNS for SocialNav), and the
+PyBullet-minus-batched difference of each.
 """
 
 from __future__ import annotations

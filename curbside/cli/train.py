@@ -54,8 +54,8 @@ def run_cmd(
     steps: int = typer.Option(200_000, min=1, help="Env steps (online, GAIL) or gradient steps (IQL, TD3+BC, BC)."),
     protocol: str = typer.Option(
         "curbside",
-        help="Experimental protocol: curbside (learnable defaults) or paper "
-        "(MetaUrban's scenes, splits and hyper-parameters); docs/protocols.md.",
+        help="Experimental protocol: curbside (learnable defaults), paper (MetaUrban's scenes, splits and "
+        "hyper-parameters) or paper_realistic (paper's, driven by the realistic delivery robot); docs/protocols.md.",
     ),
     backend: str = typer.Option(
         "pybullet",
@@ -257,7 +257,10 @@ def eval_cmd(
     run_dir: Path = typer.Argument(..., help="A folder written by `curbside train run`."),
     split: str = typer.Option("test", help="train, test, unseen or finetune."),
     episodes: int | None = typer.Option(
-        None, min=1, help="Episodes (seeds seed..seed+N-1); default: the run's protocol's (curbside 50, paper 200)."
+        None,
+        min=1,
+        help="Episodes (seeds seed..seed+N-1); default: the run's protocol's (curbside 50, paper and "
+        "paper_realistic 200).",
     ),
     seed: int = typer.Option(0, min=0, help="Seed of the first episode."),
     config: str | None = typer.Option(
@@ -271,7 +274,8 @@ def eval_cmd(
     actions: str | None = typer.Option(
         None,
         help="mean (the policy's mean action) or sampled (drawn from its distribution, as MetaUrban's evaluation "
-        "script does; PPO family, BC and GAIL); default: the run's protocol's rule (curbside mean, paper sampled).",
+        "script does; PPO family, BC and GAIL); default: the run's protocol's rule (curbside mean, paper and "
+        "paper_realistic sampled).",
     ),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:

@@ -1,11 +1,11 @@
 """An SB3 VecEnv over a batched env cut into shards: shard 0 stepped in this process, each other shard in a worker
 process, all at once.
 
-A batched env (sim.batched) steps all its envs in one Python thread. SocialNav's crowds (an ORCA simulator an env)
-and its LiDAR keep that thread busy for ~75 % of a PPO iteration under the `paper` protocol, and the training process
-uses ~1.1 of two cores while it rolls out; only the PPO update uses both. Here the envs are split into one batched env
-per core, env i in shard i * shards // n, and the shards step side by side: the parent sends the workers their
-actions, steps its own shard, then reads theirs.
+A batched env (sim.batched) steps all its envs in one Python thread. SocialNav's crowds (an ORCA simulator an env) and
+its LiDAR keep that thread busy for ~75 % of a PPO iteration under the `paper_realistic` protocol, and the training
+process uses ~1.1 of two cores while it rolls out; only the PPO update uses both. Here the envs are split into one
+batched env per core, env i in shard i * shards // n, and the shards step side by side: the parent sends the workers
+their actions, steps its own shard, then reads theirs.
 
 Env i keeps its seed (the outer VecEnv's seed + i, so the same draws as env i of one batched env) and its episodes;
 what a shard shares among its own envs, the scenes it has built and each scene's route pool, it does not share with

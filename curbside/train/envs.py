@@ -14,8 +14,8 @@ from kernel.config import ConfigError
 TASKS = {"PointNav": "curbside/PointNav-v0", "SocialNav": "curbside/SocialNav-v0"}
 SPLITS = ("train", "test", "unseen", "finetune")
 # Batched training envs cut into one batched env a core. SocialNav's crowds step one env at a time in Python, and one
-# batched env leaves the second core idle while it rolls out: PPO under `paper` trains at 361 env steps/s in two
-# shards against 276 in one. PointNav's step is mostly the LiDAR march, which already runs on every core, and the
+# batched env leaves the second core idle while it rolls out: PPO under `paper_realistic` trains at 361 env steps/s in
+# two shards against 276 in one. PointNav's step is mostly the LiDAR march, which already runs on every core, and the
 # hand-over costs more than the second shard brings: 584 against 688 (benchmarks/training_throughput.py).
 BATCHED_SHARDED_TASKS = ("SocialNav",)
 MAX_WORKER_SCENES = 16  # built worlds a training worker keeps (a paper-scale world holds ~100 MB)

@@ -7,6 +7,9 @@ records its protocol in run.json; `curbside train run --protocol NAME` applies i
 - `paper`: MetaUrban's (ICLR 2025, Sec. 4 and the appendix tables "Experiment details"): MetaUrban-12K-scale scenes,
   the paper's split sizes, its hyper-parameters and PPO-ET rule, 200 evaluation episodes a split. Where the paper is
   silent or contradicts itself, the choice and its reason are in docs/protocols.md.
+- `paper_realistic`: `paper`'s MetaUrban-12K-scale scenes, splits, hyper-parameters and evaluation, driven by
+  curbside's realistic delivery robot (80 kg, 0.10 m wheels) with a contact cost every step in contact: the protocol
+  of the committed experiments (curbside/experiments), the platform's own result on a realistic machine.
 - `curbside`: the project's learnable defaults (sparse scenes, 10-60 m routes, SB3's usual PPO settings), for quick
   experiments and the tests.
 """
@@ -14,7 +17,7 @@ records its protocol in run.json; `curbside train run --protocol NAME` applies i
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -222,6 +225,13 @@ PROTOCOLS: dict[str, Protocol] = {
         ),
     ),
 }
+PROTOCOLS["paper_realistic"] = replace(
+    PROTOCOLS["paper"],
+    name="paper_realistic",
+    description="MetaUrban-12K-scale scenes, splits and the paper's hyper-parameters, driven by curbside's realistic "
+    "delivery robot (80 kg, 0.10 m wheels) with per-step contact cost: the platform's own result on a realistic "
+    "machine",
+)
 
 
 def deep_merge(base: Mapping[str, Any], over: Mapping[str, Any] | None) -> dict[str, Any]:

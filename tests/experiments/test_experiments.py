@@ -42,7 +42,7 @@ def test_every_shipped_experiment_loads_with_its_paper_numbers() -> None:
         "seed_robustness",
     } <= set(names())
     t1 = load_experiment("table1_paper")
-    assert len(t1.runs) == 14 and sum(len(r.seeds) for r in t1.runs) == 18 and t1.protocol == "paper"
+    assert len(t1.runs) == 14 and sum(len(r.seeds) for r in t1.runs) == 18 and t1.protocol == "paper_realistic"
     cells = {(r.task, s, r.method) for r in t1.runs for s in r.evaluate}
     assert len(cells) == 28 and all(paper_cell(t1, t, m, s, "") for t, s, m in cells)
     t2 = load_experiment("table2")

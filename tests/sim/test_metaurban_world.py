@@ -40,7 +40,9 @@ def test_the_raycast_vehicle_drive_is_metaurbans_for_numbers_and_arrays() -> Non
     steers = np.array([0.3, -1.0, 0.0, 1.0])
     v_arr, w_arr = vehicle_drive(spec, speeds, steers, throttles, 400.0, 50.0, 0.02, 0.7)
     for k in range(4):
-        v_one, w_one = vehicle_drive(spec, float(speeds[k]), float(steers[k]), float(throttles[k]), 400.0, 50.0, 0.02, 0.7)
+        v_one, w_one = vehicle_drive(
+            spec, float(speeds[k]), float(steers[k]), float(throttles[k]), 400.0, 50.0, 0.02, 0.7
+        )
         assert (v_one, w_one) == (float(v_arr[k]), float(w_arr[k]))
 
 

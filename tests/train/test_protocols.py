@@ -1,4 +1,4 @@
-"""Protocols (curbside, paper), the batched training backend, fine-tuning from a run, the finetune split and seeds:
+"""Protocols (curbside, paper, paper_realistic), the batched training backend, fine-tuning from a run, the finetune split and seeds:
 real SB3 and torch learners, real envs."""
 
 from __future__ import annotations
@@ -19,9 +19,43 @@ CFG = {"lidar": {"beams": 24, "low_beams": 8}, "route_length": [5.0, 25.0], "sce
 TINY = {"n_steps": 64, "batch_size": 64, "n_epochs": 1, "net_arch": [32, 32]}
 
 
-def test_paper_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
-    # MetaUrban, ICLR 2025, appendix tables: the values a paper run trains with, down to the SB3 objects.
-    ppo = resolve_run("ppo", "PointNav", protocol="paper")
+@pytest.mark.parametrize("name", ["paper", "paper_realistic"])
+def test_paper_protocols_keep_the_papers_splits_and_ppo_table(name) -> None:
+    # MetaUrban, ICLR 2025, Sec. 4 (MetaUrban-12K's splits) and the appendix's PPO / PPO-Lag / PPO-ET table.
+    p = protocol(name)
+    for algo in ("ppo", "ppo_lag", "ppo_et"):
+        h = p.algo_hparams(algo)
+        assert (
+            h["learning_rate"],
+            h["train_batch"],
+            h["batch_size"],
+            h["gamma"],
+            h["gae_lambda"],
+            h["clip_range"],
+            h["vf_coef"],
+            h["ent_coef"],
+            h["cost_limit"],
+        ) == (5e-5, 25_600, 256, 0.99, 0.95, 0.2, 1.0, 0.0, 1.0)
+    assert [p.scenes(s) for s in ("train", "test", "unseen", "finetune")] == [12_800, 1_000, 100, 1_000]
+    assert p.eval_episodes >= 200
+
+
+def test_paper_realistic_is_the_protocol_of_every_shipped_experiment() -> None:
+    from curbside.experiments.spec import HERE, names
+    from kernel.config import load_yaml
+
+    realistic = protocol("paper_realistic")
+    assert realistic.name == "paper_realistic" and "80 kg" in realistic.description
+    assert list(PROTOCOLS).index("paper_realistic") == list(PROTOCOLS).index("paper") + 1
+    # Each shipped yaml names its protocol itself, and names one that exists.
+    declared = {n: load_yaml((HERE / f"{n}.yaml").read_text(), n).get("protocol") for n in names()}
+    assert declared and all(p in PROTOCOLS for p in declared.values()), declared
+    assert declared["table1_paper"] == "paper_realistic"
+
+
+def test_paper_realistic_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
+    # MetaUrban, ICLR 2025, appendix tables: the values a paper_realistic run trains with, down to the SB3 objects.
+    ppo = resolve_run("ppo", "PointNav", protocol="paper_realistic")
     h = ppo["hparams"]
     assert (
         h["learning_rate"],
@@ -36,20 +70,19 @@ def test_paper_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
     assert h["n_steps"] * ppo["n_envs"] == 25_600  # the paper's train batch
     assert h["n_epochs"] == 30  # not in the paper: RLlib's default num_sgd_iter, as its table's settings are RLlib's
     assert ppo["env_config"]["preset"] == "metaurban12k" and ppo["num_scenes"] == 12_800
-    assert [protocol("paper").scenes(s) for s in ("train", "test", "unseen", "finetune")] == [12_800, 1_000, 100, 1_000]
-    assert protocol("paper").eval_episodes >= 200
     # MetaUrban's eval_ppo.py calls SB3's predict with its default: the policy's draws, not its mean.
-    assert protocol("paper").eval_actions == "sampled" and "eval_ppo.py" in protocol("paper").sources["eval_actions"]
-    bc = resolve_run("bc", "PointNav", protocol="paper")["hparams"]
+    realistic = protocol("paper_realistic")
+    assert realistic.eval_actions == "sampled" and "eval_ppo.py" in realistic.sources["eval_actions"]
+    bc = resolve_run("bc", "PointNav", protocol="paper_realistic")["hparams"]
     assert (bc["learning_rate"], bc["batch_size"]) == (1e-4, 64)
     from curbside.experiments.spec import budget_of, load_experiment
 
     assert budget_of(load_experiment("table1_paper"), "paper")["bc_steps"] == 40 * 30_000 // 64  # 40 epochs
-    iql = resolve_run("iql", "PointNav", protocol="paper")["hparams"]
+    iql = resolve_run("iql", "PointNav", protocol="paper_realistic")["hparams"]
     assert (iql["learning_rate"], iql["tau"], iql["beta"], iql["expectile"]) == (1e-4, 5e-3, 3.0, 0.7)
-    td3 = resolve_run("td3bc", "PointNav", protocol="paper")["hparams"]
+    td3 = resolve_run("td3bc", "PointNav", protocol="paper_realistic")["hparams"]
     assert (td3["learning_rate"], td3["alpha"], td3["actor_delay"]) == (1e-4, 2.5, 2)
-    gail = resolve_run("gail", "PointNav", protocol="paper")["hparams"]
+    gail = resolve_run("gail", "PointNav", protocol="paper_realistic")["hparams"]
     assert (gail["learning_rate"], gail["disc_lr"], gail["demo_batch_size"], gail["n_epochs"]) == (1e-4, 3e-3, 64, 5)
     assert gail["n_steps"] * 8 == 12_800  # the sample batch, over the PyBullet backend's 8 envs
 
@@ -64,7 +97,7 @@ def test_paper_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
             "MlpPolicy",
             vec,
             device="cpu",
-            **ppo_kwargs(resolve_run("ppo", "PointNav", protocol="paper", n_envs=2)["hparams"]),
+            **ppo_kwargs(resolve_run("ppo", "PointNav", protocol="paper_realistic", n_envs=2)["hparams"]),
         )
     finally:
         vec.close()
@@ -77,17 +110,17 @@ def test_paper_protocol_selects_the_tables_hyper_parameters(tmp_path) -> None:
 
 
 def test_protocol_envs_follow_the_backend_and_configs_merge_key_by_key() -> None:
-    batched = resolve_run("ppo", "PointNav", protocol="paper", backend="batched")
-    pybullet = resolve_run("ppo", "PointNav", protocol="paper", backend="pybullet")
+    batched = resolve_run("ppo", "PointNav", protocol="paper_realistic", backend="batched")
+    pybullet = resolve_run("ppo", "PointNav", protocol="paper_realistic", backend="pybullet")
     assert (batched["n_envs"], batched["hparams"]["n_steps"]) == (64, 400)
     assert (pybullet["n_envs"], pybullet["hparams"]["n_steps"]) == (8, 3_200)
-    lidar = resolve_run("ppo", "PointNav", protocol="paper", env_config={"lidar": {"beams": 120}})["env_config"][
-        "lidar"
-    ]
+    lidar = resolve_run("ppo", "PointNav", protocol="paper_realistic", env_config={"lidar": {"beams": 120}})[
+        "env_config"
+    ]["lidar"]
     assert lidar == {"resolution": 0.1, "beams": 120}  # the protocol's grid resolution survives a partial override
     # Scene reuse is the training envs' alone: each backend's own, none under curbside, none in the run's env_config.
-    paper = protocol("paper")
-    assert paper.backend_config("batched")["scene_steps"] > paper.backend_config("pybullet")["scene_steps"] > 0
+    realistic = protocol("paper_realistic")
+    assert realistic.backend_config("batched")["scene_steps"] > realistic.backend_config("pybullet")["scene_steps"] > 0
     assert protocol("curbside").backend_config("pybullet") == {}
     assert "scene_steps" not in pybullet["env_config"]
 
@@ -97,7 +130,7 @@ def test_curbside_protocol_keeps_the_learnable_defaults() -> None:
     assert r["env_config"] == {} and r["n_envs"] == 8 and r["num_scenes"] == 64
     assert r["hparams"]["learning_rate"] == 3e-4 and r["hparams"]["n_steps"] == 512
     assert protocol("curbside").eval_actions == "mean"
-    assert set(PROTOCOLS) == {"curbside", "paper"}
+    assert set(PROTOCOLS) == {"curbside", "paper", "paper_realistic"}
 
 
 def _curve(run: Path) -> list[dict[str, float]]:
@@ -233,7 +266,7 @@ def test_seeds_are_aggregated_as_mean_and_std(tmp_path) -> None:
 @pytest.mark.parametrize(
     "args, expected",
     [
-        (["--protocol", "papr"], "unknown protocol 'papr'; valid: curbside, paper"),
+        (["--protocol", "papr"], "unknown protocol 'papr'; valid: curbside, paper, paper_realistic"),
         (["--backend", "gpu"], "unknown backend 'gpu'; valid: pybullet, batched"),
         (["--backend", "batched", "--task", "Social"], "unknown task 'Social'; valid: PointNav, SocialNav"),
         (
@@ -338,8 +371,8 @@ def test_target_kl_is_a_ppo_override_that_no_protocol_records() -> None:
     """target_kl reaches SB3's PPO only when given, so runs of a protocol resume under the values they recorded."""
     from curbside.train.online import ppo_kwargs
 
-    assert "target_kl" not in resolve_run("ppo", "PointNav", protocol="paper")["hparams"]
-    h = resolve_run("ppo", "PointNav", protocol="paper", hparams={"target_kl": 0.01})["hparams"]
+    assert "target_kl" not in resolve_run("ppo", "PointNav", protocol="paper_realistic")["hparams"]
+    h = resolve_run("ppo", "PointNav", protocol="paper_realistic", hparams={"target_kl": 0.01})["hparams"]
     assert ppo_kwargs(h)["target_kl"] == 0.01
     for bad in (0, -0.01, "0.01", True):
         with pytest.raises(ConfigError, match=r"hparams.target_kl must be a number > 0"):
@@ -358,7 +391,7 @@ def test_the_ray_executor_refuses_target_kl() -> None:
 
 
 def test_a_protocol_catalog_is_built_once_on_first_use(tmp_path, monkeypatch) -> None:
-    """The paper protocol names a 1,023-asset catalog (31 variants of each of the 33 categories); a protocol's catalog
+    """The paper_realistic protocol names a 1,023-asset catalog (31 variants of each of the 33 categories); a protocol's catalog
     is built the first time an env of the protocol is configured, and scenes then draw its assets."""
     import dataclasses
 
@@ -368,8 +401,8 @@ def test_a_protocol_catalog_is_built_once_on_first_use(tmp_path, monkeypatch) ->
     from retrieval.procedural import category_names
     from sim.envs.pointnav import PointNavEnv
 
-    paper = protocol("paper")
-    assert paper.catalog == PAPER_CATALOG and paper.env_config["catalog"] == PAPER_CATALOG.path
+    realistic = protocol("paper_realistic")
+    assert realistic.catalog == PAPER_CATALOG and realistic.env_config["catalog"] == PAPER_CATALOG.path
     assert PAPER_CATALOG.variants >= 30 and PAPER_CATALOG.variants * len(category_names()) >= 1_000
 
     recipe = CatalogRecipe(str(tmp_path / "tiny.duckdb"), variants=1)
