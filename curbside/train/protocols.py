@@ -161,9 +161,88 @@ HPARAMS_PAPER: dict[str, dict[str, Any]] = {
         "clip_range": 0.2,
     },
 }
+# `paper`'s learner: the paper's table, and MetaUrban's released PointNav script (RL/PointNav/train_ppo.py at commit
+# 6b8ff9a: Stable-Baselines3's PPO, "MlpPolicy") where the paper is silent: 10 epochs a batch, SB3's default network
+# (64 x 64 tanh, separate policy and value), SB3's initial log-std 0, gradient-norm clip 10.
+METAURBAN_LEARNER: dict[str, Any] = {"n_epochs": 10, "net_arch": [64, 64], "log_std_init": 0.0, "max_grad_norm": 10.0}
+HPARAMS_METAURBAN: dict[str, dict[str, Any]] = {
+    **HPARAMS_PAPER,
+    "ppo": {**PAPER_PPO, **METAURBAN_LEARNER},
+    "ppo_lag": {**PAPER_PPO, **METAURBAN_LEARNER},
+    "ppo_et": {**PAPER_PPO, **METAURBAN_LEARNER},
+    "gail": {**HPARAMS_PAPER["gail"], **METAURBAN_LEARNER, "n_epochs": 5},  # the paper's 5 generator epochs
+}
+# `paper`'s world: MetaUrban's released code at commit 6b8ff9a where the paper states no value (docs/protocols.md).
+PAPER_WORLD: dict[str, Any] = {
+    # The paper's COCO delivery bot limits (Table 2) on MetaUrban's ego body (EgoVehicle), a Bullet raycast vehicle.
+    "machine": "metaurban_coco",
+    # Its cost_function: leaving the route, a vehicle (its pedestrians are vehicle bodies) every step, an object once.
+    "cost_rule": "metaurban",
+    "cost_kinds": ["object", "agent", "vehicle"],
+    # The paper's horizon; its envs end an episode on success, past max_lateral_dist (5 m in RL/PointNav/train_ppo.py)
+    # or at the horizon, never for being stuck or in contact.
+    "horizon": 1000,
+    "horizon_min_speed": None,
+    "out_of_route_distance": 5.0,
+    "terminate_off_walkable": False,
+    "stuck_steps": 0,
+    "collision_steps": 0,
+    # Routes as MetaUrban's code draws them on its one-block maps (a goal among the farthest tenth of the walkable
+    # area, orca_navigation.py): ~80-130 m on a straight block, ~100-250 m on an intersection (docs/protocols.md).
+    "route_length": [80.0, 250.0],
+}
 
 PAPER_CATALOG = CatalogRecipe("catalogs/paper.duckdb", variants=31, seed=0)
 
+_PAPER_REALISTIC = Protocol(
+    name="paper_realistic",
+    description="MetaUrban-12K-scale scenes, splits and the paper's hyper-parameters, driven by curbside's realistic "
+    "delivery robot (80 kg, 0.10 m wheels) with per-step contact cost: the platform's own result on a realistic "
+    "machine",
+    # LiDAR grids at 0.1 m: a paper-scale scene's grids at the default 0.05 m hold ~40 M cells, and 64 envs in
+    # 64 scenes would pass the 2**31 cells the batched tracer indexes (docs/protocols.md).
+    env_config=_frozen({"preset": "metaurban12k", "lidar": {"resolution": 0.1}, "catalog": PAPER_CATALOG.path}),
+    # 33 categories x 31 variants = 1,023 assets; the unseen and finetune splits draw a fifth of each category's
+    # variants and 7 whole categories that train and test never use (sim.scene.dataset).
+    catalog=PAPER_CATALOG,
+    split_scenes=_frozen({"train": 12_800, "test": 1_000, "unseen": 100, "finetune": 1_000}),
+    n_envs=64,
+    hparams=_frozen({k: _frozen(v) for k, v in HPARAMS_PAPER.items()}),
+    # The expert's share drives with noise 0.15: on 400 m routes noise 0.7 succeeds on none, 0.3 on 22 % and
+    # 0.15 on 77 % of episodes (docs/protocols.md), near the paper's ~60 % demonstrations.
+    demos=Demonstrations(steps=30_000, policy_fraction=0.8, expert_noise=0.15),
+    pybullet_envs=8,
+    eval_episodes=200,
+    eval_scenes=100,
+    eval_actions="sampled",
+    # The paper's episode ends only on success, leaving the route or the horizon (R_crash: no termination); the
+    # training envs keep their stuck and contact endings, which end a pinned machine's episode early
+    # (docs/protocols.md).
+    eval_env=_frozen({"stuck_steps": 0, "collision_steps": 0}),
+    # A paper-scale scene costs ~2 s to build and a long route ~0.1 s to plan: each batched env keeps its scene for
+    # 20,000 steps and each scene a pool of 16 routes. A PyBullet env's new scene costs ~2.8 s (world and
+    # pedestrians included), about 500 of its steps: it keeps its scene for 2,000 steps (docs/protocols.md).
+    training_config=_frozen(
+        {"batched": _frozen({"scene_steps": 20_000, "route_pool": 16}), "pybullet": _frozen({"scene_steps": 2_000})}
+    ),
+    sources=_frozen(
+        {
+            "split_scenes": "MetaUrban, ICLR 2025, Sec. 4 (MetaUrban-12K: train 12,800, test 1,000, unseen 100, "
+            "finetune 1,000)",
+            "hparams": "MetaUrban, ICLR 2025, appendix hyper-parameter tables (PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, "
+            "BC, GAIL)",
+            "demos": "MetaUrban, ICLR 2025, appendix: 30,000 steps, 80 % from a trained PPO policy, ~60 % success",
+            "env_config": "docs/protocols.md: the metaurban12k preset (scenes, 250-650 m routes, horizon rule)",
+            "eval_env": "MetaUrban, ICLR 2025, reward (R_crash per collision step, no termination) and "
+            "MetaUrban's envs/sidewalk_static_env.py (crash_*_done False: success or the horizon ends an episode; "
+            "the paper's out-of-route ending is kept, docs/protocols.md)",
+            "eval_actions": "MetaUrban's RL/PointNav/eval_ppo.py: SB3's predict with its default, a draw from the "
+            "policy's distribution (docs/protocols.md)",
+            "catalog": "MetaUrban, ICLR 2025, Sec. 3: 10,000 assets, unseen objects held out of training; ours "
+            "1,023 procedural ones (docs/protocols.md)",
+        }
+    ),
+)
 PROTOCOLS: dict[str, Protocol] = {
     "curbside": Protocol(
         name="curbside",
@@ -176,62 +255,28 @@ PROTOCOLS: dict[str, Protocol] = {
         pybullet_envs=8,
         eval_episodes=50,
     ),
-    "paper": Protocol(
-        name="paper",
-        description="MetaUrban's: MetaUrban-12K-scale scenes and splits, the paper's hyper-parameters, 200 "
-        "evaluation episodes a split",
-        # LiDAR grids at 0.1 m: a paper-scale scene's grids at the default 0.05 m hold ~40 M cells, and 64 envs in
-        # 64 scenes would pass the 2**31 cells the batched tracer indexes (docs/protocols.md).
-        env_config=_frozen({"preset": "metaurban12k", "lidar": {"resolution": 0.1}, "catalog": PAPER_CATALOG.path}),
-        # 33 categories x 31 variants = 1,023 assets; the unseen and finetune splits draw a fifth of each category's
-        # variants and 7 whole categories that train and test never use (sim.scene.dataset).
-        catalog=PAPER_CATALOG,
-        split_scenes=_frozen({"train": 12_800, "test": 1_000, "unseen": 100, "finetune": 1_000}),
-        n_envs=64,
-        hparams=_frozen({k: _frozen(v) for k, v in HPARAMS_PAPER.items()}),
-        # The expert's share drives with noise 0.15: on 400 m routes noise 0.7 succeeds on none, 0.3 on 22 % and
-        # 0.15 on 77 % of episodes (docs/protocols.md), near the paper's ~60 % demonstrations.
-        demos=Demonstrations(steps=30_000, policy_fraction=0.8, expert_noise=0.15),
-        pybullet_envs=8,
-        eval_episodes=200,
-        eval_scenes=100,
-        eval_actions="sampled",
-        # The paper's episode ends only on success, leaving the route or the horizon (R_crash: no termination); the
-        # training envs keep their stuck and contact endings, which end a pinned machine's episode early
-        # (docs/protocols.md).
-        eval_env=_frozen({"stuck_steps": 0, "collision_steps": 0}),
-        # A paper-scale scene costs ~2 s to build and a long route ~0.1 s to plan: each batched env keeps its scene for
-        # 20,000 steps and each scene a pool of 16 routes. A PyBullet env's new scene costs ~2.8 s (world and
-        # pedestrians included), about 500 of its steps: it keeps its scene for 2,000 steps (docs/protocols.md).
-        training_config=_frozen(
-            {"batched": _frozen({"scene_steps": 20_000, "route_pool": 16}), "pybullet": _frozen({"scene_steps": 2_000})}
-        ),
-        sources=_frozen(
-            {
-                "split_scenes": "MetaUrban, ICLR 2025, Sec. 4 (MetaUrban-12K: train 12,800, test 1,000, unseen 100, "
-                "finetune 1,000)",
-                "hparams": "MetaUrban, ICLR 2025, appendix hyper-parameter tables (PPO, PPO-Lag, PPO-ET, IQL, TD3+BC, "
-                "BC, GAIL)",
-                "demos": "MetaUrban, ICLR 2025, appendix: 30,000 steps, 80 % from a trained PPO policy, ~60 % success",
-                "env_config": "docs/protocols.md: the metaurban12k preset (scenes, 250-650 m routes, horizon rule)",
-                "eval_env": "MetaUrban, ICLR 2025, reward (R_crash per collision step, no termination) and "
-                "MetaUrban's envs/sidewalk_static_env.py (crash_*_done False: success or the horizon ends an episode; "
-                "the paper's out-of-route ending is kept, docs/protocols.md)",
-                "eval_actions": "MetaUrban's RL/PointNav/eval_ppo.py: SB3's predict with its default, a draw from the "
-                "policy's distribution (docs/protocols.md)",
-                "catalog": "MetaUrban, ICLR 2025, Sec. 3: 10,000 assets, unseen objects held out of training; ours "
-                "1,023 procedural ones (docs/protocols.md)",
-            }
-        ),
-    ),
 }
-PROTOCOLS["paper_realistic"] = replace(
-    PROTOCOLS["paper"],
-    name="paper_realistic",
-    description="MetaUrban-12K-scale scenes, splits and the paper's hyper-parameters, driven by curbside's realistic "
-    "delivery robot (80 kg, 0.10 m wheels) with per-step contact cost: the platform's own result on a realistic "
-    "machine",
+PROTOCOLS["paper"] = replace(
+    _PAPER_REALISTIC,
+    name="paper",
+    description="MetaUrban's: MetaUrban-12K-scale scenes and splits, its ego, cost, episode ends and horizon, the "
+    "paper's hyper-parameters (its released PPO script where the paper is silent), 200 evaluation episodes a split",
+    env_config=_frozen({**_PAPER_REALISTIC.env_config, **PAPER_WORLD}),
+    hparams=_frozen({k: _frozen(v) for k, v in HPARAMS_METAURBAN.items()}),
+    eval_env=_frozen({}),  # the training env's ends are MetaUrban's already
+    sources=_frozen(
+        {
+            **_PAPER_REALISTIC.sources,
+            "env_config": "MetaUrban's released code at commit 6b8ff9a where the paper is silent (docs/protocols.md): "
+            "EgoVehicle's body on the paper's COCO limits, its cost_function, its episode ends",
+            "hparams": "MetaUrban, ICLR 2025, appendix hyper-parameter tables; epochs, network, initial log-std and "
+            "gradient clip from MetaUrban's RL/PointNav/train_ppo.py at commit 6b8ff9a",
+            "eval_env": "MetaUrban's envs/sidewalk_static_env.py done_function: success, lateral past "
+            "max_lateral_dist, the horizon",
+        }
+    ),
 )
+PROTOCOLS["paper_realistic"] = _PAPER_REALISTIC
 
 
 def deep_merge(base: Mapping[str, Any], over: Mapping[str, Any] | None) -> dict[str, Any]:

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from kernel.config import ConfigError
+from curbside.train.protocols import protocol
 from sim.batched import BatchedPointNav
 from sim.envs.pointnav import PointNavEnv
 from sim.machines import machine_spec, vehicle_drive
@@ -20,6 +21,12 @@ from tests.street import street
 
 ROUTE = {"start": [3.0, 7.0], "goal": [40.0, 7.0]}  # left sidewalk; the trash bin stands on it at x = 15
 FREE = {"stuck_steps": 0, "collision_steps": 0, "horizon": 10_000, "horizon_min_speed": None}
+
+
+def _on_street(name: str, **over: object) -> dict:
+    """Protocol `name`'s env config on the test street (its scenes and catalog left out)."""
+    cfg = {k: v for k, v in protocol(name).env_config.items() if k not in ("preset", "catalog")}
+    return {**cfg, "scene_spec": street(), **over}
 
 
 def test_the_raycast_vehicle_drive_is_metaurbans_for_numbers_and_arrays() -> None:
@@ -136,10 +143,43 @@ def _push(backend: str, cfg: dict) -> tuple[int, float]:
 
 
 @pytest.mark.parametrize("backend", ["pybullet", "batched"])
-def test_an_object_pushed_for_50_steps_costs_once_under_metaurbans_rule(backend: str) -> None:
+def test_an_object_pushed_for_50_steps_costs_1_under_paper_and_50_under_curbside(backend: str) -> None:
+    assert _push(backend, _on_street("paper")) == (50, 1.0)
+    assert _push(backend, _on_street("curbside", machine="metaurban_coco", **FREE)) == (50, 50.0)
     base = {"scene_spec": street(), "machine": "metaurban_coco", "cost_kinds": ["object"], **FREE}
     assert _push(backend, {**base, "cost_rule": "metaurban"}) == (50, 1.0)
     assert _push(backend, {**base, "cost_rule": "contact_steps"}) == (50, 50.0)
+
+
+@pytest.mark.parametrize("backend", ["pybullet", "batched"])
+def test_an_episode_ends_at_1000_steps_under_paper(backend: str) -> None:
+    """MetaUrban's ends: a machine standing still is neither stuck nor out of route; the horizon truncates it at
+    step 1,000, whatever the route's length (the `curbside` protocol cuts it to route length / 0.5 m/s)."""
+    cfg = _on_street("paper")
+    steps = 0
+    if backend == "pybullet":
+        env = PointNavEnv(cfg)
+        _, reset_info = env.reset(seed=0, options=ROUTE)
+        term = trunc = False
+        while not (term or trunc):
+            _, _, term, trunc, _ = env.step([0.0, 0.0])
+            steps += 1
+        env.close()
+    else:
+        env = BatchedPointNav(1, cfg)
+        _, reset_info = env.reset(seed=0, options=ROUTE)
+        env.autoreset[0] = False  # the street holds no route of the protocol's lengths to draw next
+        term = trunc = np.zeros(1, dtype=bool)
+        while not (term[0] or trunc[0]):
+            _, _, term, trunc, _ = env.step(np.zeros((1, 2)))
+            steps += 1
+        env.close()
+    assert int(np.asarray(reset_info["horizon"]).reshape(-1)[0]) == 1000
+    assert steps == 1000 and bool(np.asarray(trunc).reshape(-1)[0]) and not bool(np.asarray(term).reshape(-1)[0])
+    env = PointNavEnv(_on_street("curbside"))
+    _, reset_info = env.reset(seed=0, options=ROUTE)
+    assert reset_info["horizon"] < 1000  # 37 m at 0.5 m/s
+    env.close()
 
 
 def test_metaurbans_rule_charges_no_building_and_leaving_the_route_costs() -> None:

@@ -29,7 +29,13 @@ def test_world_surfaces_and_heights(spec):
 
 
 def test_machines_table_and_custom():
-    assert set(WHEELED) == {"delivery_bot", "delivery_bot_mod1", "delivery_bot_mod2", "wheelchair", "mobility_scooter"}
+    realistic = {"delivery_bot", "delivery_bot_mod1", "delivery_bot_mod2", "wheelchair", "mobility_scooter"}
+    metaurban = {f"metaurban_{n}" for n in ("coco", "coco_mod1", "coco_mod2", "wheelchair", "scooter")}
+    assert set(WHEELED) == realistic | metaurban
+    assert all(MACHINES[n].drive == "force" for n in realistic) and all(MACHINES[n].rides for n in metaurban)
+    assert {(MACHINES[n].v_max_kmh, MACHINES[n].steer_max_deg, MACHINES[n].engine_force) for n in metaurban} == {
+        (MACHINES[n].v_max_kmh, MACHINES[n].steer_max_deg, MACHINES[n].engine_force) for n in realistic
+    }  # the paper's Table 2 limits on both bodies
     assert MACHINES["mobility_scooter"].v_max == pytest.approx(12.5)
     custom = machine_spec({"base": "wheelchair", "v_max_kmh": 8, "engine_force": [120, 130]})
     assert custom.v_max_kmh == 8 and custom.engine_force == (120.0, 130.0) and custom.wheelbase == 0.5
