@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from kernel.config import ConfigError
 from curbside.train.protocols import protocol
+from kernel.config import ConfigError
 from sim.batched import BatchedPointNav
 from sim.envs.pointnav import PointNavEnv
 from sim.machines import machine_spec, vehicle_drive
