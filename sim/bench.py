@@ -72,7 +72,7 @@ def _env_steps(env: Any, steps: int) -> tuple[int, float, float]:
     """(steps, CPU seconds, wall seconds) of `steps` env steps under the expert's actions, step() only timed."""
     from sim.expert import PurePursuitExpert
 
-    expert = PurePursuitExpert()
+    expert = PurePursuitExpert.for_machine(env.unwrapped.spec_machine)
     clock = time.process_time
     cpu, wall, n, seed = 0.0, 0.0, 0, 0
     env.reset(seed=seed)

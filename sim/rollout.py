@@ -15,8 +15,15 @@ def make_policy(name: str, env: Any) -> Policy:
     if name == "expert":
         from sim.expert import PurePursuitExpert
 
-        expert = PurePursuitExpert()
-        return lambda e, obs: expert.act(e)
+        experts: dict[str, PurePursuitExpert] = {}  # one per machine (`PurePursuitExpert.for_machine`)
+
+        def drive(e: Any, obs: Any) -> Any:
+            spec = e.unwrapped.spec_machine
+            if spec.name not in experts:
+                experts[spec.name] = PurePursuitExpert.for_machine(spec)
+            return experts[spec.name].act(e)
+
+        return drive
     if name == "random":
         return lambda e, obs: e.action_space.sample()
     raise ValueError(f"unknown policy {name!r}; valid: expert, random")

@@ -161,7 +161,7 @@ def demo_episode(k: int, job: tuple[Any, ...]) -> tuple[EpisodeRecorder, bool]:
     env = worker_state(
         "demo_env", json.dumps([eid, cfg], sort_keys=True, default=str), lambda: gym.make(eid, config=dict(cfg))
     )
-    expert = PurePursuitExpert()
+    expert = PurePursuitExpert.for_machine(env.unwrapped.spec_machine)
     rng = np.random.default_rng([seed, k])
     ep_seed = seed + k
     obs, _ = env.reset(seed=ep_seed)

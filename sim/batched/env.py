@@ -313,6 +313,8 @@ class BatchedPointNav(VectorEnv):
             succeeded,
             out,
             stuck | over,
+            steer,
+            np.abs(drive.speed) / self.spec_machine.v_max,
         ).astype(np.float64)
         ep.last_action = act
         self.scene_steps_left -= 1

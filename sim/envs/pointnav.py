@@ -347,6 +347,8 @@ class PointNavEnv(gym.Env):
             bool(hits),
             ep.cost_total,
             lambda: planner.grid.label_at(x, y) != 0,
+            steer,
+            abs(machine.speed) / machine.spec.v_max,
         )
         end = self.termination(step)
         ep.succeeded, ep.out_of_route, ep.stuck = end.succeeded, end.out_of_route, end.stuck

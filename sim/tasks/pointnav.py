@@ -106,6 +106,13 @@ class Reward:
     steering: float = key_field(0.05, _WEIGHT, "w_steer: the cost of |steering change| x speed")
     crash: float = key_field(0.5, _WEIGHT, "w_crash: the cost of a step in collision")
     floor: bool = key_field(False, Bool(), "floor the dense part of each step's reward at zero")
+    speed: float = key_field(0.0, _WEIGHT, "w_speed: the reward of speed / top speed a step (MetaUrban's speed_reward)")
+    steering_range: float = key_field(
+        0.0, _WEIGHT, "w_range: the cost of |steering| beyond 1 / speed (MetaUrban's steering_range_penalty)"
+    )
+    replace: bool = key_field(
+        False, Bool(), "a collision's and an episode end's terms replace the step's reward instead of adding to it"
+    )
 
     def __post_init__(self) -> None:
         check_table(asdict(self), REWARD_TABLE, name="config.reward")
@@ -117,13 +124,24 @@ class Reward:
         disp = step.new_progress if self.progress == "max" else step.progress
         over = abs(step.lateral) - self.lateral_free
         reward = self.disp * disp - self.lateral * max(0.0, over) - self.steering * abs(step.d_steer) * abs(step.speed)
+        if self.speed:
+            reward = reward + self.speed * step.speed_fraction
+        if self.steering_range:
+            reward = reward + self.steering_range * min(1.0 / max(step.speed, 1e-2) - abs(step.steer), 0.0)
+        stuck = end.failed_in_place
+        bonus = self.success if end.succeeded else self.out_of_route if end.out_of_route else self.stuck
+        if self.replace:  # MetaUrban's order: the floored dense part, then a crash, then the episode's end
+            if self.floor and 0.0 > reward:
+                reward = 0.0
+            if step.collided:
+                reward = -self.crash
+            return float(bonus if end.succeeded or end.out_of_route or stuck else reward)
         if step.collided:
             reward = reward - self.crash
         if self.floor and 0.0 > reward:
             reward = 0.0
-        stuck = end.failed_in_place
         if end.succeeded or end.out_of_route or stuck:
-            reward = reward + (self.success if end.succeeded else self.out_of_route if end.out_of_route else self.stuck)
+            reward = reward + bonus
         return float(reward)
 
     def batch(
@@ -137,6 +155,8 @@ class Reward:
         succeeded: Any,
         out_of_route: Any,
         stuck: Any,
+        steer: Any = 0.0,
+        speed_fraction: Any = 0.0,
     ) -> np.ndarray:
         """The rewards of many steps at once (arrays or numbers; `sim.batched` steps many envs through it). Every
         branch is an np.where that picks what the scalar max/if would, so one step's double is the same either way."""
@@ -147,11 +167,22 @@ class Reward:
             - self.lateral * np.where(over > 0.0, over, 0.0)
             - self.steering * np.abs(d_steer) * np.abs(speed)
         )
+        if self.speed:
+            reward = reward + self.speed * speed_fraction
+        if self.steering_range:
+            gap = 1.0 / np.maximum(speed, 1e-2) - np.abs(steer)
+            reward = reward + self.steering_range * np.where(gap < 0.0, gap, 0.0)
+        bonus = np.where(succeeded, self.success, np.where(out_of_route, self.out_of_route, self.stuck))
+        ended = np.logical_or(np.logical_or(succeeded, out_of_route), stuck)
+        if self.replace:
+            if self.floor:
+                reward = np.where(0.0 > reward, 0.0, reward)
+            reward = np.where(collided, -self.crash, reward)
+            return np.where(ended, bonus, reward)
         reward = np.where(collided, reward - self.crash, reward)
         if self.floor:
             reward = np.where(0.0 > reward, 0.0, reward)
-        bonus = np.where(succeeded, self.success, np.where(out_of_route, self.out_of_route, self.stuck))
-        return np.where(np.logical_or(np.logical_or(succeeded, out_of_route), stuck), reward + bonus, reward)
+        return np.where(ended, reward + bonus, reward)
 
 
 # The Keys of the Reward fields; a config's `reward` overrides some of a preset's terms.
@@ -173,6 +204,26 @@ REWARD_PRESETS: dict[str, dict[str, Any]] = {
         floor=False,
     ),
     "learnable": asdict(Reward()),
+    # MetaUrban's released env and PointNav script (envs/sidewalk_static_env.py reward_function and
+    # RL/PointNav/train_ppo.py at commit 6b8ff9a): 2 a metre along the route, 2 x |lateral| / max_lateral_dist (5 m),
+    # steering beyond 1 / speed at 2, 0.5 x speed / top speed, floored at zero; a crash makes the step -2, success +8
+    # and leaving the route -3. Its crash is the cost rule's charge (an object at its first contact; buildings, which
+    # its static env also penalises, are left out: they are not charged).
+    "metaurban": dict(
+        success=8.0,
+        out_of_route=-3.0,
+        stuck=0.0,
+        disp=2.0,
+        progress="route",
+        lateral=2.0 / 5.0,
+        lateral_free=0.0,
+        steering=0.0,
+        crash=2.0,
+        floor=True,
+        speed=0.5,
+        steering_range=2.0,
+        replace=True,
+    ),
 }
 
 
@@ -280,7 +331,7 @@ CONFIG_KEYS: dict[str, Key | dict[str, Key]] = {
     "speed_scale": Key(5.0, Pos(100.0), "m/s that maps to 1 in the `speed` observation (clipped)"),
     "num_waypoints": Key(10, Int(1, 1000), "route waypoints in the observation"),
     "waypoint_spacing": Key(1.0, Pos(100.0), "metres between the observed route waypoints"),
-    "reward_preset": Key("learnable", Choice(*REWARD_PRESETS), '"learnable" or "paper" (REWARD_PRESETS)'),
+    "reward_preset": Key("learnable", Choice(*REWARD_PRESETS), '"learnable", "paper" or "metaurban" (REWARD_PRESETS)'),
     "reward": Key({}, REWARD_TABLE, "overrides of the preset's terms (Reward fields)"),
     "measures": Key(
         list(POINTNAV_MEASURES), Rule("list", item=Rule("str")), "the episode metrics reported (sim.metrics)"

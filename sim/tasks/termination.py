@@ -29,6 +29,8 @@ class StepContext:
     in_contact: bool  # touched anything this step
     cost_total: float  # the episode's cost so far
     on_walkable: Callable[[], bool]  # whether the machine is on the walkable area (asked only when it decides)
+    steer: float = 0.0  # this step's steering command in [-1, 1]
+    speed_fraction: float = 0.0  # speed / the machine's top speed
 
 
 @dataclass(frozen=True)

@@ -194,3 +194,61 @@ def test_metaurbans_rule_charges_no_building_and_leaving_the_route_costs() -> No
             break
     assert term[0] and info["final_info"]["out_of_route"][0] and info["final_info"]["cost"][0] == 1.0
     env.close()
+
+
+def test_metaurbans_reward_replaces_the_step_on_a_crash_or_an_end_and_matches_its_batch() -> None:
+    """The `metaurban` preset: 2 a metre of progress, the lateral and steering-range terms, 0.5 x speed / top speed,
+    floored at 0; a charged crash makes the step -2, success +8, leaving the route -3. The scalar path (PyBullet env)
+    and the batch path (batched env) give the same doubles."""
+    from sim.tasks.pointnav import make_reward
+    from sim.tasks.termination import StepContext, StepEnd
+
+    reward = make_reward("metaurban", None)
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        progress, lateral, speed = rng.uniform(-0.3, 0.8), rng.uniform(-6, 6), rng.uniform(-0.1, 8.0)
+        steer, collided = rng.uniform(-1, 1), bool(rng.random() < 0.3)
+        ends = [bool(rng.random() < 0.1), bool(rng.random() < 0.1)]
+        end = StepEnd(succeeded=ends[0], out_of_route=ends[1] and not ends[0])
+        step = StepContext(
+            1,
+            progress,
+            max(progress, 0.0),
+            1.0,
+            100.0,
+            lateral,
+            0.1,
+            speed,
+            0.0,
+            collided,
+            collided,
+            0.0,
+            lambda: True,
+            steer,
+            abs(speed) / 8.33,
+        )
+        one = reward(step, end)
+        many = reward.batch(
+            np.array([progress]),
+            np.array([max(progress, 0.0)]),
+            np.array([lateral]),
+            np.array([0.1]),
+            np.array([speed]),
+            np.array([collided]),
+            np.array([end.succeeded]),
+            np.array([end.out_of_route]),
+            np.array([False]),
+            np.array([steer]),
+            np.array([abs(speed) / 8.33]),
+        )
+        assert one == float(many[0])
+        if end.succeeded:
+            assert one == 8.0
+        elif end.out_of_route:
+            assert one == -3.0
+        elif collided:
+            assert one == -2.0
+        else:
+            dense = 2.0 * progress - 0.4 * abs(lateral) + 0.5 * abs(speed) / 8.33
+            dense += 2.0 * min(1.0 / max(speed, 1e-2) - abs(steer), 0.0)
+            assert one == pytest.approx(max(dense, 0.0))
