@@ -8,7 +8,7 @@ Parts, each skipped when its file exists (`--fresh` measures it again):
 1. `expert.json`: the pure-pursuit expert (`PurePursuitExpert.for_machine`) on `--episodes` test episodes (seeds
    0..N-1, the protocol's evaluation scenes and episode ends) on the PyBullet env: its SR and cost an episode.
 2. `ppo_1m.json`: PPO trained `--ppo-steps` env steps under `paper` on the batched backend, seed 0
-   (`curbside train run --protocol paper --algo ppo --backend batched --resume`: a stopped run goes on), then
+   (`curbside train run --protocol paper --algo ppo --backend batched`, with `--resume` a stopped run goes on), then
    evaluated as the protocol evaluates (PyBullet env, `--episodes` test episodes, sampled actions).
 3. `transfer.json`: that policy on `--transfer-episodes` test episodes on both backends, the same seeds
    (benchmarks/transfer_gap.py with the protocol's episode ends and actions): PyBullet's SR minus the batched env's.
@@ -104,12 +104,12 @@ def ppo_part(run_dir: Path, steps: int, episodes: int, workers: int) -> dict[str
         "0",
         "--out",
         str(run_dir),
-        "--resume",
     ]
     t0 = time.perf_counter()
     if not (run_dir / "policy.zip").is_file():
         exe = Path(sys.executable).with_name("curbside")
-        subprocess.run([str(exe), *train[1:]], check=True)
+        resume = ["--resume"] if (run_dir / "run.json").is_file() else []  # a stopped run goes on
+        subprocess.run([str(exe), *train[1:], *resume], check=True)
     t1 = time.perf_counter()
     run = json.loads((run_dir / "run.json").read_text())
     proto = protocol(PROTOCOL)
@@ -167,6 +167,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "fidelity")
     ap.add_argument("--run-dir", type=Path, default=Path("outputs/fidelity/ppo_1m"))
     ap.add_argument("--fresh", action="store_true", help="measure every part again")
+    ap.add_argument("--only", choices=("expert", "ppo_1m", "transfer"), help="measure this part alone (no summary)")
     args = ap.parse_args()
     from sim.tasks.pointnav import DEFAULT_CONFIG, resolve_task_config
 
@@ -176,14 +177,20 @@ def main() -> None:
         ("expert", lambda: expert_part(args.episodes, args.workers)),
         ("ppo_1m", lambda: ppo_part(args.run_dir, args.ppo_steps, args.episodes, args.workers)),
     ):
+        if args.only not in (None, name):
+            continue
         path = out / f"{name}.json"
         if args.fresh or not path.is_file():
             _write(path, measure())
         parts[name] = json.loads(path.read_text())
         print(name, json.dumps(parts[name]))
+    if args.only not in (None, "transfer"):
+        return
     path = out / "transfer.json"
     if args.fresh or not path.is_file():
         transfer_part(args.run_dir, args.transfer_episodes, args.workers, path)
+    if args.only is not None:
+        return
     parts["transfer"] = json.loads(path.read_text())
     cfg = resolve_task_config(DEFAULT_CONFIG, _eval_config()[0])
     summary = {

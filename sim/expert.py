@@ -48,7 +48,7 @@ class PurePursuitExpert:
         """The expert's settings for a machine: MetaUrban's ego (a raycast vehicle, `spec.rides`) cruises at 5 m/s,
         chooses its steering among free arcs and holds its grade; every other machine takes the defaults."""
         if getattr(spec, "rides", False):
-            return cls(cruise_speed=5.0, corridor="arc", hold_grade=True, steering="arcs")
+            return cls(cruise_speed=5.0, corridor="arc", hold_grade=True, steering="arcs", stop_distance=0.25)
         return cls()
 
     def act(self, env: Any) -> np.ndarray:
@@ -79,7 +79,12 @@ class PurePursuitExpert:
             v_target = min(v_target, self._turn_speed(route, u.episode.progress))
         if abs(alpha) > math.pi / 2:
             v_target = min(v_target, 0.5)  # facing away from the route: creep while turning back
-        gap = self._corridor_gap(u, curvature if self.corridor == "arc" else 0.0)
+        if self.steering == "arcs":
+            gap = free  # the swept footprint's free length along the chosen arc (margins included)
+            if free >= self.arc_reach:
+                gap = math.inf
+        else:
+            gap = self._corridor_gap(u, curvature if self.corridor == "arc" else 0.0)
         if gap < self.slow_distance:
             v_target = min(
                 v_target, spec.v_max * max(0.0, (gap - self.stop_distance) / (self.slow_distance - self.stop_distance))
@@ -98,6 +103,41 @@ class PurePursuitExpert:
             throttle = v_target / spec.v_max
         return np.clip(np.array([steer, throttle], dtype=np.float32), -1.0, 1.0)
 
+    def _points(self, u: Any, reach: float) -> tuple[np.ndarray, np.ndarray]:
+        """Obstacle points within `reach` m in the machine's frame (x ahead, y left): the last scan's hits and, for
+        the "arcs" steering, the outlines of the scene's objects tall enough to meet the chassis (privileged, as the
+        route is: a box lower than the LiDAR but higher than a raycast vehicle's floor stops it unseen)."""
+        lid = u.lidar
+        d = lid.distances.astype(np.float64) * lid.range_m
+        near = (d < reach) & (d < lid.range_m * 0.999)
+        px, py = d[near] * np.cos(lid.angles[near]), d[near] * np.sin(lid.angles[near])
+        if self.steering != "arcs":
+            return px, py
+        m = u.machine
+        outline, tops = self._outlines(u.scene)
+        c, sn = math.cos(m.yaw), math.sin(m.yaw)
+        dx, dy = outline[:, 0] - m.position[0], outline[:, 1] - m.position[1]
+        ox, oy = c * dx + sn * dy, -sn * dx + c * dy
+        keep = (np.hypot(ox, oy) < reach) & (tops > m.position[2] + m.spec.clearance)
+        return np.concatenate([px, ox[keep]]), np.concatenate([py, oy[keep]])
+
+    def _outlines(self, scene: Any, spacing: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+        """Points every `spacing` m along each object's footprint [n, 2] and each point's object top (z), per scene."""
+        cached = getattr(self, "_outline_cache", None)
+        if cached is not None and cached[0] is scene:
+            return cached[1], cached[2]
+        pts, tops = [np.zeros((0, 2))], [np.zeros(0)]
+        for o in scene.objects:
+            foot = np.asarray(o["footprint"], dtype=np.float64)
+            ring = np.vstack([foot, foot[:1]])
+            for a, b in zip(ring[:-1], ring[1:]):
+                k = max(int(math.ceil(float(np.hypot(*(b - a))) / spacing)), 1)
+                t = np.linspace(0.0, 1.0, k, endpoint=False)[:, None]
+                pts.append(a + t * (b - a))
+                tops.append(np.full(k, float(o["position"][2]) + float(o["size"][2])))
+        self._outline_cache = (scene, np.concatenate(pts), np.concatenate(tops))
+        return self._outline_cache[1], self._outline_cache[2]
+
     def _turn_speed(self, route: Any, progress: float, reach: float = 20.0, brake: float = 1.5) -> float:
         """The highest speed from which the machine can still slow (at `brake` m/s^2) to each turn's comfortable
         speed (`lateral_accel` over the route's curvature, measured over 2 m) within the next `reach` m."""
@@ -114,10 +154,7 @@ class PurePursuitExpert:
         whose free part passes nearest `target` wins, a fully free one before a blocked one."""
         m = u.machine
         spec = m.spec
-        lid = u.lidar
-        d = lid.distances.astype(np.float64) * lid.range_m
-        near = d < self.arc_reach + spec.length
-        px, py = d[near] * np.cos(lid.angles[near]), d[near] * np.sin(lid.angles[near])
+        px, py = self._points(u, self.arc_reach + spec.length)
         hl, hw = 0.5 * spec.length + self.corridor_margin, 0.5 * spec.width + self.corridor_margin
         touching = (np.abs(px) < hl) & (np.abs(py) < hw)  # what the body already touches does not block a turn
         px, py = px[~touching], py[~touching]
@@ -152,20 +189,17 @@ class PurePursuitExpert:
     def _corridor_gap(self, u: Any, curvature: float = 0.0) -> float:
         """Free distance ahead of the machine's front along a corridor of its width, from the last scan: straight
         ahead, or (curvature != 0, 1/m, left positive) along the arc of that curvature from the machine."""
-        lid = u.lidar
-        d = lid.distances.astype(np.float64) * lid.range_m
-        fx, fy = d * np.cos(lid.angles), d * np.sin(lid.angles)
+        fx, fy = self._points(u, math.inf)
         half = 0.5 * u.machine.spec.width + self.corridor_margin
         front = 0.5 * u.machine.spec.length
-        seen = d < lid.range_m * 0.999
         if abs(curvature) < 1e-3:
-            ahead = (fx > 0.0) & (np.abs(fy) < half) & seen
+            ahead = (fx > 0.0) & (np.abs(fy) < half)
             along = fx
         else:
             radius = 1.0 / curvature  # the turning centre is at (0, radius)
             off = np.abs(np.hypot(fx, fy - radius) - abs(radius))
             angle = np.arctan2(fx, math.copysign(1.0, radius) * (radius - fy))
-            ahead = (angle > 0.0) & (off < half) & seen
+            ahead = (angle > 0.0) & (off < half)
             along = angle * abs(radius)
         if not ahead.any():
             return math.inf

@@ -252,3 +252,21 @@ def test_metaurbans_reward_replaces_the_step_on_a_crash_or_an_end_and_matches_it
             dense = 2.0 * progress - 0.4 * abs(lateral) + 0.5 * abs(speed) / 8.33
             dense += 2.0 * min(1.0 / max(speed, 1e-2) - abs(steer), 0.0)
             assert one == pytest.approx(max(dense, 0.0))
+
+
+def test_the_expert_drives_metaurbans_ego_round_the_bin_without_touching_it() -> None:
+    """`PurePursuitExpert.for_machine` steers the ego among free arcs: on the street it passes the trash bin on the
+    sidewalk (the 1 m wide ego cannot turn on the spot, and cannot reverse) and reaches the goal at no cost."""
+    from sim.expert import PurePursuitExpert
+
+    env = PointNavEnv(_on_street("paper", route_margin=0.25))  # the street's clear path is narrower than a city's
+    env.reset(seed=0, options=ROUTE)
+    expert = PurePursuitExpert.for_machine(env.spec_machine)
+    assert (
+        expert.steering == "arcs" and PurePursuitExpert.for_machine(machine_spec("delivery_bot")).steering == "pursuit"
+    )
+    term = trunc = False
+    while not (term or trunc):
+        _, _, term, trunc, info = env.step(expert.act(env))
+    assert info["success"] and info["episode_cost"] == 0.0
+    env.close()
