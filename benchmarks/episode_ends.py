@@ -1,7 +1,7 @@
 """How a PointNav policy's episodes end, the same test episodes on the PyBullet env and on the batched env: success,
 stuck (and whether the machine never moved), out of route, toppled; the top speed each episode reached.
 
-Usage: python benchmarks/episode_ends.py [--policy policies/PointNav/ppo] [--episodes 30] [--split test] [--stochastic]
+Usage: python benchmarks/episode_ends.py [--policy policies/paper_realistic/PointNav/ppo] [--episodes 30] [--split test] [--stochastic]
        [--protocol-endings] [--out benchmarks/results/episode_ends/<task>-<method>.json]
 
 `--stochastic` draws each action from the policy's distribution (torch seeded with 0 before each env's episodes) instead

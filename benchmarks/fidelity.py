@@ -49,7 +49,7 @@ def _eval_config() -> tuple[dict[str, Any], int]:
     from curbside.train.protocols import deep_merge, protocol
 
     proto = protocol(PROTOCOL)
-    return deep_merge(proto.env_config, proto.eval_env), proto.eval_scenes
+    return deep_merge(proto.env_for(TASK), proto.eval_env), proto.eval_scenes
 
 
 def expert_part(episodes: int, workers: int) -> dict[str, Any]:

@@ -96,7 +96,10 @@ def release_cmd(
     name: str = typer.Argument(..., help="An experiment name or a path to a .yaml file."),
     budget: str = typer.Option("small", help="The budget whose runs to release."),
     root: Path = typer.Option(Path("outputs/experiments"), help="Where the runs are."),
-    zoo: Path = typer.Option(Path("policies"), help="Policies go to ZOO/<task>/<method>[-<setting>]/."),
+    zoo: Path = typer.Option(
+        Path("policies"),
+        help="Policies go to ZOO/<task>/<method>[-<setting>]/ (`paper`), ZOO/<protocol>/<task>/... (others).",
+    ),
     seed: int = typer.Option(0, min=0, help="The seed whose policy to release."),
     only: str | None = typer.Option(None, help="Comma-separated run ids to release (default: every finished one)."),
 ) -> None:

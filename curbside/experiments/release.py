@@ -1,5 +1,6 @@
-"""The policy zoo: an experiment's finished policies copied to policies/<task>/<name>/ with a card.json, each a
-run folder `curbside train eval` loads as it is.
+"""The policy zoo: an experiment's finished policies copied to policies/<task>/<name>/ (the `paper` protocol's) or
+policies/<protocol>/<task>/<name>/ (any other protocol's) with a card.json, each a run folder `curbside train eval`
+loads as it is.
 
 A released policy holds what evaluation needs: run.json, the policy file, and for PPO-family policies the weights
 without the optimizer's moments (a third of the checkpoint), so the zoo stays small enough for git.
@@ -25,6 +26,12 @@ ZOO = Path("policies")
 # of the saving process) beside each serialized object of its "data".
 ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 OBJECT_ADDRESS = re.compile(rb" at 0x[0-9a-f]+>")
+
+
+def zoo_folder(zoo: Path, protocol: str, task: str, name: str) -> Path:
+    """Where a released policy goes: ZOO/<task>/<name> for the `paper` protocol (the paper's baselines), else
+    ZOO/<protocol>/<task>/<name>, so that no other world's policy stands where the paper's are looked for."""
+    return Path(zoo) / task / name if protocol == "paper" else Path(zoo) / protocol / task / name
 
 
 def release_name(run: Run, paper_kind: str) -> str:
@@ -108,7 +115,7 @@ def release(
             continue
         result = json.loads(result_file.read_text())
         meta = json.loads((src / "run.json").read_text())
-        dst = Path(zoo) / run.task / release_name(run, exp.paper)
+        dst = zoo_folder(Path(zoo), exp.protocol, run.task, release_name(run, exp.paper))
         tmp = dst.with_name(dst.name + ".tmp")
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir(parents=True)

@@ -236,7 +236,7 @@ def _demos(root: Path, exp: Experiment, budget: str, run: Run, b: dict[str, Any]
 
     base = Path(root) / exp.name / budget / "demos" / run.task
     path = base / dataset_id(run.task)
-    env_config = deep_merge(protocol(exp.protocol).env_config, run.env)
+    env_config = deep_merge(protocol(exp.protocol).env_for(run.task), run.env)
     source = demo_source(root, exp, run.task)
     meta = path / "curbside.json"
     have = json.loads(meta.read_text()) if meta.is_file() else None

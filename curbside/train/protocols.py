@@ -75,7 +75,13 @@ class Protocol:
     # Extra env config of each training backend (scene reuse): the evaluations and run.json's env_config leave it out.
     training_config: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     catalog: CatalogRecipe | None = None  # the catalog env_config's "catalog" names (None: fallback boxes)
+    # Env config one task adds to env_config (`env_for`): where the protocol's world differs between its tasks.
+    task_env: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     sources: Mapping[str, str] = field(default_factory=dict)  # where each value comes from
+
+    def env_for(self, task: str) -> dict[str, Any]:
+        """The env config every run of `task` starts from: env_config and the task's own additions."""
+        return deep_merge(self.env_config, self.task_env.get(task))
 
     def backend_config(self, backend: str) -> dict[str, Any]:
         """The env keys `backend`'s training envs add to the protocol's env_config (a copy; empty if none)."""
@@ -270,6 +276,8 @@ PROTOCOLS["paper"] = replace(
     env_config=_frozen({**_PAPER_REALISTIC.env_config, **PAPER_WORLD}),
     hparams=_frozen({k: _frozen(v) for k, v in HPARAMS_METAURBAN.items()}),
     eval_env=_frozen({}),  # the training env's ends are MetaUrban's already
+    # MetaUrban's SocialNav env (envs/sidewalk_dynamic_env.py done_function) also ends an episode on a building crash.
+    task_env=_frozen({"SocialNav": _frozen({"building_contact_ends": True})}),
     sources=_frozen(
         {
             **_PAPER_REALISTIC.sources,

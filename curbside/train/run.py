@@ -51,7 +51,7 @@ def resolve_run(
     proto = get_protocol(protocol)
     if split not in SPLITS:
         raise ConfigError(f"unknown split {split!r}; valid: {', '.join(SPLITS)}")
-    cfg = deep_merge(proto.env_config, env_config)
+    cfg = deep_merge(proto.env_for(task), env_config)
     if "split" in (env_config or {}) and env_config["split"] != split:  # type: ignore[index]
         raise ConfigError(
             f"config.split {env_config['split']!r} differs from --split {split!r}; "  # type: ignore[index]

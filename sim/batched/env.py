@@ -302,7 +302,8 @@ class BatchedPointNav(VectorEnv):
         arclen, lat = self.routes.locate(drive.x, drive.y, ep.progress)
         progress, new_progress, collided = ep.advance(drive.x - x0, drive.y - y0, arclen, lat, hits, new_static)
         self._locate_level()
-        succeeded, out, stuck, over = ep.end(self.routes.length, self.labels != 0, hits != 0)
+        building = (hits & KIND_BITS["building"]) > 0
+        succeeded, out, stuck, over, crashed = ep.end(self.routes.length, self.labels != 0, hits != 0, building)
         reward = self.reward_fn.batch(
             progress,
             new_progress,
@@ -312,13 +313,13 @@ class BatchedPointNav(VectorEnv):
             collided,
             succeeded,
             out,
-            stuck | over,
+            stuck | over | crashed,
             steer,
             np.abs(drive.speed) / self.spec_machine.v_max,
         ).astype(np.float64)
         ep.last_action = act
         self.scene_steps_left -= 1
-        terminated = succeeded | out | stuck | over
+        terminated = succeeded | out | stuck | over | crashed
         truncated = ~terminated & (ep.steps >= ep.horizon)
         obs = self._observe()
         on = np.ones(self.num_envs, dtype=bool)
@@ -328,6 +329,7 @@ class BatchedPointNav(VectorEnv):
             "out_of_route": out,
             "stuck": stuck,
             "cost_exceeded": over,
+            "crashed": crashed,
             "collisions": hits,
         }
         info.update({f"_{k}": on for k in list(info)})

@@ -77,11 +77,11 @@ class Episodes:
         return progress, new_progress, collided
 
     def end(
-        self, length: np.ndarray, on_walkable: np.ndarray, in_contact: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(succeeded, out of route, stuck, cost exceeded) of every env after its step (`end_of_step`; a wheeled
-        machine on the distance grids never topples)."""
-        succeeded, out, stuck, _, over = end_of_step(
+        self, length: np.ndarray, on_walkable: np.ndarray, in_contact: np.ndarray, building: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(succeeded, out of route, stuck, cost exceeded, crashed into a building) of every env after its step
+        (`end_of_step`; a wheeled machine on the distance grids never topples)."""
+        succeeded, out, stuck, _, over, crashed = end_of_step(
             self.rules,
             self.marks,
             self.steps,
@@ -92,5 +92,6 @@ class Episodes:
             in_contact,
             np.zeros(self.n),
             self.cost_total,
+            building,
         )
-        return succeeded, out, stuck, over
+        return succeeded, out, stuck, over, np.asarray(crashed) & np.ones(self.n, dtype=bool)

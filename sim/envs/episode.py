@@ -28,6 +28,7 @@ class Episode:
     stuck: bool = False
     toppled: bool = False  # rolled or pitched past config.topple_angle
     cost_exceeded: bool = False  # the episode's cost passed config.max_episode_cost
+    crashed: bool = False  # ran into a building (config.building_contact_ends)
     last_action: np.ndarray = field(default_factory=lambda: np.zeros(2, dtype=np.float64))
 
     def step_info(self, collided: bool, hits: set[str], route_length: float) -> dict[str, object]:
@@ -41,6 +42,7 @@ class Episode:
                     ("out_of_route", self.out_of_route),
                     ("stuck", self.stuck),
                     ("cost_exceeded", self.cost_exceeded),
+                    ("crashed", self.crashed),
                 )
                 if hit
             ),
@@ -54,6 +56,7 @@ class Episode:
             "stuck": self.stuck,
             "toppled": self.toppled,
             "cost_exceeded": self.cost_exceeded,
+            "crashed": self.crashed,
             "end_reason": reason,
         }
 

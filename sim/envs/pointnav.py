@@ -347,12 +347,13 @@ class PointNavEnv(gym.Env):
             bool(hits),
             ep.cost_total,
             lambda: planner.grid.label_at(x, y) != 0,
+            "building" in hits,
             steer,
             abs(machine.speed) / machine.spec.v_max,
         )
         end = self.termination(step)
         ep.succeeded, ep.out_of_route, ep.stuck = end.succeeded, end.out_of_route, end.stuck
-        ep.toppled, ep.cost_exceeded = end.toppled, end.cost_exceeded
+        ep.toppled, ep.cost_exceeded, ep.crashed = end.toppled, end.cost_exceeded, end.crashed
         reward = self.reward_fn(step, end)
         ep.last_action = act
         terminated = end.terminated

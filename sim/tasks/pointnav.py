@@ -299,6 +299,9 @@ CONFIG_KEYS: dict[str, Key | dict[str, Key]] = {
         Bool(),
         "out of route ends the episode (False: the machine may come back; MetaUrban's static env never ends it)",
     ),
+    "building_contact_ends": Key(
+        False, Bool(), "a step in contact with a building ends the episode, failed (MetaUrban's SocialNav env)"
+    ),
     "stuck_steps": Key(
         100,
         Int(0, 10_000_000),

@@ -29,6 +29,7 @@ class StepContext:
     in_contact: bool  # touched anything this step
     cost_total: float  # the episode's cost so far
     on_walkable: Callable[[], bool]  # whether the machine is on the walkable area (asked only when it decides)
+    building_contact: bool = False  # touched a building this step
     steer: float = 0.0  # this step's steering command in [-1, 1]
     speed_fraction: float = 0.0  # speed / the machine's top speed
 
@@ -42,16 +43,18 @@ class StepEnd:
     stuck: bool = False
     toppled: bool = False
     cost_exceeded: bool = False
+    crashed: bool = False  # ran into a building (`building_contact_ends`)
 
     @property
     def terminated(self) -> bool:
         """The episode ends here."""
-        return self.succeeded or self.out_of_route or self.stuck or self.toppled or self.cost_exceeded
+        return self.succeeded or self.out_of_route or self.stuck or self.toppled or self.cost_exceeded or self.crashed
 
     @property
     def failed_in_place(self) -> bool:
-        """Ended without success or leaving the route (stuck, toppled, over its cost): the reward's `stuck` term."""
-        return self.stuck or self.toppled or self.cost_exceeded
+        """Ended without success or leaving the route (stuck, toppled, over its cost, crashed into a building): the
+        reward's `stuck` term."""
+        return self.stuck or self.toppled or self.cost_exceeded or self.crashed
 
 
 @dataclass(frozen=True)
@@ -67,6 +70,7 @@ class EndRules:
     topple: float  # roll or pitch (rad) past which the machine has toppled
     max_cost: float  # episode cost past which the episode ends (PPO-ET's rule; config None: never)
     out_of_route_ends: bool = True  # False: leaving the route is allowed, the machine may come back to it
+    building_contact_ends: bool = False  # a step in contact with a building ends the episode (MetaUrban's SocialNav)
 
     @property
     def reads_walkable(self) -> bool:
@@ -86,6 +90,7 @@ class EndRules:
             float(np.radians(cfg["topple_angle"])),
             math.inf if cfg["max_episode_cost"] is None else float(cfg["max_episode_cost"]),
             bool(cfg["out_of_route_ends"]),
+            bool(cfg["building_contact_ends"]),
         )
 
 
@@ -119,10 +124,12 @@ def end_of_step(
     in_contact: Any,
     tilt: Any,
     cost_total: Any,
+    building_contact: Any = False,
 ) -> tuple[Any, ...]:
-    """(succeeded, out_of_route, stuck, toppled, cost_exceeded) after a step, `marks` advanced: for one episode
-    (numbers, bools) or n (arrays of n). Success excludes the rest; toppled may hold beside out of route or stuck;
-    cost_exceeded only when nothing else ended the episode.
+    """(succeeded, out_of_route, stuck, toppled, cost_exceeded, crashed) after a step, `marks` advanced: for one
+    episode (numbers, bools) or n (arrays of n). Success excludes the rest; toppled may hold beside out of route or
+    stuck; crashed (a building touched, with `building_contact_ends`) beside any but success; cost_exceeded only when
+    nothing else ended the episode.
 
     Written with operators that mean the same on numbers and on arrays (`x ^ True` for not; a choice between two
     values is a sum of products, exact since one factor is 0): the PyBullet env's step pays no numpy call per rule.
@@ -146,8 +153,11 @@ def end_of_step(
         pinned = pinned | (marks.contact_run >= rules.collision_steps)
     stuck = ((succeeded | out) ^ True) & pinned
     toppled = (succeeded ^ True) & (tilt > rules.topple)  # beside out of route or stuck, it names the end (step_info)
-    over = ((succeeded | out | stuck | toppled) ^ True) & (cost_total > rules.max_cost)
-    return succeeded, out, stuck, toppled, over
+    crashed = False
+    if rules.building_contact_ends:
+        crashed = (succeeded ^ True) & building_contact
+    over = ((succeeded | out | stuck | toppled | crashed) ^ True) & (cost_total > rules.max_cost)
+    return succeeded, out, stuck, toppled, over, crashed
 
 
 class Termination:
@@ -176,5 +186,6 @@ class Termination:
             bool(step.in_contact),
             step.tilt,
             step.cost_total,
+            bool(step.building_contact),
         )
         return StepEnd(*(bool(end) for end in ends))

@@ -254,8 +254,8 @@ def test_a_killed_experiment_resumes_without_redoing_finished_runs(tmp_path, mon
     assert release(str(exp), "smoke", root=root, zoo=zoo, only=["b"]) == []  # b trains nothing: no policy of its own
     with pytest.raises(ConfigError, match="unknown run id"):
         release(str(exp), "smoke", root=root, zoo=zoo, only=["c"])
-    assert release(str(exp), "smoke", root=root, zoo=zoo) == [zoo / "PointNav" / "ppo"]
-    released, source = zoo / "PointNav" / "ppo", root / "tiny" / "smoke" / "a" / "seed_0"
+    assert release(str(exp), "smoke", root=root, zoo=zoo) == [zoo / "curbside" / "PointNav" / "ppo"]
+    released, source = zoo / "curbside" / "PointNav" / "ppo", root / "tiny" / "smoke" / "a" / "seed_0"
     card = json.loads((released / "card.json").read_text())
     assert card["steps"] == 128 and card["seed"] == 0 and card["protocol"] == "curbside"
     assert set(card["metrics"]) == {"test"} and 0.0 <= card["metrics"]["test"]["sr"] <= 1.0

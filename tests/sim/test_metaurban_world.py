@@ -24,9 +24,10 @@ FREE = {"stuck_steps": 0, "collision_steps": 0, "horizon": 10_000, "horizon_min_
 
 
 def _on_street(name: str, **over: object) -> dict:
-    """Protocol `name`'s env config on the test street (its scenes and catalog left out)."""
+    """Protocol `name`'s env config on the test street (its scenes and catalog left out; the street's clear path is
+    narrower than a city's, so routes keep the realistic machines' margin)."""
     cfg = {k: v for k, v in protocol(name).env_config.items() if k not in ("preset", "catalog")}
-    return {**cfg, "scene_spec": street(), **over}
+    return {**cfg, "scene_spec": street(), "route_margin": 0.25, **over}
 
 
 def test_the_raycast_vehicle_drive_is_metaurbans_for_numbers_and_arrays() -> None:
@@ -224,8 +225,8 @@ def test_metaurbans_reward_replaces_the_step_on_a_crash_or_an_end_and_matches_it
             collided,
             0.0,
             lambda: True,
-            steer,
-            abs(speed) / 8.33,
+            steer=steer,
+            speed_fraction=abs(speed) / 8.33,
         )
         one = reward(step, end)
         many = reward.batch(
@@ -259,7 +260,7 @@ def test_the_expert_drives_metaurbans_ego_round_the_bin_without_touching_it() ->
     sidewalk (the 1 m wide ego cannot turn on the spot, and cannot reverse) and reaches the goal at no cost."""
     from sim.expert import PurePursuitExpert
 
-    env = PointNavEnv(_on_street("paper", route_margin=0.25))  # the street's clear path is narrower than a city's
+    env = PointNavEnv(_on_street("paper"))
     env.reset(seed=0, options=ROUTE)
     expert = PurePursuitExpert.for_machine(env.spec_machine)
     assert (
@@ -270,3 +271,40 @@ def test_the_expert_drives_metaurbans_ego_round_the_bin_without_touching_it() ->
         _, _, term, trunc, info = env.step(expert.act(env))
     assert info["success"] and info["episode_cost"] == 0.0
     env.close()
+
+
+@pytest.mark.parametrize("backend", ["pybullet", "batched"])
+def test_a_building_crash_ends_a_socialnav_episode_under_paper_but_not_a_pointnav_one(backend: str) -> None:
+    """MetaUrban's dynamic env ends an episode when the ego runs into a building (its static env does not): the ego
+    driven from the road over the curb into the building beyond ends its SocialNav episode as `crashed`."""
+    from sim.batched.social import BatchedSocialNav
+    from sim.envs.socialnav import SocialNavEnv
+
+    free = {"out_of_route_distance": 100.0, "agents": {"dynamic_density": 0.0}, "traffic": False}
+    for task, ends in (("SocialNav", True), ("PointNav", False)):
+        cfg = {k: v for k, v in protocol("paper").env_for(task).items() if k not in ("preset", "catalog")}
+        cfg = {**cfg, "scene_spec": street(), "route_margin": 0.25, **(free if task == "SocialNav" else {})}
+        cfg["out_of_route_distance"] = 100.0
+        crashed = False
+        if backend == "pybullet":
+            env = SocialNavEnv(cfg) if task == "SocialNav" else PointNavEnv(cfg)
+            env.reset(seed=0, options=ROUTE)
+            env.machine.reset(10.0, 0.5, 0.0, math.pi / 2, np.random.default_rng(0))
+            for _ in range(150):
+                _, _, term, _, info = env.step([0.0, 0.3])
+                if term:
+                    crashed = info["end_reason"] == "crashed"
+                    break
+        else:
+            env = BatchedSocialNav(1, cfg) if task == "SocialNav" else BatchedPointNav(1, cfg)
+            env.reset(seed=0, options=ROUTE)
+            env.autoreset[0] = False
+            env.drive.x[:], env.drive.y[:], env.drive.yaw[:] = 10.0, 0.5, math.pi / 2
+            env._locate_level()
+            for _ in range(150):
+                _, _, term, _, info = env.step(np.array([[0.0, 0.3]]))
+                if term[0]:
+                    crashed = bool(info["final_info"]["crashed"][0])
+                    break
+        env.close()
+        assert crashed == ends, task
