@@ -153,9 +153,8 @@ def end_of_step(
         pinned = pinned | (marks.contact_run >= rules.collision_steps)
     stuck = ((succeeded | out) ^ True) & pinned
     toppled = (succeeded ^ True) & (tilt > rules.topple)  # beside out of route or stuck, it names the end (step_info)
-    crashed = False
-    if rules.building_contact_ends:
-        crashed = (succeeded ^ True) & building_contact
+    # `succeeded & False`: False of succeeded's shape (an array of n, or a bool)
+    crashed = (succeeded ^ True) & building_contact if rules.building_contact_ends else succeeded & False
     over = ((succeeded | out | stuck | toppled | crashed) ^ True) & (cost_total > rules.max_cost)
     return succeeded, out, stuck, toppled, over, crashed
 

@@ -305,18 +305,21 @@ def test_episode_end_rules_give_the_same_flags_for_one_env_and_for_many():
     steps that hit every rule, agree flag for flag and mark for mark."""
     from sim.tasks.termination import EndMarks, EndRules, end_of_step
 
-    rules = EndRules(0.95, 2.0, 0.5, 6, 4, True, 1.0, 3.0)
+    rules = EndRules(0.95, 2.0, 0.5, 6, 4, True, 1.0, 3.0, building_contact_ends=True)
     rng = np.random.default_rng(0)
     n, many, ones = 64, EndMarks.zeros(64), [EndMarks() for _ in range(64)]
     steps, progress, cost = np.zeros(n, dtype=np.int64), np.zeros(n), np.zeros(n, dtype=np.int64)
-    seen = np.zeros(5, dtype=int)
+    seen = np.zeros(6, dtype=int)
     for _ in range(40):
         steps += 1
         progress = np.maximum(progress, progress + rng.choice([0.0, 0.2, 1.5], n))
         lateral, tilt = rng.normal(0, 1.2, n), rng.uniform(0, 1.2, n)
         walkable, contact = rng.random(n) > 0.05, rng.random(n) > 0.6
+        building = contact & (rng.random(n) > 0.9)
         cost += contact
-        arrays = end_of_step(rules, many, steps, progress, np.full(n, 30.0), lateral, walkable, contact, tilt, cost)
+        arrays = end_of_step(
+            rules, many, steps, progress, np.full(n, 30.0), lateral, walkable, contact, tilt, cost, building
+        )
         for k in range(n):
             one = end_of_step(
                 rules,
@@ -329,6 +332,7 @@ def test_episode_end_rules_give_the_same_flags_for_one_env_and_for_many():
                 bool(contact[k]),
                 float(tilt[k]),
                 int(cost[k]),
+                bool(building[k]),
             )
             assert tuple(bool(a[k]) for a in arrays) == tuple(bool(o) for o in one)
             assert (ones[k].step, ones[k].progress, ones[k].contact_run) == (
@@ -349,7 +353,7 @@ def test_out_of_route_ends_false_lets_the_machine_leave_and_keeps_every_other_en
     stays = EndRules(0.95, 2.0, 0.5, 6, 0, True, 1.0, math.inf, out_of_route_ends=False)
     off = (1, 5.0, 30.0, 4.0, False, False, 0.0, 0)  # 4 m off a 2 m route band, off the walkable area
     assert end_of_step(ends, EndMarks(), *off)[1]
-    assert end_of_step(stays, EndMarks(), *off) == (False, False, False, False, False)
+    assert end_of_step(stays, EndMarks(), *off) == (False, False, False, False, False, False)
     assert end_of_step(stays, EndMarks(), 1, 29.0, 30.0, 4.0, False, False, 0.0, 0)[0]  # success off the route
     assert end_of_step(stays, EndMarks(), 1, 5.0, 30.0, 4.0, False, False, 2.0, 0)[3]  # toppled
     marks = EndMarks()
