@@ -131,8 +131,18 @@ def ppo_part(run_dir: Path, steps: int, episodes: int, workers: int) -> dict[str
         "sr": float(summary["sr"]),
         "spl": float(summary["spl"]),
         "cost": float(summary["cost"]),
-        "seconds": {"train": round(t1 - t0, 1), "evaluate": round(time.perf_counter() - t1, 1)},
+        "seconds": {"train": _train_seconds(run_dir, t1 - t0), "evaluate": round(time.perf_counter() - t1, 1)},
     }
+
+
+def _train_seconds(run_dir: Path, here: float) -> float:
+    """Seconds the run trained: its progress log's clock (a run trained before this script ran), else `here`."""
+    import csv
+
+    log = run_dir / "logs" / "progress.csv"
+    rows = list(csv.DictReader(log.open())) if log.is_file() else []
+    elapsed = [float(r["time/time_elapsed"]) for r in rows if r.get("time/time_elapsed")]
+    return round(max(elapsed), 1) if elapsed else round(here, 1)
 
 
 def transfer_part(run_dir: Path, episodes: int, workers: int, out: Path) -> dict[str, Any]:
