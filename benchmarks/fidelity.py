@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shlex
 import subprocess
 import sys
@@ -147,6 +148,7 @@ def _train_seconds(run_dir: Path, here: float) -> float:
 
 def transfer_part(run_dir: Path, episodes: int, workers: int, out: Path) -> dict[str, Any]:
     """benchmarks/transfer_gap.py on the PPO run: the same episodes on both backends."""
+    shown = os.path.relpath(out) if not out.is_absolute() or out.is_relative_to(Path.cwd()) else str(out)
     cmd = [
         sys.executable,
         str(ROOT / "benchmarks" / "transfer_gap.py"),
@@ -162,7 +164,7 @@ def transfer_part(run_dir: Path, episodes: int, workers: int, out: Path) -> dict
         "--workers",
         str(workers),
         "--out",
-        str(out),
+        shown,
     ]
     subprocess.run(cmd, check=True)
     return json.loads(out.read_text())
