@@ -29,7 +29,7 @@ def run_episode(out: Path, seed: int = 0, n_agents: int = 24, size: int = 320) -
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         env = gym.make("curbside/SocialNav-v0", config=cfg, render_mode="rgb_array")
-    expert = PurePursuitExpert.for_machine(env.unwrapped.spec_machine)
+    expert = PurePursuitExpert()  # the demo's machine is the default delivery robot
     frames: list[ArrayLike] = []  # rendered frames, for imageio only
     try:
         metrics = rollout(

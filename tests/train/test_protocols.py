@@ -267,6 +267,10 @@ def test_seeds_are_aggregated_as_mean_and_std(tmp_path) -> None:
     "args, expected",
     [
         (["--protocol", "papr"], "unknown protocol 'papr'; valid: curbside, paper, paper_realistic"),
+        (
+            ["--protocol", "paper", "--config", '{"machine": "coco"}'],
+            "unknown machine 'coco'; valid machines: delivery_bot, delivery_bot_mod1",
+        ),
         (["--backend", "gpu"], "unknown backend 'gpu'; valid: pybullet, batched"),
         (["--backend", "batched", "--task", "Social"], "unknown task 'Social'; valid: PointNav, SocialNav"),
         (

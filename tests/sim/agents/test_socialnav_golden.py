@@ -27,8 +27,8 @@ import numpy as np
 # (NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR"), so both record the same behaviour; it is the same
 # with only the AVX512_ICL and AVX512_SPR kernels off (a Skylake-X-level machine).
 GOLDEN = {
-    ("x86_64", "AVX2"): "d044a33bc2f4dc95720e51acfe4a7df3e41f17092bc1f726d34a6a992422cdb5",
-    ("x86_64", "AVX512_SKX"): "28c74703091c0ff61ada9b5c22e5c2bd4de3bc0e552934d16c415b23282fabf6",
+    ("x86_64", "AVX2"): "db2bdea2897d684c7beca4fd850f731d369b760b9ec808c3be9c10404e743a71",
+    ("x86_64", "AVX512_SKX"): "7fba56c66584538ea8d95df6ba97aca77b90819965378a6a13b1fe85f85b3334",
 }
 
 ROUTE_CROWD = {
