@@ -60,6 +60,8 @@ ALIGN_RATE = math.radians(16.0)  # rad/s: how fast a contact turns the machine t
 # road it slides at 45 and faces the curb at 50 and more, at any speed (`tests/sim/test_batched.py`).
 STEEP_WALL = math.radians(52.5)  # buildings and objects
 STEEP_CURB = math.radians(47.5)  # a curb alone
+# The sideways shifts (m) a raycast vehicle's grazing contact may push it by in one substep (`_deflect`).
+DEFLECT_STEPS = (0.02, 0.05, 0.1, 0.15)
 RING_DIRS = np.stack([np.cos(np.arange(16) * np.pi / 8), np.sin(np.arange(16) * np.pi / 8)], 1)
 RING_RADIUS_CELLS = 3  # the ring around a contact whose occupied cells give the surface's normal
 
@@ -295,6 +297,10 @@ class BatchedPointNav(VectorEnv):
                 normals = self._contact_normals(envs, x, y, yaw)
                 rest_x, rest_y = self._back_off(envs, x, y, yaw)
                 stopped = np.zeros(self.num_envs, dtype=bool)
+                if self.spec_machine.rides:  # a chassis box glancing off a box is pushed aside (`_deflect`)
+                    deflected = self._deflect(envs, normals, rest_x, rest_y, x, y, yaw)
+                    envs, normals = envs[~deflected], normals[~deflected]
+                    rest_x, rest_y = rest_x[~deflected], rest_y[~deflected]
                 steep = np.where(kinds[envs] == KIND_BITS["curb"], STEEP_CURB, STEEP_WALL)
                 stopped[envs] = self._slide(envs, normals, steep, rest_x, rest_y, x, y, yaw, v, sub_dt)
             drive.store(x, y, yaw, v, w, sub_dt, stopped)
@@ -472,6 +478,38 @@ class BatchedPointNav(VectorEnv):
         length = np.hypot(normal[:, 0], normal[:, 1])
         heading = np.stack([np.cos(yaw[envs]), np.sin(yaw[envs])], 1)
         return np.where((length > 1e-9)[:, None], normal / np.maximum(length, 1e-9)[:, None], -heading)
+
+    def _deflect(
+        self,
+        envs: np.ndarray,
+        normals: np.ndarray,
+        rest_x: np.ndarray,
+        rest_y: np.ndarray,
+        x: np.ndarray,
+        y: np.ndarray,
+        yaw: np.ndarray,
+    ) -> np.ndarray:
+        """Blocked envs `envs` (raycast vehicles, at their contact poses) whose chassis only grazes the obstacle go on:
+        Bullet resolves a box meeting a box along the shallowest overlap, so a corner that catches an object's corner
+        is pushed aside and the machine passes (measured in the PyBullet env: MetaUrban's ego driven at the street's
+        trash bin 0.7 m off its centre line passes it). The rest of the substep's motion plus a sideways shift of up
+        to DEFLECT m, away from the obstacle, is tried; poses change in place; returns which envs deflected."""
+        done = np.zeros(envs.size, dtype=bool)
+        c, sn = np.cos(yaw[envs]), np.sin(yaw[envs])
+        lx, ly = -sn, c  # the machine's left
+        side = np.where(normals[:, 0] * lx + normals[:, 1] * ly >= 0.0, 1.0, -1.0)  # away from the obstacle
+        for shift in DEFLECT_STEPS:
+            todo = np.nonzero(~done)[0]
+            if todo.size == 0:
+                break
+            k = envs[todo]
+            new_x = x[k] + rest_x[todo] + shift * side[todo] * lx[todo]
+            new_y = y[k] + rest_y[todo] + shift * side[todo] * ly[todo]
+            blocked, _ = self._collide(k, new_x, new_y, yaw[k])
+            free = ~blocked
+            x[k[free]], y[k[free]] = new_x[free], new_y[free]
+            done[todo[free]] = True
+        return done
 
     def _slide(
         self,
