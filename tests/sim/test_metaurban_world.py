@@ -308,3 +308,35 @@ def test_a_building_crash_ends_a_socialnav_episode_under_paper_but_not_a_pointna
                     break
         env.close()
         assert crashed == ends, task
+
+
+@pytest.mark.parametrize("backend", ["pybullet", "batched"])
+def test_the_ego_glances_off_an_objects_corner_and_stops_at_its_face(backend: str) -> None:
+    """Bullet resolves the ego's chassis box against an object's box along the shallowest overlap: driven at the
+    street's trash bin (0.6 m square) with 0.1 m of overlap it is pushed aside and passes; head on it stops. The
+    batched env's `_deflect` does the same."""
+    spec = street()
+    bin_x, bin_y = next(o for o in spec["objects"] if o["category"] == "trash_bin")["position"][:2]
+    cfg = {**_on_street("curbside", machine="metaurban_coco", **FREE), "out_of_route_distance": 100.0}
+    ends = {}
+    for offset in (0.7, 0.0):
+        x0, y0 = bin_x - 5.0, bin_y + offset
+        if backend == "pybullet":
+            env = PointNavEnv(cfg)
+            env.reset(seed=0, options=ROUTE)
+            env.machine.reset(x0, y0, 0.15, 0.0, np.random.default_rng(0))
+            for _ in range(60):
+                env.step([0.0, float(np.clip((2.0 - env.machine.speed) * 2.0, -1.0, 1.0))])
+            ends[offset] = (env.machine.position[0], env.machine.speed)
+        else:
+            env = BatchedPointNav(1, cfg)
+            env.reset(seed=0, options=ROUTE)
+            env.autoreset[0] = False
+            env.drive.reset(0, x0, y0, 0.0, np.random.default_rng(0))
+            env._locate_level()
+            for _ in range(60):
+                env.step(np.array([[0.0, float(np.clip((2.0 - env.drive.speed[0]) * 2.0, -1.0, 1.0))]]))
+            ends[offset] = (float(env.drive.x[0]), float(env.drive.speed[0]))
+        env.close()
+    assert ends[0.7][0] > bin_x + 4.0 and ends[0.7][1] > 1.9  # passed the bin at speed
+    assert ends[0.0][0] < bin_x - 0.9 and abs(ends[0.0][1]) < 0.05  # stopped at its face
