@@ -176,7 +176,11 @@ def evaluate_run(
             for a, b in zip(bounds[:-1], bounds[1:])
             if b > a
         ]
-        with ProcessPoolExecutor(workers) as pool:
+        import multiprocessing as mp
+
+        # spawn, as kernel.executors: a worker forked from a parent that has loaded torch and pybullet can crash
+        # (seen as BrokenProcessPool on paper-scale evaluations).
+        with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
             rows = [row for part in pool.map(_evaluate_shard, jobs) for row in part]
     summary = summarize(rows)
     summary["split"] = split
