@@ -95,8 +95,20 @@ def trace_fan(
 
 @njit(cache=True, nogil=True)
 def _cell(flat: np.ndarray, gx: float, gy: float, dx: float, dy: float, cols: int, offset: int, t: float) -> int:
-    """Grid value at distance t (cells) along a ray (coordinates are positive: the FAR ring keeps rays inside)."""
-    return flat[offset + np.int64(gy + t * dy) * cols + np.int64(gx + t * dx)]
+    """Grid value at distance t (cells) along a ray. The FAR ring keeps a ray from inside the grid in it; a point off
+    the grid (a machine that has left the scene, or whose rays start past the ring) reads the nearest column of its
+    row, and no read leaves `flat`, so a stray origin costs a wrong reading, never memory outside the array."""
+    col = np.int64(gx + t * dx)
+    if col < 0:
+        col = 0
+    elif col >= cols:
+        col = cols - 1
+    idx = offset + np.int64(gy + t * dy) * cols + col
+    if idx < 0:
+        idx = 0
+    elif idx >= flat.size:
+        idx = flat.size - 1
+    return flat[idx]
 
 
 @njit(cache=True, nogil=True)

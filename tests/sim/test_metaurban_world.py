@@ -340,3 +340,25 @@ def test_the_ego_glances_off_an_objects_corner_and_stops_at_its_face(backend: st
         env.close()
     assert ends[0.7][0] > bin_x + 4.0 and ends[0.7][1] > 1.9  # passed the bin at speed
     assert ends[0.0][0] < bin_x - 0.9 and abs(ends[0.0][1]) < 0.05  # stopped at its face
+
+
+def test_a_machine_that_leaves_the_scene_reads_its_lidar_safely_on_both_backends() -> None:
+    """MetaUrban's ego may leave the sidewalks and, within 5 m of its route, the scene's grids: LiDAR origins off the
+    grid (or rays that start past its ring) read the grid's edge, never memory outside it."""
+    cfg = _on_street("paper")
+    env = PointNavEnv(cfg)
+    env.reset(seed=0, options=ROUTE)
+    for x, y in ((-3.0, 7.0), (-40.0, -40.0), (200.0, 7.0)):
+        env.machine.reset(x, y, 0.0, 0.3, np.random.default_rng(0))
+        obs, *_ = env.step([0.0, 0.0])
+        assert np.isfinite(obs).all()
+    env.close()
+    batched = BatchedPointNav(1, cfg)
+    batched.reset(seed=0, options=ROUTE)
+    batched.autoreset[0] = False
+    for x, y in ((-3.0, 7.0), (-40.0, -40.0), (200.0, 7.0)):
+        batched.drive.x[:], batched.drive.y[:] = x, y
+        batched._locate_level()
+        obs, *_ = batched.step(np.zeros((1, 2)))
+        assert np.isfinite(obs).all()
+    batched.close()
