@@ -98,12 +98,12 @@ def _cell(flat: np.ndarray, gx: float, gy: float, dx: float, dy: float, cols: in
     """Grid value at distance t (cells) along a ray. The FAR ring keeps a ray from inside the grid in it; a point off
     the grid (a machine that has left the scene, or whose rays start past the ring) reads the nearest column of its
     row, and no read leaves `flat`, so a stray origin costs a wrong reading, never memory outside the array."""
-    col = np.int64(gx + t * dx)
+    col = int(gx + t * dx)
     if col < 0:
         col = 0
     elif col >= cols:
         col = cols - 1
-    idx = offset + np.int64(gy + t * dy) * cols + col
+    idx = offset + int(gy + t * dy) * cols + col
     if idx < 0:
         idx = 0
     elif idx >= flat.size:
