@@ -30,9 +30,6 @@ class PurePursuitExpert:
     slow_distance: float = 4.0
     corridor_margin: float = 0.15
     speed_gain: float = 1.5
-    # "straight": the corridor runs straight ahead; "arc": along the circle the current steering drives (a long
-    # wheelbase turning at a corner would otherwise stop for the wall it is turning away from).
-    corridor: str = "straight"
     # Add the throttle that holds the machine against the slope under it (a raycast vehicle straddling a curb).
     hold_grade: bool = False
     # "pursuit": steer by pure pursuit; "arcs": among `arcs` steering angles, the one whose arc (the footprint swept
@@ -48,7 +45,7 @@ class PurePursuitExpert:
         """The expert's settings for a machine: MetaUrban's ego (a raycast vehicle, `spec.rides`) cruises at 5 m/s,
         chooses its steering among free arcs and holds its grade; every other machine takes the defaults."""
         if getattr(spec, "rides", False):
-            return cls(cruise_speed=5.0, corridor="arc", hold_grade=True, steering="arcs", stop_distance=0.25)
+            return cls(cruise_speed=5.0, hold_grade=True, steering="arcs", stop_distance=0.25)
         return cls()
 
     def act(self, env: Any) -> np.ndarray:
@@ -84,7 +81,7 @@ class PurePursuitExpert:
             if free >= self.arc_reach:
                 gap = math.inf
         else:
-            gap = self._corridor_gap(u, curvature if self.corridor == "arc" else 0.0)
+            gap = self._corridor_gap(u)
         if gap < self.slow_distance:
             v_target = min(
                 v_target, spec.v_max * max(0.0, (gap - self.stop_distance) / (self.slow_distance - self.stop_distance))
@@ -186,24 +183,15 @@ class PurePursuitExpert:
         assert best is not None
         return best[1], best[2], best[3]
 
-    def _corridor_gap(self, u: Any, curvature: float = 0.0) -> float:
-        """Free distance ahead of the machine's front along a corridor of its width, from the last scan: straight
-        ahead, or (curvature != 0, 1/m, left positive) along the arc of that curvature from the machine."""
+    def _corridor_gap(self, u: Any) -> float:
+        """Free distance ahead of the machine's front along a corridor of its width, from the last scan."""
         fx, fy = self._points(u, math.inf)
         half = 0.5 * u.machine.spec.width + self.corridor_margin
         front = 0.5 * u.machine.spec.length
-        if abs(curvature) < 1e-3:
-            ahead = (fx > 0.0) & (np.abs(fy) < half)
-            along = fx
-        else:
-            radius = 1.0 / curvature  # the turning centre is at (0, radius)
-            off = np.abs(np.hypot(fx, fy - radius) - abs(radius))
-            angle = np.arctan2(fx, math.copysign(1.0, radius) * (radius - fy))
-            ahead = (angle > 0.0) & (off < half)
-            along = angle * abs(radius)
+        ahead = (fx > 0.0) & (np.abs(fy) < half)
         if not ahead.any():
             return math.inf
-        return float(along[ahead].min() - front)
+        return float(fx[ahead].min() - front)
 
 
 def random_policy(env: Any) -> np.ndarray:

@@ -281,7 +281,7 @@ class BatchedPointNav(VectorEnv):
         x0, y0 = drive.x.copy(), drive.y.copy()
         sub_dt = self.dt / self.substeps
         hits = np.zeros(self.num_envs, dtype=np.int64)
-        charge_once = ep.cost_rule.once and ep.cost_bits & KIND_BITS["object"]
+        charge_once = ep.cost_rule.once and bool(ep.cost_bits & KIND_BITS["object"])
         new_static = np.zeros(self.num_envs, dtype=bool)
         every = np.arange(self.num_envs)
         for _ in range(self.substeps):
@@ -493,7 +493,7 @@ class BatchedPointNav(VectorEnv):
         Bullet resolves a box meeting a box along the shallowest overlap, so a corner that catches an object's corner
         is pushed aside and the machine passes (measured in the PyBullet env: MetaUrban's ego driven at the street's
         trash bin 0.7 m off its centre line passes it). The rest of the substep's motion plus a sideways shift of up
-        to DEFLECT m, away from the obstacle, is tried; poses change in place; returns which envs deflected."""
+        to the largest of DEFLECT_STEPS m, away from the obstacle, is tried; poses change in place; returns which envs deflected."""
         done = np.zeros(envs.size, dtype=bool)
         c, sn = np.cos(yaw[envs]), np.sin(yaw[envs])
         lx, ly = -sn, c  # the machine's left
