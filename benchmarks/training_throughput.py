@@ -43,7 +43,9 @@ def measure(task: str, backend: str, protocol: str, iterations: int, shards: int
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import VecEnvWrapper
 
+    from curbside.train.callbacks import RolloutThreads
     from curbside.train.envs import make_training_vec
     from curbside.train.online import ppo_kwargs
     from curbside.train.protocols import protocol as get_protocol
@@ -59,7 +61,32 @@ def measure(task: str, backend: str, protocol: str, iterations: int, shards: int
         task, {**run["env_config"], **extra}, n_envs, run["num_scenes"], backend=backend, shards=shards
     )
     shards = (len(getattr(vec.venv, "bounds", ())) or 1) if backend == "batched" else None  # batched env processes
-    model = PPO("MlpPolicy", vec, seed=0, device="cpu", verbose=0, **ppo_kwargs(run["hparams"]))
+
+    class EnvClock(VecEnvWrapper):
+        """Seconds the training VecEnv spends stepping (the env alone, on the policy's own actions)."""
+
+        def __init__(self, venv: Any) -> None:
+            super().__init__(venv)
+            self.step_s = 0.0
+            self.steps = 0
+
+        def reset(self) -> Any:
+            return self.venv.reset()
+
+        def step_wait(self) -> Any:
+            t = time.perf_counter()
+            out = self.venv.step_wait()
+            self.step_s += time.perf_counter() - t
+            self.steps += self.num_envs
+            return out
+
+        def step_async(self, actions: Any) -> None:
+            t = time.perf_counter()
+            self.venv.step_async(actions)
+            self.step_s += time.perf_counter() - t
+
+    clock = EnvClock(vec)
+    model = PPO("MlpPolicy", clock, seed=0, device="cpu", verbose=0, **ppo_kwargs(run["hparams"]))
     batch = model.n_steps * n_envs
 
     class UpdateTimer(BaseCallback):
@@ -80,17 +107,23 @@ def measure(task: str, backend: str, protocol: str, iterations: int, shards: int
         def _on_step(self) -> bool:
             return True
 
+    threads = RolloutThreads(torch.get_num_threads())  # as curbside.train.online trains
     try:
-        model.learn(batch)  # warm-up: the first scenes are built here
+        model.learn(batch, callback=threads)  # warm-up: the first scenes are built here
         warm_s = time.perf_counter() - t0
         timer = UpdateTimer()
+        clock.step_s, clock.steps = 0.0, 0
         w0 = time.perf_counter()
-        model.learn(batch * iterations, reset_num_timesteps=False, callback=timer)
+        model.learn(batch * iterations, reset_num_timesteps=False, callback=[timer, threads])
         wall = time.perf_counter() - w0
         if timer.mark is not None:
             timer.update_s += time.perf_counter() - timer.mark  # the last update
     finally:
-        vec.close()
+        clock.close()
+    env_alone = clock.steps / clock.step_s
+    learner_s = timer.update_s / iterations
+    end_to_end = batch * iterations / wall
+    floor = batch / (batch / env_alone + learner_s)
     return {
         "task": task,
         "backend": backend,
@@ -101,8 +134,12 @@ def measure(task: str, backend: str, protocol: str, iterations: int, shards: int
         "iterations": iterations,
         "env_steps": batch * iterations,
         "wall_s": round(wall, 2),
-        "env_steps_per_s": round(batch * iterations / wall, 1),
+        "env_steps_per_s": round(end_to_end, 1),
         "update_share": round(timer.update_s / wall, 3),
+        "env_alone_steps_per_s": round(env_alone, 1),
+        "learner_s_per_batch": round(learner_s, 3),
+        "floor_steps_per_s": round(floor, 1),
+        "floor_ratio": round(end_to_end / floor, 3),
         "warmup_s": round(warm_s, 1),
         "net_arch": run["hparams"]["net_arch"],
         "n_epochs": run["hparams"]["n_epochs"],
@@ -229,10 +266,15 @@ def main() -> None:
         result["load_avg_1min_before"] = round(load, 2)
         summary["cases"][name] = result
         summary[f"{name}_env_steps_per_s"] = result["env_steps_per_s"]
+        summary[f"{name}_env_alone_steps_per_s"] = result["env_alone_steps_per_s"]
+        summary[f"{name}_learner_s_per_batch"] = result["learner_s_per_batch"]
+        summary[f"{name}_floor_ratio"] = result["floor_ratio"]
         print(
             f"{name}: {result['env_steps_per_s']:,.0f} env steps/s ({result['n_envs']} envs, batch "
             f"{result['train_batch']:,}, update {100 * result['update_share']:.0f} % of the time; warm-up "
-            f"{result['warmup_s']} s; load before {load:.2f})",
+            f"{result['warmup_s']} s; load before {load:.2f}); env alone {result['env_alone_steps_per_s']:,.0f} "
+            f"env steps/s, learner {result['learner_s_per_batch']:.2f} s a batch: floor "
+            f"{result['floor_steps_per_s']:,.0f}, end to end / floor {result['floor_ratio']:.2f}",
             flush=True,
         )
         path.write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")

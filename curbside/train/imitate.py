@@ -152,7 +152,7 @@ def train_gail(
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import VecEnvWrapper
 
-    from curbside.train.callbacks import training_logger
+    from curbside.train.callbacks import RolloutThreads, training_logger
     from curbside.train.online import ppo_kwargs
 
     low, high = venv.action_space.low, venv.action_space.high
@@ -239,7 +239,8 @@ def train_gail(
 
     learner.learn(
         total_timesteps=max(steps - learner.num_timesteps, 0) if resumed else steps,
-        callback=[TrainDiscriminator(), Checkpoint()],
+        # RolloutThreads first: the discriminator trains at the rollout's end, on the update's threads.
+        callback=[RolloutThreads(torch.get_num_threads()), TrainDiscriminator(), Checkpoint()],
         reset_num_timesteps=not resumed,
     )
     torch.save(disc.net.state_dict(), out / "discriminator.tmp.pt")

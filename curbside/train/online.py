@@ -111,7 +111,7 @@ def train_online(
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import CallbackList
 
-    from curbside.train.callbacks import CheckpointEvery, SplitEvalCallback, training_logger
+    from curbside.train.callbacks import CheckpointEvery, RolloutThreads, SplitEvalCallback, training_logger
     from curbside.train.envs import make_training_vec
 
     out.mkdir(parents=True, exist_ok=True)
@@ -148,7 +148,7 @@ def train_online(
     model.set_logger(
         training_logger(out / "logs", ("csv", "tensorboard"), model.num_timesteps if latest is not None else None)
     )
-    callbacks: list = [CheckpointEvery(ckpt_dir, CHECKPOINT_EVERY)]
+    callbacks: list = [CheckpointEvery(ckpt_dir, CHECKPOINT_EVERY), RolloutThreads(torch.get_num_threads())]
     if algo == "ppo_lag":
         state = out / "lagrange.json"
         if latest is None and state.exists():

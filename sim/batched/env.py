@@ -154,6 +154,9 @@ class BatchedPointNav(VectorEnv):
             np.linspace(-hw, hw, int(math.ceil(2 * hw / res)) + 1),
         )
         self._body_u, self._body_w = u.ravel(), w.ravel()  # points covering the footprint, a cell apart at most
+        self._kind_bits = np.zeros(256, dtype=np.int64)  # a kind grid's code -> its collision bit
+        for code, name in KIND_NAMES.items():
+            self._kind_bits[code] = self.kind_bits[name]
 
     # -- resets --------------------------------------------------------------------------------------
     def reset(
@@ -389,26 +392,19 @@ class BatchedPointNav(VectorEnv):
     ) -> tuple[np.ndarray, np.ndarray]:
         """(blocked, kind bits) of envs `envs` with footprints at (x, y, yaw) (arrays over `envs`): blocked when a
         point of the footprint lies on an occupied cell of the body grid; the bits say what those cells hold."""
-        blocked = np.zeros(envs.size, dtype=bool)
-        bits = np.zeros(envs.size, dtype=np.int64)
-        frame = self.atlas.frames(self.slots[envs], self.body_level[envs], "body")
-        centre = self.atlas.lookup(frame, x[:, None], y[:, None])[:, 0].astype(np.float64)
-        near = np.nonzero(centre * self.atlas.resolution <= self.drive.bounding_radius + 2.0 * self.atlas.resolution)[0]
-        if near.size == 0:
-            return blocked, bits
-        cos, sin = np.cos(yaw[near])[:, None], np.sin(yaw[near])[:, None]
-        px = x[near, None] + cos * self._body_u - sin * self._body_w
-        py = y[near, None] + sin * self._body_u + cos * self._body_w
-        occupied = self.atlas.lookup({key: v[near] for key, v in frame.items()}, px, py) == 0
-        hit = occupied.any(axis=1)
-        if hit.any():
-            kinds = self.atlas.lookup(
-                self.atlas.frames(self.slots[envs[near]], self.body_level[envs[near]], "kinds"), px, py
-            )
-            for code, name in KIND_NAMES.items():
-                bits[near] |= np.where((occupied & (kinds == code)).any(axis=1), KIND_BITS[name], 0)
-            blocked[near] = hit
-        return blocked, bits
+        slots, level = self.slots[envs], self.body_level[envs]
+        return self.atlas.footprints(
+            self.atlas.frames(slots, level, "body"),
+            self.atlas.frames(slots, level, "kinds"),
+            x,
+            y,
+            np.cos(yaw),
+            np.sin(yaw),
+            self._body_u,
+            self._body_w,
+            self.drive.bounding_radius + 2.0 * self.atlas.resolution,
+            self._kind_bits,
+        )
 
     def _charge_objects(
         self, envs: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray, new_static: np.ndarray
