@@ -1,20 +1,22 @@
 """The `paper` protocol's fidelity check: MetaUrban's world as curbside runs it, measured where a reader compares it
 with the paper. Writes benchmarks/results/fidelity/summary.json (and one JSON file a part beside it).
 
-Usage: python benchmarks/fidelity.py [--episodes 200] [--transfer-episodes 400] [--ppo-steps 1000000] [--workers 2]
-       [--out benchmarks/results/fidelity] [--run-dir outputs/fidelity/ppo_1m] [--fresh]
+Usage: python benchmarks/fidelity.py [--episodes 200] [--transfer-episodes 400] [--ppo-steps 1000000] [--seeds 0 1 2]
+       [--workers 2] [--out benchmarks/results/fidelity] [--run-dir outputs/fidelity/ppo_1m] [--fresh]
 
 Parts, each skipped when its file exists (`--fresh` measures it again):
 1. `expert.json`: the pure-pursuit expert (`PurePursuitExpert.for_machine`) on `--episodes` test episodes (seeds
    0..N-1, the protocol's evaluation scenes and episode ends) on the PyBullet env: its SR and cost an episode.
-2. `ppo_1m.json`: PPO trained `--ppo-steps` env steps under `paper` on the batched backend, seed 0
-   (`curbside train run --protocol paper --algo ppo --backend batched`, with `--resume` a stopped run goes on), then
-   evaluated as the protocol evaluates (PyBullet env, `--episodes` test episodes, sampled actions).
-3. `transfer.json`: that policy on `--transfer-episodes` test episodes on both backends, the same seeds
+2. `ppo_1m.json`: PPO trained `--ppo-steps` env steps under `paper` on the batched backend, once per `--seeds` seed
+   (`curbside train run --protocol paper --algo ppo --backend batched`, into `<run-dir>_s<seed>`; with `--resume` a
+   stopped run goes on), each evaluated as the protocol evaluates (PyBullet env, `--episodes` test episodes, sampled
+   actions): the mean over seeds, and each seed's.
+3. `transfer.json`: the first seed's policy on `--transfer-episodes` test episodes on both backends, the same seeds
    (benchmarks/transfer_gap.py with the protocol's episode ends and actions): PyBullet's SR minus the batched env's.
 
 summary.json: `horizon` (the protocol's, as the env resolves it), `expert_test_sr`, `expert_test_cost`,
-`ppo_1m_test_sr`, `ppo_1m_test_cost`, `transfer_gap_sr`, with the commands and seconds of each part.
+`ppo_1m_test_sr`, `ppo_1m_test_cost` (means over the seeds; `ppo_1m_test_sr_seeds` each seed's), `transfer_gap_sr`,
+with the commands and seconds of each part.
 """
 
 from __future__ import annotations
@@ -82,8 +84,29 @@ def expert_part(episodes: int, workers: int) -> dict[str, Any]:
     }
 
 
-def ppo_part(run_dir: Path, steps: int, episodes: int, workers: int) -> dict[str, Any]:
-    """Train (or finish training) PPO under the protocol, then evaluate it as the protocol does."""
+def ppo_part(run_dir: Path, steps: int, episodes: int, workers: int, seeds: list[int]) -> dict[str, Any]:
+    """`ppo_seed` for every seed: their means and each seed's part."""
+    import numpy as np
+
+    runs = {str(seed): ppo_seed(seeded(run_dir, seed), steps, episodes, workers, seed) for seed in seeds}
+    return {
+        "steps": steps,
+        "episodes": episodes,
+        "seeds": seeds,
+        "sr": float(np.mean([r["sr"] for r in runs.values()])),
+        "spl": float(np.mean([r["spl"] for r in runs.values()])),
+        "cost": float(np.mean([r["cost"] for r in runs.values()])),
+        "runs": runs,
+    }
+
+
+def seeded(run_dir: Path, seed: int) -> Path:
+    """The run folder of one seed."""
+    return run_dir.with_name(f"{run_dir.name}_s{seed}")
+
+
+def ppo_seed(run_dir: Path, steps: int, episodes: int, workers: int, seed: int) -> dict[str, Any]:
+    """Train (or finish training) PPO under the protocol with `seed`, then evaluate it as the protocol does."""
     from curbside.train.evaluate import evaluate_run
     from curbside.train.protocols import deep_merge, protocol
 
@@ -102,7 +125,7 @@ def ppo_part(run_dir: Path, steps: int, episodes: int, workers: int) -> dict[str
         "--steps",
         str(steps),
         "--seed",
-        "0",
+        str(seed),
         "--out",
         str(run_dir),
     ]
@@ -177,7 +200,10 @@ def main() -> None:
     ap.add_argument("--ppo-steps", type=int, default=1_000_000)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "fidelity")
-    ap.add_argument("--run-dir", type=Path, default=Path("outputs/fidelity/ppo_1m"))
+    ap.add_argument(
+        "--run-dir", type=Path, default=Path("outputs/fidelity/ppo_1m"), help="seed s trains in <run-dir>_s<s>"
+    )
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="PPO seeds (the transfer part: the first)")
     ap.add_argument("--fresh", action="store_true", help="measure every part again")
     ap.add_argument("--only", choices=("expert", "ppo_1m", "transfer"), help="measure this part alone (no summary)")
     args = ap.parse_args()
@@ -187,7 +213,7 @@ def main() -> None:
     parts: dict[str, dict[str, Any]] = {}
     for name, measure in (
         ("expert", lambda: expert_part(args.episodes, args.workers)),
-        ("ppo_1m", lambda: ppo_part(args.run_dir, args.ppo_steps, args.episodes, args.workers)),
+        ("ppo_1m", lambda: ppo_part(args.run_dir, args.ppo_steps, args.episodes, args.workers, args.seeds)),
     ):
         if args.only not in (None, name):
             continue
@@ -200,7 +226,7 @@ def main() -> None:
         return
     path = out / "transfer.json"
     if args.fresh or not path.is_file():
-        transfer_part(args.run_dir, args.transfer_episodes, args.workers, path)
+        transfer_part(seeded(args.run_dir, args.seeds[0]), args.transfer_episodes, args.workers, path)
     if args.only is not None:
         return
     parts["transfer"] = json.loads(path.read_text())
@@ -215,6 +241,8 @@ def main() -> None:
         "expert_episodes": parts["expert"]["episodes"],
         "ppo_1m_test_sr": parts["ppo_1m"]["sr"],
         "ppo_1m_test_cost": parts["ppo_1m"]["cost"],
+        "ppo_1m_seeds": parts["ppo_1m"]["seeds"],
+        "ppo_1m_test_sr_seeds": [parts["ppo_1m"]["runs"][str(s)]["sr"] for s in parts["ppo_1m"]["seeds"]],
         "ppo_1m_episodes": parts["ppo_1m"]["episodes"],
         "transfer_gap_sr": parts["transfer"]["pybullet_minus_batched"]["sr"],
         "transfer_episodes": parts["transfer"]["episodes"],

@@ -1,7 +1,7 @@
 """AgentManager: cohabitants that plan over the walkable grid and avoid each other, objects, curbs and the ego with ORCA.
 
 Each agent steers at a carrot a few cells ahead on its goal site's distance field (sim.agents.navgrid) and
-pyrvo (RVO2) turns that preferred velocity into a collision-free one. The ego is one more ORCA agent whose
+ORCA (RVO2's solver in numba, sim.agents.orca_kernels) turns that preferred velocity into a collision-free one. The ego is one more ORCA agent whose
 position and velocity the simulator overwrites every step, so agents react to it but ORCA never moves it.
 Deadlocks are resolved by push-and-rotate (de Wilde et al. 2013) adapted to the continuous sidewalk, then by
 giving up: an agent that makes no progress for `stuck_steps` side-steps, right when there is room, else left
@@ -17,8 +17,8 @@ AgentManager composes explicit parts around one CrowdState (sim.agents.crowd_sta
 of every agent, and hands each part the state and the inputs it reads:
 - configuration: the agents' Keys, AGENT_DEFAULTS and AGENTS_TABLE (crowd_config);
 - spawning: the spawn region, the agents' kinds and start positions (crowd_spawning functions);
-- ORCA: OrcaCrowd (crowd_orca), one per scene, owning its obstacles, a pyrvo simulator per agent capacity, the
-  ego's slot and the ORCA radii as last set;
+- ORCA: OrcaCrowd (crowd_orca), one per scene, owning its obstacle index and this episode's ORCA agents (the ego
+  among them, radii as last set); `advance_crowds` steps many crowds' ORCA in one compiled call;
 - goal following: new goals, arrivals, stalls and preferred velocities (crowd_goals functions, GoalCells);
 - behaviours: Groups and Crossings (behaviours; groups set goals through the GoalSetter the manager passes) and
   the push half of push-and-rotate (deadlock.PushResolver).
@@ -38,7 +38,7 @@ from sim.agents.behaviours import Crossings, Groups
 from sim.agents.crowd_config import AGENT_DEFAULTS, AGENTS_TABLE
 from sim.agents.crowd_goals import GoalCells, new_goal, preferred, update_goals, walking_speed
 from sim.agents.crowd_kernels import nearest_nodes, on_mask
-from sim.agents.crowd_orca import EgoState, OrcaCrowd, as_ego
+from sim.agents.crowd_orca import EgoState, OrcaCrowd, as_ego, step_crowds
 from sim.agents.crowd_spawning import SPAWN_AREAS, draw_kinds, sidewalk_length, spawn_positions, spawn_region
 from sim.agents.crowd_state import AGENT_DTYPE, CrowdState
 from sim.agents.deadlock import PushResolver
@@ -48,7 +48,15 @@ from sim.scene.scene import Scene, as_scene
 from sim.schema import check_table
 
 # Names other modules import from here, though the crowd_* modules define them.
-__all__ = ["AGENT_DEFAULTS", "AGENT_DTYPE", "SPAWN_AREAS", "AgentManager", "EgoState", "sidewalk_length"]
+__all__ = [
+    "AGENT_DEFAULTS",
+    "AGENT_DTYPE",
+    "SPAWN_AREAS",
+    "AgentManager",
+    "EgoState",
+    "advance_crowds",
+    "sidewalk_length",
+]
 
 
 class AgentManager:
@@ -150,7 +158,7 @@ class AgentManager:
             self.goal_cells.clear()
             self.crossings.setup(scene, grid)
             # Processing the scene's obstacles costs ~0.2 s, more than a short episode: each scene keeps its part.
-            orca = OrcaCrowd(scene, grid)
+            orca = OrcaCrowd(scene, grid, cfg)
             self.grid, self.orca, self._scene = grid, orca, scene
         area = spawn_region(scene, cfg, route)
         route_length = 0.0  # only spawn_area "route" reads it, and spawn_region has checked the route is there
@@ -214,14 +222,21 @@ class AgentManager:
 
     def advance(self, dt: float, ego: EgoState | Mapping[str, float] | Sequence[float] | None = None) -> None:
         """step() without building its states (the env reads `pos` directly)."""
+        advance_crowds([self], dt, [ego])
+
+    def plan_step(
+        self, dt: float, ego: EgoState | Mapping[str, float] | Sequence[float] | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The first half of a step: goals, pushes and behaviours updated, the ego placed; returns the preferred
+        velocities [n, 2] ORCA turns into safe ones and which agents stand pinned (`finish_step` takes both)."""
         grid, orca, rng = self._parts("step")
         cfg, state = self.config, self.state
         orca.set_ego(as_ego(ego), cfg["ego_margin"])
         state.time += dt
         pref = np.zeros((state.n, 2))
         pinned = np.zeros(state.n, dtype=bool)
-        ox, oy, res = float(grid.origin[0]), float(grid.origin[1]), float(grid.res)
         if state.n:
+            ox, oy, res = float(grid.origin[0]), float(grid.origin[1]), float(grid.res)
             nodes = nearest_nodes(state.pos, ox, oy, res, grid.nearest_rc, grid.node_of)
             self.push.release(state, grid, cfg, nodes)
             update_goals(state, grid, rng, cfg, self.groups, self._set_goal, dt, nodes)
@@ -229,13 +244,18 @@ class AgentManager:
             self.push.detect(state, grid, cfg, nodes)
             moving = state.movement != IDLE
             if moving.any():
-                pref[moving] = preferred(
-                    state, grid, cfg, orca.sim.query_visibility, nodes[moving], np.flatnonzero(moving)
-                )
+                pref[moving] = preferred(state, grid, cfg, orca.visible, nodes[moving], np.flatnonzero(moving))
             self.push.steer(state, pref)
             pinned = self.groups.standing(state) & ~self.push.busy(state.n)
             orca.set_radii(state.radius, cfg["safety_margin"], pinned)
-        new_pos, new_vel = orca.step(dt, pref)
+        return pref, pinned
+
+    def finish_step(self, new_pos: np.ndarray, new_vel: np.ndarray, pinned: np.ndarray) -> None:
+        """The second half of a step: ORCA's new positions and velocities [n, 2] taken, but for agents it would put
+        off the walkable area and the `pinned` ones, which stay put."""
+        grid, orca, _ = self._parts("step")
+        state = self.state
+        ox, oy, res = float(grid.origin[0]), float(grid.origin[1]), float(grid.res)
         # ORCA's obstacle handling is not a hard guarantee at concave corners: an agent whose step would leave
         # the walkable area stays put instead; so do members standing in a group (see sim.agents.behaviours).
         bad = (~on_mask(new_pos, ox, oy, res, grid.walkable) | pinned) if state.n else pinned
@@ -307,3 +327,16 @@ class AgentManager:
         state = self.state
         moving = state.movement != IDLE
         return int(np.sum(moving & (state.time - state.goal_t0 > state.budget)))
+
+
+def advance_crowds(
+    managers: Sequence[AgentManager],
+    dt: float,
+    egos: Sequence[EgoState | Mapping[str, float] | Sequence[float] | None],
+) -> None:
+    """Advance every crowd by `dt` seconds around its ego, their ORCA steps in one compiled call
+    (`crowd_orca.step_crowds`); each crowd moves as its own `advance` would move it (no draw depends on another)."""
+    plans = [m.plan_step(dt, ego) for m, ego in zip(managers, egos)]
+    moved = step_crowds([m._parts("step")[1] for m in managers], dt, [pref for pref, _ in plans])
+    for m, (_, pinned), (new_pos, new_vel) in zip(managers, plans, moved):
+        m.finish_step(new_pos, new_vel, pinned)

@@ -184,13 +184,14 @@ def preferred(
     state: CrowdState,
     grid: NavGrid,
     config: Mapping[str, Any],
-    visible: Callable[[Any, Any, float], bool],
+    visible: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
     nodes: np.ndarray,
     idx: np.ndarray,
 ) -> np.ndarray:
     """Preferred velocities [len(idx), 2] of agents `idx` (at `nodes`): toward a carrot ahead on their goal field.
 
-    `visible(p, q, r)` says whether a disc of radius r sees q from p past the obstacles (ORCA's visibility query).
+    `visible(p, q, r)` says whether discs of radii r [k] see points q [k, 2] from p [k, 2] past the obstacles (ORCA's
+    visibility query).
     An agent stalled for `stuck_steps` side-steps (the rotate half of push-and-rotate).
     """
     sites = state.site[idx]
@@ -216,18 +217,17 @@ def preferred(
     # A carrot behind a concave corner (a crosswalk mouth) would press the agent into the curb: fall back
     # to nearer points of the path (steps, steps/2, ..., 1 cells; the last without a check) until one is in
     # sight. The rungs are looked up at once for the few agents that need them.
-    pos_l, rad_l = pos.tolist(), state.radius[idx].tolist()
-    blocked = [k for k, (p, q, r) in enumerate(zip(pos_l, carrot.tolist(), rad_l)) if not visible(p, q, r)]
-    if blocked:
-        blocked_idx = np.asarray(blocked)
-        ladder = rungs(nodes[blocked_idx], sites[blocked_idx], jumps, grid.centres, JUMPS.index(steps)).tolist()
-        for m, k in enumerate(blocked):
-            for rung in ladder[:-1]:
-                if visible(pos_l[k], rung[m], rad_l[k]):
-                    carrot[k] = rung[m]
-                    break
-            else:
-                carrot[k] = ladder[-1][m]
+    radius = state.radius[idx]
+    blocked = np.flatnonzero(~visible(pos, carrot, radius))
+    if blocked.size:
+        ladder = rungs(nodes[blocked], sites[blocked], jumps, grid.centres, JUMPS.index(steps))
+        todo = np.ones(blocked.size, dtype=bool)  # still looking for a rung in sight
+        for rung in ladder[:-1]:
+            seen = np.zeros(blocked.size, dtype=bool)
+            seen[todo] = visible(pos[blocked[todo]], rung[todo], radius[blocked[todo]])
+            carrot[blocked[seen]] = rung[seen]
+            todo &= ~seen
+        carrot[blocked[todo]] = ladder[-1][todo]
     # Close to the site the field's single target cell would pull everyone to one point: aim at the own goal.
     direction, speed = headings(
         idx, nodes, state.pos, carrot, state.goal, state.site, grid.dist_table, state.speed, 1.5 * config["goal_spread"]

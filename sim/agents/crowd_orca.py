@@ -1,4 +1,4 @@
-"""The crowd's ORCA side: the ego as ORCA sees it, the pyrvo simulators of a scene and their obstacles (OrcaCrowd)."""
+"""The crowd's ORCA side: the ego as ORCA sees it, a scene's obstacles and this episode's ORCA agents (OrcaCrowd)."""
 
 from __future__ import annotations
 
@@ -7,12 +7,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import pyrvo
 
 from sim.agents.behaviours import STAND_MARGIN
 from sim.agents.crowd_state import CrowdState
 from sim.agents.kinds import AGENT_KINDS, KIND_NAMES
 from sim.agents.navgrid import NavGrid, boundary_segments
+from sim.agents.orca_kernels import ObstacleIndex, orca_crowds, visible_many
 from sim.scene.scene import Scene
 
 
@@ -37,133 +37,163 @@ def as_ego(ego: EgoState | Mapping[str, float] | Sequence[float] | None) -> EgoS
 
 
 class OrcaCrowd:
-    """The crowd's ORCA side on one scene: its obstacles, one pyrvo simulator per agent capacity, the ego's slot.
+    """The crowd's ORCA side on one scene: its obstacle index, this episode's ORCA agents and the ego among them.
 
-    AgentManager makes one per scene (processing the obstacles costs ~0.2 s, more than a short episode) and calls
-    `start` at every reset; the agents' state reaches it only through the arguments of its methods.
+    AgentManager makes one per scene (indexing the obstacles costs more than a short episode) and calls `start` at
+    every reset; the agents' state reaches it only through the arguments of its methods. The solver is
+    `sim.agents.orca_kernels` (RVO2's algorithm in numba); `step_crowds` steps many crowds in one call.
     """
 
-    def __init__(self, scene: Scene, grid: NavGrid) -> None:
-        self.obstacles = orca_obstacles(scene, grid)  # object footprints and walkable-boundary segments
-        self.origin = (float(grid.origin[0]), float(grid.origin[1]))  # the grid corner unused slots park beyond
-        self.sims: dict[int, Any] = {}  # agent capacity (a power of two) -> its pyrvo.RVOSimulator
-        self.sim: Any = None  # this episode's simulator (start picks it)
-        self.ego_id = 0  # the ego's ORCA slot: the one after the agents' capacity
-        self.radius = np.zeros(0)  # [n] each agent's ORCA radius as last set
-        self.plain = True  # `radius` holds no standing margin (radius + safety_margin for every agent)
-        self.ego_radius = float("nan")  # the ego's ORCA radius as last set (nan: set it on the next placement)
+    def __init__(self, scene: Scene, grid: NavGrid, config: Mapping[str, Any]) -> None:
+        self.index = ObstacleIndex.build(orca_obstacles(scene, grid), obstacle_reach(config))
+        self.config = config
+        # This episode's ORCA agents, the ego last (it moves none of its own: the env places it every step).
+        self.pos = np.zeros((1, 2))
+        self.vel = np.zeros((1, 2))
+        self.radius = np.full(1, 0.1)  # [n + 1] ORCA radii as last set
+        self.max_speed = np.zeros(1)
+        self.moves = np.zeros(1, dtype=np.bool_)
+        self.plain = True  # the agents' radii hold no standing margin (radius + safety_margin for every agent)
+
+    @property
+    def n(self) -> int:
+        """Agents this episode (the ego not counted)."""
+        return len(self.pos) - 1
 
     def start(self, state: CrowdState, config: Mapping[str, Any]) -> None:
-        """Ready the simulator of `state.n` agents for an episode: every slot rewritten, the ego's parked."""
-        c = config
-        # Each scene keeps one simulator per agent capacity and reuses it. RVO2's clearAgents is never called (it
-        # left the agent k-d tree pointing at deleted agents): every slot is rewritten each episode (position,
-        # velocity, preference, radius, speed) and unused slots are parked far apart, so an episode's state does
-        # not depend on the episodes before it.
-        cap = 1 << max(state.n - 1, 0).bit_length()
-        sim = self.sims.get(cap)
-        if sim is None:
-            sim = self._simulator(cap, c)
-            self.sims[cap] = sim
-        self.sim, self.ego_id = sim, cap
-        for i in range(cap + 1):
-            if i < state.n:
-                kind = AGENT_KINDS[KIND_NAMES[state.kind_idx[i]]]
-                top = (kind.run_speed or kind.pref_speed) + 3.0 * kind.speed_std
-                pos = (float(state.pos[i, 0]), float(state.pos[i, 1]))
-                radius = float(state.radius[i] + c["safety_margin"])
-            else:
-                pos, radius, top = self.parked(i), 0.1, 0.0
-            sim.set_agent_position(i, pos)
-            sim.set_agent_velocity(i, (0.0, 0.0))
-            sim.set_agent_pref_velocity(i, (0.0, 0.0))
-            sim.set_agent_radius(i, radius)
-            sim.set_agent_max_speed(i, top)
-        self.radius = state.radius + c["safety_margin"]
+        """Ready the ORCA agents of an episode: `state`'s at rest with their kinds' top speeds, the ego parked."""
+        n = state.n
+        self.config = config
+        self.pos = np.zeros((n + 1, 2))
+        self.pos[:n] = state.pos
+        self.pos[n] = self.parked()
+        self.vel = np.zeros((n + 1, 2))
+        self.radius = np.append(state.radius + config["safety_margin"], 0.1)
+        self.max_speed = np.zeros(n + 1)
+        for i in range(n):
+            kind = AGENT_KINDS[KIND_NAMES[state.kind_idx[i]]]
+            self.max_speed[i] = (kind.run_speed or kind.pref_speed) + 3.0 * kind.speed_std
+        self.moves = np.ones(n + 1, dtype=np.bool_)
+        self.moves[n] = False
         self.plain = True
-        self.ego_radius = float("nan")
 
-    def _simulator(self, cap: int, config: Mapping[str, Any]) -> Any:
-        """A new simulator with `cap` parked agent slots, the ego's slot after them, and the scene's obstacles."""
-        c = config
-        sim = pyrvo.RVOSimulator(
-            0.1, c["neighbor_dist"], c["max_neighbors"], c["time_horizon"], c["time_horizon_obst"], 0.3, 2.0
-        )
-        for i in range(cap):
-            sim.add_agent(
-                self.parked(i),
-                c["neighbor_dist"],
-                c["max_neighbors"],
-                c["time_horizon"],
-                c["time_horizon_obst"],
-                0.1,
-                0.0,
-            )
-        # The ego is the last ORCA agent; it starts parked far away so it influences nobody until placed. Its max
-        # speed is 0: agents see its position, velocity and radius only, and its own ORCA velocity is never used
-        # (set_ego overwrites both before every step), but RVO2 would gather every obstacle within
-        # time_horizon_obst * max speed of it each step (about half of do_step at 50 m/s).
-        sim.add_agent(
-            self.parked(cap),
-            c["neighbor_dist"],
-            c["max_neighbors"],
-            c["time_horizon"],
-            c["time_horizon_obst"],
-            0.1,
-            0.0,
-        )
-        for vertices in self.obstacles:
-            sim.add_obstacle(vertices)
-        sim.process_obstacles()
-        return sim
-
-    def parked(self, slot: int = 0) -> tuple[float, float]:
-        """A far-away spot for an unused ORCA slot: 20 m apart, beyond any neighbour distance."""
-        return (self.origin[0] - 1e4 - 20.0 * slot, self.origin[1] - 1e4)
+    def parked(self) -> tuple[float, float]:
+        """A far-away spot for the ego when there is none: beyond any neighbour distance of the scene."""
+        return (float(self.index.origin[0]) - 1e4, float(self.index.origin[1]) - 1e4)
 
     def set_ego(self, ego: EgoState | None, margin: float) -> None:
-        """Put the ego (radius + `margin`: it does not reciprocate) into its slot, or park it when there is none."""
-        sim = self.sim
+        """Put the ego (radius + `margin`: it does not reciprocate) in its slot, or park it when there is none."""
+        n = self.n
         if ego is None:
-            sim.set_agent_position(self.ego_id, self.parked(self.ego_id))
-            sim.set_agent_velocity(self.ego_id, (0.0, 0.0))
-            sim.set_agent_pref_velocity(self.ego_id, (0.0, 0.0))
+            self.pos[n] = self.parked()
+            self.vel[n] = 0.0
             return
-        radius = float(ego.radius + margin)
-        if radius != self.ego_radius:  # the ego's footprint does not change within an episode
-            sim.set_agent_radius(self.ego_id, radius)
-            self.ego_radius = radius
-        sim.set_agent_position(self.ego_id, (ego.x, ego.y))
-        sim.set_agent_velocity(self.ego_id, (ego.vx, ego.vy))
-        sim.set_agent_pref_velocity(self.ego_id, (ego.vx, ego.vy))
+        self.radius[n] = float(ego.radius + margin)
+        self.pos[n] = (ego.x, ego.y)
+        self.vel[n] = (ego.vx, ego.vy)
 
     def set_radii(self, radius: np.ndarray, safety_margin: float, pinned: np.ndarray) -> None:
         """ORCA radii: `radius` + safety_margin, plus STAND_MARGIN for the `pinned` agents (they do not reciprocate)."""
         if not pinned.any() and self.plain:
-            return  # nobody holds a spot, nor did last step: the radii are radius + safety_margin already
-        want = radius + safety_margin + STAND_MARGIN * pinned
-        for i in np.flatnonzero(want != self.radius).tolist():
-            self.sim.set_agent_radius(i, float(want[i]))
-        self.radius = want
+            return
+        self.radius[: self.n] = radius + safety_margin + STAND_MARGIN * pinned
         self.plain = not pinned.any()
 
     def step(self, dt: float, pref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """One ORCA step of `dt` seconds toward the preferred velocities `pref` [n, 2]: new positions and velocities."""
-        n = len(pref)
-        sim = self.sim
-        sim.set_time_step(float(dt))
-        set_pref = sim.set_agent_pref_velocity
-        for i, v in enumerate(pref.tolist()):  # pyrvo has no batch setters; one list walk beats n numpy reads
-            set_pref(i, v)
-        sim.do_step()
-        get_pos, get_vel = sim.get_agent_position, sim.get_agent_velocity
-        out = np.array([get_pos(i).to_tuple() + get_vel(i).to_tuple() for i in range(n)]).reshape(n, 4)
-        return out[:, :2].copy(), out[:, 2:].copy()
+        return step_crowds([self], dt, [pref])[0]
 
     def place(self, i: int, xy: tuple[float, float]) -> None:
         """Put agent i at rest on `xy`."""
-        self.sim.set_agent_position(i, xy)
-        self.sim.set_agent_velocity(i, (0.0, 0.0))
+        self.pos[i] = xy
+        self.vel[i] = 0.0
+
+    def visible(self, p: np.ndarray, q: np.ndarray, radius: np.ndarray) -> np.ndarray:
+        """Whether discs of `radius` [k] see points q [k, 2] from p [k, 2] past the obstacles (RVO2's
+        queryVisibility: an edge blocks a disc crossing it from outside)."""
+        ix = self.index
+        return visible_many(
+            np.ascontiguousarray(p, dtype=np.float64).reshape(-1, 2),
+            np.ascontiguousarray(q, dtype=np.float64).reshape(-1, 2),
+            np.ascontiguousarray(radius, dtype=np.float64).reshape(-1),
+            ix.point,
+            ix.nxt,
+            float(ix.origin[0]),
+            float(ix.origin[1]),
+            ix.shape[0],
+            ix.shape[1],
+            ix.start,
+            ix.items,
+        )
+
+
+def obstacle_reach(config: Mapping[str, Any]) -> float:
+    """Metres within which an ORCA agent looks for obstacle edges, at most: RVO2's range (time_horizon_obst x max
+    speed + radius) of the fastest and widest kind, with the safety and standing margins."""
+    top = max((k.run_speed or k.pref_speed) + 3.0 * k.speed_std for k in AGENT_KINDS.values())
+    widest = max(k.radius for k in AGENT_KINDS.values())
+    return float(config["time_horizon_obst"]) * top + widest + float(config["safety_margin"]) + STAND_MARGIN + 0.01
+
+
+def step_crowds(
+    crowds: Sequence[OrcaCrowd], dt: float, prefs: Sequence[np.ndarray]
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """One ORCA step of every crowd in one compiled call (`orca_kernels.orca_crowds`, the crowds shared among numba's
+    threads); crowd c's agents head for `prefs[c]` [n_c, 2]. The crowds keep their new positions and velocities and
+    each gets (positions, velocities) [n_c, 2] back. Every crowd's ORCA keys must be equal (one env config)."""
+    if not crowds:
+        return []
+    c0 = crowds[0].config
+    keys = ("neighbor_dist", "max_neighbors", "time_horizon", "time_horizon_obst")
+    for crowd in crowds[1:]:
+        if any(crowd.config[k] != c0[k] for k in keys):
+            raise ValueError(f"crowds stepped together need equal ORCA keys {keys}")
+    sizes = np.array([len(c.pos) for c in crowds], dtype=np.int64)
+    start = np.zeros(len(crowds) + 1, dtype=np.int64)
+    np.cumsum(sizes, out=start[1:])
+    pref = np.zeros((int(start[-1]), 2))
+    for k, (crowd, p) in enumerate(zip(crowds, prefs)):
+        pref[start[k] : start[k] + crowd.n] = p
+    # One obstacle index per distinct scene (envs may share one).
+    scenes: dict[int, int] = {}
+    order: list[ObstacleIndex] = []
+    scene_of = np.empty(len(crowds), dtype=np.int64)
+    for k, crowd in enumerate(crowds):
+        key = id(crowd.index)
+        if key not in scenes:
+            scenes[key] = len(order)
+            order.append(crowd.index)
+        scene_of[k] = scenes[key]
+    new_pos, new_vel = orca_crowds(
+        start,
+        scene_of,
+        np.concatenate([c.pos for c in crowds]),
+        np.concatenate([c.vel for c in crowds]),
+        pref,
+        np.concatenate([c.radius for c in crowds]),
+        np.concatenate([c.max_speed for c in crowds]),
+        np.concatenate([c.moves for c in crowds]),
+        float(dt),
+        float(c0["neighbor_dist"]),
+        int(c0["max_neighbors"]),
+        float(c0["time_horizon"]),
+        float(c0["time_horizon_obst"]),
+        tuple(ix.point for ix in order),
+        tuple(ix.nxt for ix in order),
+        tuple(ix.prv for ix in order),
+        tuple(ix.direction for ix in order),
+        tuple(ix.convex for ix in order),
+        np.array([ix.origin for ix in order], dtype=np.float64).reshape(-1, 2),
+        np.array([ix.shape for ix in order], dtype=np.int64).reshape(-1, 2),
+        tuple(ix.start for ix in order),
+        tuple(ix.items for ix in order),
+    )
+    out = []
+    for k, crowd in enumerate(crowds):
+        lo, hi = int(start[k]), int(start[k + 1])
+        crowd.pos, crowd.vel = new_pos[lo:hi].copy(), new_vel[lo:hi].copy()
+        out.append((crowd.pos[: crowd.n].copy(), crowd.vel[: crowd.n].copy()))
+    return out
 
 
 def orca_obstacles(scene: Scene, grid: NavGrid) -> list[list[tuple[float, float]]]:

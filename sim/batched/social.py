@@ -186,10 +186,13 @@ class BatchedSocialNav(BatchedPointNav):
         self._flatten()
 
     def _after_substeps(self, actions: np.ndarray) -> np.ndarray:
+        ticks = [
+            TickContext(self.dt, self._ego(k), (float(actions[k, 0]), float(actions[k, 1])))
+            for k in range(self.num_envs)
+        ]
+        CrowdAdapter.after_steps(self.crowds, ticks)  # every env's ORCA in one compiled call
         for k in range(self.num_envs):
-            tick = TickContext(self.dt, self._ego(k), (float(actions[k, 0]), float(actions[k, 1])))
-            self.crowds[k].after_step(tick)
-            self.traffics[k].after_step(tick)
+            self.traffics[k].after_step(ticks[k])
             self._shapes_of(k)
         self._flatten()
         pushed = self._push_out()

@@ -8,13 +8,13 @@ live in one Bullet client, so each cached world has its own of all three.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from sim.agents.crowd import AgentManager, EgoState
+from sim.agents.crowd import AgentManager, EgoState, advance_crowds
 from sim.agents.crowd_kernels import box_gaps, cell_values
 from sim.agents.vehicles import VehicleManager
 from sim.envs.bodies import CohabitantBodies
@@ -66,8 +66,14 @@ class CrowdAdapter(Manager[AgentManager]):
         self.min_distance = self._nearest(ctx.ego)
 
     def after_step(self, ctx: TickContext) -> None:
-        self.crowd.advance(ctx.dt, crowd_ego(ctx.ego))
-        self.min_distance = self._nearest(ctx.ego)
+        CrowdAdapter.after_steps([self], [ctx])
+
+    @staticmethod
+    def after_steps(adapters: Sequence[CrowdAdapter], ticks: Sequence[TickContext]) -> None:
+        """`after_step` of many crowds (a batched env's), their ORCA steps in one compiled call."""
+        advance_crowds([a.crowd for a in adapters], ticks[0].dt, [crowd_ego(t.ego) for t in ticks])
+        for a, tick in zip(adapters, ticks):
+            a.min_distance = a._nearest(tick.ego)
 
     def view_fields(self) -> dict[str, Any]:
         return {"min_agent_distance": lambda: self.min_distance, "personal_space": self.personal_space}

@@ -29,7 +29,6 @@ CROWD = {"dynamic_density": 40.0, "spawn_area": "route"}  # 15 agents along the 
 B = 240  # high beams
 TOL = {
     "position": 0.02,  # m, the machine over the replay (as BatchedPointNav's)
-    "agents": 0.02,  # m, every agent over the replay (measured 8 mm: they react to the machine, up to `position` off)
     "lidar_median": 0.01,  # m, median beam error of the high scan over the replay
     "agent_beams": 0.05,  # m, median error of the beams that end on an agent in the PyBullet scan
     "reward": 0.002,  # per step
@@ -57,7 +56,6 @@ def replay():
         "agents_at_reset": (ref.crowd.pos.copy(), env.crowds[0].crowd.pos.copy()),
         "vehicles_at_reset": (np.stack(ref.traffic_adapter.poses(), 1), env._vehicles[0].copy()),
         "pos": [],
-        "agents": [],
         "lidar": [],
         "agent_beams": [],
         "reward": [],
@@ -73,7 +71,6 @@ def replay():
             break
         m = ref.machine
         out["pos"].append(math.hypot(m.position[0] - env.drive.x[0], m.position[1] - env.drive.y[0]))
-        out["agents"].append(float(np.abs(ref.crowd.pos - env.crowds[0].crowd.pos).max()))
         out["reward"].append(abs(r_ref - r[0]))
         out["min_distance"].append(abs(ref.crowd_adapter.min_distance - env.crowds[0].min_distance))
         err = np.abs(_decode(obs_ref) - _decode(obs[0]))
@@ -97,7 +94,6 @@ def test_reset_draws_the_pybullet_envs_agents_and_vehicles(replay) -> None:
 def test_replay_matches_pybullet_within_tolerances(replay) -> None:
     assert len(replay["pos"]) > 100  # the expert's drive to the goal
     assert max(replay["pos"]) < TOL["position"]
-    assert max(replay["agents"]) < TOL["agents"]
     assert max(replay["lidar"]) < TOL["lidar_median"]
     assert max(replay["reward"]) < TOL["reward"]
     assert max(replay["min_distance"]) < TOL["min_distance"]
@@ -115,6 +111,37 @@ def test_episode_end_and_social_metrics_match_pybullet(replay) -> None:
         assert final[key][0] == pytest.approx(info_ref[key], abs=2.0 / steps), key
     assert final["sns"][0] == pytest.approx(0.5 * (final["stl"][0] + final["psc"][0]))
     assert final["psc"][0] < 1.0  # the crowd came within the personal space: PSC was measured, not defaulted
+
+
+def test_crowd_and_traffic_match_pybullet_exactly_given_the_same_ego() -> None:
+    # The cohabitants react to the machine, whose pose differs between the backends by up to `position`: an agent
+    # deciding on that difference (its carrot in sight or not) can part by centimetres for a few steps. Given the
+    # PyBullet env's machine pose at every step, the batched env's crowd and traffic are the PyBullet env's, bit for bit.
+    ref, env = SocialNavEnv(_config()), BatchedSocialNav(1, _config())
+    ref.reset(seed=0, options=ROUTE)
+    env.reset(seed=0, options=ROUTE)
+    egos = []
+    step_crowd = ref.crowd_adapter.after_step
+
+    def record(ctx):  # the PyBullet env's tick: its machine as the cohabitants see it
+        egos.append(ctx.ego)
+        step_crowd(ctx)
+
+    ref.crowd_adapter.after_step = record
+    env._ego = lambda k: egos[-1]
+    expert = PurePursuitExpert()
+    for _ in range(140):
+        a = np.asarray(expert.act(ref), dtype=np.float64)
+        _, _, term_ref, trunc_ref, _ = ref.step(a)
+        _, _, term, trunc, _ = env.step(a[None])
+        if term_ref or trunc_ref or term[0] or trunc[0]:
+            break
+        np.testing.assert_array_equal(env.crowds[0].crowd.pos, ref.crowd.pos)
+        np.testing.assert_array_equal(env.crowds[0].crowd.vel, ref.crowd.vel)
+        np.testing.assert_array_equal(env._vehicles[0], np.stack(ref.traffic_adapter.poses(), 1))
+    assert len(egos) > 100
+    ref.close()
+    env.close()
 
 
 def _standing_agent_ahead(env_ref: SocialNavEnv, env: BatchedSocialNav, xy: tuple[float, float]) -> None:

@@ -150,7 +150,7 @@ def test_psc_falls_below_one_when_an_agent_enters_the_personal_space(spec):
         y + math.sin(m.yaw) * (0.5 * m.spec.length + 0.2 + 0.3),
     )
     env.crowd.pos[0] = (ax, ay)
-    env.crowd.orca.sim.set_agent_position(0, (ax, ay))
+    env.crowd.orca.pos[0] = (ax, ay)
     infos = [env.step([0.0, -1.0])[4] for _ in range(4)]
     assert infos[-1]["psc"] < 1.0 and infos[-1]["sns"] < 1.0
     # Without agents PSC is 1 and the metric does not fire.
