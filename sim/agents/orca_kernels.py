@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit, prange
 
 EPSILON = 1e-5  # RVO_EPSILON
-BUCKET = 2.0  # metres: the obstacle buckets' side
+BUCKET = 1.0  # metres: the obstacle buckets' side
 MAX_LINES = 256  # ORCA lines an agent can hold (obstacle edges plus neighbours)
 
 
