@@ -251,3 +251,42 @@ def _footprints(
                 blocked[i] = True
                 bits[i] |= kind_bits[flat[kind_offset[i] + at]]
     return blocked, bits
+
+
+@njit(cache=True)
+def touched_objects(
+    flat: np.ndarray,
+    body_offset: int,
+    kind_offset: int,
+    x0: float,
+    y0: float,
+    cols: int,
+    rows: int,
+    inv: float,
+    x: float,
+    y: float,
+    cos: float,
+    sin: float,
+    u: np.ndarray,
+    w: np.ndarray,
+    object_code: int,
+    centres: np.ndarray,
+    radii: np.ndarray,
+) -> np.ndarray:  # pragma: no cover - numba
+    """The objects one footprint touches: for each of its points (u, w) on an occupied body cell of kind
+    `object_code`, the object whose bounding circle (`centres` [m, 2], `radii` [m]) it lies deepest in (the first
+    on a tie); sorted, each once."""
+    hit = np.zeros(centres.shape[0], dtype=np.bool_)
+    for j in range(u.size):
+        px = x + cos * u[j] - sin * w[j]
+        py = y + sin * u[j] + cos * w[j]
+        at = _at(flat, 0, x0, y0, cols, rows, inv, px, py)
+        if flat[body_offset + at] != 0 or flat[kind_offset + at] != object_code:
+            continue
+        best, arg = np.inf, 0
+        for m in range(centres.shape[0]):
+            depth = np.hypot(px - centres[m, 0], py - centres[m, 1]) - radii[m]
+            if depth < best:
+                best, arg = depth, m
+        hit[arg] = True
+    return np.flatnonzero(hit)

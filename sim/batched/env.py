@@ -18,7 +18,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from kernel.config import ConfigError
-from sim.batched.atlas import Atlas
+from sim.batched.atlas import Atlas, touched_objects
 from sim.batched.episodes import KIND_BITS, Episodes
 from sim.batched.kinematics import Drive
 from sim.batched.lidar import BatchLidar, lidar_pair
@@ -416,19 +416,33 @@ class BatchedPointNav(VectorEnv):
             built = self.built[k]
             assert built is not None  # stepping envs have scenes
             centres, radii = built.object_circles()
-            c, sn = math.cos(yaw[k]), math.sin(yaw[k])
-            px = x[k] + c * self._body_u - sn * self._body_w
-            py = y[k] + sn * self._body_u + c * self._body_w
-            frame = self.atlas.frames(self.slots[k : k + 1], self.body_level[k : k + 1], "body")
-            kinds = self.atlas.frames(self.slots[k : k + 1], self.body_level[k : k + 1], "kinds")
-            on = (self.atlas.lookup(frame, px[None], py[None]) == 0) & (
-                self.atlas.lookup(kinds, px[None], py[None]) == OBJECT
-            )
-            pts = np.stack([px[on[0]], py[on[0]]], 1)
-            if pts.size == 0 or centres.size == 0:
+            if centres.size == 0:
                 continue
-            depth = np.hypot(pts[:, None, 0] - centres[None, :, 0], pts[:, None, 1] - centres[None, :, 1]) - radii
-            touched = set(np.argmin(depth, axis=1).tolist()) - self.episodes.charged[k]
+            slot, level = self.slots[k : k + 1], self.body_level[k : k + 1]
+            body = self.atlas.frames(slot, level, "body")
+            kinds = self.atlas.frames(slot, level, "kinds")
+            touched = set(
+                touched_objects(
+                    self.atlas.flat,
+                    int(body["offset"][0]),
+                    int(kinds["offset"][0]),
+                    float(body["x0"][0]),
+                    float(body["y0"][0]),
+                    int(body["cols"][0]),
+                    int(body["rows"][0]),
+                    1.0 / self.atlas.resolution,
+                    float(x[k]),
+                    float(y[k]),
+                    math.cos(yaw[k]),
+                    math.sin(yaw[k]),
+                    self._body_u,
+                    self._body_w,
+                    OBJECT,
+                    centres,
+                    radii,
+                ).tolist()
+            )
+            touched -= self.episodes.charged[k]
             if touched:
                 self.episodes.charged[k] |= touched
                 new_static[k] = True
