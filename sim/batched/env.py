@@ -28,7 +28,7 @@ from sim.envs.observation import GOAL_LOG_SCALE, EgoObservation
 from sim.envs.reset_options import check_reset_options
 from sim.envs.worlds import SceneSource
 from sim.machines import machine_spec
-from sim.raycast.grids import CROSSWALK, KIND_NAMES, LOW_RAMP, OBJECT, ROAD_LEVEL, SIDEWALK_LEVEL, walkable_labels
+from sim.raycast.grids import CROSSWALK, KIND_NAMES, LOW_RAMP, OBJECT, ROAD_LEVEL, SIDEWALK_LEVEL, labels_at
 from sim.route import ROUTE_REDRAWS, Route, RouteError
 from sim.schema import Int, Key, Rule, Table, defaults_of, table_of
 from sim.tasks.pointnav import (
@@ -233,11 +233,25 @@ class BatchedPointNav(VectorEnv):
     def _locate_level(self, envs: np.ndarray | None = None) -> None:
         """Walkable labels under the machines (off-walkable ends, which level the machine is on)."""
         drive = self.drive
-        for built in {id(built): built for built in self.built if built is not None}.values():
-            k = np.nonzero(self.slots == built.slot)[0]
-            if envs is not None:
-                k = np.intersect1d(k, envs)
-            self.labels[k] = walkable_labels(built.scene.walkable, drive.x[k], drive.y[k])
+        k = np.arange(self.num_envs) if envs is None else np.asarray(envs, dtype=np.int64)
+        scenes: dict[int, int] = {}  # id of a built scene -> its index among this call's distinct scenes
+        grids: list[Any] = []  # their walkable grids
+        scene_of = np.empty(k.size, dtype=np.int64)
+        for j, env in enumerate(k.tolist()):
+            built = self.built[env]
+            assert built is not None  # located envs have scenes
+            at = scenes.setdefault(id(built), len(grids))
+            if at == len(grids):
+                grids.append(built.scene.walkable)
+            scene_of[j] = at
+        self.labels[k] = labels_at(
+            tuple(g.mask for g in grids),
+            np.array([g.origin for g in grids], dtype=np.float64).reshape(-1, 2),
+            np.array([g.resolution for g in grids], dtype=np.float64),
+            scene_of,
+            drive.x[k],
+            drive.y[k],
+        )
         if self.spec_machine.rides:
             # A raycast vehicle drives over curbs: off the sidewalks (the road, a crosswalk) it is at the road's level,
             # body and LiDAR alike, and no ramp's low part holds it back.

@@ -24,6 +24,7 @@ from itertools import combinations
 from typing import Any
 
 import numpy as np
+from numba import njit
 from scipy import ndimage
 from shapely.geometry import Polygon
 
@@ -229,6 +230,25 @@ def levels(grids: SceneGrids, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """The level of machines at (x, y): ROAD_LEVEL on a crosswalk, else SIDEWALK_LEVEL (ramps count as sidewalk)."""
     labels = walkable_labels(grids.walkable, x, y)
     return np.where(labels == CROSSWALK, ROAD_LEVEL, SIDEWALK_LEVEL)
+
+
+@njit(cache=True)
+def labels_at(
+    masks: tuple, origins: np.ndarray, resolutions: np.ndarray, scene_of: np.ndarray, x: np.ndarray, y: np.ndarray
+) -> np.ndarray:  # pragma: no cover - numba
+    """`walkable_labels` of many scenes in one pass: point k in the walkable grid masks[scene_of[k]] (origin
+    origins[s], cell resolutions[s]); 0 off the grid or at a non-finite point."""
+    out = np.zeros(x.size, dtype=np.int64)
+    for k in range(x.size):
+        s = scene_of[k]
+        if not (np.isfinite(x[k]) and np.isfinite(y[k])):
+            continue
+        col = math.floor((x[k] - origins[s, 0]) / resolutions[s])
+        row = math.floor((y[k] - origins[s, 1]) / resolutions[s])
+        mask = masks[s]
+        if 0 <= row < mask.shape[0] and 0 <= col < mask.shape[1]:
+            out[k] = mask[int(row), int(col)]
+    return out
 
 
 def walkable_labels(walkable: WalkableGrid, x: np.ndarray, y: np.ndarray) -> np.ndarray:
