@@ -622,15 +622,26 @@ def orca_crowds(
 def visible_many(p, q, radius, point, nxt, ox, oy, bx, by, start, items):  # pragma: no cover - numba
     """`visible` of discs of `radius` [k] from p [k, 2] to q [k, 2]."""
     out = np.empty(p.shape[0], dtype=np.bool_)
+    seen = np.zeros(point.shape[0], dtype=np.int64)
     for k in range(p.shape[0]):
-        out[k] = visible(p[k, 0], p[k, 1], q[k, 0], q[k, 1], radius[k], point, nxt, ox, oy, bx, by, start, items)
+        out[k] = _visible(
+            p[k, 0], p[k, 1], q[k, 0], q[k, 1], radius[k], point, nxt, ox, oy, bx, by, start, items, seen, k + 1
+        )
     return out
 
 
 @njit(cache=True)
 def visible(px, py, qx, qy, radius, point, nxt, ox, oy, bx, by, start, items):  # pragma: no cover - numba
     """RVO2's queryVisibility: whether a disc of `radius` moves from p to q without crossing an obstacle edge from
-    its outer side or passing within `radius` of an edge it crosses the line of."""
+    its outer side or passing within `radius` of an edge it crosses the line of. The edges asked are those filed
+    under the buckets the query's box (grown by `radius`) touches."""
+    seen = np.zeros(point.shape[0], dtype=np.int64)
+    return _visible(px, py, qx, qy, radius, point, nxt, ox, oy, bx, by, start, items, seen, 1)
+
+
+@njit(cache=True)
+def _visible(px, py, qx, qy, radius, point, nxt, ox, oy, bx, by, start, items, seen, stamp):  # pragma: no cover
+    """`visible`, each edge tested once: `seen[e] == stamp` marks the edges this query has tested."""
     lo_x, hi_x = min(px, qx) - radius, max(px, qx) + radius
     lo_y, hi_y = min(py, qy) - radius, max(py, qy) + radius
     i0 = max(int(math.floor((lo_x - ox) / BUCKET)), 0)
@@ -645,6 +656,9 @@ def visible(px, py, qx, qy, radius, point, nxt, ox, oy, bx, by, start, items):  
             b = j * bx + i
             for k in range(start[b], start[b + 1]):
                 e = items[k]
+                if seen[e] == stamp:
+                    continue
+                seen[e] = stamp
                 ax, ay = point[e, 0], point[e, 1]
                 cx, cy = point[nxt[e], 0], point[nxt[e], 1]
                 q1 = (ax - px) * (cy - ay) - (ay - py) * (cx - ax)  # leftOf(a, c, p)
