@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import typed
 
 from sim.agents.behaviours import STAND_MARGIN
 from sim.agents.crowd_state import CrowdState
@@ -127,6 +128,26 @@ class OrcaCrowd:
         )
 
 
+_LISTS: list[Any] = [(), ()]  # the last call's indices and their arrays as numba lists (scenes change seldom)
+
+
+def index_lists(indices: Sequence[ObstacleIndex]) -> tuple[Any, ...]:
+    """The indices' arrays as `orca_crowds` takes them: numba typed lists (one compiled kernel whatever the number of
+    scenes; a tuple would compile one a length), origins and shapes as arrays; the last call's are reused."""
+    last, lists = _LISTS
+    if len(last) == len(indices) and all(a is b for a, b in zip(last, indices)):
+        return lists
+    lists = (
+        *(typed.List([getattr(ix, name) for ix in indices]) for name in ("point", "nxt", "prv", "direction", "convex")),
+        np.array([ix.origin for ix in indices], dtype=np.float64).reshape(-1, 2),
+        np.array([ix.shape for ix in indices], dtype=np.int64).reshape(-1, 2),
+        typed.List([ix.start for ix in indices]),
+        typed.List([ix.items for ix in indices]),
+    )
+    _LISTS[:] = [tuple(indices), lists]
+    return lists
+
+
 def obstacle_reach(config: Mapping[str, Any]) -> float:
     """Metres within which an ORCA agent looks for obstacle edges, at most: RVO2's range (time_horizon_obst x max
     speed + radius) of the fastest and widest kind, with the safety and standing margins."""
@@ -178,15 +199,7 @@ def step_crowds(
         int(c0["max_neighbors"]),
         float(c0["time_horizon"]),
         float(c0["time_horizon_obst"]),
-        tuple(ix.point for ix in order),
-        tuple(ix.nxt for ix in order),
-        tuple(ix.prv for ix in order),
-        tuple(ix.direction for ix in order),
-        tuple(ix.convex for ix in order),
-        np.array([ix.origin for ix in order], dtype=np.float64).reshape(-1, 2),
-        np.array([ix.shape for ix in order], dtype=np.int64).reshape(-1, 2),
-        tuple(ix.start for ix in order),
-        tuple(ix.items for ix in order),
+        *index_lists(order),
     )
     out = []
     for k, crowd in enumerate(crowds):

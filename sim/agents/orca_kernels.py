@@ -579,7 +579,7 @@ def orca_crowds(
     itemss,
 ):  # pragma: no cover - numba
     """One ORCA step of every crowd: crowd c is agents crowd_start[c]:crowd_start[c + 1] of the flat arrays, among
-    the obstacles of index scene_of[c] (tuples of per-scene arrays); returns new positions and velocities [N, 2]
+    the obstacles of index scene_of[c] (typed lists of per-scene arrays); returns new positions and velocities [N, 2]
     (agents with `moves` False keep theirs)."""
     new_vel = np.empty_like(vel)
     for c in prange(crowd_start.size - 1):

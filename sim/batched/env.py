@@ -16,6 +16,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
+from numba import typed
 
 from kernel.config import ConfigError
 from sim.batched.atlas import Atlas, touched_objects
@@ -145,6 +146,9 @@ class BatchedPointNav(VectorEnv):
         self.body_level = np.zeros(n_envs, dtype=np.int64)  # the level the body collides at (`_locate_level`)
         self.reference = np.zeros(n_envs)  # SPL's reference length of each env's route
         self.labels = np.zeros(n_envs, dtype=np.int64)
+        self._walk_grids: list[Any] = []  # the walkable grids `_locate_level` last read, and their numba list
+        self._walk_masks: Any = None
+        self._walk_frames: tuple[np.ndarray, np.ndarray] = (np.zeros((0, 2)), np.zeros(0))
         self._started = False
         self.autoreset = np.ones(n_envs, dtype=bool)
         hl, hw = 0.5 * self.spec_machine.length, 0.5 * self.spec_machine.width
@@ -244,14 +248,15 @@ class BatchedPointNav(VectorEnv):
             if at == len(grids):
                 grids.append(built.scene.walkable)
             scene_of[j] = at
-        self.labels[k] = labels_at(
-            tuple(g.mask for g in grids),
-            np.array([g.origin for g in grids], dtype=np.float64).reshape(-1, 2),
-            np.array([g.resolution for g in grids], dtype=np.float64),
-            scene_of,
-            drive.x[k],
-            drive.y[k],
-        )
+        if len(grids) != len(self._walk_grids) or any(a is not b for a, b in zip(grids, self._walk_grids)):
+            # Scenes change seldom: their masks as a numba list (one compiled kernel whatever their number).
+            self._walk_grids = grids
+            self._walk_masks = typed.List([g.mask for g in grids])
+            self._walk_frames = (
+                np.array([g.origin for g in grids], dtype=np.float64).reshape(-1, 2),
+                np.array([g.resolution for g in grids], dtype=np.float64),
+            )
+        self.labels[k] = labels_at(self._walk_masks, *self._walk_frames, scene_of, drive.x[k], drive.y[k])
         if self.spec_machine.rides:
             # A raycast vehicle drives over curbs: off the sidewalks (the road, a crosswalk) it is at the road's level,
             # body and LiDAR alike, and no ramp's low part holds it back.

@@ -234,10 +234,10 @@ def levels(grids: SceneGrids, x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 @njit(cache=True)
 def labels_at(
-    masks: tuple, origins: np.ndarray, resolutions: np.ndarray, scene_of: np.ndarray, x: np.ndarray, y: np.ndarray
+    masks: Any, origins: np.ndarray, resolutions: np.ndarray, scene_of: np.ndarray, x: np.ndarray, y: np.ndarray
 ) -> np.ndarray:  # pragma: no cover - numba
-    """`walkable_labels` of many scenes in one pass: point k in the walkable grid masks[scene_of[k]] (origin
-    origins[s], cell resolutions[s]); 0 off the grid or at a non-finite point."""
+    """`walkable_labels` of many scenes in one pass: point k in the walkable grid masks[scene_of[k]] (a numba typed
+    list of masks; origin origins[s], cell resolutions[s]); 0 off the grid or at a non-finite point."""
     out = np.zeros(x.size, dtype=np.int64)
     for k in range(x.size):
         s = scene_of[k]

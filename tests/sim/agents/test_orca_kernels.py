@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sim.agents.crowd_orca import index_lists
 from sim.agents.orca_kernels import ObstacleIndex, orca_crowds, visible_many
 
 pyrvo = pytest.importorskip("pyrvo")  # the reference; a dev dependency
@@ -72,15 +73,7 @@ def _ours(indices, crowds):
         ORCA["max_neighbors"],
         ORCA["time_horizon"],
         ORCA["time_horizon_obst"],
-        tuple(ix.point for ix in indices),
-        tuple(ix.nxt for ix in indices),
-        tuple(ix.prv for ix in indices),
-        tuple(ix.direction for ix in indices),
-        tuple(ix.convex for ix in indices),
-        np.array([ix.origin for ix in indices]),
-        np.array([ix.shape for ix in indices]),
-        tuple(ix.start for ix in indices),
-        tuple(ix.items for ix in indices),
+        *index_lists(indices),
     )
 
 
