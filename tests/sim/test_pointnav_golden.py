@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from tests.golden import check_golden, cpu_kind
+
 # Recorded on the commit before the batched env's footprint kernel, in-place atlas growth and one-thread rollouts; the
 # AVX-512 and AVX2 runs agree.
 GOLDEN = {
@@ -88,28 +90,8 @@ def golden_digest() -> tuple[str, int]:
     return h.hexdigest(), steps
 
 
-def cpu_kind() -> tuple[str, str]:
-    """(machine, the widest numpy SIMD target this CPU runs) naming the GOLDEN entry that applies here."""
-    import platform
-
-    from numpy._core._multiarray_umath import __cpu_features__
-
-    simd = next((f for f in ("AVX512_SKX", "AVX2", "ASIMD") if __cpu_features__.get(f)), "baseline")
-    return platform.machine(), simd
-
-
 def test_golden_episodes() -> None:
-    import pytest
-
-    expected = GOLDEN.get(cpu_kind())
-    if not expected:
-        pytest.skip(
-            f"no golden hash for CPU kind {cpu_kind()}: add one computed on a behaviour-preserving commit "
-            "(python tests/sim/test_pointnav_golden.py)"
-        )
-    digest, steps = golden_digest()
-    assert steps > 1500
-    assert digest == expected, f"PointNav episodes changed: {digest} != {expected} (a speed-up changed behaviour)"
+    check_golden(GOLDEN, golden_digest, 1500, "tests/sim/test_pointnav_golden.py")
 
 
 if __name__ == "__main__":

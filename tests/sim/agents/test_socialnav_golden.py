@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from tests.golden import check_golden, cpu_kind
+
 # Per CPU kind: numpy's transcendental kernels (SVML on AVX-512) and hence the doubles depend on it.
 # The AVX-512 hash comes from a commit whose episodes give the AVX2 hash with numpy's AVX-512 kernels off
 # (NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR"), so both record the same behaviour; it is the same
@@ -109,28 +111,8 @@ def golden_digest() -> tuple[str, int]:
     return h.hexdigest(), steps
 
 
-def cpu_kind() -> tuple[str, str]:
-    """(machine, the widest numpy SIMD target this CPU runs) naming the GOLDEN entry that applies here."""
-    import platform
-
-    from numpy._core._multiarray_umath import __cpu_features__
-
-    simd = next((f for f in ("AVX512_SKX", "AVX2", "ASIMD") if __cpu_features__.get(f)), "baseline")
-    return platform.machine(), simd
-
-
 def test_golden_episodes() -> None:
-    import pytest
-
-    expected = GOLDEN.get(cpu_kind())
-    if expected is None:
-        pytest.skip(
-            f"no golden hash for CPU kind {cpu_kind()}: add one computed on a behaviour-preserving commit "
-            "(python tests/sim/agents/test_socialnav_golden.py)"
-        )
-    digest, steps = golden_digest()
-    assert steps > 500
-    assert digest == expected, f"SocialNav episodes changed: {digest} != {expected} (a speed-up changed behaviour)"
+    check_golden(GOLDEN, golden_digest, 500, "tests/sim/agents/test_socialnav_golden.py")
 
 
 if __name__ == "__main__":
