@@ -143,6 +143,7 @@ def index_lists(indices: Sequence[ObstacleIndex]) -> tuple[Any, ...]:
         np.array([ix.shape for ix in indices], dtype=np.int64).reshape(-1, 2),
         typed.List([ix.start for ix in indices]),
         typed.List([ix.items for ix in indices]),
+        typed.List([ix.item_d for ix in indices]),
     )
     _LISTS[:] = [tuple(indices), lists]
     return lists

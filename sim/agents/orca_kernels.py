@@ -23,6 +23,7 @@ from numba import njit, prange
 
 EPSILON = 1e-5  # RVO_EPSILON
 BUCKET = 1.0  # metres: the obstacle buckets' side
+HALF_DIAGONAL = 0.7072 * BUCKET + 1e-3  # metres from a bucket's centre to its corners, and float32's slack
 MAX_LINES = 256  # ORCA lines an agent can hold (obstacle edges plus neighbours)
 
 
@@ -49,6 +50,7 @@ class ObstacleIndex:
     reach: float  # metres around an edge that its buckets cover
     start: np.ndarray
     items: np.ndarray
+    item_d: np.ndarray  # [k] each listed edge's distance from its bucket's centre (a bucket's nearest first)
 
     @staticmethod
     def build(polygons: Sequence[Sequence[tuple[float, float]]], reach: float) -> ObstacleIndex:
@@ -79,9 +81,19 @@ class ObstacleIndex:
         lo = point.min(axis=0) - reach - BUCKET if len(point) else np.zeros(2)
         hi = point.max(axis=0) + reach + BUCKET if len(point) else np.ones(2)
         bx, by = (int(v) for v in np.maximum(np.ceil((hi - lo) / BUCKET), 1))
-        start, items = _fill_buckets(point, nxt_a, lo[0], lo[1], bx, by, reach)
+        start, items, item_d = _fill_buckets(point, nxt_a, lo[0], lo[1], bx, by, reach)
         return ObstacleIndex(
-            point, nxt_a, prv_a, direction, np.array(convex, dtype=np.bool_), lo, (bx, by), float(reach), start, items
+            point,
+            nxt_a,
+            prv_a,
+            direction,
+            np.array(convex, dtype=np.bool_),
+            lo,
+            (bx, by),
+            float(reach),
+            start,
+            items,
+            item_d,
         )
 
 
@@ -92,7 +104,8 @@ def _left_of(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> float:
 
 @njit(cache=True)
 def _fill_buckets(point, nxt, x0, y0, bx, by, reach):  # pragma: no cover - numba
-    """Bucket start offsets and edge lists: each edge under every bucket its box grown by `reach` touches."""
+    """Bucket start offsets, edge lists and each listed edge's distance from its bucket's centre: each edge under
+    every bucket its box grown by `reach` touches, a bucket's edges nearest its centre first."""
     m = point.shape[0]
     counts = np.zeros(bx * by + 1, dtype=np.int64)
     for pas in range(2):
@@ -100,6 +113,7 @@ def _fill_buckets(point, nxt, x0, y0, bx, by, reach):  # pragma: no cover - numb
             for b in range(bx * by):
                 counts[b + 1] += counts[b]
             items = np.empty(counts[bx * by], dtype=np.int64)
+            item_d = np.empty(counts[bx * by], dtype=np.float32)
             fill = counts[:-1].copy()
         for e in range(m):
             ax, ay = point[e, 0], point[e, 1]
@@ -115,8 +129,18 @@ def _fill_buckets(point, nxt, x0, y0, bx, by, reach):  # pragma: no cover - numb
                         counts[b + 1] += 1
                     else:
                         items[fill[b]] = e
+                        px, py = x0 + (i + 0.5) * BUCKET, y0 + (j + 0.5) * BUCKET
+                        ex, ey = cx - ax, cy - ay
+                        t = ((px - ax) * ex + (py - ay) * ey) / max(ex * ex + ey * ey, 1e-300)
+                        t = min(max(t, 0.0), 1.0)
+                        item_d[fill[b]] = math.sqrt((px - ax - t * ex) ** 2 + (py - ay - t * ey) ** 2)
                         fill[b] += 1
-    return counts, items
+    for b in range(bx * by):
+        lo, hi = counts[b], counts[b + 1]
+        order = np.argsort(item_d[lo:hi], kind="mergesort")  # stable: equal distances keep the edges' order
+        items[lo:hi] = items[lo:hi][order]
+        item_d[lo:hi] = item_d[lo:hi][order]
+    return counts, items, item_d
 
 
 @njit(cache=True, inline="always")
@@ -220,7 +244,9 @@ def _lp3(lp, ld, n, n_obst, begin, radius, res, proj_p, proj_d):  # pragma: no c
 
 
 @njit(cache=True)
-def _obstacle_neighbors(x, y, rng, point, nxt, ox, oy, bx, by, start, items, near, near_d):  # pragma: no cover - numba
+def _obstacle_neighbors(
+    x, y, rng, point, nxt, ox, oy, bx, by, start, items, item_d, near, near_d
+):  # pragma: no cover - numba
     """The edges within `rng` of (x, y) seen from their outer side, nearest first, into `near`; returns their count
     (RVO2's computeObstacleNeighbors; past the array's size the farthest go)."""
     range_sq = rng * rng
@@ -228,7 +254,11 @@ def _obstacle_neighbors(x, y, rng, point, nxt, ox, oy, bx, by, start, items, nea
     b = _bucket(x, y, ox, oy, bx, by)
     if b < 0:
         return 0
+    # A bucket lists its edges nearest its centre first: past range + the half diagonal none can be in range.
+    stop = rng + HALF_DIAGONAL
     for k in range(start[b], start[b + 1]):
+        if item_d[k] > stop:
+            break
         e = items[k]
         ax, ay = point[e, 0], point[e, 1]
         cx, cy = point[nxt[e], 0], point[nxt[e], 1]
@@ -413,6 +443,7 @@ def _obstacle_lines(
     by,
     start,
     items,
+    item_d,
     lp,
     ld,
     near,
@@ -420,7 +451,7 @@ def _obstacle_lines(
 ):  # pragma: no cover - numba
     """The obstacle ORCA lines of an agent at (x, y) moving at (vx, vy) into lp, ld; returns their count."""
     count = _obstacle_neighbors(
-        x, y, tau_obst * max_speed + radius, point, nxt, ox, oy, bx, by, start, items, near, near_d
+        x, y, tau_obst * max_speed + radius, point, nxt, ox, oy, bx, by, start, items, item_d, near, near_d
     )
     n = 0
     for q in range(count):
@@ -454,6 +485,7 @@ def _crowd_step(
     by,
     start,
     items,
+    item_d,
     new_vel,
 ):  # pragma: no cover - numba
     """New velocities of the moving agents lo:hi of one crowd (`moves`; the others, the ego, are only seen)."""
@@ -487,6 +519,7 @@ def _crowd_step(
             by,
             start,
             items,
+            item_d,
             lp,
             ld,
             near,
@@ -577,6 +610,7 @@ def orca_crowds(
     shapes,
     starts,
     itemss,
+    item_ds,
 ):  # pragma: no cover - numba
     """One ORCA step of every crowd: crowd c is agents crowd_start[c]:crowd_start[c + 1] of the flat arrays, among
     the obstacles of index scene_of[c] (typed lists of per-scene arrays); returns new positions and velocities [N, 2]
@@ -609,6 +643,7 @@ def orca_crowds(
             shapes[s, 1],
             starts[s],
             itemss[s],
+            item_ds[s],
             new_vel,
         )
     new_pos = pos + new_vel * dt
