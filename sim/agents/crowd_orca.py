@@ -100,10 +100,6 @@ class OrcaCrowd:
         self.radius[: self.n] = radius + safety_margin + STAND_MARGIN * pinned
         self.plain = not pinned.any()
 
-    def step(self, dt: float, pref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """One ORCA step of `dt` seconds toward the preferred velocities `pref` [n, 2]: new positions and velocities."""
-        return step_crowds([self], dt, [pref])[0]
-
     def place(self, i: int, xy: tuple[float, float]) -> None:
         """Put agent i at rest on `xy`."""
         self.pos[i] = xy
@@ -128,15 +124,18 @@ class OrcaCrowd:
         )
 
 
-_LISTS: list[Any] = [(), ()]  # the last call's indices and their arrays as numba lists (scenes change seldom)
+_LISTS: list[tuple[tuple[ObstacleIndex, ...], tuple[Any, ...]]] = []  # recent calls' indices and their lists
+_KEEP_LISTS = 8  # calls remembered: a process's envs (a vector of PyBullet envs, a batched env) each find theirs
 
 
 def index_lists(indices: Sequence[ObstacleIndex]) -> tuple[Any, ...]:
     """The indices' arrays as `orca_crowds` takes them: numba typed lists (one compiled kernel whatever the number of
-    scenes; a tuple would compile one a length), origins and shapes as arrays; the last call's are reused."""
-    last, lists = _LISTS
-    if len(last) == len(indices) and all(a is b for a, b in zip(last, indices)):
-        return lists
+    scenes; a tuple would compile one a length), origins and shapes as arrays. Scenes change seldom: the lists of
+    the last few sets of indices are reused."""
+    for k, (kept, lists) in enumerate(_LISTS):
+        if len(kept) == len(indices) and all(a is b for a, b in zip(kept, indices)):
+            _LISTS.append(_LISTS.pop(k))  # most recently used last
+            return lists
     lists = (
         *(typed.List([getattr(ix, name) for ix in indices]) for name in ("point", "nxt", "prv", "direction", "convex")),
         np.array([ix.origin for ix in indices], dtype=np.float64).reshape(-1, 2),
@@ -145,7 +144,8 @@ def index_lists(indices: Sequence[ObstacleIndex]) -> tuple[Any, ...]:
         typed.List([ix.items for ix in indices]),
         typed.List([ix.item_d for ix in indices]),
     )
-    _LISTS[:] = [tuple(indices), lists]
+    _LISTS.append((tuple(indices), lists))
+    del _LISTS[:-_KEEP_LISTS]
     return lists
 
 

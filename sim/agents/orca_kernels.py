@@ -655,7 +655,9 @@ def orca_crowds(
 
 @njit(cache=True)
 def visible_many(p, q, radius, point, nxt, ox, oy, bx, by, start, items):  # pragma: no cover - numba
-    """`visible` of discs of `radius` [k] from p [k, 2] to q [k, 2]."""
+    """RVO2's queryVisibility of discs of `radius` [k] from p [k, 2] to q [k, 2]: whether each moves from p to q
+    without crossing an obstacle edge from its outer side or passing within its radius of an edge it crosses the
+    line of. The edges asked are those filed under the buckets the query's box (grown by the radius) touches."""
     out = np.empty(p.shape[0], dtype=np.bool_)
     seen = np.zeros(point.shape[0], dtype=np.int64)
     for k in range(p.shape[0]):
@@ -666,17 +668,8 @@ def visible_many(p, q, radius, point, nxt, ox, oy, bx, by, start, items):  # pra
 
 
 @njit(cache=True)
-def visible(px, py, qx, qy, radius, point, nxt, ox, oy, bx, by, start, items):  # pragma: no cover - numba
-    """RVO2's queryVisibility: whether a disc of `radius` moves from p to q without crossing an obstacle edge from
-    its outer side or passing within `radius` of an edge it crosses the line of. The edges asked are those filed
-    under the buckets the query's box (grown by `radius`) touches."""
-    seen = np.zeros(point.shape[0], dtype=np.int64)
-    return _visible(px, py, qx, qy, radius, point, nxt, ox, oy, bx, by, start, items, seen, 1)
-
-
-@njit(cache=True)
 def _visible(px, py, qx, qy, radius, point, nxt, ox, oy, bx, by, start, items, seen, stamp):  # pragma: no cover
-    """`visible`, each edge tested once: `seen[e] == stamp` marks the edges this query has tested."""
+    """One query of `visible_many`, each edge tested once: `seen[e] == stamp` marks the edges it has tested."""
     lo_x, hi_x = min(px, qx) - radius, max(px, qx) + radius
     lo_y, hi_y = min(py, qy) - radius, max(py, qy) + radius
     i0 = max(int(math.floor((lo_x - ox) / BUCKET)), 0)
